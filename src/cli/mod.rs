@@ -1,0 +1,494 @@
+//! The `unlag` command line: argument parsing and one function per subcommand.
+//!
+//! Owns what the user sees on the terminal: tables, one-line errors, `--json` output (one JSON
+//! object on stdout). All files are written atomically. The numerical work lives in the
+//! library modules; this module only wires them together.
+
+use std::path::{Path, PathBuf};
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use serde_json::json;
+
+use crate::error::{Error, Result};
+use crate::fit::{self, Method, Options, Order, Test};
+use crate::model::{ModelFile, Source, FORMAT_VERSION};
+use crate::trace::{Columns, Trace};
+
+/// Give pressure probes back their bandwidth: fit a model from a step test, compensate.
+#[derive(Debug, Parser)]
+#[command(name = "unlag", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Fit a model to a step test. The first FILE is the estimation test; any others are
+    /// held-out validation tests (used to choose the order and reported).
+    Fit(FitArgs),
+    /// Reconstruct the reference from the probe signal with the board's compensator; adds
+    /// column `u_hat` (the reference, delayed by the model's delay).
+    Compensate(CompensateArgs),
+    /// Simulate the model's probe output from the reference; adds column `y_model`.
+    Simulate(SimulateArgs),
+    // physics subcommands (issue 6)
+}
+
+/// Column names and sample rate of the input CSV.
+#[derive(Debug, Clone, Args)]
+pub struct ColumnArgs {
+    /// Time column (seconds).
+    #[arg(long = "t", default_value = "t", value_name = "NAME")]
+    pub time_column: String,
+    /// Reference column.
+    #[arg(long = "u", default_value = "u", value_name = "NAME")]
+    pub input_column: String,
+    /// Probe column.
+    #[arg(long = "y", default_value = "y", value_name = "NAME")]
+    pub output_column: String,
+    /// Sample rate in Hz, for files without a time column.
+    #[arg(long, value_name = "HZ")]
+    pub fs: Option<f64>,
+}
+
+impl ColumnArgs {
+    fn columns(&self, require_input: bool) -> Columns {
+        Columns {
+            time: self.time_column.clone(),
+            input: self.input_column.clone(),
+            output: self.output_column.clone(),
+            sample_rate_hz: self.fs,
+            require_input,
+        }
+    }
+}
+
+/// Identification method on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// Output error (default): unbiased under measurement noise.
+    Oe,
+    /// Steiglitz-McBride iterations.
+    Sm,
+    /// The paper's direct least squares (biased by noise).
+    Arx,
+}
+
+/// Arguments of `unlag fit`.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Step-test CSV files: estimation first, then validation tests.
+    #[arg(required = true, value_name = "FILE")]
+    pub files: Vec<PathBuf>,
+    /// Where to write the model (TOML).
+    #[arg(short = 'o', long = "output", value_name = "MODEL.toml")]
+    pub output: PathBuf,
+    /// Model order: a number, or `auto` to choose.
+    #[arg(long, default_value = "auto", value_name = "N|auto")]
+    pub order: String,
+    /// Largest order tried by `--order auto`.
+    #[arg(long, default_value_t = 6, value_name = "N")]
+    pub max_order: usize,
+    /// Identification method.
+    #[arg(long, value_enum, default_value_t = MethodArg::Oe)]
+    pub method: MethodArg,
+    /// Known delay in samples (skips the delay search).
+    #[arg(long, value_name = "SAMPLES")]
+    pub delay: Option<usize>,
+    /// Column names.
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+    /// Print one JSON object instead of tables.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arithmetic of the compensator run on the host.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Arithmetic {
+    /// 32-bit float, as on a Cortex-M4F board (default).
+    F32,
+    /// 64-bit float.
+    F64,
+}
+
+/// Arguments of `unlag compensate`.
+#[derive(Debug, Args)]
+pub struct CompensateArgs {
+    /// The model file.
+    #[arg(value_name = "MODEL.toml")]
+    pub model: PathBuf,
+    /// The probe recording (CSV).
+    #[arg(value_name = "FILE")]
+    pub file: PathBuf,
+    /// Output CSV: the input columns plus `u_hat`.
+    #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
+    pub output: PathBuf,
+    /// Arithmetic of the compensator.
+    #[arg(long, value_enum, default_value_t = Arithmetic::F32)]
+    pub arithmetic: Arithmetic,
+    /// Column names.
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `unlag simulate`.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// The model file.
+    #[arg(value_name = "MODEL.toml")]
+    pub model: PathBuf,
+    /// A recording with the reference column (CSV).
+    #[arg(value_name = "FILE")]
+    pub file: PathBuf,
+    /// Output CSV: the input columns plus `y_model`.
+    #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
+    pub output: PathBuf,
+    /// Column names.
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs a parsed command line.
+///
+/// # Errors
+/// Any [`Error`]; the caller prints it and exits non-zero.
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Fit(a) => run_fit(&a),
+        Command::Compensate(a) => run_compensate(&a),
+        Command::Simulate(a) => run_simulate(&a),
+    }
+}
+
+fn name(p: &Path) -> String {
+    p.display().to_string()
+}
+
+fn pct(x: f64) -> String {
+    format!("{:.3} %", 100.0 * x)
+}
+
+fn run_fit(args: &FitArgs) -> Result<()> {
+    let order = if args.order == "auto" {
+        Order::Auto {
+            max: args.max_order,
+        }
+    } else {
+        match args.order.parse::<usize>() {
+            Ok(m) if (1..=crate::model::MAX_ORDER).contains(&m) => Order::Fixed(m),
+            _ => {
+                return Err(Error::InvalidArgument {
+                    what: "--order",
+                    message: format!(
+                        "expected 'auto' or a number 1..={}, got '{}'",
+                        crate::model::MAX_ORDER,
+                        args.order
+                    ),
+                })
+            }
+        }
+    };
+    if args.max_order == 0 || args.max_order > crate::model::MAX_ORDER {
+        return Err(Error::InvalidArgument {
+            what: "--max-order",
+            message: format!("must be 1..={}", crate::model::MAX_ORDER),
+        });
+    }
+    let method = match args.method {
+        MethodArg::Oe => Method::Oe,
+        MethodArg::Sm => Method::Sm,
+        MethodArg::Arx => Method::Arx,
+    };
+    let columns = args.columns.columns(true);
+    let traces = args
+        .files
+        .iter()
+        .map(|f| Trace::read(f, &columns))
+        .collect::<Result<Vec<_>>>()?;
+    let Some((est, val)) = traces.split_first() else {
+        return Err(Error::InvalidArgument {
+            what: "FILE",
+            message: "give at least one step test".into(),
+        });
+    };
+    for t in val {
+        let rel = (t.sample_rate_hz - est.sample_rate_hz).abs() / est.sample_rate_hz;
+        if rel > crate::trace::MAX_JITTER {
+            return Err(Error::Mismatch {
+                path: t.path.clone(),
+                message: format!(
+                    "sampled at {:.6} Hz but the estimation test {} at {:.6} Hz: resample one of them",
+                    t.sample_rate_hz,
+                    est.path.display(),
+                    est.sample_rate_hz
+                ),
+            });
+        }
+    }
+    let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
+    let tests: Vec<Test<'_>> = traces
+        .iter()
+        .zip(&names)
+        .map(|(t, n)| {
+            Ok(Test {
+                name: n,
+                u: t.input()?,
+                y: &t.y,
+            })
+        })
+        .collect::<Result<_>>()?;
+    let (est_test, val_tests) = tests.split_first().ok_or_else(|| Error::InvalidArgument {
+        what: "FILE",
+        message: "give at least one step test".into(),
+    })?;
+    let options = Options {
+        method,
+        order,
+        delay: args.delay,
+    };
+    let fitted =
+        fit::fit(est_test, val_tests, est.sample_rate_hz, &options).map_err(|e| match e {
+            // The library does not know the column's position in the file; the trace does.
+            Error::NoStep { path, reason, .. } => Error::NoStep {
+                column: est.u_column.unwrap_or(0),
+                name: columns.input.clone(),
+                path,
+                reason,
+            },
+            e => e,
+        })?;
+    let onset = fitted.report.step_onset;
+    let mut sources = vec![Source {
+        file: name(&est.path),
+        sha256: est.sha256.clone(),
+        role: "estimation".into(),
+        nrmse: fitted.nrmse_estimation,
+        noise_floor: fit::noise_floor(&est.y, onset),
+    }];
+    for ((t, test), e) in val.iter().zip(val_tests).zip(&fitted.nrmse_validation) {
+        let onset = fit::step::find_step(test.u).map_or(0, |s| s.onset);
+        sources.push(Source {
+            file: name(&t.path),
+            sha256: t.sha256.clone(),
+            role: "validation".into(),
+            nrmse: *e,
+            noise_floor: fit::noise_floor(&t.y, onset),
+        });
+    }
+    let file = ModelFile {
+        format_version: FORMAT_VERSION,
+        model: fitted.model.clone(),
+        fit: Some(fitted.report.clone()),
+        sources,
+    };
+    file.save(&args.output)?;
+    if args.json {
+        let mut v = serde_json::to_value(&file).map_err(json_err)?;
+        v["output"] = json!(name(&args.output));
+        v["dc_gain"] = json!(file.model.dc_gain());
+        println!("{v}");
+        return Ok(());
+    }
+    print_fit(&file, est, &args.output);
+    Ok(())
+}
+
+fn json_err(e: serde_json::Error) -> Error {
+    Error::Numerical {
+        context: "json".into(),
+        message: e.to_string(),
+    }
+}
+
+fn print_fit(file: &ModelFile, est: &Trace, output: &Path) {
+    let m = &file.model;
+    let Some(r) = &file.fit else { return };
+    println!(
+        "estimation test {}: {} samples at {} Hz, step onset at sample {} (t = {:.6} s)",
+        est.path.display(),
+        est.len(),
+        est.sample_rate_hz,
+        r.step_onset,
+        r.step_onset as f64 / est.sample_rate_hz
+    );
+    if !r.delay_candidates.is_empty() {
+        println!(
+            "delay search, simulation nrmse per candidate delay ({}):",
+            r.delay_selection
+        );
+        for row in r.delay_candidates.chunks(6) {
+            let cells: Vec<String> = row
+                .iter()
+                .map(|c| {
+                    let mark = if c.delay == m.delay { '*' } else { ' ' };
+                    format!("{mark}{:>4} {:>8}", c.delay, pct(c.nrmse))
+                })
+                .collect();
+            println!("  {}", cells.join("  "));
+        }
+    }
+    println!("order selection ({}):", r.order_selection);
+    println!(
+        "  {:>5} {:>6} {:>14} {:>14} {:>7}",
+        "order", "delay", "nrmse (est)", "criterion", "stable"
+    );
+    for o in &r.orders {
+        let crit = if r.order_selection.contains("held-out") {
+            pct(o.criterion)
+        } else {
+            format!("{:.1}", o.criterion)
+        };
+        let mark = if o.order == m.order() {
+            "  <- chosen"
+        } else {
+            ""
+        };
+        println!(
+            "  {:>5} {:>6} {:>14} {:>14} {:>7}{mark}",
+            o.order,
+            o.delay,
+            pct(o.nrmse_estimation),
+            crit,
+            if o.stable { "yes" } else { "no" }
+        );
+    }
+    println!(
+        "model: order {}, delay {} samples ({:.6} s), method {}",
+        m.order(),
+        m.delay,
+        m.delay as f64 / m.fs,
+        r.method
+    );
+    println!("  a = {:?}", m.a);
+    println!("  b = {:?}", m.b);
+    println!("  DC gain {:.6} (1 for a calibrated probe)", m.dc_gain());
+    if let Ok(z) = m.zeros() {
+        if let Some(z) = z.first() {
+            if z.norm() >= 1.0 {
+                println!(
+                    "  note: zero {} of B is outside the unit circle (|z| = {:.4}); the direct inverse is unstable",
+                    crate::poly::format_root(*z),
+                    z.norm()
+                );
+            }
+        }
+    }
+    println!("errors (simulation, RMS / range of y):");
+    for s in &file.sources {
+        println!(
+            "  {:<11} {:<40} nrmse {:>10}   noise floor {:>10}",
+            s.role,
+            s.file,
+            pct(s.nrmse),
+            pct(s.noise_floor)
+        );
+    }
+    println!("wrote {}", output.display());
+}
+
+fn run_compensate(args: &CompensateArgs) -> Result<()> {
+    let file = ModelFile::load(&args.model)?;
+    let trace = Trace::read(&args.file, &args.columns.columns(false))?;
+    check_rate(&file, &trace)?;
+    let m = &file.model;
+    m.check_invertible(&name(&args.model))?;
+    let u_hat = match args.arithmetic {
+        Arithmetic::F32 => m.compensate::<f32>(&trace.y)?,
+        Arithmetic::F64 => m.compensate::<f64>(&trace.y)?,
+    };
+    // Error against the recorded reference, aligned by the delay, when there is one.
+    let error = trace.u.as_ref().map(|u| {
+        let d = m.delay.min(u.len());
+        let aligned: Vec<f64> = u[..u.len() - d].to_vec();
+        let est = &u_hat[d..];
+        let raw = &trace.y[d..];
+        (fit::nrmse_of(&aligned, est), fit::nrmse_of(&aligned, raw))
+    });
+    let bytes = trace.to_csv_with(&[("u_hat", &u_hat)])?;
+    crate::trace::write_atomically(&args.output, &bytes)?;
+    let arith = match args.arithmetic {
+        Arithmetic::F32 => "f32",
+        Arithmetic::F64 => "f64",
+    };
+    if args.json {
+        let v = json!({
+            "output": name(&args.output),
+            "samples": trace.len(),
+            "delay": m.delay,
+            "delay_s": m.delay as f64 / m.fs,
+            "arithmetic": arith,
+            "nrmse_u_hat": error.map(|e| e.0),
+            "nrmse_raw": error.map(|e| e.1),
+        });
+        println!("{v}");
+        return Ok(());
+    }
+    println!(
+        "compensated {} samples of {} ({arith}); u_hat is the reference delayed by {} samples ({:.6} s)",
+        trace.len(),
+        trace.path.display(),
+        m.delay,
+        m.delay as f64 / m.fs
+    );
+    if let Some((e, raw)) = error {
+        println!(
+            "error against the recorded reference (RMS / range, delay-aligned): u_hat {}, raw probe {}",
+            pct(e),
+            pct(raw)
+        );
+    }
+    println!("wrote {}", args.output.display());
+    Ok(())
+}
+
+fn check_rate(file: &ModelFile, trace: &Trace) -> Result<()> {
+    let rel = (trace.sample_rate_hz - file.model.fs).abs() / file.model.fs;
+    if rel > crate::trace::MAX_JITTER {
+        return Err(Error::Mismatch {
+            path: trace.path.clone(),
+            message: format!(
+                "sampled at {:.6} Hz but the model is for {:.6} Hz",
+                trace.sample_rate_hz, file.model.fs
+            ),
+        });
+    }
+    Ok(())
+}
+
+fn run_simulate(args: &SimulateArgs) -> Result<()> {
+    let file = ModelFile::load(&args.model)?;
+    let trace = Trace::read(&args.file, &args.columns.columns(true))?;
+    check_rate(&file, &trace)?;
+    let u = trace.input()?;
+    let y_model = file.model.simulate(u);
+    let error = fit::nrmse_of(&trace.y, &y_model);
+    let bytes = trace.to_csv_with(&[("y_model", &y_model)])?;
+    crate::trace::write_atomically(&args.output, &bytes)?;
+    if args.json {
+        let v = json!({
+            "output": name(&args.output),
+            "samples": trace.len(),
+            "nrmse": error,
+        });
+        println!("{v}");
+        return Ok(());
+    }
+    println!(
+        "simulated {} samples of {}: model against measurement nrmse {}",
+        trace.len(),
+        trace.path.display(),
+        pct(error)
+    );
+    println!("wrote {}", args.output.display());
+    Ok(())
+}

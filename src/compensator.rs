@@ -1,0 +1,494 @@
+//! The per-sample inverse compensator: the only code that runs for every ADC sample.
+//!
+//! This module owns the streaming reconstruction of the reference pressure from the probe's
+//! output, the paper's eq. 7, in `no_std` with no allocation and no panic path. The same code
+//! runs on the host (`unlag compensate`) and on the board.
+//!
+//! # Sign convention (stated once, used everywhere)
+//!
+//! The probe model is
+//!
+//! ```text
+//! y[k] = sum_{i=0..m} b[i] u[k-i-d]  -  sum_{i=1..m} a[i] y[k-i]
+//!
+//!         b0 z^-d + b1 z^-(1+d) + ... + bm z^-(m+d)
+//! H(z) = -------------------------------------------        (paper eq. 2)
+//!              1 + a1 z^-1 + ... + am z^-m
+//! ```
+//!
+//! with `a = [a1..am]` (no leading one) and `b = [b0..bm]`. Solving for the input gives the
+//! inverse, which reconstructs the reference `d` samples late:
+//!
+//! ```text
+//! u_hat[k-d] = ( y[k] + sum_{i=1..m} a[i] y[k-i]  -  sum_{i=1..m} b[i] u_hat[k-d-i] ) / b0
+//! ```
+//!
+//! The division by `b0` is done once, when the coefficients are built; the per-sample path only
+//! multiplies and adds. Coefficients live apart from state ([`InverseCoefficients`] and
+//! [`InverseState`]) so one validated set can serve several channels and be swapped between
+//! samples; [`Compensator`] bundles the two for the common one-channel case.
+//!
+//! # Capacity
+//!
+//! The model order capacity is the const generic `M`; a model of lower order is zero-padded.
+//! A model of higher order is refused when the coefficients are built.
+//!
+//! # Example
+//!
+//! ```
+//! use unlag::compensator::Compensator;
+//! // y[k] = 0.5 u[k-2] + 0.5 y[k-1]: a first-order lag with a delay of two samples.
+//! let mut c = Compensator::<f32, 2>::new(&[0.5], &[-0.5], 0.0).unwrap();
+//! let u = [0.0f32, 1.0, 1.0, 1.0, 1.0, 1.0];
+//! let mut y_prev = 0.0f32;
+//! let mut out = [0.0f32; 6];
+//! for (k, o) in out.iter_mut().enumerate() {
+//!     let u_in = if k >= 2 { u[k - 2] } else { 0.0 };
+//!     let y = 0.5 * u_in + 0.5 * y_prev;
+//!     y_prev = y;
+//!     *o = c.push(y);
+//! }
+//! // The output is the input, two samples late.
+//! assert_eq!(out, [0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
+//! ```
+#![deny(
+    clippy::indexing_slicing,
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::unreachable,
+    clippy::todo,
+    clippy::unimplemented
+)]
+
+use core::fmt;
+use core::ops::{Add, Mul, Sub};
+
+/// The sample types the compensator runs in: `f32` on the board, `f64` on the host.
+pub trait Sample:
+    Copy + PartialOrd + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + private::Sealed
+{
+    /// Additive identity.
+    const ZERO: Self;
+    /// Multiplicative identity.
+    const ONE: Self;
+    /// Converts from the host's `f64` (coefficients are designed in f64).
+    fn from_f64(x: f64) -> Self;
+    /// Widens to `f64`.
+    fn to_f64(self) -> f64;
+}
+
+impl Sample for f32 {
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
+    #[allow(clippy::cast_possible_truncation)]
+    fn from_f64(x: f64) -> Self {
+        x as f32
+    }
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+impl Sample for f64 {
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
+    fn from_f64(x: f64) -> Self {
+        x
+    }
+    fn to_f64(self) -> f64 {
+        self
+    }
+}
+
+mod private {
+    pub trait Sealed {}
+    impl Sealed for f32 {}
+    impl Sealed for f64 {}
+}
+
+/// Why a coefficient set was refused. Checked once, when the coefficients are built; a built
+/// [`InverseCoefficients`] is valid and the per-sample path cannot fail.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub enum InverseError {
+    /// `a` has more than `M` entries or `b` more than `M + 1`.
+    OrderTooHigh {
+        /// The model's order.
+        order: usize,
+        /// The compensator's capacity `M`.
+        capacity: usize,
+    },
+    /// `b` is empty: the model has no numerator.
+    EmptyNumerator,
+    /// A coefficient is NaN or infinite.
+    NonFinite,
+    /// `b0` is zero (or so small that `1/b0` overflows): the inverse would divide by it.
+    /// Fold leading zeros of `b` into the delay instead.
+    LeadingZero,
+    /// `B(z)` has a zero on or outside the unit circle, so the inverse `A(z)/B(z)` is unstable.
+    /// Found by the Schur-Cohn test; `reflection` is the first reflection coefficient with
+    /// magnitude of at least one.
+    UnstableInverse {
+        /// The offending reflection coefficient (|k| >= 1 means a zero on or outside |z| = 1).
+        reflection: f64,
+    },
+}
+
+impl fmt::Display for InverseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::OrderTooHigh { order, capacity } => write!(
+                f,
+                "model order {order} exceeds the compensator capacity {capacity}"
+            ),
+            Self::EmptyNumerator => write!(f, "the model has no numerator coefficients b"),
+            Self::NonFinite => write!(f, "a model coefficient is NaN or infinite"),
+            Self::LeadingZero => write!(
+                f,
+                "b0 is zero: the direct inverse would divide by it (fold leading zeros into the delay)"
+            ),
+            Self::UnstableInverse { reflection } => write!(
+                f,
+                "B(z) has a zero on or outside the unit circle (Schur-Cohn reflection coefficient {reflection:.6}): the direct inverse is unstable"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for InverseError {}
+
+#[cfg(feature = "defmt")]
+impl defmt::Format for InverseError {
+    fn format(&self, f: defmt::Formatter) {
+        match self {
+            Self::OrderTooHigh { order, capacity } => {
+                defmt::write!(f, "OrderTooHigh({=usize} > {=usize})", order, capacity)
+            }
+            Self::EmptyNumerator => defmt::write!(f, "EmptyNumerator"),
+            Self::NonFinite => defmt::write!(f, "NonFinite"),
+            Self::LeadingZero => defmt::write!(f, "LeadingZero"),
+            Self::UnstableInverse { reflection } => {
+                defmt::write!(f, "UnstableInverse(k={=f64})", reflection)
+            }
+        }
+    }
+}
+
+/// Largest order the Schur-Cohn test handles without allocation.
+pub const MAX_TEST_ORDER: usize = 32;
+
+/// Schur-Cohn (step-down) test: are all zeros of `p[0] + p[1] z^-1 + ... + p[n] z^-n`
+/// strictly inside the unit circle?
+///
+/// Returns `Ok(())` when they are, or the first reflection coefficient of magnitude `>= 1`.
+/// Runs in `O(n^2)` with no allocation, so a board can check a coefficient set it received.
+/// Polynomials longer than [`MAX_TEST_ORDER`]` + 1` are refused as unstable (reflection `inf`).
+///
+/// # Errors
+/// The offending reflection coefficient, when a zero lies on or outside `|z| = 1`.
+pub fn schur_stable(p: &[f64]) -> Result<(), f64> {
+    let mut buf = [0.0f64; MAX_TEST_ORDER + 1];
+    let mut tmp = [0.0f64; MAX_TEST_ORDER + 1];
+    if p.len() > buf.len() {
+        return Err(f64::INFINITY);
+    }
+    let mut n = 0usize;
+    for (dst, src) in buf.iter_mut().zip(p) {
+        *dst = *src;
+        n += 1;
+    }
+    // Drop trailing zeros (they are zeros at z = 0, which are inside).
+    while n > 1 && buf.get(n - 1).copied() == Some(0.0) {
+        n -= 1;
+    }
+    while n > 1 {
+        let lead = buf.first().copied().unwrap_or(0.0);
+        let last = buf.get(n - 1).copied().unwrap_or(0.0);
+        if lead == 0.0 || !lead.is_finite() {
+            return Err(f64::INFINITY);
+        }
+        let k = last / lead;
+        if !k.is_finite() || k.abs() >= 1.0 {
+            return Err(k);
+        }
+        // p_new[i] = (p[i] - k p[n-1-i]) / (1 - k^2), i = 0..n-2
+        let scale = 1.0 - k * k;
+        for (i, t) in tmp.iter_mut().enumerate().take(n - 1) {
+            let pi = buf.get(i).copied().unwrap_or(0.0);
+            let pr = buf.get(n - 1 - i).copied().unwrap_or(0.0);
+            *t = (pi - k * pr) / scale;
+        }
+        for (dst, src) in buf.iter_mut().zip(tmp.iter()).take(n - 1) {
+            *dst = *src;
+        }
+        n -= 1;
+    }
+    Ok(())
+}
+
+/// Validated coefficients of the direct inverse (paper eq. 7), pre-divided by `b0`.
+///
+/// Recurrence, with `g = 1/b0`:
+///
+/// ```text
+/// u_hat[k] = g y[k] + sum_i (g a[i]) y[k-i] - sum_i (b[i]/b0) u_hat[k-i]
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InverseCoefficients<T, const M: usize> {
+    /// `1/b0`.
+    g: T,
+    /// `a[i]/b0`, i = 1..M (zero-padded).
+    num: [T; M],
+    /// `b[i]/b0`, i = 1..M (zero-padded).
+    den: [T; M],
+    /// DC gain of the inverse, `(1 + sum a) / sum b`, for starting in equilibrium.
+    dc_gain: T,
+}
+
+impl<T: Sample, const M: usize> InverseCoefficients<T, M> {
+    /// Builds the inverse of the model `b = [b0..bm]`, `a = [a1..am]` (the crate's sign
+    /// convention, see the module docs). Coefficients are taken in `f64`, as designed on the
+    /// host, and rounded to `T` once.
+    ///
+    /// # Errors
+    /// [`InverseError`] when the order exceeds `M`, a coefficient is not finite, `b0` is zero,
+    /// or `B(z)` has a zero on or outside the unit circle.
+    pub fn new(b: &[f64], a: &[f64]) -> Result<Self, InverseError> {
+        let order = a.len().max(b.len().saturating_sub(1));
+        if a.len() > M || b.len() > M + 1 {
+            return Err(InverseError::OrderTooHigh { order, capacity: M });
+        }
+        let Some((&b0, b_tail)) = b.split_first() else {
+            return Err(InverseError::EmptyNumerator);
+        };
+        if b.iter().chain(a).any(|c| !c.is_finite()) {
+            return Err(InverseError::NonFinite);
+        }
+        let g = 1.0 / b0;
+        if b0 == 0.0 || !g.is_finite() {
+            return Err(InverseError::LeadingZero);
+        }
+        schur_stable(b).map_err(|reflection| InverseError::UnstableInverse { reflection })?;
+        let mut num = [T::ZERO; M];
+        let mut den = [T::ZERO; M];
+        for (n, ai) in num.iter_mut().zip(a) {
+            *n = T::from_f64(ai * g);
+        }
+        for (d, bi) in den.iter_mut().zip(b_tail) {
+            *d = T::from_f64(bi * g);
+        }
+        let sum_a: f64 = a.iter().sum();
+        let sum_b: f64 = b.iter().sum();
+        // B has no zero at z = 1 (it passed the stability test), so sum_b != 0.
+        let dc = (1.0 + sum_a) / sum_b;
+        Ok(Self {
+            g: T::from_f64(g),
+            num,
+            den,
+            dc_gain: T::from_f64(if dc.is_finite() { dc } else { 0.0 }),
+        })
+    }
+
+    /// Reconstructs one sample: takes the probe's `y[k]`, returns `u_hat[k-d]`.
+    ///
+    /// Panic-free and allocation-free; `2M + 1` multiplies.
+    #[inline]
+    pub fn process(&self, state: &mut InverseState<T, M>, y: T) -> T {
+        let mut acc = self.g * y;
+        for (c, x) in self.num.iter().zip(state.y.iter()) {
+            acc = acc + *c * *x;
+        }
+        for (c, u) in self.den.iter().zip(state.u.iter()) {
+            acc = acc - *c * *u;
+        }
+        shift_in(&mut state.y, y);
+        shift_in(&mut state.u, acc);
+        acc
+    }
+
+    /// Processes a block in place (`y` in, `u_hat` out), sample by sample.
+    #[inline]
+    pub fn process_in_place(&self, state: &mut InverseState<T, M>, buf: &mut [T]) {
+        for x in buf.iter_mut() {
+            *x = self.process(state, *x);
+        }
+    }
+
+    /// The state of a compensator that has seen the constant probe value `y0` forever:
+    /// past outputs equal `y0` divided by the model's DC gain. Starting here avoids the start-up
+    /// transient of a zero state when the trace starts at a non-zero pressure.
+    #[must_use]
+    pub fn equilibrium(&self, y0: T) -> InverseState<T, M> {
+        InverseState {
+            y: [y0; M],
+            u: [self.dc_gain * y0; M],
+        }
+    }
+
+    /// DC gain of the inverse, `(1 + sum a) / sum b` (1 for a calibrated probe).
+    #[must_use]
+    pub fn dc_gain(&self) -> T {
+        self.dc_gain
+    }
+}
+
+/// Past inputs and outputs of one compensator channel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InverseState<T, const M: usize> {
+    /// `y[k-1], ..., y[k-M]`.
+    y: [T; M],
+    /// `u_hat[k-1], ..., u_hat[k-M]`.
+    u: [T; M],
+}
+
+impl<T: Sample, const M: usize> Default for InverseState<T, M> {
+    fn default() -> Self {
+        Self {
+            y: [T::ZERO; M],
+            u: [T::ZERO; M],
+        }
+    }
+}
+
+/// Pushes `x` at the front of a fixed history, dropping the oldest value.
+#[inline(always)]
+fn shift_in<T: Copy, const M: usize>(h: &mut [T; M], x: T) {
+    let mut carry = x;
+    for slot in h.iter_mut() {
+        core::mem::swap(slot, &mut carry);
+    }
+}
+
+/// One channel: validated coefficients and their state.
+///
+/// `push(y)` takes the probe's sample and returns the reconstructed reference, `d` samples late.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Compensator<T, const M: usize> {
+    coefficients: InverseCoefficients<T, M>,
+    state: InverseState<T, M>,
+}
+
+impl<T: Sample, const M: usize> Compensator<T, M> {
+    /// Builds a compensator for `b = [b0..bm]`, `a = [a1..am]` that starts in equilibrium with
+    /// the probe reading `y0`.
+    ///
+    /// # Errors
+    /// See [`InverseCoefficients::new`].
+    pub fn new(b: &[f64], a: &[f64], y0: T) -> Result<Self, InverseError> {
+        let coefficients = InverseCoefficients::new(b, a)?;
+        Ok(Self::from_coefficients(coefficients, y0))
+    }
+
+    /// Wraps already validated coefficients, starting in equilibrium with `y0`.
+    #[must_use]
+    pub fn from_coefficients(coefficients: InverseCoefficients<T, M>, y0: T) -> Self {
+        Self {
+            state: coefficients.equilibrium(y0),
+            coefficients,
+        }
+    }
+
+    /// One ADC sample in, one reconstructed reference sample (`d` samples late) out.
+    #[inline]
+    pub fn push(&mut self, y: T) -> T {
+        self.coefficients.process(&mut self.state, y)
+    }
+
+    /// Swaps to a new coefficient set between two samples, keeping the state (bumpless when
+    /// the models are close).
+    pub fn set_coefficients(&mut self, coefficients: InverseCoefficients<T, M>) {
+        self.coefficients = coefficients;
+    }
+
+    /// Restarts in equilibrium with the probe reading `y0`.
+    pub fn reset(&mut self, y0: T) {
+        self.state = self.coefficients.equilibrium(y0);
+    }
+
+    /// The coefficients in use.
+    #[must_use]
+    pub fn coefficients(&self) -> &InverseCoefficients<T, M> {
+        &self.coefficients
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn schur_accepts_inside_and_rejects_outside() {
+        // (1 - 0.5 z^-1)(1 + 0.9 z^-1) = 1 + 0.4 z^-1 - 0.45 z^-2: zeros 0.5, -0.9.
+        assert!(schur_stable(&[1.0, 0.4, -0.45]).is_ok());
+        // Zero at 2.1: (1 - 2.1 z^-1).
+        assert!(schur_stable(&[1.0, -2.1]).is_err());
+        // Zero on the circle.
+        assert!(schur_stable(&[1.0, -1.0]).is_err());
+        // Complex pair at radius 0.99.
+        let r: f64 = 0.99;
+        let th: f64 = 0.3;
+        assert!(schur_stable(&[1.0, -2.0 * r * th.cos(), r * r]).is_ok());
+        let r: f64 = 1.01;
+        assert!(schur_stable(&[1.0, -2.0 * r * th.cos(), r * r]).is_err());
+        // Leading-coefficient scaling does not matter.
+        assert!(schur_stable(&[0.1, 0.04, -0.045]).is_ok());
+    }
+
+    #[test]
+    fn refuses_bad_coefficients() {
+        assert_eq!(
+            InverseCoefficients::<f32, 2>::new(&[0.0, 1.0], &[0.1]),
+            Err(InverseError::LeadingZero)
+        );
+        assert_eq!(
+            InverseCoefficients::<f32, 1>::new(&[1.0, 0.1, 0.1], &[0.1]),
+            Err(InverseError::OrderTooHigh {
+                order: 2,
+                capacity: 1
+            })
+        );
+        assert_eq!(
+            InverseCoefficients::<f32, 2>::new(&[1.0, f64::NAN], &[0.1]),
+            Err(InverseError::NonFinite)
+        );
+        assert!(matches!(
+            InverseCoefficients::<f32, 2>::new(&[1.0, -2.1], &[0.1]),
+            Err(InverseError::UnstableInverse { .. })
+        ));
+        assert_eq!(
+            InverseCoefficients::<f32, 2>::new(&[], &[]),
+            Err(InverseError::EmptyNumerator)
+        );
+    }
+
+    #[test]
+    fn inverts_a_second_order_model_exactly() {
+        // y[k] = 0.2 u[k] + 0.1 u[k-1] - (-1.2 y[k-1] + 0.5 y[k-2])
+        let b = [0.2, 0.1, 0.0];
+        let a = [-1.2, 0.5];
+        let c = InverseCoefficients::<f64, 4>::new(&b, &a).unwrap();
+        let mut s = InverseState::default();
+        let u: [f64; 8] = [0.0, 1.0, 1.0, 0.5, -0.25, 2.0, 0.0, 0.0];
+        let (mut y1, mut y2, mut u1) = (0.0, 0.0, 0.0);
+        for &uk in &u {
+            let y = 0.2 * uk + 0.1 * u1 + 1.2 * y1 - 0.5 * y2;
+            y2 = y1;
+            y1 = y;
+            u1 = uk;
+            let uh = c.process(&mut s, y);
+            assert!((uh - uk).abs() < 1e-12, "{uh} vs {uk}");
+        }
+    }
+
+    #[test]
+    fn equilibrium_start_has_no_transient() {
+        // DC gain 0.9: y settles at 0.9 for u = 1.
+        let b = [0.3, 0.15];
+        let a = [-0.5];
+        let mut c = Compensator::<f32, 2>::new(&b, &a, 0.9).unwrap();
+        for _ in 0..5 {
+            assert!((c.push(0.9) - 1.0).abs() < 1e-6);
+        }
+    }
+}

@@ -1,0 +1,216 @@
+//! Host-side errors: one enum, one clear message each, naming the file, line and column
+//! where the problem is. The CLI prints the message and exits non-zero; nothing panics.
+//!
+//! Line numbers are 1-based lines of the file (the header is line 1); column numbers are
+//! 1-based field positions, given with the column's name.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong on the host side.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// The file could not be read or written.
+    #[error("{path}: {action}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What was being done ("cannot read", "cannot write").
+        action: &'static str,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// The file has no header, or a header and no data rows.
+    #[error("{path}:{line}: the file is empty ({what})")]
+    Empty {
+        /// The file.
+        path: PathBuf,
+        /// Where the data should have started.
+        line: u64,
+        /// What is missing.
+        what: &'static str,
+    },
+    /// A required column is not in the header.
+    #[error("{path}:1: missing column '{column}' (the header has: {found}){hint}")]
+    MissingColumn {
+        /// The file.
+        path: PathBuf,
+        /// The column asked for.
+        column: String,
+        /// The header's column names, comma-separated.
+        found: String,
+        /// How to fix it.
+        hint: &'static str,
+    },
+    /// A field is not a number.
+    #[error("{path}:{line}:{column}: '{value}' in column '{name}' is not a number")]
+    NotANumber {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: u64,
+        /// 1-based field position.
+        column: usize,
+        /// The column's name.
+        name: String,
+        /// The text found.
+        value: String,
+    },
+    /// A field is NaN or infinite.
+    #[error("{path}:{line}:{column}: value '{value}' in column '{name}' is not finite")]
+    NonFinite {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: u64,
+        /// 1-based field position.
+        column: usize,
+        /// The column's name.
+        name: String,
+        /// The text found.
+        value: String,
+    },
+    /// A row has the wrong number of fields, or the CSV is malformed.
+    #[error("{path}:{line}: {message}")]
+    Malformed {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: u64,
+        /// What the CSV reader said.
+        message: String,
+    },
+    /// Time does not increase from one row to the next.
+    #[error("{path}:{line}:{column}: time in column '{name}' does not increase ({previous} then {value})")]
+    TimeNotIncreasing {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: u64,
+        /// 1-based field position.
+        column: usize,
+        /// The column's name.
+        name: String,
+        /// The previous time.
+        previous: f64,
+        /// This row's time.
+        value: f64,
+    },
+    /// The time step varies by more than 1 %.
+    #[error("{path}:{line}:{column}: time step {step:.6e} s in column '{name}' differs from the mean step {nominal:.6e} s by {percent:.2} % (more than 1 % jitter: resample the trace or give --fs)")]
+    NonUniformTime {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: u64,
+        /// 1-based field position.
+        column: usize,
+        /// The column's name.
+        name: String,
+        /// The offending step.
+        step: f64,
+        /// The mean step.
+        nominal: f64,
+        /// Relative deviation in percent.
+        percent: f64,
+    },
+    /// The trace has too few samples for what was asked.
+    #[error("{path}: {samples} samples is too short for order {order} and delay {delay}: at least {needed} are needed")]
+    TooShort {
+        /// The file.
+        path: PathBuf,
+        /// Samples in the trace.
+        samples: usize,
+        /// Model order asked for.
+        order: usize,
+        /// Delay in samples.
+        delay: usize,
+        /// Samples needed.
+        needed: usize,
+    },
+    /// The ADC saturated: the signal sits flat at its extreme value, entered with a jump.
+    #[error("{path}:{line}:{column}: column '{name}' looks clipped: {run} samples flat at its {which} value {value} from this line on (the ADC saturated; re-record with more range)")]
+    Clipped {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line where the flat run starts.
+        line: u64,
+        /// 1-based field position.
+        column: usize,
+        /// The column's name.
+        name: String,
+        /// Length of the flat run.
+        run: usize,
+        /// "largest" or "smallest".
+        which: &'static str,
+        /// The clipped value.
+        value: f64,
+    },
+    /// No step was found in the reference.
+    #[error("{path}: no step found in column {column} ('{name}'): {reason}")]
+    NoStep {
+        /// The file.
+        path: PathBuf,
+        /// 1-based field position.
+        column: usize,
+        /// The column's name.
+        name: String,
+        /// Why.
+        reason: String,
+    },
+    /// Traces that must match do not.
+    #[error("{path}: {message}")]
+    Mismatch {
+        /// The file that does not match.
+        path: PathBuf,
+        /// What differs.
+        message: String,
+    },
+    /// A command-line value is out of range.
+    #[error("invalid {what}: {message}")]
+    InvalidArgument {
+        /// Which argument.
+        what: &'static str,
+        /// Why.
+        message: String,
+    },
+    /// The model file is not valid.
+    #[error("{path}: {message}")]
+    Model {
+        /// The model file.
+        path: PathBuf,
+        /// What is wrong (for TOML syntax errors, with line and column).
+        message: String,
+    },
+    /// A fitted or loaded model is unstable (a pole on or outside the unit circle).
+    #[error("{context}: the model is unstable: pole {pole} has |z| = {radius:.6} >= 1")]
+    UnstableModel {
+        /// Which model.
+        context: String,
+        /// The pole, as text.
+        pole: String,
+        /// Its magnitude.
+        radius: f64,
+    },
+    /// The model cannot be inverted directly.
+    #[error("{context}: the direct inverse is unstable: zero {zero} of B(z) has |z| = {radius:.6} >= 1 (a non-minimum-phase model; a stable inverse design is needed)")]
+    UnstableInverse {
+        /// Which model.
+        context: String,
+        /// The zero, as text.
+        zero: String,
+        /// Its magnitude.
+        radius: f64,
+    },
+    /// A numerical step failed.
+    #[error("{context}: {message}")]
+    Numerical {
+        /// Where.
+        context: String,
+        /// What happened.
+        message: String,
+    },
+}
+
+/// Host-side result.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,136 @@
+//! The paper's direct least squares on the ARX equation (its eq. 1-5), solved by a
+//! column-pivoted QR factorisation (faer), never by forming and inverting the normal equations.
+//!
+//! Equation error: `y[k] + sum a[i] y[k-i] = sum b[i] u[k-d-i] + e[k]`. Unbiased only when the
+//! noise is white *in the equation*, which measurement noise is not: with noise on `y` and
+//! `fs >> fn` the estimate is strongly biased (see the tests in `host-tests/fit.rs`). That is
+//! why it is not the default; it is also the starting point of the noise-robust methods.
+
+use faer::linalg::solvers::SolveLstsq;
+use faer::Mat;
+
+use crate::error::{Error, Result};
+
+/// One data set for a regression: input and output deviations, zero before the first sample.
+#[derive(Debug, Clone, Copy)]
+pub struct Data<'a> {
+    /// Input (reference) deviations.
+    pub u: &'a [f64],
+    /// Output (probe) deviations.
+    pub y: &'a [f64],
+}
+
+/// Parameters `(a, b)` in the crate's convention.
+pub type Params = (Vec<f64>, Vec<f64>);
+
+/// Solves `min || X theta - t ||` by column-pivoted QR and checks the rank.
+///
+/// # Errors
+/// [`Error::Numerical`] when `X` is rank deficient (the data do not determine the parameters).
+pub fn lstsq(x: &Mat<f64>, t: &Mat<f64>, context: &str) -> Result<Vec<f64>> {
+    if x.nrows() < x.ncols() {
+        return Err(Error::Numerical {
+            context: context.into(),
+            message: format!(
+                "{} equations for {} unknowns: the data are too short",
+                x.nrows(),
+                x.ncols()
+            ),
+        });
+    }
+    let qr = x.col_piv_qr();
+    let r = qr.thin_R();
+    let n = r.ncols().min(r.nrows());
+    let d0 = if n > 0 { r[(0, 0)].abs() } else { 0.0 };
+    let dn = if n > 0 { r[(n - 1, n - 1)].abs() } else { 0.0 };
+    if d0.is_nan() || d0 <= 0.0 || dn.is_nan() || dn <= d0 * 1e-14 {
+        return Err(Error::Numerical {
+            context: context.into(),
+            message: "the regression is rank deficient: the data do not excite the model (is there a step?)".into(),
+        });
+    }
+    let sol = qr.solve_lstsq(t);
+    let theta: Vec<f64> = (0..x.ncols()).map(|i| sol[(i, 0)]).collect();
+    if theta.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Numerical {
+            context: context.into(),
+            message: "least squares gave a non-finite solution".into(),
+        });
+    }
+    Ok(theta)
+}
+
+/// The ARX regression matrix (rows `k >= m + d`, the paper's eq. 4) stacked over data sets:
+/// columns `-y[k-1..k-m]`, then `u[k-d..k-d-nb+1]`; target `y[k]`. The paper has `nb = m + 1`.
+#[must_use]
+pub fn regression(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> (Mat<f64>, Mat<f64>) {
+    let start = m.max(nb.saturating_sub(1)) + d;
+    let rows: Vec<(usize, usize)> = sets
+        .iter()
+        .enumerate()
+        .flat_map(|(s, data)| (start..data.y.len().min(data.u.len())).map(move |k| (s, k)))
+        .collect();
+    let cols = m + nb;
+    let x = Mat::<f64>::from_fn(rows.len(), cols, |r, c| {
+        let (s, k) = rows[r];
+        let data = &sets[s];
+        if c < m {
+            -data.y[k - 1 - c]
+        } else {
+            data.u[k - d - (c - m)]
+        }
+    });
+    let t = Mat::<f64>::from_fn(rows.len(), 1, |r, _| {
+        let (s, k) = rows[r];
+        sets[s].y[k]
+    });
+    (x, t)
+}
+
+/// Direct least squares of order `m` with delay `d` (the paper's eq. 5, by QR).
+///
+/// # Errors
+/// [`Error::Numerical`] when the data are too short or do not determine the parameters.
+pub fn fit(sets: &[Data<'_>], m: usize, d: usize) -> Result<Params> {
+    fit_nb(sets, m, m + 1, d)
+}
+
+/// Direct least squares with `nb` numerator coefficients `b0..b(nb-1)`.
+///
+/// # Errors
+/// As [`fit`].
+pub fn fit_nb(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> Result<Params> {
+    let (x, t) = regression(sets, m, nb, d);
+    let theta = lstsq(&x, &t, "arx")?;
+    Ok(split(&theta, m))
+}
+
+/// Splits `[a1..am, b0..bm]`.
+#[must_use]
+pub fn split(theta: &[f64], m: usize) -> Params {
+    (theta[..m].to_vec(), theta[m..].to_vec())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::filter;
+
+    #[test]
+    fn recovers_a_noise_free_model_exactly() {
+        let (a, b) = (vec![-1.6, 0.7], vec![0.05, 0.03, 0.02]);
+        let u: Vec<f64> = (0..300).map(|k| if k >= 20 { 1.0 } else { 0.0 }).collect();
+        let y = filter(&b, &a, 4, &u);
+        let (ah, bh) = fit(&[Data { u: &u, y: &y }], 2, 4).unwrap();
+        for (x, t) in ah.iter().chain(&bh).zip(a.iter().chain(&b)) {
+            assert!((x - t).abs() < 1e-10 * t.abs(), "{x} vs {t}");
+        }
+    }
+
+    #[test]
+    fn refuses_data_without_excitation() {
+        let u = vec![0.0; 100];
+        let y = vec![0.0; 100];
+        assert!(fit(&[Data { u: &u, y: &y }], 2, 0).is_err());
+    }
+}

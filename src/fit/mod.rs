@@ -1,0 +1,401 @@
+//! Fitting a probe model to step tests: step and delay, order, coefficients.
+//!
+//! This module owns the identification loop of the paper (section 2.2), made robust to noise:
+//!
+//! 1. [`step`]: locate the step in the reference and the noise level of each channel.
+//! 2. Delay: for each candidate `d`, fit a model and measure its *simulation* error; the delay
+//!    is the largest `d` whose loss is the lowest (within the loss's statistical spread). A
+//!    threshold on the raw probe signal reads the delay late, because a second-order line
+//!    starts as `t^2`; the loss over delays does not. The table of losses is the evidence and
+//!    is stored in the model file.
+//! 3. Coefficients, by [`Method`]: output error (default), Steiglitz-McBride, or the paper's
+//!    direct least squares ([`arx`]).
+//! 4. Order: fixed, or chosen automatically from held-out tests (the other files given), or,
+//!    with one test only, by the Bayesian information criterion. The table is returned.
+//!
+//! Signals are fitted as deviations from their pre-step levels, which matches a model that
+//! starts in equilibrium.
+
+pub mod arx;
+pub mod oe;
+pub mod step;
+
+use crate::error::{Error, Result};
+use crate::model::{DelayRow, FitReport, Model, OrderRow};
+use arx::Data;
+
+/// Identification method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Method {
+    /// Output error (simulation error) by Levenberg-Marquardt from Steiglitz-McBride: unbiased
+    /// under white measurement noise. The default.
+    #[default]
+    Oe,
+    /// Steiglitz-McBride iterations only.
+    Sm,
+    /// The paper's direct least squares on the ARX equation (eq. 5). Biased by measurement
+    /// noise; kept for comparison with the paper.
+    Arx,
+}
+
+impl Method {
+    /// Name used in files and on the command line.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Oe => "oe",
+            Self::Sm => "sm",
+            Self::Arx => "arx",
+        }
+    }
+}
+
+/// How to choose the order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Order {
+    /// Try `1..=max` and choose.
+    Auto {
+        /// Largest order tried.
+        max: usize,
+    },
+    /// Use this order.
+    Fixed(usize),
+}
+
+impl Default for Order {
+    fn default() -> Self {
+        Self::Auto { max: 6 }
+    }
+}
+
+/// Fit options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Options {
+    /// Identification method.
+    pub method: Method,
+    /// Order choice.
+    pub order: Order,
+    /// A known delay in samples (skips the delay search).
+    pub delay: Option<usize>,
+}
+
+/// One test's signals for fitting.
+#[derive(Debug, Clone, Copy)]
+pub struct Test<'a> {
+    /// Name for messages (the file).
+    pub name: &'a str,
+    /// Reference.
+    pub u: &'a [f64],
+    /// Probe output.
+    pub y: &'a [f64],
+}
+
+/// What a fit returns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fitted {
+    /// The model.
+    pub model: Model,
+    /// How it was found (tables included).
+    pub report: FitReport,
+    /// Simulation error on the estimation test.
+    pub nrmse_estimation: f64,
+    /// Simulation error on each validation test, in the order given.
+    pub nrmse_validation: Vec<f64>,
+}
+
+/// Normalised simulation error of `model` on a test: `RMS(y - y_model) / range(y)`, with the
+/// model started in equilibrium with the first reference sample.
+#[must_use]
+pub fn nrmse(model: &Model, u: &[f64], y: &[f64]) -> f64 {
+    let ym = model.simulate(u);
+    nrmse_of(y, &ym)
+}
+
+/// `RMS(y - y_model) / range(y)`.
+#[must_use]
+pub fn nrmse_of(y: &[f64], ym: &[f64]) -> f64 {
+    let n = y.len().min(ym.len());
+    if n == 0 {
+        return f64::NAN;
+    }
+    let rms = (y
+        .iter()
+        .zip(ym)
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum::<f64>()
+        / n as f64)
+        .sqrt();
+    let (lo, hi) = y
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(*v), h.max(*v))
+        });
+    rms / (hi - lo)
+}
+
+/// Noise floor of the probe channel: noise RMS / range(y). The noise is measured before the
+/// step when there are at least 20 samples there, else from first differences of the tail.
+#[must_use]
+pub fn noise_floor(y: &[f64], onset: usize) -> f64 {
+    let (lo, hi) = y
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(*v), h.max(*v))
+        });
+    let sigma = if onset >= 20 {
+        step::mean_std(&y[..onset]).1
+    } else {
+        step::noise_std(&y[y.len() - y.len() / 5..])
+    };
+    sigma / (hi - lo)
+}
+
+/// Deviations of a test from its pre-step levels.
+struct Prepared {
+    u: Vec<f64>,
+    y: Vec<f64>,
+    onset: usize,
+}
+
+fn prepare(test: &Test<'_>) -> Result<Prepared> {
+    if test.u.len() != test.y.len() {
+        return Err(Error::Mismatch {
+            path: test.name.into(),
+            message: format!(
+                "reference has {} samples, probe {}",
+                test.u.len(),
+                test.y.len()
+            ),
+        });
+    }
+    let s = step::find_step(test.u).map_err(|reason| Error::NoStep {
+        path: test.name.into(),
+        column: 0,
+        name: "u".into(),
+        reason,
+    })?;
+    let y0 = if s.onset > 0 {
+        step::mean_std(&test.y[..s.onset]).0
+    } else {
+        test.y[0]
+    };
+    Ok(Prepared {
+        u: test.u.iter().map(|v| v - s.before).collect(),
+        y: test.y.iter().map(|v| v - y0).collect(),
+        onset: s.onset,
+    })
+}
+
+/// Longest stretch of samples the delay search looks at.
+const DELAY_WINDOW: usize = 20_000;
+
+/// Fits one order at one delay with the chosen method.
+fn fit_at(sets: &[Data<'_>], m: usize, d: usize, method: Method) -> Result<(Vec<f64>, Vec<f64>)> {
+    match method {
+        Method::Arx => arx::fit(sets, m, d),
+        Method::Sm => oe::steiglitz_mcbride(sets, m, d, 20),
+        Method::Oe => {
+            let init = oe::steiglitz_mcbride(sets, m, d, 20)?;
+            oe::output_error(sets, init, d, 60)
+        }
+    }
+}
+
+/// Candidate delays and their losses, and the chosen delay, for order `m`.
+fn search_delay(p: &Prepared, m: usize) -> Result<(usize, Vec<DelayRow>)> {
+    // The probe cannot answer later than where it has made half its step.
+    let yfinal = step::mean_std(&p.y[p.y.len() - p.y.len() / 10..]).0;
+    let half = p.y[p.onset..]
+        .iter()
+        .position(|v| (v / yfinal) > 0.5)
+        .unwrap_or(p.y.len() - p.onset);
+    let hi = (half + 2).min(p.y.len() / 4);
+    let start = p.onset.saturating_sub(200);
+    let end = (p.onset + DELAY_WINDOW).min(p.y.len());
+    let sets = [Data {
+        u: &p.u[start..end],
+        y: &p.y[start..end],
+    }];
+    let energy: f64 = sets[0].y.iter().map(|v| v * v).sum();
+    let mut rows = Vec::new();
+    for d in 0..=hi {
+        if let Ok((a, b)) = oe::steiglitz_mcbride_nb(&sets, m, m, d, 8) {
+            let l = oe::loss(&sets, (&a, &b), d);
+            if l.is_finite() {
+                rows.push(DelayRow {
+                    delay: d,
+                    nrmse: (l / energy.max(1e-300)).sqrt(),
+                });
+            }
+        }
+    }
+    let best = rows.iter().map(|r| r.nrmse).fold(f64::INFINITY, f64::min);
+    if !best.is_finite() {
+        return Err(Error::Numerical {
+            context: "delay search".into(),
+            message: "no candidate delay gave a usable fit".into(),
+        });
+    }
+    // Candidates whose residual sum of squares is within 2 noise variances of the best are
+    // statistically indistinguishable from it (a likelihood-ratio margin); among those the
+    // largest delay is the one for which the probe has not yet answered.
+    let n = (end - start) as f64;
+    let tol = best * best * (1.0 + 2.0 / n);
+    let d = rows
+        .iter()
+        .filter(|r| r.nrmse * r.nrmse <= tol)
+        .map(|r| r.delay)
+        .max()
+        .unwrap_or(0);
+    Ok((d, rows))
+}
+
+/// Fits a model to the estimation test; validation tests are held out (used for the order
+/// choice and reported).
+///
+/// # Errors
+/// [`Error::NoStep`] when the reference has no step, [`Error::TooShort`] when the test is too
+/// short for the order and delay, [`Error::UnstableModel`] when the chosen fit is unstable,
+/// [`Error::Numerical`] when the data do not determine a model.
+pub fn fit(
+    estimation: &Test<'_>,
+    validation: &[Test<'_>],
+    sample_rate_hz: f64,
+    options: &Options,
+) -> Result<Fitted> {
+    let p = prepare(estimation)?;
+    let data = [Data { u: &p.u, y: &p.y }];
+    let orders: Vec<usize> = match options.order {
+        Order::Fixed(m) => vec![m],
+        Order::Auto { max } => (1..=max.max(1)).collect(),
+    };
+    let mut candidates = Vec::new();
+    let mut last_delay_rows = Vec::new();
+    let mut first_error = None;
+    for &m in &orders {
+        if m == 0 || m > crate::model::MAX_ORDER {
+            return Err(Error::InvalidArgument {
+                what: "--order",
+                message: format!("the order must be 1..={}, not {m}", crate::model::MAX_ORDER),
+            });
+        }
+        let (d, rows) = match options.delay {
+            Some(d) => (d, Vec::new()),
+            None => search_delay(&p, m)?,
+        };
+        let needed = 2 * (2 * m + 1) + m + d + 1;
+        if p.y.len() < needed {
+            let e = Error::TooShort {
+                path: estimation.name.into(),
+                samples: p.y.len(),
+                order: m,
+                delay: d,
+                needed,
+            };
+            if matches!(options.order, Order::Fixed(_)) {
+                return Err(e);
+            }
+            first_error.get_or_insert(e);
+            continue;
+        }
+        let (a, b) = match fit_at(&data, m, d, options.method) {
+            Ok(ab) => ab,
+            Err(e) => {
+                first_error.get_or_insert(e);
+                continue;
+            }
+        };
+        let model = Model {
+            fs: sample_rate_hz,
+            delay: d,
+            a,
+            b,
+        };
+        let stable = model.check_stable("fit").is_ok();
+        let est = nrmse(&model, estimation.u, estimation.y);
+        let val: Vec<f64> = validation.iter().map(|t| nrmse(&model, t.u, t.y)).collect();
+        let criterion = if val.is_empty() {
+            // BIC on the simulation residual.
+            let n = p.y.len() as f64;
+            let rss = oe::loss(&data, (&model.a, &model.b), d).max(1e-300);
+            n * (rss / n).ln() + (2 * m + 2) as f64 * n.ln()
+        } else {
+            val.iter().sum::<f64>() / val.len() as f64
+        };
+        last_delay_rows = if rows.is_empty() {
+            last_delay_rows
+        } else {
+            rows.clone()
+        };
+        candidates.push((m, model, rows, est, val, criterion, stable));
+    }
+    let held_out = !validation.is_empty();
+    let table: Vec<OrderRow> = candidates
+        .iter()
+        .map(|(m, model, _, est, _, crit, stable)| OrderRow {
+            order: *m,
+            delay: model.delay,
+            nrmse_estimation: *est,
+            criterion: *crit,
+            stable: *stable,
+        })
+        .collect();
+    let usable: Vec<_> = candidates
+        .iter()
+        .filter(|c| c.6 && c.5.is_finite())
+        .collect();
+    let Some(best_crit) = usable.iter().map(|c| c.5).reduce(f64::min) else {
+        if let Some(c) = candidates.first() {
+            c.1.check_stable(estimation.name)?;
+        }
+        return Err(first_error.unwrap_or_else(|| Error::Numerical {
+            context: estimation.name.into(),
+            message: "no order gave a usable model".into(),
+        }));
+    };
+    // Parsimony: the smallest order whose held-out error is within 5 % of the best; with BIC
+    // the criterion already penalises parameters.
+    let chosen = usable
+        .iter()
+        .find(|c| {
+            if held_out {
+                c.5 <= best_crit * 1.05
+            } else {
+                c.5 <= best_crit
+            }
+        })
+        .copied()
+        .ok_or_else(|| Error::Numerical {
+            context: estimation.name.into(),
+            message: "order selection failed".into(),
+        })?;
+    let (m, model, rows, est, val, _, _) = chosen.clone();
+    let _ = last_delay_rows;
+    let report = FitReport {
+        method: options.method.name().into(),
+        order_selection: match options.order {
+            Order::Fixed(_) => "fixed".into(),
+            Order::Auto { max } if held_out => {
+                format!("auto 1..={max}: smallest order within 5 % of the best mean held-out nrmse")
+            }
+            Order::Auto { max } => format!("auto 1..={max}: lowest BIC on the estimation test"),
+        },
+        orders: table,
+        delay_selection: if options.delay.is_some() {
+            "given".into()
+        } else {
+            format!(
+                "largest delay with the lowest simulation loss (order {m}, {} candidates)",
+                rows.len()
+            )
+        },
+        delay_candidates: rows,
+        step_onset: p.onset,
+    };
+    Ok(Fitted {
+        model,
+        report,
+        nrmse_estimation: est,
+        nrmse_validation: val,
+    })
+}

@@ -1,0 +1,232 @@
+//! Noise-robust fits: Steiglitz-McBride iterations and the output-error (simulation-error)
+//! refinement by Levenberg-Marquardt.
+//!
+//! Measurement noise on the probe biases the paper's equation-error fit because the noisy
+//! output appears among the regressors. Both methods here compare the *simulated* output
+//! `B/A u` with the measurement instead, so white measurement noise no longer biases the
+//! estimate:
+//!
+//! * Steiglitz-McBride prefilters `u` and `y` by `1/A` of the previous iterate and solves the
+//!   ARX problem on the filtered data; at convergence it minimises (nearly) the output error.
+//! * Output error minimises `sum (y - q^-d B/A u)^2` directly by Levenberg-Marquardt. The
+//!   Jacobian needs only two all-pole filterings per iteration
+//!   (`d yhat / d b_i = q^(-d-i) u/A`, `d yhat / d a_i = -q^(-i) yhat/A`); each step is a
+//!   column-pivoted QR solve of the damped, column-scaled Jacobian. Steps that would make `A`
+//!   unstable are rejected.
+
+use faer::Mat;
+
+use super::arx::{self, Data, Params};
+use crate::compensator::schur_stable;
+use crate::error::Result;
+use crate::model::filter;
+
+/// `x / A(q)` with zero initial conditions.
+#[must_use]
+pub fn allpole(a: &[f64], x: &[f64]) -> Vec<f64> {
+    let mut y = vec![0.0; x.len()];
+    for k in 0..x.len() {
+        let mut acc = x[k];
+        for (i, ai) in a.iter().enumerate() {
+            if let Some(j) = k.checked_sub(i + 1) {
+                acc -= ai * y[j];
+            }
+        }
+        y[k] = acc;
+    }
+    y
+}
+
+fn stable(a: &[f64]) -> bool {
+    let mut p = Vec::with_capacity(a.len() + 1);
+    p.push(1.0);
+    p.extend_from_slice(a);
+    schur_stable(&p).is_ok()
+}
+
+/// Sum of squared simulation errors over all data sets.
+#[must_use]
+pub fn loss(sets: &[Data<'_>], (a, b): (&[f64], &[f64]), d: usize) -> f64 {
+    sets.iter()
+        .map(|s| {
+            let yh = filter(b, a, d, s.u);
+            s.y.iter()
+                .zip(&yh)
+                .map(|(y, h)| (y - h) * (y - h))
+                .sum::<f64>()
+        })
+        .sum()
+}
+
+/// Steiglitz-McBride: `iterations` rounds of prefiltered least squares, started from ARX.
+/// Returns the iterate with the lowest simulation loss among the stable ones (ARX included).
+///
+/// # Errors
+/// As [`arx::fit`].
+pub fn steiglitz_mcbride(
+    sets: &[Data<'_>],
+    m: usize,
+    d: usize,
+    iterations: usize,
+) -> Result<Params> {
+    steiglitz_mcbride_nb(sets, m, m + 1, d, iterations)
+}
+
+/// Steiglitz-McBride with `nb` numerator coefficients.
+///
+/// # Errors
+/// As [`arx::fit`].
+pub fn steiglitz_mcbride_nb(
+    sets: &[Data<'_>],
+    m: usize,
+    nb: usize,
+    d: usize,
+    iterations: usize,
+) -> Result<Params> {
+    let mut best = arx::fit_nb(sets, m, nb, d)?;
+    let mut best_loss = if stable(&best.0) {
+        loss(sets, (&best.0, &best.1), d)
+    } else {
+        f64::INFINITY
+    };
+    let mut current = best.clone();
+    for _ in 0..iterations {
+        if !stable(&current.0) {
+            break;
+        }
+        let filtered: Vec<(Vec<f64>, Vec<f64>)> = sets
+            .iter()
+            .map(|s| (allpole(&current.0, s.u), allpole(&current.0, s.y)))
+            .collect();
+        let fsets: Vec<Data<'_>> = filtered.iter().map(|(u, y)| Data { u, y }).collect();
+        let Ok(next) = arx::fit_nb(&fsets, m, nb, d) else {
+            break;
+        };
+        if stable(&next.0) {
+            let l = loss(sets, (&next.0, &next.1), d);
+            if l < best_loss {
+                best_loss = l;
+                best = next.clone();
+            }
+        }
+        let change: f64 = next
+            .0
+            .iter()
+            .chain(&next.1)
+            .zip(current.0.iter().chain(&current.1))
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        current = next;
+        if change < 1e-12 {
+            break;
+        }
+    }
+    Ok(best)
+}
+
+/// Output-error refinement by Levenberg-Marquardt from `init` (which should be stable).
+/// Never returns a worse or unstable model than `init` when `init` is stable.
+///
+/// # Errors
+/// As [`arx::lstsq`].
+pub fn output_error(
+    sets: &[Data<'_>],
+    init: Params,
+    d: usize,
+    max_iterations: usize,
+) -> Result<Params> {
+    let m = init.0.len();
+    let np = m + init.1.len();
+    let (mut a, mut b) = init;
+    let mut v = loss(sets, (&a, &b), d);
+    if !stable(&a) || !v.is_finite() {
+        return Ok((a, b));
+    }
+    let rows: usize = sets.iter().map(|s| s.y.len()).sum();
+    let mut lambda: f64 = 1e-4;
+    for _ in 0..max_iterations {
+        // Residuals and Jacobian, stacked over the data sets.
+        let mut jac = Mat::<f64>::zeros(rows + np, np);
+        let mut res = Mat::<f64>::zeros(rows + np, 1);
+        let mut r0 = 0;
+        for s in sets {
+            let yh = filter(&b, &a, d, s.u);
+            let w = allpole(&a, s.u);
+            let vv = allpole(&a, &yh);
+            for k in 0..s.y.len() {
+                res[(r0 + k, 0)] = s.y[k] - yh[k];
+                for i in 0..m {
+                    if let Some(j) = k.checked_sub(i + 1) {
+                        jac[(r0 + k, i)] = -vv[j];
+                    }
+                }
+                for i in 0..np - m {
+                    if let Some(j) = k.checked_sub(d + i) {
+                        jac[(r0 + k, m + i)] = w[j];
+                    }
+                }
+            }
+            r0 += s.y.len();
+        }
+        let norms: Vec<f64> = (0..np)
+            .map(|c| {
+                (0..rows)
+                    .map(|r| jac[(r, c)] * jac[(r, c)])
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .collect();
+        let mut improved = false;
+        for _ in 0..12 {
+            // Damping rows: sqrt(lambda) * diag(column norms).
+            for (c, nrm) in norms.iter().enumerate() {
+                for c2 in 0..np {
+                    jac[(rows + c, c2)] = 0.0;
+                }
+                jac[(rows + c, c)] = lambda.sqrt() * nrm.max(1e-300);
+            }
+            let Ok(delta) = arx::lstsq(&jac, &res, "output error") else {
+                lambda *= 10.0;
+                continue;
+            };
+            let a_new: Vec<f64> = a.iter().zip(&delta[..m]).map(|(x, dx)| x + dx).collect();
+            let b_new: Vec<f64> = b.iter().zip(&delta[m..]).map(|(x, dx)| x + dx).collect();
+            if stable(&a_new) {
+                let v_new = loss(sets, (&a_new, &b_new), d);
+                if v_new.is_finite() && v_new < v {
+                    let rel = (v - v_new) / v.max(1e-300);
+                    a = a_new;
+                    b = b_new;
+                    v = v_new;
+                    lambda = (lambda / 10.0).max(1e-12);
+                    improved = rel > 1e-12;
+                    break;
+                }
+            }
+            lambda *= 10.0;
+            if lambda > 1e8 {
+                break;
+            }
+        }
+        if !improved || v == 0.0 {
+            break;
+        }
+    }
+    Ok((a, b))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn allpole_inverts_fir() {
+        let a = [-0.5, 0.2];
+        let x: Vec<f64> = (0..50).map(|k| (k as f64 * 0.3).sin()).collect();
+        let y = allpole(&a, &x);
+        let back = filter(&[1.0, -0.5, 0.2], &[], 0, &y);
+        for (p, q) in back.iter().zip(&x) {
+            assert!((p - q).abs() < 1e-12);
+        }
+    }
+}

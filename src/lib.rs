@@ -1,0 +1,24 @@
+#![doc = include_str!("../README.md")]
+#![cfg_attr(not(any(test, feature = "std")), no_std)]
+#![warn(missing_docs)]
+
+// Data flow: trace -> fit -> model -> (inverse) -> compensator (board).
+// Everything but `compensator` is host side, behind the `std` feature.
+
+pub mod compensator;
+
+#[cfg(feature = "std")]
+pub mod cli;
+#[cfg(feature = "std")]
+pub mod error;
+#[cfg(feature = "std")]
+pub mod fit;
+#[cfg(feature = "std")]
+pub mod model;
+#[cfg(feature = "std")]
+pub mod poly;
+#[cfg(feature = "std")]
+pub mod trace;
+
+#[cfg(feature = "std")]
+pub use error::Error;

@@ -1,0 +1,405 @@
+//! The identified probe model and its file.
+//!
+//! This module owns [`Model`] (sample rate, delay, `a`, `b` in the crate's one sign convention,
+//! see [`crate::compensator`]), what can be computed from it on the host (simulation from the
+//! reference, DC gain, poles and zeros, compensation through the board's code), and the model
+//! file: TOML, human readable and versioned ([`ModelFile`]).
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::compensator::{Compensator, InverseCoefficients, Sample};
+use crate::error::{Error, Result};
+use crate::poly::{self, Complex};
+
+/// Model file format version written by this crate.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// Largest model order the host compensator handles.
+pub const MAX_ORDER: usize = 16;
+
+/// A discrete probe model:
+/// `y[k] = sum_{i=0..m} b[i] u[k-i-d] - sum_{i=1..m} a[i] y[k-i]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Model {
+    /// Sample rate in Hz the coefficients belong to.
+    pub fs: f64,
+    /// Delay `d` in samples.
+    pub delay: usize,
+    /// Denominator `[a1..am]` (no leading one).
+    pub a: Vec<f64>,
+    /// Numerator `[b0..bm]`.
+    pub b: Vec<f64>,
+}
+
+impl Model {
+    /// Model order `m`.
+    #[must_use]
+    pub fn order(&self) -> usize {
+        self.a.len().max(self.b.len().saturating_sub(1))
+    }
+
+    /// Steady-state gain `sum b / (1 + sum a)` (1 for a calibrated probe).
+    #[must_use]
+    pub fn dc_gain(&self) -> f64 {
+        self.b.iter().sum::<f64>() / (1.0 + self.a.iter().sum::<f64>())
+    }
+
+    /// Denominator as a polynomial in `z^-1`: `[1, a1, ..., am]`.
+    #[must_use]
+    pub fn denominator(&self) -> Vec<f64> {
+        std::iter::once(1.0).chain(self.a.iter().copied()).collect()
+    }
+
+    /// Poles (roots of `A`), largest magnitude first.
+    ///
+    /// # Errors
+    /// [`Error::Numerical`] if the eigenvalue solver fails.
+    pub fn poles(&self) -> Result<Vec<Complex>> {
+        poly::roots(&self.denominator())
+    }
+
+    /// Zeros (roots of `B`, without the delay's zeros at the origin), largest magnitude first.
+    ///
+    /// # Errors
+    /// [`Error::Numerical`] if the eigenvalue solver fails.
+    pub fn zeros(&self) -> Result<Vec<Complex>> {
+        poly::roots(&self.b)
+    }
+
+    /// Fails with [`Error::UnstableModel`] naming the pole when a pole is on or outside the
+    /// unit circle.
+    ///
+    /// # Errors
+    /// As described.
+    pub fn check_stable(&self, context: &str) -> Result<()> {
+        if let Some(p) = self.poles()?.first() {
+            if p.norm() >= 1.0 {
+                return Err(Error::UnstableModel {
+                    context: context.to_string(),
+                    pole: poly::format_root(*p),
+                    radius: p.norm(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Fails with [`Error::UnstableInverse`] naming the zero when a zero of `B` is on or outside
+    /// the unit circle (the direct inverse would diverge).
+    ///
+    /// # Errors
+    /// As described.
+    pub fn check_invertible(&self, context: &str) -> Result<()> {
+        if let Some(z) = self.zeros()?.first() {
+            if z.norm() >= 1.0 {
+                return Err(Error::UnstableInverse {
+                    context: context.to_string(),
+                    zero: poly::format_root(*z),
+                    radius: z.norm(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The model's output for the input `u`, starting in equilibrium with `u[0]` (as a step
+    /// test starts from a steady state).
+    #[must_use]
+    pub fn simulate(&self, u: &[f64]) -> Vec<f64> {
+        let u0 = u.first().copied().unwrap_or(0.0);
+        let y0 = self.dc_gain() * u0;
+        let dev: Vec<f64> = u.iter().map(|v| v - u0).collect();
+        let mut y = filter(&self.b, &self.a, self.delay, &dev);
+        for v in &mut y {
+            *v += y0;
+        }
+        y
+    }
+
+    /// Reconstructs the reference from the probe's `y` with the board's compensator in
+    /// arithmetic `T`; sample `k` of the result estimates `u[k - d]`. Starts in equilibrium
+    /// with `y[0]`.
+    ///
+    /// # Errors
+    /// [`Error::UnstableInverse`] naming the zero when `B` has a zero on or outside the unit
+    /// circle, or [`Error::InvalidArgument`] when the order exceeds [`MAX_ORDER`].
+    pub fn compensate<T: Sample>(&self, y: &[f64]) -> Result<Vec<f64>> {
+        self.check_invertible("compensate")?;
+        match self.order() {
+            0..=2 => self.compensate_with::<T, 2>(y),
+            3..=4 => self.compensate_with::<T, 4>(y),
+            5..=8 => self.compensate_with::<T, 8>(y),
+            9..=MAX_ORDER => self.compensate_with::<T, MAX_ORDER>(y),
+            m => Err(Error::InvalidArgument {
+                what: "model order",
+                message: format!("order {m} exceeds the largest supported order {MAX_ORDER}"),
+            }),
+        }
+    }
+
+    fn compensate_with<T: Sample, const M: usize>(&self, y: &[f64]) -> Result<Vec<f64>> {
+        let coefficients =
+            InverseCoefficients::<T, M>::new(&self.b, &self.a).map_err(|e| Error::Numerical {
+                context: "compensate".into(),
+                message: e.to_string(),
+            })?;
+        let y0 = T::from_f64(y.first().copied().unwrap_or(0.0));
+        let mut c = Compensator::from_coefficients(coefficients, y0);
+        Ok(y.iter().map(|&v| c.push(T::from_f64(v)).to_f64()).collect())
+    }
+}
+
+/// `y = q^-d B/A x` with zero initial conditions (direct form I, f64).
+#[must_use]
+pub fn filter(b: &[f64], a: &[f64], delay: usize, x: &[f64]) -> Vec<f64> {
+    let mut y = vec![0.0; x.len()];
+    for k in 0..x.len() {
+        let mut acc = 0.0;
+        for (i, bi) in b.iter().enumerate() {
+            if let Some(j) = k.checked_sub(i + delay) {
+                acc += bi * x[j];
+            }
+        }
+        for (i, ai) in a.iter().enumerate() {
+            if let Some(j) = k.checked_sub(i + 1) {
+                acc -= ai * y[j];
+            }
+        }
+        y[k] = acc;
+    }
+    y
+}
+
+/// Where a model came from: one trace file and its role.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Source {
+    /// File name as given on the command line.
+    pub file: String,
+    /// SHA-256 of the file's bytes.
+    pub sha256: String,
+    /// `estimation` or `validation`.
+    pub role: String,
+    /// Simulation error on this trace: RMS(y - y_model) / range(y).
+    pub nrmse: f64,
+    /// Noise floor of the probe channel on this trace: RMS noise / range(y).
+    pub noise_floor: f64,
+}
+
+/// How the model was fitted, and how well.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FitReport {
+    /// `oe` (output error, the default), `sm` (Steiglitz-McBride) or `arx` (the paper's
+    /// direct least squares).
+    pub method: String,
+    /// How the order was chosen: `auto (...)` or `fixed`.
+    pub order_selection: String,
+    /// Order-selection table: one row per order tried.
+    #[serde(default)]
+    pub orders: Vec<OrderRow>,
+    /// How the delay was chosen.
+    pub delay_selection: String,
+    /// Delay evidence: simulation loss (normalised RMS) for each candidate delay.
+    #[serde(default)]
+    pub delay_candidates: Vec<DelayRow>,
+    /// Step onset in the estimation reference, in samples from the start.
+    pub step_onset: usize,
+}
+
+/// One row of the order-selection table.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct OrderRow {
+    /// Order.
+    pub order: usize,
+    /// Delay found for this order.
+    pub delay: usize,
+    /// Simulation error on the estimation data.
+    pub nrmse_estimation: f64,
+    /// The criterion compared: held-out error, or BIC with one trace.
+    pub criterion: f64,
+    /// Whether the model is stable.
+    pub stable: bool,
+}
+
+/// One candidate delay and its loss.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DelayRow {
+    /// Delay in samples.
+    pub delay: usize,
+    /// Simulation error (normalised RMS) with this delay.
+    pub nrmse: f64,
+}
+
+/// The model file: the model, how it was fitted and from what.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelFile {
+    /// Format version ([`FORMAT_VERSION`]).
+    pub format_version: u32,
+    /// The model itself (flattened: `fs`, `delay`, `a`, `b` at the top of the file).
+    #[serde(flatten)]
+    pub model: Model,
+    /// How it was fitted.
+    pub fit: Option<FitReport>,
+    /// The traces it came from and the errors on each.
+    #[serde(default)]
+    pub sources: Vec<Source>,
+}
+
+const HEADER: &str = "\
+# unlag probe model.
+# y[k] = sum_{i=0..m} b[i] u[k-i-delay] - sum_{i=1..m} a[i] y[k-i]
+# fs in Hz, delay in samples; a = [a1..am], b = [b0..bm].
+";
+
+impl ModelFile {
+    /// Renders the file as TOML.
+    ///
+    /// # Errors
+    /// [`Error::Numerical`] if serialisation fails (it does not for finite values).
+    pub fn to_toml(&self) -> Result<String> {
+        let body = toml::to_string(self).map_err(|e| Error::Numerical {
+            context: "model file".into(),
+            message: e.to_string(),
+        })?;
+        Ok(format!("{HEADER}{body}"))
+    }
+
+    /// Writes the file atomically.
+    ///
+    /// # Errors
+    /// [`Error::Io`] when it cannot be written.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        crate::trace::write_atomically(path, self.to_toml()?.as_bytes())
+    }
+
+    /// Reads and checks a model file: version, finite coefficients, positive sample rate,
+    /// stable poles.
+    ///
+    /// # Errors
+    /// [`Error::Model`] with the TOML line and column for syntax errors, or naming the field.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            action: "cannot read",
+            source,
+        })?;
+        let bad = |message: String| Error::Model {
+            path: path.to_path_buf(),
+            message,
+        };
+        let file: Self = toml::from_str(&text).map_err(|e| {
+            let (line, col) = e.span().map(|s| line_col(&text, s.start)).unwrap_or((0, 0));
+            bad(format!(
+                "{line}:{col}: {}",
+                e.message().lines().next().unwrap_or("invalid TOML")
+            ))
+        })?;
+        if file.format_version != FORMAT_VERSION {
+            return Err(bad(format!(
+                "format_version {} is not supported (this unlag reads version {FORMAT_VERSION})",
+                file.format_version
+            )));
+        }
+        let m = &file.model;
+        if !(m.fs.is_finite() && m.fs > 0.0) {
+            return Err(bad(format!(
+                "fs must be a positive number of Hz, not {}",
+                m.fs
+            )));
+        }
+        if m.b.is_empty() {
+            return Err(bad("b is empty".into()));
+        }
+        if m.a.iter().chain(&m.b).any(|c| !c.is_finite()) {
+            return Err(bad("a coefficient in a or b is not finite".into()));
+        }
+        if m.order() > MAX_ORDER {
+            return Err(bad(format!(
+                "order {} exceeds the largest supported order {MAX_ORDER}",
+                m.order()
+            )));
+        }
+        m.check_stable(&path.display().to_string())?;
+        Ok(file)
+    }
+}
+
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = text.get(..offset).unwrap_or(text);
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn m2() -> Model {
+        Model {
+            fs: 1000.0,
+            delay: 3,
+            a: vec![-1.5, 0.7],
+            b: vec![0.1, 0.08, 0.02],
+        }
+    }
+
+    #[test]
+    fn simulate_starts_in_equilibrium_and_delays() {
+        let m = m2();
+        let g = m.dc_gain();
+        let u = [2.0, 2.0, 2.0, 3.0, 3.0, 3.0, 3.0, 3.0];
+        let y = m.simulate(&u);
+        // Flat until the step has travelled the delay.
+        for v in &y[..6] {
+            assert!((v - 2.0 * g).abs() < 1e-12);
+        }
+        assert!((y[6] - (2.0 * g + 0.1)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn compensate_inverts_simulate() {
+        let m = m2();
+        let u: Vec<f64> = (0..200).map(|k| ((k as f64) * 0.07).sin() + 1.0).collect();
+        let y = m.simulate(&u);
+        let uh = m.compensate::<f64>(&y).unwrap();
+        for k in m.delay..u.len() {
+            assert!((uh[k] - u[k - m.delay]).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn file_round_trip() {
+        let f = ModelFile {
+            format_version: FORMAT_VERSION,
+            model: m2(),
+            fit: None,
+            sources: vec![],
+        };
+        let text = f.to_toml().unwrap();
+        assert!(text.contains("delay = 3"), "{text}");
+        let back: ModelFile = toml::from_str(&text).unwrap();
+        assert_eq!(back, f);
+    }
+
+    #[test]
+    fn unstable_model_is_named() {
+        let m = Model {
+            fs: 1.0,
+            delay: 0,
+            a: vec![-2.1],
+            b: vec![1.0],
+        };
+        let e = m.check_stable("x").unwrap_err().to_string();
+        assert!(e.contains("2.1") && e.contains("unstable"), "{e}");
+        let m = Model {
+            fs: 1.0,
+            delay: 0,
+            a: vec![-0.5],
+            b: vec![1.0, -2.1],
+        };
+        let e = m.check_invertible("x").unwrap_err().to_string();
+        assert!(e.contains("zero 2.1"), "{e}");
+    }
+}

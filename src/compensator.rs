@@ -133,6 +133,20 @@ pub enum InverseError {
         /// The offending reflection coefficient (|k| >= 1 means a zero on or outside |z| = 1).
         reflection: f64,
     },
+    /// A cascade has more sections than the capacity `N`.
+    TooManySections {
+        /// Sections given.
+        sections: usize,
+        /// The cascade's capacity `N`.
+        capacity: usize,
+    },
+    /// A second-order section's poles are not inside the unit circle by the required margin.
+    UnstableSection {
+        /// 0-based index of the section.
+        index: usize,
+        /// Largest pole magnitude of that section.
+        radius: f64,
+    },
 }
 
 impl fmt::Display for InverseError {
@@ -152,6 +166,14 @@ impl fmt::Display for InverseError {
                 f,
                 "B(z) has a zero on or outside the unit circle (Schur-Cohn reflection coefficient {reflection:.6}): the direct inverse is unstable"
             ),
+            Self::TooManySections { sections, capacity } => write!(
+                f,
+                "{sections} sections exceed the cascade capacity {capacity}"
+            ),
+            Self::UnstableSection { index, radius } => write!(
+                f,
+                "section {index} has a pole of magnitude {radius:.6}, not inside the unit circle by the margin {MIN_POLE_MARGIN}"
+            ),
         }
     }
 }
@@ -170,6 +192,17 @@ impl defmt::Format for InverseError {
             Self::LeadingZero => defmt::write!(f, "LeadingZero"),
             Self::UnstableInverse { reflection } => {
                 defmt::write!(f, "UnstableInverse(k={=f64})", reflection)
+            }
+            Self::TooManySections { sections, capacity } => {
+                defmt::write!(
+                    f,
+                    "TooManySections({=usize} > {=usize})",
+                    sections,
+                    capacity
+                )
+            }
+            Self::UnstableSection { index, radius } => {
+                defmt::write!(f, "UnstableSection({=usize}, r={=f64})", index, radius)
             }
         }
     }
@@ -413,6 +446,164 @@ impl<T: Sample, const M: usize> Compensator<T, M> {
     }
 }
 
+/// Smallest distance from the unit circle a cascade's poles must keep (in `|z|`).
+pub const MIN_POLE_MARGIN: f64 = 1e-4;
+
+/// One second-order section in the crate's sign convention:
+///
+/// ```text
+///        b0 + b1 z^-1 + b2 z^-2
+/// H(z) = ----------------------      y[k] = b0 x[k] + b1 x[k-1] + b2 x[k-2] - a1 y[k-1] - a2 y[k-2]
+///         1 + a1 z^-1 + a2 z^-2
+/// ```
+///
+/// A first-order section has `b2 = a2 = 0`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Biquad<T> {
+    /// `[b0, b1, b2]`.
+    pub b: [T; 3],
+    /// `[a1, a2]` (no leading one).
+    pub a: [T; 2],
+}
+
+impl<T: Sample> Biquad<T> {
+    /// The section that passes its input unchanged.
+    pub const IDENTITY: Self = Self {
+        b: [T::ONE, T::ZERO, T::ZERO],
+        a: [T::ZERO, T::ZERO],
+    };
+}
+
+/// Largest pole magnitude of `1 + a1 z^-1 + a2 z^-2` (complex pair or two real poles).
+#[must_use]
+pub fn section_pole_radius(a1: f64, a2: f64) -> f64 {
+    let disc = a1 * a1 - 4.0 * a2;
+    if disc < 0.0 {
+        // Complex pair: |p|^2 = a2.
+        libm::sqrt(a2.abs())
+    } else {
+        let r = libm::sqrt(disc);
+        let p1 = (-a1 + r) / 2.0;
+        let p2 = (-a1 - r) / 2.0;
+        p1.abs().max(p2.abs())
+    }
+}
+
+/// Validated coefficients of a cascade of second-order sections with an input gain: the
+/// stable, band-limited compensator designed on the host (`unlag invert`), stored as sections
+/// because a single high-order polynomial loses its accuracy in `f32` and fixed point.
+///
+/// Each section runs in transposed direct form II (two states per section):
+///
+/// ```text
+/// y  = b0 x + s1
+/// s1 = b1 x - a1 y + s2
+/// s2 = b2 x - a2 y
+/// ```
+///
+/// `N` is the capacity in sections; unused sections are identities.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CascadeCoefficients<T, const N: usize> {
+    gain: T,
+    sections: [Biquad<T>; N],
+    /// DC gain of each section, for starting in equilibrium.
+    dc: [T; N],
+}
+
+/// The states of one cascade channel: `[s1, s2]` per section.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CascadeState<T, const N: usize> {
+    s: [[T; 2]; N],
+}
+
+impl<T: Sample, const N: usize> Default for CascadeState<T, N> {
+    fn default() -> Self {
+        Self {
+            s: [[T::ZERO; 2]; N],
+        }
+    }
+}
+
+impl<T: Sample, const N: usize> CascadeCoefficients<T, N> {
+    /// Builds a cascade from `gain` and sections `[b0, b1, b2, a1, a2]` designed in `f64`.
+    ///
+    /// # Errors
+    /// [`InverseError::TooManySections`], [`InverseError::NonFinite`], or
+    /// [`InverseError::UnstableSection`] when a section's poles are not inside the unit circle
+    /// by [`MIN_POLE_MARGIN`].
+    pub fn new(gain: f64, sections: &[[f64; 5]]) -> Result<Self, InverseError> {
+        if sections.len() > N {
+            return Err(InverseError::TooManySections {
+                sections: sections.len(),
+                capacity: N,
+            });
+        }
+        if !gain.is_finite() || sections.iter().flatten().any(|c| !c.is_finite()) {
+            return Err(InverseError::NonFinite);
+        }
+        let mut out = [Biquad::IDENTITY; N];
+        let mut dc = [T::ONE; N];
+        for (index, ((dst, d), &[b0, b1, b2, a1, a2])) in
+            out.iter_mut().zip(dc.iter_mut()).zip(sections).enumerate()
+        {
+            let radius = section_pole_radius(a1, a2);
+            if radius.is_nan() || radius > 1.0 - MIN_POLE_MARGIN {
+                return Err(InverseError::UnstableSection { index, radius });
+            }
+            *dst = Biquad {
+                b: [T::from_f64(b0), T::from_f64(b1), T::from_f64(b2)],
+                a: [T::from_f64(a1), T::from_f64(a2)],
+            };
+            // Stable, so 1 + a1 + a2 > 0.
+            *d = T::from_f64((b0 + b1 + b2) / (1.0 + a1 + a2));
+        }
+        Ok(Self {
+            gain: T::from_f64(gain),
+            sections: out,
+            dc,
+        })
+    }
+
+    /// One sample through the cascade. Panic-free and allocation-free; 5 multiplies per
+    /// section plus one for the gain.
+    #[inline]
+    pub fn process(&self, state: &mut CascadeState<T, N>, x: T) -> T {
+        let mut v = self.gain * x;
+        for (sec, st) in self.sections.iter().zip(state.s.iter_mut()) {
+            let [b0, b1, b2] = sec.b;
+            let [a1, a2] = sec.a;
+            let [s1, s2] = *st;
+            let y = b0 * v + s1;
+            *st = [b1 * v - a1 * y + s2, b2 * v - a2 * y];
+            v = y;
+        }
+        v
+    }
+
+    /// Processes a block in place, sample by sample.
+    #[inline]
+    pub fn process_in_place(&self, state: &mut CascadeState<T, N>, buf: &mut [T]) {
+        for x in buf.iter_mut() {
+            *x = self.process(state, *x);
+        }
+    }
+
+    /// The state after the constant input `x0` forever (no start-up transient).
+    #[must_use]
+    pub fn equilibrium(&self, x0: T) -> CascadeState<T, N> {
+        let mut state = CascadeState::default();
+        let mut v = self.gain * x0;
+        for ((sec, st), dc) in self.sections.iter().zip(state.s.iter_mut()).zip(self.dc) {
+            let [b0, _, b2] = sec.b;
+            let [_, a2] = sec.a;
+            let y = dc * v;
+            *st = [y - b0 * v, b2 * v - a2 * y];
+            v = y;
+        }
+        state
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -479,6 +670,40 @@ mod tests {
             let uh = c.process(&mut s, y);
             assert!((uh - uk).abs() < 1e-12, "{uh} vs {uk}");
         }
+    }
+
+    #[test]
+    fn cascade_matches_the_direct_recurrence_and_starts_in_equilibrium() {
+        // Two sections: a resonance and a first-order lag, with gain 0.5.
+        let secs = [[1.0, -0.5, 0.1, -1.2, 0.72], [0.3, 0.2, 0.0, -0.5, 0.0]];
+        let c = CascadeCoefficients::<f64, 3>::new(0.5, &secs).unwrap();
+        let mut st = CascadeState::default();
+        // Reference: each section as its own direct form I.
+        let mut h = [[0.0f64; 4]; 2];
+        for k in 0..50 {
+            let x = if k % 7 < 3 { 1.0 } else { -0.25 };
+            let mut v = 0.5 * x;
+            for (s, c) in h.iter_mut().zip(&secs) {
+                let y = c[0] * v + c[1] * s[0] + c[2] * s[1] - c[3] * s[2] - c[4] * s[3];
+                *s = [v, s[0], y, s[2]];
+                v = y;
+            }
+            let got = c.process(&mut st, x);
+            assert!((got - v).abs() < 1e-12, "{k}: {got} vs {v}");
+        }
+        let mut st = c.equilibrium(2.0);
+        let dc = 0.5 * (0.6 / 0.52) * (0.5 / 0.5);
+        for _ in 0..5 {
+            assert!((c.process(&mut st, 2.0) - 2.0 * dc).abs() < 1e-12);
+        }
+        assert!(matches!(
+            CascadeCoefficients::<f32, 1>::new(1.0, &secs),
+            Err(InverseError::TooManySections { .. })
+        ));
+        assert!(matches!(
+            CascadeCoefficients::<f32, 2>::new(1.0, &[[1.0, 0.0, 0.0, -2.0, 1.0]]),
+            Err(InverseError::UnstableSection { index: 0, .. })
+        ));
     }
 
     #[test]

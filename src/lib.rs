@@ -14,6 +14,8 @@ pub mod error;
 #[cfg(feature = "std")]
 pub mod fit;
 #[cfg(feature = "std")]
+pub mod inverse;
+#[cfg(feature = "std")]
 pub mod model;
 #[cfg(feature = "std")]
 pub mod poly;

@@ -244,6 +244,9 @@ pub struct ModelFile {
     /// The traces it came from and the errors on each.
     #[serde(default)]
     pub sources: Vec<Source>,
+    /// The compensator designed for the board (stable, band-limited inverse), if any.
+    #[serde(default)]
+    pub inverse: Option<crate::inverse::Design>,
 }
 
 const HEADER: &str = "\
@@ -376,6 +379,7 @@ mod tests {
             model: m2(),
             fit: None,
             sources: vec![],
+            inverse: None,
         };
         let text = f.to_toml().unwrap();
         assert!(text.contains("delay = 3"), "{text}");

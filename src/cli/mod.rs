@@ -11,6 +11,7 @@ use serde_json::json;
 
 use crate::error::{Error, Result};
 use crate::fit::{self, Method, Options, Order, Test};
+use crate::inverse;
 use crate::model::{ModelFile, Source, FORMAT_VERSION};
 use crate::trace::{Columns, Trace};
 
@@ -34,6 +35,9 @@ pub enum Command {
     Compensate(CompensateArgs),
     /// Simulate the model's probe output from the reference; adds column `y_model`.
     Simulate(SimulateArgs),
+    /// Design the board's compensator for a model: a stable, band-limited inverse in
+    /// second-order sections, with its bandwidth, noise gain and latency.
+    Invert(InvertArgs),
     // physics subcommands (issue 6)
 }
 
@@ -77,6 +81,87 @@ pub enum MethodArg {
     Arx,
 }
 
+/// How to design the compensator (shared by `fit` and `invert`).
+#[derive(Debug, Clone, Args)]
+pub struct InverseArgs {
+    /// Low-pass corner of the compensator in Hz, or `auto`: the corner that reconstructs the
+    /// references of the tests best.
+    #[arg(long, default_value = "auto", value_name = "HZ|auto")]
+    pub bandwidth: String,
+    /// Low-pass family of the band limit.
+    #[arg(long, value_enum, default_value_t = LowpassArg::Bessel)]
+    pub lowpass: LowpassArg,
+    /// Low-pass order.
+    #[arg(long, default_value_t = 4, value_name = "N")]
+    pub lowpass_order: usize,
+    /// Use the paper's direct inverse A/B (times the low-pass) instead of the stable one; fails
+    /// for a non-minimum-phase model.
+    #[arg(long)]
+    pub direct: bool,
+}
+
+/// Low-pass family on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum LowpassArg {
+    /// Bessel: maximally flat delay, a step barely overshoots.
+    Bessel,
+    /// Butterworth: maximally flat magnitude.
+    Butterworth,
+}
+
+impl InverseArgs {
+    fn options(&self) -> Result<inverse::Options> {
+        let bandwidth_hz = if self.bandwidth == "auto" {
+            None
+        } else {
+            match self.bandwidth.parse::<f64>() {
+                Ok(f) if f.is_finite() && f > 0.0 => Some(f),
+                _ => {
+                    return Err(Error::InvalidArgument {
+                        what: "--bandwidth",
+                        message: format!(
+                            "expected 'auto' or a frequency in Hz, got '{}'",
+                            self.bandwidth
+                        ),
+                    })
+                }
+            }
+        };
+        Ok(inverse::Options {
+            bandwidth_hz,
+            lowpass: match self.lowpass {
+                LowpassArg::Bessel => inverse::LowpassKind::Bessel,
+                LowpassArg::Butterworth => inverse::LowpassKind::Butterworth,
+            },
+            lowpass_order: self.lowpass_order,
+            stabilise: !self.direct,
+        })
+    }
+}
+
+/// Arguments of `unlag invert`.
+#[derive(Debug, Args)]
+pub struct InvertArgs {
+    /// The model file.
+    #[arg(value_name = "MODEL.toml")]
+    pub model: PathBuf,
+    /// Tests with a reference, to choose the bandwidth on and to report the reconstruction.
+    #[arg(value_name = "FILE")]
+    pub files: Vec<PathBuf>,
+    /// Where to write the model with its compensator (may be MODEL.toml itself).
+    #[arg(short = 'o', long = "output", value_name = "OUT.toml")]
+    pub output: PathBuf,
+    /// Compensator design.
+    #[command(flatten)]
+    pub inverse: InverseArgs,
+    /// Column names.
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
 /// Arguments of `unlag fit`.
 #[derive(Debug, Args)]
 pub struct FitArgs {
@@ -98,6 +183,9 @@ pub struct FitArgs {
     /// Known delay in samples (skips the delay search).
     #[arg(long, value_name = "SAMPLES")]
     pub delay: Option<usize>,
+    /// Compensator design (on the validation tests, or the estimation test if there are none).
+    #[command(flatten)]
+    pub inverse: InverseArgs,
     /// Column names.
     #[command(flatten)]
     pub columns: ColumnArgs,
@@ -130,6 +218,9 @@ pub struct CompensateArgs {
     /// Arithmetic of the compensator.
     #[arg(long, value_enum, default_value_t = Arithmetic::F32)]
     pub arithmetic: Arithmetic,
+    /// Use the paper's direct inverse (eq. 7) even when the model file has a compensator.
+    #[arg(long)]
+    pub direct: bool,
     /// Column names.
     #[command(flatten)]
     pub columns: ColumnArgs,
@@ -167,6 +258,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Fit(a) => run_fit(&a),
         Command::Compensate(a) => run_compensate(&a),
         Command::Simulate(a) => run_simulate(&a),
+        Command::Invert(a) => run_invert(&a),
     }
 }
 
@@ -285,11 +377,18 @@ fn run_fit(args: &FitArgs) -> Result<()> {
             noise_floor: fit::noise_floor(&t.y, onset),
         });
     }
+    let judge = if val_tests.is_empty() {
+        std::slice::from_ref(est_test)
+    } else {
+        val_tests
+    };
+    let design = inverse::design_auto(&fitted.model, judge, &args.inverse.options()?)?;
     let file = ModelFile {
         format_version: FORMAT_VERSION,
         model: fitted.model.clone(),
         fit: Some(fitted.report.clone()),
         sources,
+        inverse: Some(design),
     };
     file.save(&args.output)?;
     if args.json {
@@ -299,7 +398,117 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         println!("{v}");
         return Ok(());
     }
-    print_fit(&file, est, &args.output);
+    print_fit(&file, est);
+    if let Some(d) = &file.inverse {
+        print_inverse(d);
+    }
+    println!("wrote {}", args.output.display());
+    Ok(())
+}
+
+fn print_inverse(d: &inverse::Design) {
+    println!("compensator: {}", d.method);
+    if !d.reflected_zeros.is_empty() {
+        println!(
+            "  zeros of B reflected into the unit circle: {}",
+            d.reflected_zeros.join(", ")
+        );
+    }
+    if !d.pulled_zeros.is_empty() {
+        println!(
+            "  zeros of B pulled in to |z| = {}: {}",
+            inverse::ZERO_RADIUS_MAX,
+            d.pulled_zeros.join(", ")
+        );
+    }
+    if !d.candidates.is_empty() {
+        println!("  bandwidth search ({}):", d.bandwidth_selection);
+        for row in d.candidates.chunks(3) {
+            let cells: Vec<String> = row
+                .iter()
+                .map(|c| {
+                    let mark = if (c.lowpass_hz - d.lowpass_hz).abs() < 1e-9 {
+                        '*'
+                    } else {
+                        ' '
+                    };
+                    format!(
+                        "{mark}{:>9.1} Hz {:>9} (noise x{:<8.3})",
+                        c.lowpass_hz,
+                        pct(c.nrmse),
+                        c.noise_gain
+                    )
+                })
+                .collect();
+            println!("   {}", cells.join(" "));
+        }
+    }
+    println!(
+        "  {:?} low-pass, order {}, corner {:.1} Hz; {} sections",
+        d.lowpass,
+        d.lowpass_order,
+        d.lowpass_hz,
+        d.sections.len()
+    );
+    println!(
+        "  corrected bandwidth {:.1} Hz (+/-1 dB, +/-5 deg); noise gain {:.3}; latency {:.2} samples ({:.6} s)",
+        d.corrected_bandwidth_hz, d.noise_gain, d.latency_samples, d.latency_s
+    );
+    println!(
+        "  in band (to the corner): worst magnitude error {:.3} dB, worst phase error {:.2} deg; pole margin {:.4}",
+        d.in_band_magnitude_error_db, d.in_band_phase_error_deg, d.pole_margin
+    );
+    for r in &d.reconstruction {
+        println!(
+            "  reconstruction of {}: u_hat {} against the reference, raw probe {} ({:.1}x better)",
+            r.file,
+            pct(r.nrmse_u_hat),
+            pct(r.nrmse_raw),
+            r.nrmse_raw / r.nrmse_u_hat
+        );
+    }
+}
+
+fn run_invert(args: &InvertArgs) -> Result<()> {
+    let file = ModelFile::load(&args.model)?;
+    let columns = args.columns.columns(true);
+    let traces = args
+        .files
+        .iter()
+        .map(|f| Trace::read(f, &columns))
+        .collect::<Result<Vec<_>>>()?;
+    for t in &traces {
+        check_rate(&file, t)?;
+    }
+    let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
+    let tests: Vec<Test<'_>> = traces
+        .iter()
+        .zip(&names)
+        .map(|(t, n)| {
+            Ok(Test {
+                name: n,
+                u: t.input()?,
+                y: &t.y,
+            })
+        })
+        .collect::<Result<_>>()?;
+    let design = inverse::design_auto(&file.model, &tests, &args.inverse.options()?)?;
+    design.check_exportable()?;
+    let out = ModelFile {
+        inverse: Some(design),
+        ..file
+    };
+    out.save(&args.output)?;
+    if args.json {
+        let mut v = serde_json::to_value(&out.inverse).map_err(json_err)?;
+        v["output"] = json!(name(&args.output));
+        println!("{v}");
+        return Ok(());
+    }
+    if let Some(d) = &out.inverse {
+        print_inverse(d);
+    }
+    println!("wrote {}", args.output.display());
     Ok(())
 }
 
@@ -310,7 +519,7 @@ fn json_err(e: serde_json::Error) -> Error {
     }
 }
 
-fn print_fit(file: &ModelFile, est: &Trace, output: &Path) {
+fn print_fit(file: &ModelFile, est: &Trace) {
     let m = &file.model;
     let Some(r) = &file.fit else { return };
     println!(
@@ -393,7 +602,6 @@ fn print_fit(file: &ModelFile, est: &Trace, output: &Path) {
             pct(s.noise_floor)
         );
     }
-    println!("wrote {}", output.display());
 }
 
 fn run_compensate(args: &CompensateArgs) -> Result<()> {
@@ -401,18 +609,39 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
     let trace = Trace::read(&args.file, &args.columns.columns(false))?;
     check_rate(&file, &trace)?;
     let m = &file.model;
-    m.check_invertible(&name(&args.model))?;
-    let u_hat = match args.arithmetic {
-        Arithmetic::F32 => m.compensate::<f32>(&trace.y)?,
-        Arithmetic::F64 => m.compensate::<f64>(&trace.y)?,
+    let design = if args.direct {
+        None
+    } else {
+        file.inverse.as_ref()
     };
-    // Error against the recorded reference, aligned by the delay, when there is one.
+    let (u_hat, latency, what) = match design {
+        Some(d) => {
+            d.check_exportable()?;
+            let u_hat = match args.arithmetic {
+                Arithmetic::F32 => d.run::<f32>(&trace.y)?,
+                Arithmetic::F64 => d.run::<f64>(&trace.y)?,
+            };
+            (
+                u_hat,
+                d.latency_samples,
+                "the model file's stable band-limited compensator",
+            )
+        }
+        None => {
+            m.check_invertible(&name(&args.model))?;
+            let u_hat = match args.arithmetic {
+                Arithmetic::F32 => m.compensate::<f32>(&trace.y)?,
+                Arithmetic::F64 => m.compensate::<f64>(&trace.y)?,
+            };
+            (u_hat, m.delay as f64, "the paper's direct inverse (eq. 7)")
+        }
+    };
+    // Error against the recorded reference, at the best alignment near the latency.
     let error = trace.u.as_ref().map(|u| {
-        let d = m.delay.min(u.len());
-        let aligned: Vec<f64> = u[..u.len() - d].to_vec();
-        let est = &u_hat[d..];
-        let raw = &trace.y[d..];
-        (fit::nrmse_of(&aligned, est), fit::nrmse_of(&aligned, raw))
+        let nominal = latency.round().max(0.0) as usize;
+        let (e, lag) = inverse::aligned_error(u, &u_hat, nominal.saturating_sub(4)..=nominal + 4);
+        let (raw, _) = inverse::aligned_error(u, &trace.y, 0..=m.delay + 4 * nominal.max(10));
+        (e, raw, lag)
     });
     let bytes = trace.to_csv_with(&[("u_hat", &u_hat)])?;
     crate::trace::write_atomically(&args.output, &bytes)?;
@@ -424,25 +653,27 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         let v = json!({
             "output": name(&args.output),
             "samples": trace.len(),
-            "delay": m.delay,
-            "delay_s": m.delay as f64 / m.fs,
+            "compensator": what,
+            "latency_samples": latency,
+            "latency_s": latency / m.fs,
             "arithmetic": arith,
             "nrmse_u_hat": error.map(|e| e.0),
             "nrmse_raw": error.map(|e| e.1),
+            "alignment_samples": error.map(|e| e.2),
         });
         println!("{v}");
         return Ok(());
     }
     println!(
-        "compensated {} samples of {} ({arith}); u_hat is the reference delayed by {} samples ({:.6} s)",
+        "compensated {} samples of {} with {what} ({arith}); u_hat lags the true pressure by {:.2} samples ({:.6} s)",
         trace.len(),
         trace.path.display(),
-        m.delay,
-        m.delay as f64 / m.fs
+        latency,
+        latency / m.fs
     );
-    if let Some((e, raw)) = error {
+    if let Some((e, raw, lag)) = error {
         println!(
-            "error against the recorded reference (RMS / range, delay-aligned): u_hat {}, raw probe {}",
+            "error against the recorded reference (RMS / range, best alignment): u_hat {} (at {lag} samples), raw probe {}",
             pct(e),
             pct(raw)
         );

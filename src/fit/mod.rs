@@ -195,8 +195,32 @@ fn fit_at(sets: &[Data<'_>], m: usize, d: usize, method: Method) -> Result<(Vec<
         Method::Arx => arx::fit(sets, m, d),
         Method::Sm => oe::steiglitz_mcbride(sets, m, d, 20),
         Method::Oe => {
-            let init = oe::steiglitz_mcbride(sets, m, d, 20)?;
-            oe::output_error(sets, init, d, 60)
+            // Two numerators: the paper's m + 1 coefficients, and m. A probe sampled through a
+            // hold has exactly m coefficients after its delay; the extra one then only fits
+            // noise, and tends to put a zero far outside the unit circle, which costs the
+            // inverse. Keep m + 1 only when it lowers the simulation error by more than the
+            // BIC penalty of one parameter.
+            let full = {
+                let init = oe::steiglitz_mcbride(sets, m, d, 20)?;
+                oe::output_error(sets, init, d, 60)?
+            };
+            let Ok(init) = oe::steiglitz_mcbride_nb(sets, m, m, d, 20) else {
+                return Ok(full);
+            };
+            let Ok(short) = oe::output_error(sets, init, d, 60) else {
+                return Ok(full);
+            };
+            let n: usize = sets.iter().map(|s| s.y.len()).sum();
+            let l_full = oe::loss(sets, (&full.0, &full.1), d);
+            let l_short = oe::loss(sets, (&short.0, &short.1), d);
+            let n = n as f64;
+            if l_short.is_finite() && l_short <= l_full * (1.0 + n.ln() / n) {
+                let (a, mut b) = short;
+                b.push(0.0);
+                Ok((a, b))
+            } else {
+                Ok(full)
+            }
         }
     }
 }

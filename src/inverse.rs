@@ -1,0 +1,805 @@
+//! Designing the compensator the board runs: a stable, band-limited inverse of the model,
+//! stored as second-order sections, with honest numbers about what it does.
+//!
+//! The paper's inverse `A/B` (eq. 7) divides by `B(z)`: it is unstable when `B` has a zero on
+//! or outside the unit circle, and where it is stable it amplifies noise without limit. This
+//! module owns the fix:
+//!
+//! 1. **Stable inverse.** Zeros of `B` outside the unit circle are reflected to `1/z*` (same
+//!    magnitude response; the phase difference is the all-pass `B/B_r`, which becomes extra
+//!    latency), zeros on or just inside it are pulled in to [`ZERO_RADIUS_MAX`]. The gain is
+//!    fixed so that `B_r(1) = B(1)`: the DC gain of the correction is exactly `1/H(1)`.
+//! 2. **Band limit.** The inverse is multiplied by a low-pass (Bessel by default: the step
+//!    response of a Bessel filter barely overshoots, which matters for step-like pressures),
+//!    designed by the bilinear transform with prewarping. Its corner is chosen by the user, or
+//!    automatically as the one that reconstructs the reference of the given tests best (the
+//!    trade between bandwidth and noise, judged on data, not on a rule of thumb).
+//! 3. **Sections.** Poles and zeros are paired into second-order sections (poles nearest the
+//!    unit circle first, each with its nearest zeros), as the board's
+//!    [`CascadeCoefficients`](crate::compensator::CascadeCoefficients) runs them.
+//! 4. **Numbers.** Corrected bandwidth (where the compensated response `H C` leaves +/-1 dB and
+//!    +/-5 degrees of a pure delay), noise gain (RMS output for unit white input noise),
+//!    latency, the worst in-band error against the target `LP / H`, and the pole margin.
+
+use std::f64::consts::PI;
+
+use serde::{Deserialize, Serialize};
+
+use crate::compensator::{CascadeCoefficients, CascadeState, Sample, MIN_POLE_MARGIN};
+use crate::error::{Error, Result};
+use crate::fit::Test;
+use crate::model::Model;
+use crate::poly::{self, Complex};
+
+/// Largest radius a zero of `B` may keep in the stable inverse (it becomes a pole of the
+/// compensator); zeros between this and the unit circle are pulled in to it.
+pub const ZERO_RADIUS_MAX: f64 = 0.99;
+
+/// Low-pass family of the band limit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum LowpassKind {
+    /// Maximally flat group delay: a step passes with almost no overshoot (default).
+    #[default]
+    Bessel,
+    /// Maximally flat magnitude: sharper, but a step rings.
+    Butterworth,
+}
+
+/// How to build the inverse.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Options {
+    /// Low-pass corner in Hz; `None` chooses it from the data (or the noise gain).
+    pub bandwidth_hz: Option<f64>,
+    /// Low-pass family.
+    pub lowpass: LowpassKind,
+    /// Low-pass order (1..=8).
+    pub lowpass_order: usize,
+    /// `true`: stable inverse (reflect and pull in zeros). `false`: the paper's direct inverse
+    /// `A/B` times the same low-pass, for comparison (unstable when `B` is not minimum phase).
+    pub stabilise: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            bandwidth_hz: None,
+            lowpass: LowpassKind::Bessel,
+            lowpass_order: 4,
+            stabilise: true,
+        }
+    }
+}
+
+/// One candidate corner of the automatic bandwidth choice.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BandwidthRow {
+    /// Low-pass corner in Hz.
+    pub lowpass_hz: f64,
+    /// Mean reconstruction error over the tests (RMS / range of the reference).
+    pub nrmse: f64,
+    /// Noise gain of the compensator at this corner.
+    pub noise_gain: f64,
+}
+
+/// Reconstruction of one test's reference by the compensator.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Reconstruction {
+    /// The test.
+    pub file: String,
+    /// Error of `u_hat` against the recorded reference (RMS / range, best alignment).
+    pub nrmse_u_hat: f64,
+    /// Error of the raw probe against the reference (RMS / range, best alignment).
+    pub nrmse_raw: f64,
+    /// The alignment found for `u_hat`, in samples.
+    pub lag: usize,
+}
+
+/// A designed compensator: what the board runs, and what it does.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Design {
+    /// How it was built.
+    pub method: String,
+    /// Low-pass family.
+    pub lowpass: LowpassKind,
+    /// Low-pass order.
+    pub lowpass_order: usize,
+    /// Low-pass corner (-3 dB) in Hz.
+    pub lowpass_hz: f64,
+    /// How the corner was chosen.
+    pub bandwidth_selection: String,
+    /// Input gain of the cascade.
+    pub gain: f64,
+    /// Sections `[b0, b1, b2, a1, a2]` in the crate's sign convention.
+    pub sections: Vec<[f64; 5]>,
+    /// Total latency of `u_hat` behind the true pressure, in samples (model delay + all-pass
+    /// delay of reflected zeros + low-pass group delay at DC).
+    pub latency_samples: f64,
+    /// The same in seconds.
+    pub latency_s: f64,
+    /// Where the compensated response leaves +/-1 dB or +/-5 degrees of a pure delay, in Hz.
+    pub corrected_bandwidth_hz: f64,
+    /// RMS output noise for unit white input noise (`sqrt(sum h^2)` of the compensator).
+    pub noise_gain: f64,
+    /// Worst magnitude error of `H C` against the target low-pass up to the corner, in dB.
+    pub in_band_magnitude_error_db: f64,
+    /// Worst phase error of `H C` against the target low-pass and latency up to the corner, in
+    /// degrees.
+    pub in_band_phase_error_deg: f64,
+    /// `1 - max |pole|` of the compensator.
+    pub pole_margin: f64,
+    /// Zeros of `B` reflected into the unit circle (non-minimum-phase part).
+    #[serde(default)]
+    pub reflected_zeros: Vec<String>,
+    /// Zeros of `B` pulled in to [`ZERO_RADIUS_MAX`].
+    #[serde(default)]
+    pub pulled_zeros: Vec<String>,
+    /// The automatic corner choice, when it was made.
+    #[serde(default)]
+    pub candidates: Vec<BandwidthRow>,
+    /// Reconstruction on the tests it was judged on.
+    #[serde(default)]
+    pub reconstruction: Vec<Reconstruction>,
+}
+
+/// Zeros, poles and gain of a rational function in `z^-1`:
+/// `k * prod(1 - z_i z^-1) / prod(1 - p_i z^-1)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Zpk {
+    /// Zeros.
+    pub zeros: Vec<Complex>,
+    /// Poles.
+    pub poles: Vec<Complex>,
+    /// Gain.
+    pub gain: f64,
+}
+
+fn c(re: f64) -> Complex {
+    Complex::new(re, 0.0)
+}
+
+impl Zpk {
+    /// Value at `z`.
+    #[must_use]
+    pub fn eval(&self, z: Complex) -> Complex {
+        let zi = c(1.0) / z;
+        let num = self
+            .zeros
+            .iter()
+            .fold(c(self.gain), |acc, q| acc * (c(1.0) - *q * zi));
+        self.poles
+            .iter()
+            .fold(num, |acc, p| acc / (c(1.0) - *p * zi))
+    }
+}
+
+/// Analog prototype poles with the -3 dB corner at 1 rad/s.
+fn analog_prototype(kind: LowpassKind, n: usize) -> Result<Vec<Complex>> {
+    match kind {
+        LowpassKind::Butterworth => Ok((0..n)
+            .map(|k| {
+                let th = PI * (2 * k + n + 1) as f64 / (2 * n) as f64;
+                Complex::new(th.cos(), th.sin())
+            })
+            .collect()),
+        LowpassKind::Bessel => {
+            // Reverse Bessel polynomial theta_n(s) = sum a_k s^k,
+            // a_k = (2n-k)! / (2^(n-k) k! (n-k)!); its roots have unit group delay at DC.
+            let fact = |x: usize| (1..=x).fold(1.0f64, |a, b| a * b as f64);
+            let a: Vec<f64> = (0..=n)
+                .map(|k| fact(2 * n - k) / (2f64.powi((n - k) as i32) * fact(k) * fact(n - k)))
+                .collect();
+            // poly::roots takes the highest power first.
+            let hi_first: Vec<f64> = a.iter().rev().copied().collect();
+            let roots = poly::roots(&hi_first)?;
+            // Scale so that |H(j w)| = 1/sqrt(2) at w = 1.
+            let mag2 = |w: f64, r: &[Complex]| {
+                r.iter().fold(1.0, |acc, p| {
+                    acc * (p.norm_sqr() / (Complex::new(0.0, w) - *p).norm_sqr())
+                })
+            };
+            let (mut lo, mut hi): (f64, f64) = (1e-3, 1e3);
+            for _ in 0..200 {
+                let mid = (lo * hi).sqrt();
+                if mag2(mid, &roots) > 0.5 {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let w3 = (lo * hi).sqrt();
+            Ok(roots.into_iter().map(|p| p / w3).collect())
+        }
+    }
+}
+
+/// Digital low-pass by the bilinear transform, corner prewarped to `fc`, unit DC gain.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for an order outside 1..=8 or a corner outside (0, fs/2).
+pub fn lowpass(kind: LowpassKind, order: usize, fc: f64, fs: f64) -> Result<Zpk> {
+    if !(1..=8).contains(&order) {
+        return Err(Error::InvalidArgument {
+            what: "--lowpass-order",
+            message: format!("must be 1..=8, not {order}"),
+        });
+    }
+    if !(fc.is_finite() && fc > 0.0 && fc < 0.5 * fs) {
+        return Err(Error::InvalidArgument {
+            what: "--bandwidth",
+            message: format!(
+                "the low-pass corner must be between 0 and half the sample rate ({} Hz), not {fc}",
+                0.5 * fs
+            ),
+        });
+    }
+    let wc = 2.0 * fs * (PI * fc / fs).tan();
+    let poles: Vec<Complex> = analog_prototype(kind, order)?
+        .into_iter()
+        .map(|p| {
+            let s = p * wc / (2.0 * fs);
+            (c(1.0) + s) / (c(1.0) - s)
+        })
+        .collect();
+    let zeros = vec![c(-1.0); order];
+    let mut z = Zpk {
+        zeros,
+        poles,
+        gain: 1.0,
+    };
+    z.gain = 1.0 / z.eval(c(1.0)).re;
+    Ok(z)
+}
+
+/// The model `H(z) = z^-d B/A` at `z`.
+#[must_use]
+pub fn model_response(model: &Model, z: Complex) -> Complex {
+    let num = poly::eval(&model.b, z);
+    let den = poly::eval(&model.denominator(), z);
+    let delay = (c(1.0) / z).powi(i32::try_from(model.delay).unwrap_or(i32::MAX));
+    num / den * delay
+}
+
+fn unit(f: f64, fs: f64) -> Complex {
+    let w = 2.0 * PI * f / fs;
+    Complex::new(w.cos(), w.sin())
+}
+
+/// Pairs poles and zeros into second-order sections `[b0, b1, b2, a1, a2]` (leading
+/// coefficients one; the gain is returned apart). Poles nearest the unit circle come first,
+/// each with the zeros nearest to it.
+#[must_use]
+pub fn to_sections(zpk: &Zpk) -> (f64, Vec<[f64; 5]>) {
+    // Quadratic factors [1, c1, c2] from roots: conjugate pairs together, reals two by two.
+    fn quads(roots: &[Complex]) -> Vec<(Vec<Complex>, [f64; 2])> {
+        let mut cpx: Vec<Complex> = roots.iter().copied().filter(|r| r.im > 1e-12).collect();
+        let mut real: Vec<f64> = roots
+            .iter()
+            .filter(|r| r.im.abs() <= 1e-12)
+            .map(|r| r.re)
+            .collect();
+        cpx.sort_by(|a, b| b.norm().total_cmp(&a.norm()));
+        real.sort_by(|a, b| b.abs().total_cmp(&a.abs()));
+        let mut out: Vec<(Vec<Complex>, [f64; 2])> = cpx
+            .into_iter()
+            .map(|r| (vec![r, r.conj()], [-2.0 * r.re, r.norm_sqr()]))
+            .collect();
+        for pair in real.chunks(2) {
+            match *pair {
+                [r1, r2] => out.push((vec![c(r1), c(r2)], [-(r1 + r2), r1 * r2])),
+                [r1] => out.push((vec![c(r1)], [-r1, 0.0])),
+                _ => {}
+            }
+        }
+        out
+    }
+    let mut pq = quads(&zpk.poles);
+    let mut zq = quads(&zpk.zeros);
+    pq.sort_by(|a, b| {
+        let ra = a.0.iter().map(|r| r.norm()).fold(0.0, f64::max);
+        let rb = b.0.iter().map(|r| r.norm()).fold(0.0, f64::max);
+        rb.total_cmp(&ra)
+    });
+    let mut sections = Vec::new();
+    for (proots, [a1, a2]) in pq {
+        // Nearest zero factor to these poles.
+        let best = zq
+            .iter()
+            .enumerate()
+            .map(|(i, (zr, _))| {
+                let d = proots
+                    .iter()
+                    .flat_map(|p| zr.iter().map(move |z| (*p - *z).norm()))
+                    .fold(f64::INFINITY, f64::min);
+                (i, d)
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, _)| i);
+        let [b1, b2] = match best {
+            Some(i) => zq.remove(i).1,
+            None => [0.0, 0.0],
+        };
+        sections.push([1.0, b1, b2, a1, a2]);
+    }
+    // Zeros left over (more zeros than poles): sections with poles at the origin.
+    for (_, [b1, b2]) in zq {
+        sections.push([1.0, b1, b2, 0.0, 0.0]);
+    }
+    (zpk.gain, sections)
+}
+
+/// Response of a cascade at `z`.
+#[must_use]
+pub fn cascade_response(gain: f64, sections: &[[f64; 5]], z: Complex) -> Complex {
+    let zi = c(1.0) / z;
+    sections.iter().fold(c(gain), |acc, s| {
+        let num = c(s[0]) + zi * (c(s[1]) + zi * c(s[2]));
+        let den = c(1.0) + zi * (c(s[3]) + zi * c(s[4]));
+        acc * num / den
+    })
+}
+
+/// Impulse response energy of a cascade: its noise gain, `sqrt(sum h^2)`.
+fn noise_gain(gain: f64, sections: &[[f64; 5]]) -> f64 {
+    let mut st = vec![[0.0f64; 2]; sections.len()];
+    let mut energy = 0.0;
+    let mut tail = 0.0;
+    for k in 0..2_000_000 {
+        let mut v = if k == 0 { gain } else { 0.0 };
+        for (s, st) in sections.iter().zip(st.iter_mut()) {
+            let y = s[0] * v + st[0];
+            *st = [s[1] * v - s[3] * y + st[1], s[2] * v - s[4] * y];
+            v = y;
+        }
+        energy += v * v;
+        tail = if k % 256 == 0 { 0.0 } else { tail + v * v };
+        if k > 1024 && k % 256 == 255 && tail < 1e-14 * energy {
+            break;
+        }
+    }
+    energy.sqrt()
+}
+
+/// Unwrapped phase of `values` along a frequency grid.
+fn unwrap(values: &[Complex]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(values.len());
+    let mut offset = 0.0;
+    let mut prev: Option<f64> = None;
+    for v in values {
+        let mut ph = v.im.atan2(v.re) + offset;
+        if let Some(p) = prev {
+            while ph - p > PI {
+                ph -= 2.0 * PI;
+                offset -= 2.0 * PI;
+            }
+            while ph - p < -PI {
+                ph += 2.0 * PI;
+                offset += 2.0 * PI;
+            }
+        }
+        prev = Some(ph);
+        out.push(ph);
+    }
+    out
+}
+
+/// Designs the compensator for `model` with the low-pass corner `fc` (Hz).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for a bad corner or order, [`Error::UnstableInverse`] when
+/// `stabilise` is off and `B` is not minimum phase, [`Error::Numerical`] when `B(1) = 0` (the
+/// probe does not pass DC) or root finding fails.
+pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
+    let fs = model.fs;
+    // Leading zeros of b are delay.
+    let scale = model.b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let lead = model
+        .b
+        .iter()
+        .position(|v| v.abs() > 1e-12 * scale)
+        .ok_or_else(|| Error::Numerical {
+            context: "inverse".into(),
+            message: "the model's numerator b is zero".into(),
+        })?;
+    let b = model.b.get(lead..).unwrap_or(&[]);
+    let b0 = b.first().copied().unwrap_or(1.0);
+    let b_at_1: f64 = b.iter().sum();
+    if b_at_1.abs() < 1e-14 * scale {
+        return Err(Error::Numerical {
+            context: "inverse".into(),
+            message: "B(1) = 0: the model does not pass a steady pressure, it cannot be inverted"
+                .into(),
+        });
+    }
+    let zeros = poly::roots(b)?;
+    let poles = model.poles()?;
+    let mut inv_poles = Vec::with_capacity(zeros.len());
+    let mut reflected = Vec::new();
+    let mut pulled = Vec::new();
+    for z in &zeros {
+        let r = z.norm();
+        if !options.stabilise {
+            if r >= 1.0 {
+                return Err(Error::UnstableInverse {
+                    context: "direct inverse".into(),
+                    zero: poly::format_root(*z),
+                    radius: r,
+                });
+            }
+            inv_poles.push(*z);
+        } else if r > 1.0 + 1e-9 {
+            let w = c(1.0) / z.conj();
+            if w.norm() > ZERO_RADIUS_MAX {
+                pulled.push(poly::format_root(*z));
+                inv_poles.push(w * (ZERO_RADIUS_MAX / w.norm()));
+            } else {
+                reflected.push(poly::format_root(*z));
+                inv_poles.push(w);
+            }
+        } else if r > ZERO_RADIUS_MAX {
+            pulled.push(poly::format_root(*z));
+            inv_poles.push(*z * (ZERO_RADIUS_MAX / r));
+        } else {
+            inv_poles.push(*z);
+        }
+    }
+    // A/B_r, with B_r(1) = B(1): gain = A(1)/B(1) over the product form at z = 1.
+    let lp = lowpass(options.lowpass, options.lowpass_order, fc, fs)?;
+    let mut inv = Zpk {
+        zeros: poles.clone(),
+        poles: inv_poles,
+        gain: 1.0 / b0,
+    };
+    let a_at_1: f64 = 1.0 + model.a.iter().sum::<f64>();
+    let target_dc = a_at_1 / b_at_1;
+    let raw_dc = inv.eval(c(1.0)).re;
+    inv.gain *= target_dc / raw_dc;
+    let mut all = inv.clone();
+    all.zeros.extend(lp.zeros.iter().copied());
+    all.poles.extend(lp.poles.iter().copied());
+    all.gain *= lp.gain;
+    let (gain, sections) = to_sections(&all);
+    let pole_margin = 1.0 - all.poles.iter().map(|p| p.norm()).fold(0.0, f64::max);
+
+    // Numbers on a frequency grid up to Nyquist.
+    let n = 4000;
+    let freqs: Vec<f64> = (1..=n).map(|i| 0.5 * fs * i as f64 / n as f64).collect();
+    let h: Vec<Complex> = freqs
+        .iter()
+        .map(|&f| model_response(model, unit(f, fs)))
+        .collect();
+    let cc: Vec<Complex> = freqs
+        .iter()
+        .map(|&f| cascade_response(gain, &sections, unit(f, fs)))
+        .collect();
+    let lpr: Vec<Complex> = freqs.iter().map(|&f| lp.eval(unit(f, fs))).collect();
+    let t: Vec<Complex> = h.iter().zip(&cc).map(|(a, b)| *a * *b).collect();
+    let phase_t = unwrap(&t);
+    // Latency from the low-frequency phase slope of H C (model delay + all-pass + low-pass).
+    let f_ref = (fs * 1e-4).min(fc * 0.01);
+    let t_ref =
+        model_response(model, unit(f_ref, fs)) * cascade_response(gain, &sections, unit(f_ref, fs));
+    let latency = -t_ref.im.atan2(t_ref.re) / (2.0 * PI * f_ref / fs);
+    let mut bandwidth = 0.5 * fs;
+    for ((f, tv), ph) in freqs.iter().zip(&t).zip(&phase_t) {
+        let mag_db = 20.0 * tv.norm().log10();
+        let ph_err = (ph + 2.0 * PI * f / fs * latency).to_degrees();
+        if mag_db.abs() > 1.0 || ph_err.abs() > 5.0 {
+            bandwidth = *f;
+            break;
+        }
+    }
+    // Error against the target LP (magnitude) and LP with the latency of model + all-pass.
+    let lp_latency = {
+        let v = lp.eval(unit(f_ref, fs));
+        -v.im.atan2(v.re) / (2.0 * PI * f_ref / fs)
+    };
+    let mut worst_db: f64 = 0.0;
+    let mut worst_deg: f64 = 0.0;
+    let ratio: Vec<Complex> = t.iter().zip(&lpr).map(|(a, b)| *a / *b).collect();
+    let phase_r = unwrap(&ratio);
+    for ((f, r), ph) in freqs.iter().zip(&ratio).zip(&phase_r) {
+        if *f > fc {
+            break;
+        }
+        worst_db = worst_db.max((20.0 * r.norm().log10()).abs());
+        let err = (ph + 2.0 * PI * f / fs * (latency - lp_latency)).to_degrees();
+        worst_deg = worst_deg.max(err.abs());
+    }
+    let method = if options.stabilise {
+        "stable inverse (zeros of B outside the unit circle reflected, near it pulled in) times low-pass"
+    } else {
+        "the paper's direct inverse A/B times low-pass"
+    };
+    Ok(Design {
+        method: method.into(),
+        lowpass: options.lowpass,
+        lowpass_order: options.lowpass_order,
+        lowpass_hz: fc,
+        bandwidth_selection: "given".into(),
+        gain,
+        noise_gain: noise_gain(gain, &sections),
+        sections,
+        latency_samples: latency,
+        latency_s: latency / fs,
+        corrected_bandwidth_hz: bandwidth,
+        in_band_magnitude_error_db: worst_db,
+        in_band_phase_error_deg: worst_deg,
+        pole_margin,
+        reflected_zeros: reflected,
+        pulled_zeros: pulled,
+        candidates: Vec::new(),
+        reconstruction: Vec::new(),
+    })
+}
+
+impl Design {
+    /// Runs the compensator on `y` in arithmetic `T` with the board's code, starting in
+    /// equilibrium with `y[0]`.
+    ///
+    /// # Errors
+    /// [`Error::Numerical`] when the sections do not validate (too many, or a pole too close
+    /// to the unit circle).
+    pub fn run<T: Sample>(&self, y: &[f64]) -> Result<Vec<f64>> {
+        match self.sections.len() {
+            0..=2 => self.run_with::<T, 2>(y),
+            3..=4 => self.run_with::<T, 4>(y),
+            5..=8 => self.run_with::<T, 8>(y),
+            _ => self.run_with::<T, 16>(y),
+        }
+    }
+
+    fn run_with<T: Sample, const N: usize>(&self, y: &[f64]) -> Result<Vec<f64>> {
+        let c = CascadeCoefficients::<T, N>::new(self.gain, &self.sections).map_err(|e| {
+            Error::Numerical {
+                context: "compensator".into(),
+                message: e.to_string(),
+            }
+        })?;
+        let mut st: CascadeState<T, N> =
+            c.equilibrium(T::from_f64(y.first().copied().unwrap_or(0.0)));
+        Ok(y.iter()
+            .map(|&v| c.process(&mut st, T::from_f64(v)).to_f64())
+            .collect())
+    }
+
+    /// Checks that the board may run it: every pole inside the unit circle by
+    /// [`MIN_POLE_MARGIN`].
+    ///
+    /// # Errors
+    /// [`Error::Numerical`] naming the margin.
+    pub fn check_exportable(&self) -> Result<()> {
+        if self.pole_margin.is_nan() || self.pole_margin < MIN_POLE_MARGIN {
+            return Err(Error::Numerical {
+                context: "inverse".into(),
+                message: format!(
+                    "the compensator's poles are {:.2e} from the unit circle, less than the required margin {MIN_POLE_MARGIN:.0e}: refusing to export it",
+                    self.pole_margin
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Error of an estimate against a reference when the estimate lags by `lag` samples, searched
+/// over `lags` for the best alignment: `(nrmse, lag)`, RMS over the range of the reference.
+/// All lags are compared on the same samples.
+#[must_use]
+pub fn aligned_error(
+    reference: &[f64],
+    estimate: &[f64],
+    lags: std::ops::RangeInclusive<usize>,
+) -> (f64, usize) {
+    let n = reference.len().min(estimate.len());
+    let hi = (*lags.end()).min(n.saturating_sub(2));
+    let (lo_v, hi_v) = reference
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(*v), h.max(*v))
+        });
+    let range = hi_v - lo_v;
+    let mut best = (f64::INFINITY, 0);
+    for lag in *lags.start()..=hi {
+        let count = n - hi;
+        let sse: f64 = (hi..n)
+            .map(|k| {
+                let e = estimate[k] - reference[k - lag];
+                e * e
+            })
+            .sum();
+        let e = (sse / count as f64).sqrt() / range;
+        if e < best.0 {
+            best = (e, lag);
+        }
+    }
+    best
+}
+
+/// Reconstruction error of `design` on one test (f64 arithmetic), against the raw probe.
+///
+/// # Errors
+/// As [`Design::run`].
+pub fn reconstruct(design: &Design, model: &Model, test: &Test<'_>) -> Result<Reconstruction> {
+    let u_hat = design.run::<f64>(test.y)?;
+    let nominal = design.latency_samples.round().max(0.0) as usize;
+    let lo = nominal.saturating_sub(4);
+    let (e, lag) = aligned_error(test.u, &u_hat, lo..=nominal + 4);
+    let (raw, _) = aligned_error(test.u, test.y, 0..=model.delay + 4 * nominal.max(10));
+    Ok(Reconstruction {
+        file: test.name.to_string(),
+        nrmse_u_hat: e,
+        nrmse_raw: raw,
+        lag,
+    })
+}
+
+/// Designs the compensator, choosing the low-pass corner when `options.bandwidth_hz` is
+/// `None`: with tests, the corner whose compensator reconstructs their references best (mean
+/// error, best alignment, on a log grid from fs/1000 to 0.4 fs); without tests, the highest
+/// corner whose noise gain stays below 10.
+///
+/// # Errors
+/// As [`design`].
+pub fn design_auto(model: &Model, tests: &[Test<'_>], options: &Options) -> Result<Design> {
+    let fs = model.fs;
+    if let Some(fc) = options.bandwidth_hz {
+        let mut d = design(model, fc, options)?;
+        for t in tests {
+            d.reconstruction.push(reconstruct(&d, model, t)?);
+        }
+        return Ok(d);
+    }
+    let n = 30;
+    let (lo, hi) = (fs / 1000.0, 0.4 * fs);
+    let grid: Vec<f64> = (0..n)
+        .map(|i| lo * (hi / lo).powf(i as f64 / (n - 1) as f64))
+        .collect();
+    let mut rows = Vec::new();
+    let mut best: Option<(f64, Design)> = None;
+    for &fc in &grid {
+        let d = design(model, fc, options)?;
+        let score = if tests.is_empty() {
+            if d.noise_gain <= 10.0 {
+                -fc
+            } else {
+                f64::INFINITY
+            }
+        } else {
+            let mut sum = 0.0;
+            for t in tests {
+                sum += reconstruct(&d, model, t)?.nrmse_u_hat;
+            }
+            sum / tests.len() as f64
+        };
+        rows.push(BandwidthRow {
+            lowpass_hz: fc,
+            nrmse: if tests.is_empty() { f64::NAN } else { score },
+            noise_gain: d.noise_gain,
+        });
+        if score.is_finite() && best.as_ref().is_none_or(|(s, _)| score < *s) {
+            best = Some((score, d));
+        }
+    }
+    let Some((best_score, mut d)) = best else {
+        return Err(Error::Numerical {
+            context: "inverse".into(),
+            message: "no low-pass corner gave a usable compensator (noise gain above 10 everywhere); give --bandwidth".into(),
+        });
+    };
+    if !tests.is_empty() {
+        // Refine between the neighbours of the best grid corner (golden-section search on
+        // log frequency; the error is smooth and unimodal there).
+        let i = grid
+            .iter()
+            .position(|&f| (f - d.lowpass_hz).abs() < 1e-9 * f)
+            .unwrap_or(0);
+        let mut a = grid.get(i.saturating_sub(1)).copied().unwrap_or(lo).ln();
+        let mut b = grid.get(i + 1).copied().unwrap_or(hi).min(hi).ln();
+        let score = |fc: f64| -> Result<(f64, Design)> {
+            let d = design(model, fc, options)?;
+            let mut sum = 0.0;
+            for t in tests {
+                sum += reconstruct(&d, model, t)?.nrmse_u_hat;
+            }
+            Ok((sum / tests.len() as f64, d))
+        };
+        let g = 0.5 * (5f64.sqrt() - 1.0);
+        let mut best_score = best_score;
+        for _ in 0..12 {
+            let x1 = b - g * (b - a);
+            let x2 = a + g * (b - a);
+            let (s1, d1) = score(x1.exp())?;
+            let (s2, d2) = score(x2.exp())?;
+            for (s, dd) in [(s1, d1), (s2, d2)] {
+                if s < best_score {
+                    best_score = s;
+                    d = dd;
+                }
+            }
+            if s1 < s2 {
+                b = x2;
+            } else {
+                a = x1;
+            }
+        }
+    }
+    d.bandwidth_selection = if tests.is_empty() {
+        "auto: the highest corner with noise gain at most 10 (no test to judge on)".into()
+    } else {
+        format!(
+            "auto: the corner with the lowest mean reconstruction error on {} test(s)",
+            tests.len()
+        )
+    };
+    for t in tests {
+        d.reconstruction.push(reconstruct(&d, model, t)?);
+    }
+    d.candidates = rows;
+    Ok(d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lowpass_has_unit_dc_and_minus_3db_at_the_corner() {
+        for kind in [LowpassKind::Bessel, LowpassKind::Butterworth] {
+            for order in [1, 2, 4, 6] {
+                let lp = lowpass(kind, order, 300.0, 10_000.0).unwrap();
+                assert!((lp.eval(c(1.0)).norm() - 1.0).abs() < 1e-12);
+                let m = lp.eval(unit(300.0, 10_000.0)).norm();
+                assert!(
+                    (20.0 * m.log10() + 3.0103).abs() < 0.01,
+                    "{kind:?} {order}: {m}"
+                );
+                assert!(lp.poles.iter().all(|p| p.norm() < 1.0));
+            }
+        }
+    }
+
+    #[test]
+    fn sections_reproduce_the_zpk() {
+        let zpk = Zpk {
+            zeros: vec![
+                c(0.5),
+                Complex::new(0.3, 0.4),
+                Complex::new(0.3, -0.4),
+                c(-0.9),
+            ],
+            poles: vec![c(0.8), Complex::new(0.6, 0.7), Complex::new(0.6, -0.7)],
+            gain: 2.0,
+        };
+        let (g, s) = to_sections(&zpk);
+        for f in [0.0, 0.01, 0.1, 0.3, 0.49] {
+            let z = unit(f, 1.0);
+            assert!((cascade_response(g, &s, z) - zpk.eval(z)).norm() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn non_minimum_phase_model_gets_a_stable_accurate_inverse() {
+        // B has a zero at 2.1 (non-minimum phase); A a resonance.
+        let model = Model {
+            fs: 10_000.0,
+            delay: 3,
+            a: vec![-1.8, 0.85],
+            b: vec![-0.05, 0.05 * 2.1],
+        };
+        let d = design(&model, 500.0, &Options::default()).unwrap();
+        assert_eq!(d.reflected_zeros.len(), 1);
+        assert!(d.pole_margin > 0.0);
+        assert!(
+            d.in_band_magnitude_error_db < 0.5,
+            "{}",
+            d.in_band_magnitude_error_db
+        );
+        // The direct inverse is refused.
+        let direct = Options {
+            stabilise: false,
+            ..Options::default()
+        };
+        assert!(design(&model, 500.0, &direct).is_err());
+    }
+}

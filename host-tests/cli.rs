@@ -2,6 +2,9 @@
 //! rejected with one clear message naming file, line and column, a non-zero exit, no panic, and
 //! no output file.
 
+// Test code: a failed unwrap is a failed test, with its location.
+#![allow(clippy::unwrap_used)]
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

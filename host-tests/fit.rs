@@ -2,6 +2,9 @@
 //! noise-robust default against the paper's biased direct least squares, the delay under noise,
 //! and the inverse property `compensate(simulate(u)) == u`.
 
+// Test code: a failed unwrap is a failed test, with its location.
+#![allow(clippy::unwrap_used)]
+
 mod common;
 
 use common::{add_noise, arx_filter, continuous_line, step, Rng};

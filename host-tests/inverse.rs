@@ -1,6 +1,9 @@
 //! The stable, band-limited inverse: stable for every model, accurate in band, and better than
 //! the raw probe on a noisy validation test with known truth.
 
+// Test code: a failed unwrap is a failed test, with its location.
+#![allow(clippy::unwrap_used)]
+
 mod common;
 
 use std::f64::consts::PI;

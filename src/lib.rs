@@ -8,7 +8,11 @@
 pub mod compensator;
 
 #[cfg(feature = "std")]
+pub mod analysis;
+#[cfg(feature = "std")]
 pub mod cli;
+#[cfg(feature = "std")]
+pub mod continuous;
 #[cfg(feature = "std")]
 pub mod error;
 #[cfg(feature = "std")]

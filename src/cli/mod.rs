@@ -15,6 +15,8 @@ use crate::inverse;
 use crate::model::{ModelFile, Source, FORMAT_VERSION};
 use crate::trace::{Columns, Trace};
 
+pub mod inspect;
+
 /// Give pressure probes back their bandwidth: fit a model from a step test, compensate.
 #[derive(Debug, Parser)]
 #[command(name = "unlag", version, about, long_about = None)]
@@ -38,6 +40,11 @@ pub enum Command {
     /// Design the board's compensator for a model: a stable, band-limited inverse in
     /// second-order sections, with its bandwidth, noise gain and latency.
     Invert(InvertArgs),
+    /// Analyse a model: poles and zeros, stability and minimum-phase margins, DC gain,
+    /// resonances, delay, continuous-time equivalent and frequency response.
+    Inspect(inspect::InspectArgs),
+    /// Re-discretise a model at another sample rate (step invariant, fractional delay kept).
+    Resample(inspect::ResampleArgs),
     // physics subcommands (issue 6)
 }
 
@@ -259,6 +266,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Compensate(a) => run_compensate(&a),
         Command::Simulate(a) => run_simulate(&a),
         Command::Invert(a) => run_invert(&a),
+        Command::Inspect(a) => inspect::run_inspect(&a),
+        Command::Resample(a) => inspect::run_resample(&a),
     }
 }
 
@@ -382,13 +391,20 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     } else {
         val_tests
     };
-    let design = inverse::design_auto(&fitted.model, judge, &args.inverse.options()?)?;
+    // The fit stands on its own: if no compensator can be designed, say why and keep the model.
+    let design = match inverse::design_auto(&fitted.model, judge, &args.inverse.options()?) {
+        Ok(d) => Some(d),
+        Err(e) => {
+            eprintln!("warning: no compensator designed: {e}");
+            None
+        }
+    };
     let file = ModelFile {
         format_version: FORMAT_VERSION,
         model: fitted.model.clone(),
         fit: Some(fitted.report.clone()),
         sources,
-        inverse: Some(design),
+        inverse: design,
     };
     file.save(&args.output)?;
     if args.json {

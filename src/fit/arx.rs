@@ -65,25 +65,42 @@ pub fn lstsq(x: &Mat<f64>, t: &Mat<f64>, context: &str) -> Result<Vec<f64>> {
 #[must_use]
 pub fn regression(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> (Mat<f64>, Mat<f64>) {
     let start = m.max(nb.saturating_sub(1)) + d;
-    let rows: Vec<(usize, usize)> = sets
+    let lens: Vec<usize> = sets
         .iter()
-        .enumerate()
-        .flat_map(|(s, data)| (start..data.y.len().min(data.u.len())).map(move |k| (s, k)))
+        .map(|data| data.y.len().min(data.u.len()).saturating_sub(start))
         .collect();
+    let n_rows: usize = lens.iter().sum();
     let cols = m + nb;
-    let x = Mat::<f64>::from_fn(rows.len(), cols, |r, c| {
-        let (s, k) = rows[r];
-        let data = &sets[s];
-        if c < m {
-            -data.y[k - 1 - c]
-        } else {
-            data.u[k - d - (c - m)]
+    // Column by column, each a run of contiguous copies: the matrix is column major.
+    let mut x = Mat::<f64>::zeros(n_rows, cols);
+    let mut t = Mat::<f64>::zeros(n_rows, 1);
+    // `first` is where the column starts in each set's signal; `y` or `u`; negated or not.
+    let fill = |col: &mut [f64], first: usize, from_y: bool, negate: bool| {
+        let mut r = 0;
+        for (data, &len) in sets.iter().zip(&lens) {
+            let signal = if from_y { data.y } else { data.u };
+            let src = &signal[first..first + len];
+            let dst = &mut col[r..r + len];
+            if negate {
+                dst.iter_mut().zip(src).for_each(|(o, v)| *o = -v);
+            } else {
+                dst.copy_from_slice(src);
+            }
+            r += len;
         }
-    });
-    let t = Mat::<f64>::from_fn(rows.len(), 1, |r, _| {
-        let (s, k) = rows[r];
-        sets[s].y[k]
-    });
+    };
+    for c in 0..cols {
+        if let Some(col) = x.col_mut(c).try_as_col_major_mut() {
+            if c < m {
+                fill(col.as_slice_mut(), start - 1 - c, true, true);
+            } else {
+                fill(col.as_slice_mut(), start - d - (c - m), false, false);
+            }
+        }
+    }
+    if let Some(col) = t.col_mut(0).try_as_col_major_mut() {
+        fill(col.as_slice_mut(), start, true, false);
+    }
     (x, t)
 }
 

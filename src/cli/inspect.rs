@@ -1,0 +1,387 @@
+//! `unlag inspect` and `unlag resample`: what a model file says about the probe, and the same
+//! model at another sample rate.
+//!
+//! Owns the printing of [`crate::analysis::Analysis`] and [`crate::continuous::Continuous`]
+//! (tables for people, one JSON object with `--json`); the numbers come from those modules.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use serde_json::json;
+
+use crate::analysis::{self, Analysis};
+use crate::continuous::{self, Continuous};
+use crate::error::{Error, Result};
+use crate::model::{Model, ModelFile};
+use crate::poly::{self, Complex};
+
+/// Arguments of `unlag inspect`.
+#[derive(Debug, Args)]
+pub struct InspectArgs {
+    /// The model file.
+    #[arg(value_name = "MODEL.toml")]
+    pub model: PathBuf,
+    /// Print one JSON object instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Frequencies (Hz) of the frequency-response table, comma-separated.
+    #[arg(long, value_delimiter = ',', value_name = "F1,F2,...")]
+    pub freqs: Vec<f64>,
+    /// A linear grid of frequencies: START:STOP:N (Hz, N points). Without --freqs and --grid,
+    /// 0 Hz and four points per decade from fs/1000 to fs/2.
+    #[arg(long, value_name = "START:STOP:N")]
+    pub grid: Option<String>,
+}
+
+/// Arguments of `unlag resample`.
+#[derive(Debug, Args)]
+pub struct ResampleArgs {
+    /// The model file.
+    #[arg(value_name = "MODEL.toml")]
+    pub model: PathBuf,
+    /// The new sample rate in Hz.
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    pub fs: f64,
+    /// Where to write the resampled model file (written atomically).
+    #[arg(short, long, value_name = "NEW.toml")]
+    pub output: PathBuf,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn json_err(e: serde_json::Error) -> Error {
+    Error::Numerical {
+        context: "json".into(),
+        message: e.to_string(),
+    }
+}
+
+/// Parses `START:STOP:N` into `N` evenly spaced frequencies.
+fn parse_grid(text: &str) -> Result<Vec<f64>> {
+    let bad = |why: &str| {
+        Error::InvalidArgument {
+        what: "--grid",
+        message: format!("expected START:STOP:N (Hz, Hz, points) with 0 <= START < STOP and N >= 1, got '{text}': {why}"),
+    }
+    };
+    let parts: Vec<&str> = text.split(':').collect();
+    let [start, stop, n] = parts.as_slice() else {
+        return Err(bad("three fields are needed"));
+    };
+    let start: f64 = start
+        .trim()
+        .parse()
+        .map_err(|_| bad("START is not a number"))?;
+    let stop: f64 = stop
+        .trim()
+        .parse()
+        .map_err(|_| bad("STOP is not a number"))?;
+    let n: usize = n
+        .trim()
+        .parse()
+        .map_err(|_| bad("N is not a whole number"))?;
+    if !(start.is_finite() && stop.is_finite() && start >= 0.0 && stop > start) {
+        return Err(bad("the range is empty or not finite"));
+    }
+    match n {
+        0 => Err(bad("N must be at least 1")),
+        1 => Ok(vec![start]),
+        _ => Ok((0..n)
+            .map(|k| start + (stop - start) * k as f64 / (n - 1) as f64)
+            .collect()),
+    }
+}
+
+fn frequencies(args: &InspectArgs, fs: f64) -> Result<Vec<f64>> {
+    let mut f = args.freqs.clone();
+    if let Some(g) = &args.grid {
+        f.extend(parse_grid(g)?);
+    }
+    if let Some(bad) = f.iter().find(|v| !v.is_finite() || **v < 0.0) {
+        return Err(Error::InvalidArgument {
+            what: "--freqs",
+            message: format!("frequencies must be finite and >= 0 Hz, got {bad}"),
+        });
+    }
+    if f.is_empty() {
+        let (lo, hi) = (fs / 1000.0, fs / 2.0);
+        let n = (4.0 * (hi / lo).log10()).ceil() as usize;
+        f.push(0.0);
+        f.extend((0..=n).map(|k| lo * (hi / lo).powf(k as f64 / n as f64)));
+    }
+    f.sort_by(f64::total_cmp);
+    Ok(f)
+}
+
+fn response_rows(model: &Model, freqs: &[f64]) -> Vec<serde_json::Value> {
+    analysis::frequency_response(model, freqs)
+        .into_iter()
+        .zip(freqs)
+        .map(|((mag, phase), f)| {
+            json!({
+                "frequency_hz": f,
+                "magnitude": mag,
+                "magnitude_db": 20.0 * mag.log10(),
+                "phase_rad": phase,
+                "phase_deg": phase.to_degrees(),
+            })
+        })
+        .collect()
+}
+
+/// `unlag inspect`: prints the analysis of a model file.
+///
+/// # Errors
+/// The model file's errors (including an unstable model, named by its pole), an invalid
+/// `--grid` or `--freqs`, or a numerical failure.
+pub fn run_inspect(args: &InspectArgs) -> Result<()> {
+    let file = ModelFile::load(&args.model)?;
+    let m = &file.model;
+    let analysis = Analysis::new(m)?;
+    let freqs = frequencies(args, m.fs)?;
+    let ct = Continuous::from_model(m);
+    if args.json {
+        let (continuous, why) = match &ct {
+            Ok(c) => (serde_json::to_value(c).map_err(json_err)?, None),
+            Err(e) => (serde_json::Value::Null, Some(e.to_string())),
+        };
+        let v = json!({
+            "model": args.model.display().to_string(),
+            "analysis": serde_json::to_value(&analysis).map_err(json_err)?,
+            "continuous": continuous,
+            "continuous_error": why,
+            "frequency_response": response_rows(m, &freqs),
+        });
+        println!("{v}");
+        // The analysis shows which pole is outside; the exit status says the model is unusable.
+        return m.check_stable(&args.model.display().to_string());
+    }
+    print_analysis(&args.model.display().to_string(), &analysis);
+    print_continuous(&ct, m.fs);
+    println!("frequency response (the paper's eq. 6, delay included):");
+    println!(
+        "  {:>12} {:>12} {:>10} {:>12}",
+        "f [Hz]", "magnitude", "dB", "phase [deg]"
+    );
+    for ((mag, phase), f) in analysis::frequency_response(m, &freqs)
+        .into_iter()
+        .zip(&freqs)
+    {
+        println!(
+            "  {f:>12.3} {mag:>12.6} {:>10.3} {:>12.3}",
+            20.0 * mag.log10(),
+            phase.to_degrees()
+        );
+    }
+    m.check_stable(&args.model.display().to_string())
+}
+
+fn print_roots(what: &str, roots: &[analysis::Root]) {
+    if roots.is_empty() {
+        println!("{what}: none");
+        return;
+    }
+    println!("{what} (largest |z| first):");
+    for r in roots {
+        println!(
+            "  {:<32} |z| = {:.6}",
+            poly::format_root(Complex::new(r.re, r.im)),
+            r.magnitude
+        );
+    }
+}
+
+fn print_analysis(name: &str, a: &Analysis) {
+    println!(
+        "model {name}: order {}, fs {} Hz, delay {} samples ({:.9} s)",
+        a.order, a.sample_rate_hz, a.delay_samples, a.delay_s
+    );
+    print_roots("poles", &a.poles);
+    print_roots("zeros of B", &a.zeros);
+    println!(
+        "stable: {}, margin {:.6} (1 - max |pole|)",
+        if a.stable { "yes" } else { "NO" },
+        a.stability_margin
+    );
+    println!(
+        "minimum phase: {}, margin {:.6} (1 - max |zero|){}",
+        if a.minimum_phase { "yes" } else { "no" },
+        a.minimum_phase_margin,
+        if a.minimum_phase {
+            ""
+        } else {
+            ": the paper's direct inverse A/B is unstable; use the stable inverse design"
+        }
+    );
+    println!(
+        "DC gain {:.6} ({:+.4} % from 1, the gain of a calibrated transducer)",
+        a.dc_gain,
+        100.0 * a.dc_gain_deviation
+    );
+    println!("modes (each real pole and complex pole pair):");
+    for mode in &a.modes {
+        println!("  {}", mode.description);
+    }
+    if a.resonances().next().is_none() {
+        println!("  no resonance (no complex pole pair)");
+    }
+}
+
+fn print_continuous(ct: &Result<Continuous>, fs: f64) {
+    match ct {
+        Err(e) => println!("continuous-time equivalent: none ({e})"),
+        Ok(c) => {
+            println!("continuous-time equivalent (step invariant, H(s) = (D + sum r/(s - s_i)) e^(-s tau)):");
+            println!(
+                "  delay tau = {:.9} s = {:.6} samples ({}), feedthrough D = {:.6e}",
+                c.delay_s,
+                c.delay_s * fs,
+                match c.delay_found {
+                    continuous::DelayFound::ZeroCrossing => "where the step response crosses zero",
+                    continuous::DelayFound::MinimumOfResponse =>
+                        "no zero crossing: where the step response is smallest; the rest is D",
+                    continuous::DelayFound::NoDelay => "no delay",
+                },
+                c.feedthrough
+            );
+            for (s, r) in c.poles.iter().zip(&c.residues) {
+                let (fn_hz, zeta) = (
+                    s.magnitude / (2.0 * std::f64::consts::PI),
+                    -s.re / s.magnitude,
+                );
+                println!(
+                    "  pole s = {:<36} fn {fn_hz:>12.4} Hz, damping {zeta:>9.6}, residue {}",
+                    poly::format_root(Complex::new(s.re, s.im)),
+                    poly::format_root(Complex::new(r.re, r.im))
+                );
+            }
+        }
+    }
+}
+
+/// `unlag resample`: re-discretises a model file at another sample rate, step invariant, the
+/// delay included, and writes the new model file atomically.
+///
+/// The fit report and sources are kept (they describe where the model came from); a
+/// compensator designed at the old rate is dropped, because its coefficients belong to that
+/// rate: run `unlag invert` on the new file.
+///
+/// # Errors
+/// The model file's errors, an invalid `--fs`, a model without a continuous-time equivalent
+/// (named by its pole), or the output file's.
+pub fn run_resample(args: &ResampleArgs) -> Result<()> {
+    if !(args.fs.is_finite() && args.fs > 0.0) {
+        return Err(Error::InvalidArgument {
+            what: "--fs",
+            message: format!("must be a positive number of Hz, not {}", args.fs),
+        });
+    }
+    let file = ModelFile::load(&args.model)?;
+    let old = &file.model;
+    let ct = Continuous::from_model(old).map_err(|e| match e {
+        Error::Numerical { message, .. } => Error::Model {
+            path: args.model.clone(),
+            message: format!("cannot resample: {message}"),
+        },
+        e => e,
+    })?;
+    let new = ct.discretise(args.fs)?;
+    let agreement = continuous::step_agreement(old, &new.model);
+    let vs_continuous = {
+        let n = (agreement.instants.max(1) as f64 * (args.fs / old.fs).max(1.0)).ceil() as usize;
+        let n = n.clamp(16, continuous::MAX_AGREEMENT_SAMPLES);
+        let s = continuous::step_response(&new.model, n);
+        let scale = ct.dc_gain.abs().max(f64::MIN_POSITIVE);
+        s.iter()
+            .enumerate()
+            .map(|(k, v)| (v - ct.step(k as f64 / args.fs)).abs() / scale)
+            .fold(0.0, f64::max)
+    };
+    let dropped_inverse = file.inverse.is_some();
+    let mut out = ModelFile {
+        model: new.model.clone(),
+        ..file.clone()
+    };
+    out.inverse = None;
+    out.save(&args.output)?;
+    if args.json {
+        let v = json!({
+            "output": args.output.display().to_string(),
+            "from_hz": old.fs,
+            "to_hz": args.fs,
+            "old_delay_samples": old.delay,
+            "new_delay_samples": new.delay_samples,
+            "delay_s": new.delay_s,
+            "delay_in_samples": new.delay_in_samples,
+            "delay_note": new.delay_note,
+            "step_agreement": serde_json::to_value(agreement).map_err(json_err)?,
+            "max_error_vs_continuous": vs_continuous,
+            "continuous": serde_json::to_value(&ct).map_err(json_err)?,
+            "model": serde_json::to_value(&new.model).map_err(json_err)?,
+            "warnings": new.warnings,
+            "dropped_inverse": dropped_inverse,
+        });
+        println!("{v}");
+        return Ok(());
+    }
+    println!(
+        "resampled {} from {} Hz to {} Hz (step invariant, through the continuous-time equivalent)",
+        args.model.display(),
+        old.fs,
+        args.fs
+    );
+    println!(
+        "  delay: {} samples ({:.9} s) at {} Hz -> {} samples ({:.9} s) at {} Hz",
+        old.delay,
+        old.delay as f64 / old.fs,
+        old.fs,
+        new.delay_samples,
+        new.delay_samples as f64 / args.fs,
+        args.fs
+    );
+    println!(
+        "  fractional delay tau = {:.9} s ({:.6} samples at the new rate)",
+        new.delay_s, new.delay_in_samples
+    );
+    println!("  {}", new.delay_note);
+    if agreement.instants > 1 {
+        println!(
+            "  step response, old against new at {} common sample instants: max error {:.3e}, RMS {:.3e} (fractions of the step)",
+            agreement.instants, agreement.max_error, agreement.rms_error
+        );
+    } else {
+        println!("  the two rates share no sample instants after t = 0: compared with the continuous step response only");
+    }
+    println!(
+        "  step response of the new model against the continuous one: max error {vs_continuous:.3e} of the step"
+    );
+    for w in &new.warnings {
+        println!("  warning: {w}");
+    }
+    if dropped_inverse {
+        println!(
+            "  the compensator designed at {} Hz was not carried over: run `unlag invert` on the new file",
+            old.fs
+        );
+    }
+    println!("wrote {}", args.output.display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grids() {
+        assert_eq!(parse_grid("0:10:3").unwrap(), vec![0.0, 5.0, 10.0]);
+        assert_eq!(parse_grid("5:10:1").unwrap(), vec![5.0]);
+        for bad in [
+            "", "1:2", "1:2:3:4", "x:2:3", "2:1:3", "0:1:0", "-1:1:3", "0:inf:3",
+        ] {
+            let e = parse_grid(bad).unwrap_err().to_string();
+            assert!(e.contains("--grid"), "{bad}: {e}");
+        }
+    }
+}

@@ -140,6 +140,10 @@ pub struct Design {
     /// Reconstruction on the tests it was judged on.
     #[serde(default)]
     pub reconstruction: Vec<Reconstruction>,
+    /// The fixed-point version for the board (`--arithmetic fixed`): integer coefficients,
+    /// scaling and headroom for the ADC's full scale.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed: Option<crate::quantise::FixedPlan>,
 }
 
 /// Zeros, poles and gain of a rational function in `z^-1`:
@@ -530,6 +534,7 @@ pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
         pulled_zeros: pulled,
         candidates: Vec::new(),
         reconstruction: Vec::new(),
+        fixed: None,
     })
 }
 

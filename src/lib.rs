@@ -6,6 +6,7 @@
 // Everything but `compensator` is host side, behind the `std` feature.
 
 pub mod compensator;
+pub mod fixed;
 
 #[cfg(feature = "std")]
 pub mod analysis;
@@ -23,6 +24,8 @@ pub mod inverse;
 pub mod model;
 #[cfg(feature = "std")]
 pub mod poly;
+#[cfg(feature = "std")]
+pub mod quantise;
 #[cfg(feature = "std")]
 pub mod trace;
 

@@ -105,6 +105,10 @@ pub struct InverseArgs {
     /// for a non-minimum-phase model.
     #[arg(long)]
     pub direct: bool,
+    /// The ADC's full scale in the probe's units (inputs within +-FS never overflow the
+    /// fixed-point compensator). Default: the largest |y| of the tests, plus 25 %.
+    #[arg(long, value_name = "FS")]
+    pub full_scale: Option<f64>,
 }
 
 /// Low-pass family on the command line.
@@ -117,6 +121,33 @@ pub enum LowpassArg {
 }
 
 impl InverseArgs {
+    /// Adds the fixed-point plan to `design` for the given full scale, or the largest `|y|` of
+    /// `tests` plus 25 %. A plan that cannot be made is reported and left out: the f32
+    /// compensator does not depend on it.
+    fn plan_fixed(&self, design: &mut inverse::Design, tests: &[Test<'_>]) -> Result<()> {
+        let full_scale = match self.full_scale {
+            Some(fs) => fs,
+            None => {
+                let peak = tests
+                    .iter()
+                    .flat_map(|t| t.y.iter())
+                    .fold(0.0f64, |m, v| m.max(v.abs()));
+                if peak > 0.0 {
+                    1.25 * peak
+                } else {
+                    1.0
+                }
+            }
+        };
+        match crate::quantise::FixedPlan::new(design, full_scale) {
+            Ok(plan) => design.fixed = Some(plan),
+            // A full scale the user gave that makes no sense is their error.
+            Err(e @ Error::InvalidArgument { .. }) => return Err(e),
+            Err(e) => eprintln!("warning: no fixed-point compensator: {e}"),
+        }
+        Ok(())
+    }
+
     fn options(&self) -> Result<inverse::Options> {
         let bandwidth_hz = if self.bandwidth == "auto" {
             None
@@ -208,6 +239,9 @@ pub enum Arithmetic {
     F32,
     /// 64-bit float.
     F64,
+    /// 32-bit fixed point, bit for bit what a board without an FPU computes (the model file's
+    /// fixed-point plan, from `unlag invert` or `unlag fit`).
+    Fixed,
 }
 
 /// Arguments of `unlag compensate`.
@@ -393,7 +427,10 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     };
     // The fit stands on its own: if no compensator can be designed, say why and keep the model.
     let design = match inverse::design_auto(&fitted.model, judge, &args.inverse.options()?) {
-        Ok(d) => Some(d),
+        Ok(mut d) => {
+            args.inverse.plan_fixed(&mut d, judge)?;
+            Some(d)
+        }
         Err(e) => {
             eprintln!("warning: no compensator designed: {e}");
             None
@@ -474,6 +511,18 @@ fn print_inverse(d: &inverse::Design) {
         "  in band (to the corner): worst magnitude error {:.3} dB, worst phase error {:.2} deg; pole margin {:.4}",
         d.in_band_magnitude_error_db, d.in_band_phase_error_deg, d.pole_margin
     );
+    if let Some(p) = &d.fixed {
+        let forms: Vec<&str> = p.sections.iter().map(|s| s.form.as_str()).collect();
+        println!(
+            "  fixed point: inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {:.3}; headroom {:.2} bits by the L1 bound (no overflow possible); sections {}",
+            p.full_scale,
+            p.full_scale,
+            p.output_exponent,
+            p.l1_gain,
+            p.headroom_bits,
+            forms.join(", ")
+        );
+    }
     for r in &d.reconstruction {
         println!(
             "  reconstruction of {}: u_hat {} against the reference, raw probe {} ({:.1}x better)",
@@ -508,8 +557,9 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
             })
         })
         .collect::<Result<_>>()?;
-    let design = inverse::design_auto(&file.model, &tests, &args.inverse.options()?)?;
+    let mut design = inverse::design_auto(&file.model, &tests, &args.inverse.options()?)?;
     design.check_exportable()?;
+    args.inverse.plan_fixed(&mut design, &tests)?;
     let out = ModelFile {
         inverse: Some(design),
         ..file
@@ -636,6 +686,7 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
             let u_hat = match args.arithmetic {
                 Arithmetic::F32 => d.run::<f32>(&trace.y)?,
                 Arithmetic::F64 => d.run::<f64>(&trace.y)?,
+                Arithmetic::Fixed => run_fixed(d, &args.model, &trace)?,
             };
             (
                 u_hat,
@@ -648,6 +699,14 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
             let u_hat = match args.arithmetic {
                 Arithmetic::F32 => m.compensate::<f32>(&trace.y)?,
                 Arithmetic::F64 => m.compensate::<f64>(&trace.y)?,
+                Arithmetic::Fixed => {
+                    return Err(Error::InvalidArgument {
+                        what: "--arithmetic",
+                        message: "fixed point runs the designed compensator in sections, not \
+                                  the paper's direct inverse: drop --direct, or run `unlag invert`"
+                            .into(),
+                    })
+                }
             };
             (u_hat, m.delay as f64, "the paper's direct inverse (eq. 7)")
         }
@@ -664,6 +723,7 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
     let arith = match args.arithmetic {
         Arithmetic::F32 => "f32",
         Arithmetic::F64 => "f64",
+        Arithmetic::Fixed => "32-bit fixed point",
     };
     if args.json {
         let v = json!({
@@ -696,6 +756,31 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
     }
     println!("wrote {}", args.output.display());
     Ok(())
+}
+
+/// The fixed-point compensator on the trace, refusing to hide a saturation.
+fn run_fixed(d: &inverse::Design, model: &Path, trace: &Trace) -> Result<Vec<f64>> {
+    let plan = d.fixed.as_ref().ok_or_else(|| Error::InvalidArgument {
+        what: "--arithmetic",
+        message: format!(
+            "{} has no fixed-point plan: run `unlag invert {} --full-scale FS -o ...`",
+            model.display(),
+            model.display()
+        ),
+    })?;
+    let run = plan.run(&trace.y)?;
+    if run.clipped_inputs > 0 {
+        eprintln!(
+            "warning: {} samples of {} lie outside the fixed-point full scale +-{} and were clamped",
+            run.clipped_inputs,
+            trace.path.display(),
+            plan.full_scale
+        );
+    }
+    if run.overflowed {
+        eprintln!("warning: the fixed-point compensator saturated (overflow flag set)");
+    }
+    Ok(run.u_hat)
 }
 
 fn check_rate(file: &ModelFile, trace: &Trace) -> Result<()> {

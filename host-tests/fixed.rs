@@ -1,0 +1,287 @@
+//! The fixed-point compensator's guarantees, over random stable models: the arithmetic is
+//! exactly the documented one (checked against an independent `i128` implementation), no
+//! zero-input limit cycle, no overflow where the plan says none can happen, and the command
+//! line's `--arithmetic fixed` runs the same integers.
+
+// Test code: a failed unwrap is a failed test, with its location.
+#![allow(clippy::unwrap_used)]
+
+use std::f64::consts::PI;
+use std::process::Command;
+
+use proptest::prelude::*;
+use unlag::fixed::{FixedCascade, FixedSection, FixedState};
+use unlag::inverse::{self, Options};
+use unlag::model::Model;
+use unlag::quantise::FixedPlan;
+
+/// A probe model from pole pairs `(radius, angle)` and zeros inside or outside the circle.
+fn model(poles: &[(f64, f64)], zeros: &[f64], fs: f64) -> Model {
+    let mut a = vec![1.0];
+    for &(r, th) in poles {
+        a = mul(&a, &[1.0, -2.0 * r * th.cos(), r * r]);
+    }
+    let mut b = vec![1.0];
+    for &z in zeros {
+        b = mul(&b, &[1.0, -z]);
+    }
+    let gain = a.iter().sum::<f64>() / b.iter().sum::<f64>();
+    Model {
+        fs,
+        delay: 1,
+        a: a[1..].to_vec(),
+        b: b.iter().map(|v| v * gain).collect(),
+    }
+}
+
+fn mul(p: &[f64], q: &[f64]) -> Vec<f64> {
+    let mut r = vec![0.0; p.len() + q.len() - 1];
+    for (i, x) in p.iter().enumerate() {
+        for (j, y) in q.iter().enumerate() {
+            r[i + j] += x * y;
+        }
+    }
+    r
+}
+
+/// The documented arithmetic, written independently: `i128`, floor division for the shifts.
+fn reference(sections: &[FixedSection], inputs: &[i32]) -> Vec<i32> {
+    let mut x = vec![[0i128; 2]; sections.len()];
+    let clamp = |v: i128| v.clamp(i128::from(i32::MIN), i128::from(i32::MAX));
+    let toward_zero = |v: i128, bits: u32| {
+        let q = v.abs() / (1i128 << bits);
+        if v < 0 {
+            -q
+        } else {
+            q
+        }
+    };
+    let nearest = |v: i128, bits: u32| (v + (1i128 << (bits - 1))).div_euclid(1i128 << bits);
+    inputs
+        .iter()
+        .map(|&input| {
+            let mut v = i128::from(input);
+            for (s, st) in sections.iter().zip(x.iter_mut()) {
+                let a: Vec<i128> = s.a.iter().map(|&c| i128::from(c)).collect();
+                let (b1, b2) = (i128::from(s.b[0]), i128::from(s.b[1]));
+                let (c1, c2, d) = (i128::from(s.c[0]), i128::from(s.c[1]), i128::from(s.d));
+                let [x1, x2] = *st;
+                let n1 = clamp(toward_zero(a[0] * x1 + a[1] * x2 + b1 * v, 30));
+                let n2 = clamp(toward_zero(a[2] * x1 + a[3] * x2 + b2 * v, 30));
+                let y = clamp(nearest(c1 * x1 + c2 * x2 + d * v, u32::from(s.shift)));
+                *st = [n1, n2];
+                v = y;
+            }
+            v as i32
+        })
+        .collect()
+}
+
+prop_compose! {
+    fn random_plan()(
+        pairs in prop::collection::vec((0.3f64..0.995, 0.002f64..3.0), 1..=2),
+        zeros in prop::collection::vec(-1.5f64..0.95, 1..=3),
+        corner in 0.01f64..0.3,
+        full_scale in 0.1f64..100.0,
+    ) -> (inverse::Design, FixedPlan) {
+        let fs = 10_000.0;
+        let m = model(&pairs, &zeros, fs);
+        let design = inverse::design(&m, corner * fs, &Options::default()).unwrap();
+        let plan = FixedPlan::new(&design, full_scale).unwrap();
+        (design, plan)
+    }
+}
+
+/// SplitMix64 for the input sequences.
+fn codes(seed: u64, n: usize) -> Vec<i32> {
+    let mut s = seed;
+    (0..n)
+        .map(|_| {
+            s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = s;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            (z ^ (z >> 31)) as i32
+        })
+        .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+    #[test]
+    fn arithmetic_is_exactly_the_documented_one((_d, plan) in random_plan(), seed in any::<u64>()) {
+        let sections = plan.board_sections();
+        let cascade = FixedCascade::<8>::new(&sections).unwrap();
+        // Random full-scale codes, then a held level: both the noisy and the quiet regime.
+        let mut input = codes(seed, 3000);
+        input.extend(std::iter::repeat_n(input[0] / 3, 2000));
+        let mut st = FixedState::<8>::default();
+        let board: Vec<i32> = input.iter().map(|&v| cascade.process(&mut st, v)).collect();
+        prop_assert_eq!(board, reference(&sections, &input));
+    }
+
+    #[test]
+    fn zero_input_reaches_exactly_zero_within_the_bound(
+        (design, plan) in random_plan(),
+        seed in any::<u64>(),
+    ) {
+        let cascade = FixedCascade::<8>::new(&plan.board_sections()).unwrap();
+        let mut st = FixedState::<8>::default();
+        for v in codes(seed, 2000) {
+            cascade.process(&mut st, v);
+        }
+        // Magnitude truncation shrinks each section's state by its pole radius r per sample:
+        // 31 ln 2 / -ln r samples to zero, twice for a pair of real poles, section after
+        // section.
+        let bound: f64 = design
+            .sections
+            .iter()
+            .map(|s| {
+                let r = unlag::compensator::section_pole_radius(s[3], s[4]);
+                2.0 * (31.0 * 2f64.ln() / -r.ln()).ceil() + 2.0
+            })
+            .sum();
+        let mut n = 0usize;
+        while !st.is_zero() && (n as f64) <= bound {
+            cascade.process(&mut st, 0);
+            n += 1;
+        }
+        prop_assert!(st.is_zero(), "not at rest after {} samples (bound {})", n, bound);
+        prop_assert_eq!(cascade.process(&mut st, 0), 0);
+        prop_assert!(st.is_zero());
+    }
+
+    #[test]
+    fn the_worst_case_input_does_not_overflow((design, plan) in random_plan()) {
+        // The input that maximises the output at sample n: the sign of the time-reversed
+        // impulse response, at full scale. It reaches the L1 bound the plan is scaled for.
+        let c = unlag::compensator::CascadeCoefficients::<f64, 8>::new(design.gain, &design.sections)
+            .unwrap();
+        let mut st = unlag::compensator::CascadeState::default();
+        let n = 20_000;
+        let h: Vec<f64> = (0..n)
+            .map(|k| c.process(&mut st, if k == 0 { 1.0 } else { 0.0 }))
+            .collect();
+        let worst: Vec<i32> = h
+            .iter()
+            .rev()
+            .map(|v| if *v >= 0.0 { i32::MAX } else { i32::MIN })
+            .collect();
+        let cascade = FixedCascade::<8>::new(&plan.board_sections()).unwrap();
+        let mut fst = FixedState::<8>::default();
+        let mut last = 0;
+        for v in &worst {
+            last = cascade.process(&mut fst, *v);
+        }
+        prop_assert!(!fst.overflowed());
+        // The output at the end is the bound itself (up to the truncated tail and rounding):
+        // the scaling is not wastefully loose either.
+        let out = f64::from(last).abs() / 2f64.powi(31);
+        let bound = plan.sections.last().unwrap().output_bound;
+        prop_assert!(out <= bound * (1.0 + 1e-6) && out > 0.9 * bound, "{} vs {}", out, bound);
+    }
+}
+
+#[test]
+fn fixed_point_tracks_f64_at_high_sample_rates() {
+    // A 5 kHz resonance sampled at 5 MHz (fs/fn = 1000): poles crowd towards z = 1.
+    let fs = 5e6;
+    let wn = 2.0 * PI * 5e3 / fs;
+    let m = model(
+        &[((-0.2 * wn).exp(), wn * (1.0f64 - 0.04).sqrt())],
+        &[-0.6],
+        fs,
+    );
+    let design = inverse::design(&m, 15e3, &Options::default()).unwrap();
+    let plan = FixedPlan::new(&design, 2.0).unwrap();
+    let y: Vec<f64> = (0..200_000)
+        .map(|k| 0.8 * (2.0 * PI * 1e3 * k as f64 / fs).sin() + 0.3 * (k > 50_000) as i32 as f64)
+        .collect();
+    let run = plan.run(&y).unwrap();
+    assert!(!run.overflowed && run.clipped_inputs == 0);
+    let c = unlag::compensator::CascadeCoefficients::<f64, 8>::new(design.gain, &design.sections)
+        .unwrap();
+    let mut st = c.equilibrium(y[0]);
+    let reference: Vec<f64> = y.iter().map(|&v| c.process(&mut st, v)).collect();
+    let s: f64 = reference.iter().map(|v| v * v).sum();
+    let e: f64 = reference
+        .iter()
+        .zip(&run.u_hat)
+        .map(|(r, f)| (r - f).powi(2))
+        .sum();
+    let snr = 10.0 * (s / e).log10();
+    assert!(snr > 100.0, "SNR {snr:.1} dB");
+}
+
+#[test]
+fn compensate_with_fixed_arithmetic_runs_the_planned_integers() {
+    let dir = std::env::temp_dir().join(format!("unlag-fixed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model = dir.join("model.toml");
+    let unlag = |args: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_unlag"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{args:?}: {}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/host-tests/data/line_est.csv");
+    let val = concat!(env!("CARGO_MANIFEST_DIR"), "/host-tests/data/line_val.csv");
+    let m = model.to_str().unwrap();
+    let printed = unlag(&[
+        "fit",
+        data,
+        val,
+        "-o",
+        m,
+        "--order",
+        "2",
+        "--full-scale",
+        "4",
+    ]);
+    assert!(printed.contains("fixed point"), "{printed}");
+    let out1 = dir.join("a.csv");
+    let out2 = dir.join("b.csv");
+    for out in [&out1, &out2] {
+        unlag(&[
+            "compensate",
+            m,
+            val,
+            "-o",
+            out.to_str().unwrap(),
+            "--arithmetic",
+            "fixed",
+        ]);
+    }
+    let (a, b) = (std::fs::read(&out1).unwrap(), std::fs::read(&out2).unwrap());
+    assert_eq!(a, b, "two runs differ");
+    // The CLI's u_hat is the library's plan run on the same trace.
+    let file = unlag::model::ModelFile::load(&model).unwrap();
+    let plan = file.inverse.unwrap().fixed.unwrap();
+    assert_eq!(plan.full_scale, 4.0);
+    let trace =
+        unlag::trace::Trace::read(std::path::Path::new(val), &unlag::trace::Columns::default())
+            .unwrap();
+    let expected = plan.run(&trace.y).unwrap().u_hat;
+    let text = String::from_utf8(a).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "u_hat").unwrap();
+    let got: Vec<f64> = lines
+        .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(got.len(), expected.len());
+    for (g, e) in got.iter().zip(&expected) {
+        assert!(
+            (g - e).abs() <= 1e-12 * e.abs().max(1e-300) + 1e-15,
+            "{g} vs {e}"
+        );
+    }
+}

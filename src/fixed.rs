@@ -1,0 +1,419 @@
+//! The fixed-point compensator: the same cascade as [`crate::compensator`], in 32-bit integers,
+//! for boards without an FPU and for MHz sample rates.
+//!
+//! This module owns the per-sample integer arithmetic and nothing else: coefficients are
+//! realised, scaled and quantised on the host (`crate::quantise`, `unlag invert`), and arrive
+//! here as plain integers that are validated once, in [`FixedCascade::new`].
+//!
+//! # The form: normal (coupled) state-space sections
+//!
+//! Each second-order section is a 2-state realisation with 32-bit states `x`:
+//!
+//! ```text
+//! x1' = Qt( a11 x1 + a12 x2 + b1 u )        a, b: Q2.30 (i32, 30 fractional bits)
+//! x2' = Qt( a21 x1 + a22 x2 + b2 u )
+//! y   = Qr( c1 x1  + c2 x2  + d u  )        c, d: i32 with `shift` fractional bits
+//! ```
+//!
+//! accumulated in `i64`. For a complex pole pair `sigma +- j omega` the state matrix is the
+//! scaled rotation `[[sigma, -omega], [omega, sigma]]`; for two real poles it is the cascade of
+//! two first-order lags `[[p1, 0], [g, p2]]`. Both keep their accuracy where direct forms lose
+//! it, poles crowding towards `z = 1` at high sample rates: the pole positions are quantised on
+//! a uniform grid in the plane, not through `a1 = -2 r cos(theta)`, `a2 = r^2`.
+//!
+//! # No limit cycles, no overflow, no panic
+//!
+//! - `Qt` truncates towards zero (magnitude truncation), so a state component never grows in
+//!   magnitude by rounding. With zero input, a rotation section's state norm shrinks by the
+//!   pole radius `r < 1` every sample, `|x_k| <= r^k |x_0|`, and a real-pole section's first
+//!   state does the same, then its second: every state reaches exactly zero within
+//!   `31 ln 2 / -ln r` samples (plus the same for the second real pole), and the output with
+//!   it. `Qr` (round to nearest) only touches outputs, which are not fed back.
+//! - The host scales each section (its `b` and `c`, `d`) from an L1-norm bound of its impulse
+//!   responses, so that no state or output can leave the `i32` range for inputs inside the
+//!   ADC's full scale. Should one still do so (an input outside the design's range), it
+//!   saturates, never wraps, and [`FixedState::overflowed`] says so until cleared.
+//! - Every coefficient's magnitude is at most `2^30` ([`MAX_COEFFICIENT`]), checked once in
+//!   [`FixedCascade::new`]: a product of an `i32` state by a coefficient stays below `2^61` and
+//!   a sum of three below `2^63`, so the `i64` accumulators cannot overflow.
+//!
+//! Integer arithmetic is exact, so the host (`unlag compensate --arithmetic fixed`) computes
+//! bit for bit what the board computes.
+#![deny(
+    clippy::indexing_slicing,
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::unreachable,
+    clippy::todo,
+    clippy::arithmetic_side_effects
+)]
+
+use core::fmt;
+
+/// Fractional bits of the state matrix `a` and the input vector `b` (Q2.30).
+pub const STATE_BITS: u32 = 30;
+
+/// Largest coefficient magnitude accepted (`2^30`): keeps every accumulator inside `i64`.
+pub const MAX_COEFFICIENT: i32 = 1 << 30;
+
+/// One second-order section in normal (coupled) state-space form, as integers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FixedSection {
+    /// State matrix `[a11, a12, a21, a22]`, Q2.30.
+    pub a: [i32; 4],
+    /// Input vector `[b1, b2]`, Q2.30.
+    pub b: [i32; 2],
+    /// Output vector `[c1, c2]`, `shift` fractional bits.
+    pub c: [i32; 2],
+    /// Direct term, `shift` fractional bits.
+    pub d: i32,
+    /// Fractional bits of `c` and `d` (1..=62).
+    pub shift: u8,
+}
+
+impl FixedSection {
+    /// The identity section (`y = u`), used for unused capacity.
+    pub const IDENTITY: Self = Self {
+        a: [0; 4],
+        b: [0; 2],
+        c: [0; 2],
+        d: 1 << 30,
+        shift: 30,
+    };
+}
+
+/// Why a set of fixed-point coefficients was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FixedError {
+    /// More sections than the capacity `N`.
+    TooManySections {
+        /// Sections given.
+        sections: usize,
+        /// Capacity.
+        capacity: usize,
+    },
+    /// A coefficient's magnitude exceeds [`MAX_COEFFICIENT`].
+    CoefficientTooLarge {
+        /// 0-based section.
+        index: usize,
+    },
+    /// `shift` is outside 1..=62.
+    BadShift {
+        /// 0-based section.
+        index: usize,
+    },
+    /// The state matrix is not of a limit-cycle-free form (a scaled rotation, or lower
+    /// triangular), or its poles are not strictly inside the unit circle.
+    NotNormalForm {
+        /// 0-based section.
+        index: usize,
+    },
+}
+
+impl fmt::Display for FixedError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::TooManySections { sections, capacity } => write!(
+                f,
+                "{sections} fixed-point sections exceed the capacity of {capacity}"
+            ),
+            Self::CoefficientTooLarge { index } => write!(
+                f,
+                "section {index}: a coefficient exceeds 2^30 in magnitude (accumulator overflow)"
+            ),
+            Self::BadShift { index } => write!(f, "section {index}: shift outside 1..=62"),
+            Self::NotNormalForm { index } => write!(
+                f,
+                "section {index}: the state matrix is neither a stable scaled rotation nor a \
+                 stable lower-triangular pair (limit cycles possible)"
+            ),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for FixedError {}
+
+/// Validated fixed-point coefficients of a cascade of up to `N` sections.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FixedCascade<const N: usize> {
+    sections: [FixedSection; N],
+}
+
+/// The states of one channel, and the overflow flag.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FixedState<const N: usize> {
+    x: [[i32; 2]; N],
+    overflow: bool,
+}
+
+impl<const N: usize> Default for FixedState<N> {
+    fn default() -> Self {
+        Self {
+            x: [[0; 2]; N],
+            overflow: false,
+        }
+    }
+}
+
+impl<const N: usize> FixedState<N> {
+    /// `true` when a state or output saturated since the flag was last cleared.
+    #[must_use]
+    pub fn overflowed(&self) -> bool {
+        self.overflow
+    }
+
+    /// Reads and clears the overflow flag.
+    pub fn take_overflow(&mut self) -> bool {
+        core::mem::replace(&mut self.overflow, false)
+    }
+
+    /// `true` when every state is exactly zero (the cascade is at rest).
+    #[must_use]
+    pub fn is_zero(&self) -> bool {
+        self.x.iter().flatten().all(|&v| v == 0)
+    }
+}
+
+/// `acc >> bits`, rounded towards zero, saturated to `i32`; `true` when it saturated.
+#[inline(always)]
+fn truncate(acc: i64, bits: u32) -> (i32, bool) {
+    // Arithmetic shift rounds towards minus infinity; adding 2^bits - 1 to a negative value
+    // first rounds towards zero. `bits` is at most 62 and `acc` below 2^63 - 2^62 in
+    // magnitude (see the module docs), so nothing here can overflow.
+    let bias = (acc >> 63) & ((1i64 << bits).wrapping_sub(1));
+    saturate(acc.wrapping_add(bias) >> bits)
+}
+
+/// `acc >> bits`, rounded to nearest, saturated to `i32`.
+#[inline(always)]
+fn round(acc: i64, bits: u32) -> (i32, bool) {
+    saturate(acc.wrapping_add(1i64 << bits.wrapping_sub(1)) >> bits)
+}
+
+#[inline(always)]
+fn saturate(v: i64) -> (i32, bool) {
+    match i32::try_from(v) {
+        Ok(x) => (x, false),
+        Err(_) => (if v < 0 { i32::MIN } else { i32::MAX }, true),
+    }
+}
+
+#[inline(always)]
+fn mac3(c: [i32; 3], x: [i32; 3]) -> i64 {
+    let [c0, c1, c2] = c;
+    let [x0, x1, x2] = x;
+    // Each product is below 2^61 in magnitude, their sum below 2^63: wrapping never wraps.
+    (i64::from(c0).wrapping_mul(i64::from(x0)))
+        .wrapping_add(i64::from(c1).wrapping_mul(i64::from(x1)))
+        .wrapping_add(i64::from(c2).wrapping_mul(i64::from(x2)))
+}
+
+impl<const N: usize> FixedCascade<N> {
+    /// Validates the sections: count, coefficient range, shifts, and the limit-cycle-free form
+    /// of each state matrix.
+    ///
+    /// # Errors
+    /// A [`FixedError`] naming the section.
+    pub fn new(sections: &[FixedSection]) -> Result<Self, FixedError> {
+        if sections.len() > N {
+            return Err(FixedError::TooManySections {
+                sections: sections.len(),
+                capacity: N,
+            });
+        }
+        let mut out = [FixedSection::IDENTITY; N];
+        for (index, (dst, s)) in out.iter_mut().zip(sections).enumerate() {
+            let coefficients = s.a.iter().chain(&s.b).chain(&s.c).chain([&s.d]);
+            if coefficients
+                .map(|v| v.unsigned_abs())
+                .any(|v| v > MAX_COEFFICIENT.unsigned_abs())
+            {
+                return Err(FixedError::CoefficientTooLarge { index });
+            }
+            if !(1..=62).contains(&s.shift) {
+                return Err(FixedError::BadShift { index });
+            }
+            if !normal_form(s.a) {
+                return Err(FixedError::NotNormalForm { index });
+            }
+            *dst = *s;
+        }
+        Ok(Self { sections: out })
+    }
+
+    /// One ADC sample (Q1.31 of the design's full scale) through the cascade; the output is
+    /// the reconstructed reference in the design's output format. Panic-free, allocation-free.
+    #[inline]
+    pub fn process(&self, state: &mut FixedState<N>, input: i32) -> i32 {
+        let mut v = input;
+        let mut overflow = false;
+        for (s, x) in self.sections.iter().zip(state.x.iter_mut()) {
+            let [x1, x2] = *x;
+            let [a11, a12, a21, a22] = s.a;
+            let [b1, b2] = s.b;
+            let [c1, c2] = s.c;
+            let (n1, o1) = truncate(mac3([a11, a12, b1], [x1, x2, v]), STATE_BITS);
+            let (n2, o2) = truncate(mac3([a21, a22, b2], [x1, x2, v]), STATE_BITS);
+            let (y, o3) = round(mac3([c1, c2, s.d], [x1, x2, v]), u32::from(s.shift));
+            *x = [n1, n2];
+            overflow |= o1 | o2 | o3;
+            v = y;
+        }
+        state.overflow |= overflow;
+        v
+    }
+
+    /// Processes a block in place, sample by sample (the same arithmetic as [`Self::process`]).
+    #[inline]
+    pub fn process_in_place(&self, state: &mut FixedState<N>, buf: &mut [i32]) {
+        for v in buf.iter_mut() {
+            *v = self.process(state, *v);
+        }
+    }
+
+    /// The state after the constant input `input` forever (no start-up transient), computed
+    /// in floating point from the integer coefficients and rounded; used to start a channel on
+    /// a probe that already reads a steady pressure.
+    #[must_use]
+    pub fn equilibrium(&self, input: i32) -> FixedState<N> {
+        let mut state = FixedState::default();
+        let q = 1.0 / f64::from(MAX_COEFFICIENT);
+        let mut v = f64::from(input);
+        for (s, x) in self.sections.iter().zip(state.x.iter_mut()) {
+            let [a11, a12, a21, a22] = s.a.map(|c| f64::from(c) * q);
+            let [b1, b2] = s.b.map(|c| f64::from(c) * q);
+            // (I - A) x = b v; det(I - A) > 0 for the accepted (stable) forms.
+            let (m11, m12, m21, m22) = (1.0 - a11, -a12, -a21, 1.0 - a22);
+            let det = m11 * m22 - m12 * m21;
+            let (r1, r2) = (b1 * v, b2 * v);
+            let x1 = (r1 * m22 - m12 * r2) / det;
+            let x2 = (m11 * r2 - m21 * r1) / det;
+            let scale = libm::exp2(-f64::from(s.shift));
+            let [c1, c2] = s.c.map(f64::from);
+            let y = (c1 * x1 + c2 * x2 + f64::from(s.d) * v) * scale;
+            // `as` saturates and maps NaN to 0: no panic.
+            *x = [libm::round(x1) as i32, libm::round(x2) as i32];
+            v = f64::from(libm::round(y) as i32);
+        }
+        state
+    }
+
+    /// The sections, identities included.
+    #[must_use]
+    pub fn sections(&self) -> &[FixedSection; N] {
+        &self.sections
+    }
+}
+
+/// A scaled rotation `[[s, -w], [w, s]]` with `s^2 + w^2 < 1`, or lower triangular
+/// `[[p1, 0], [g, p2]]` with `|p1|, |p2| < 1`: the forms for which magnitude truncation
+/// provably leaves no zero-input limit cycle.
+fn normal_form(a: [i32; 4]) -> bool {
+    let [a11, a12, a21, a22] = a;
+    let one = 1i64 << STATE_BITS;
+    let rotation = a11 == a22 && i64::from(a12) == i64::from(a21).wrapping_neg() && {
+        // s^2 + w^2 < 2^60, in i64 (each square below 2^60).
+        let s = i64::from(a11);
+        let w = i64::from(a21);
+        s.wrapping_mul(s).wrapping_add(w.wrapping_mul(w)) < one.wrapping_mul(one)
+    };
+    let triangular = a12 == 0 && i64::from(a11).abs() < one && i64::from(a22).abs() < one;
+    rotation || triangular
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn q30(v: f64) -> i32 {
+        (v * (1u64 << 30) as f64).round() as i32
+    }
+
+    fn rotation(r: f64, theta: f64) -> FixedSection {
+        let (s, w) = (r * theta.cos(), r * theta.sin());
+        FixedSection {
+            a: [q30(s), q30(-w), q30(w), q30(s)],
+            b: [q30(0.01), 0],
+            c: [q30(0.5), q30(0.25)],
+            d: q30(0.5),
+            shift: 30,
+        }
+    }
+
+    #[test]
+    fn truncation_rounds_towards_zero_and_saturates() {
+        assert_eq!(truncate(5 << 30 | 7, 30), (5, false));
+        assert_eq!(truncate(-(5 << 30 | 7), 30), (-5, false));
+        assert_eq!(truncate(-1, 30), (0, false));
+        assert_eq!(truncate(1 << 62, 30), (i32::MAX, true));
+        assert_eq!(truncate(-(1 << 62), 30), (i32::MIN, true));
+        assert_eq!(round(3 << 29, 30), (2, false)); // 1.5 -> 2
+        assert_eq!(round(-(1 << 28), 30), (0, false)); // -0.25 -> 0
+    }
+
+    #[test]
+    fn refuses_what_it_cannot_run_safely() {
+        let ok = rotation(0.99, 0.1);
+        assert!(FixedCascade::<1>::new(&[ok, ok]).is_err());
+        let mut big = ok;
+        big.d = i32::MAX;
+        assert_eq!(
+            FixedCascade::<2>::new(&[big]),
+            Err(FixedError::CoefficientTooLarge { index: 0 })
+        );
+        let mut shift = ok;
+        shift.shift = 0;
+        assert_eq!(
+            FixedCascade::<2>::new(&[ok, shift]),
+            Err(FixedError::BadShift { index: 1 })
+        );
+        // A direct-form companion matrix is not accepted: it can sit in a limit cycle.
+        let mut companion = ok;
+        companion.a = [q30(0.9), q30(-0.5), q30(1.0) - 1, 0];
+        assert_eq!(
+            FixedCascade::<2>::new(&[companion]),
+            Err(FixedError::NotNormalForm { index: 0 })
+        );
+        // A rotation outside the unit circle is refused.
+        let mut unit = ok;
+        unit.a = [q30(0.61), q30(-0.8), q30(0.8), q30(0.61)];
+        assert!(FixedCascade::<2>::new(&[unit]).is_err());
+    }
+
+    #[test]
+    fn zero_input_reaches_exactly_zero() {
+        let c = FixedCascade::<2>::new(&[rotation(0.999, 0.01), rotation(0.9, 2.0)]).unwrap();
+        let mut st = FixedState::default();
+        for _ in 0..200 {
+            c.process(&mut st, i32::MAX / 2);
+        }
+        assert!(!st.is_zero());
+        // Bound: 31 ln 2 / -ln 0.999 = 21,476 samples for the slow section.
+        let mut n = 0;
+        while !st.is_zero() && n < 30_000 {
+            c.process(&mut st, 0);
+            n += 1;
+        }
+        assert!(st.is_zero(), "still ringing after {n} samples");
+        assert_eq!(c.process(&mut st, 0), 0);
+        assert!(!st.overflowed());
+    }
+
+    #[test]
+    fn saturates_and_flags_instead_of_wrapping() {
+        let mut s = rotation(0.5, 0.3);
+        s.d = MAX_COEFFICIENT; // gain 1 ...
+        s.shift = 28; // ... times 4
+        let c = FixedCascade::<1>::new(&[s]).unwrap();
+        let mut st = FixedState::default();
+        assert_eq!(c.process(&mut st, i32::MAX), i32::MAX);
+        assert!(st.take_overflow());
+        assert!(!st.overflowed());
+        assert_eq!(c.process(&mut st, i32::MIN), i32::MIN);
+        assert!(st.take_overflow());
+    }
+}

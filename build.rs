@@ -16,4 +16,8 @@ fn main() {
     if fs::copy("memory.x", out.join("memory.x")).is_ok() {
         println!("cargo:rustc-link-search={}", out.display());
     }
+    // defmt's linker script for the board examples when they log through defmt.
+    if env::var_os("CARGO_FEATURE_DEFMT").is_some() {
+        println!("cargo:rustc-link-arg-examples=-Tdefmt.x");
+    }
 }

@@ -5,6 +5,7 @@
 // Data flow: trace -> fit -> model -> (inverse) -> compensator (board).
 // Everything but `compensator` is host side, behind the `std` feature.
 
+pub mod blob;
 pub mod compensator;
 pub mod fixed;
 
@@ -15,13 +16,23 @@ pub mod cli;
 #[cfg(feature = "std")]
 pub mod continuous;
 #[cfg(feature = "std")]
+pub mod diagnose;
+#[cfg(feature = "std")]
+pub mod effects;
+#[cfg(feature = "std")]
 pub mod error;
+#[cfg(feature = "std")]
+pub mod evidence;
+#[cfg(feature = "std")]
+pub mod export;
 #[cfg(feature = "std")]
 pub mod fit;
 #[cfg(feature = "std")]
 pub mod inverse;
 #[cfg(feature = "std")]
 pub mod model;
+#[cfg(feature = "std")]
+pub mod physics;
 #[cfg(feature = "std")]
 pub mod poly;
 #[cfg(feature = "std")]

@@ -247,6 +247,37 @@ pub struct ModelFile {
     /// The compensator designed for the board (stable, band-limited inverse), if any.
     #[serde(default)]
     pub inverse: Option<crate::inverse::Design>,
+    /// Physical effects added in the modelling loop (`unlag fit --add KIND`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<crate::effects::Effect>,
+    /// Every fit of this file, with its errors per test: the error falling as effects are
+    /// added.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub history: Vec<HistoryRow>,
+}
+
+/// One fit in a model file's history.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HistoryRow {
+    /// The effects the fit had (kinds), in the order added.
+    pub effects: Vec<String>,
+    /// Model order.
+    pub order: usize,
+    /// Delay (samples).
+    pub delay: usize,
+    /// Simulation error per test.
+    pub tests: Vec<HistoryTest>,
+}
+
+/// One test's error in a history row.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HistoryTest {
+    /// File name.
+    pub file: String,
+    /// `estimation` or `validation`.
+    pub role: String,
+    /// Normalised RMS simulation error (effects included).
+    pub nrmse: f64,
 }
 
 const HEADER: &str = "\
@@ -380,6 +411,8 @@ mod tests {
             fit: None,
             sources: vec![],
             inverse: None,
+            effects: Vec::new(),
+            history: Vec::new(),
         };
         let text = f.to_toml().unwrap();
         assert!(text.contains("delay = 3"), "{text}");

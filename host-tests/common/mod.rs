@@ -117,3 +117,4 @@ pub fn write_csv(path: &std::path::Path, fs: f64, u: &[f64], y: &[f64]) {
     }
     std::fs::write(path, s).expect("write test csv");
 }
+pub mod hidden;

@@ -15,7 +15,10 @@ use crate::inverse;
 use crate::model::{ModelFile, Source, FORMAT_VERSION};
 use crate::trace::{Columns, Trace};
 
+pub mod export;
 pub mod inspect;
+pub mod modelling;
+pub mod physics;
 
 /// Give pressure probes back their bandwidth: fit a model from a step test, compensate.
 #[derive(Debug, Parser)]
@@ -45,7 +48,21 @@ pub enum Command {
     Inspect(inspect::InspectArgs),
     /// Re-discretise a model at another sample rate (step invariant, fractional delay kept).
     Resample(inspect::ResampleArgs),
+    /// Write the board's compensator as Rust consts, a C header or a binary blob.
+    Export(export::ExportArgs),
+    /// The model against step tests: fit %, error against the noise floor, and the residual
+    /// evidence (autocorrelation, input cross-correlation, spectrum peaks, level and trend).
+    Compare(modelling::LoopArgs),
+    /// Name the missing physical effect: candidates ranked by evidence and a trial refit, each
+    /// with the change that adds it (`unlag fit --add KIND`).
+    Diagnose(modelling::LoopArgs),
     // physics subcommands (issue 6)
+    /// Simulate a step test of a physical probe (Bergh-Tijdeman lines, hole, cavity,
+    /// diaphragm, leak, minor losses) under a facility's excitation; writes t,u,y as CSV.
+    SimulateTest(Box<physics::SimulateTestArgs>),
+    /// Predict a physical probe's exact first modes, front delay and lumped approximation,
+    /// and compare them with a fitted model (--model).
+    Predict(physics::PredictArgs),
 }
 
 /// Column names and sample rate of the input CSV.
@@ -221,6 +238,13 @@ pub struct FitArgs {
     /// Known delay in samples (skips the delay search).
     #[arg(long, value_name = "SAMPLES")]
     pub delay: Option<usize>,
+    /// Add a physical effect to the model (repeatable): mode, leak, offset, drift,
+    /// coloured-noise, or delay=N. Effects already in the output model file are kept.
+    #[arg(long = "add", value_name = "KIND")]
+    pub add: Vec<String>,
+    /// Start afresh: ignore the effects and history of an existing output model file.
+    #[arg(long)]
+    pub fresh: bool,
     /// Compensator design (on the validation tests, or the estimation test if there are none).
     #[command(flatten)]
     pub inverse: InverseArgs,
@@ -301,15 +325,20 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Simulate(a) => run_simulate(&a),
         Command::Invert(a) => run_invert(&a),
         Command::Inspect(a) => inspect::run_inspect(&a),
+        Command::Compare(a) => modelling::run_compare(&a),
+        Command::Diagnose(a) => modelling::run_diagnose(&a),
         Command::Resample(a) => inspect::run_resample(&a),
+        Command::SimulateTest(a) => physics::run_simulate_test(&a),
+        Command::Predict(a) => physics::run_predict(&a),
+        Command::Export(a) => export::run_export(&a),
     }
 }
 
-fn name(p: &Path) -> String {
+pub(crate) fn name(p: &Path) -> String {
     p.display().to_string()
 }
 
-fn pct(x: f64) -> String {
+pub(crate) fn pct(x: f64) -> String {
     format!("{:.3} %", 100.0 * x)
 }
 
@@ -391,35 +420,75 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         order,
         delay: args.delay,
     };
-    let fitted =
-        fit::fit(est_test, val_tests, est.sample_rate_hz, &options).map_err(|e| match e {
-            // The library does not know the column's position in the file; the trace does.
-            Error::NoStep { path, reason, .. } => Error::NoStep {
-                column: est.u_column.unwrap_or(0),
-                name: columns.input.clone(),
-                path,
-                reason,
-            },
-            e => e,
+    // The modelling loop: the output file's effects and history carry over.
+    let previous = if args.fresh || !args.output.exists() {
+        None
+    } else {
+        ModelFile::load(&args.output).ok()
+    };
+    let mut effects: Vec<crate::effects::Effect> = previous
+        .as_ref()
+        .map(|p| p.effects.clone())
+        .unwrap_or_default();
+    for kind in &args.add {
+        let e = crate::effects::Effect::parse(kind).ok_or_else(|| Error::InvalidArgument {
+            what: "--add",
+            message: format!(
+                "unknown effect '{kind}': one of {}, or delay=N",
+                crate::effects::KINDS
+                    .iter()
+                    .filter(|k| **k != "delay")
+                    .copied()
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
         })?;
-    let onset = fitted.report.step_onset;
-    let mut sources = vec![Source {
-        file: name(&est.path),
-        sha256: est.sha256.clone(),
-        role: "estimation".into(),
-        nrmse: fitted.nrmse_estimation,
-        noise_floor: fit::noise_floor(&est.y, onset),
-    }];
-    for ((t, test), e) in val.iter().zip(val_tests).zip(&fitted.nrmse_validation) {
+        effects.retain(|x| x.kind() != e.kind() || e.kind() == "mode");
+        effects.push(e);
+    }
+    let fitted =
+        crate::effects::fit_with(est_test, val_tests, est.sample_rate_hz, &options, &effects)
+            .map(|(f, fx)| {
+                effects = fx;
+                f
+            })
+            .map_err(|e| match e {
+                // The library does not know the column's position in the file; the trace does.
+                Error::NoStep { path, reason, .. } => Error::NoStep {
+                    column: est.u_column.unwrap_or(0),
+                    name: columns.input.clone(),
+                    path,
+                    reason,
+                },
+                e => e,
+            })?;
+    // Errors with the effects included (an offset or a drift is estimated on each test).
+    let mut sources = Vec::new();
+    for (i, (t, test)) in traces.iter().zip(&tests).enumerate() {
         let onset = fit::step::find_step(test.u).map_or(0, |s| s.onset);
+        let ym = crate::effects::predict(&fitted.model, &effects, test.u, test.y);
         sources.push(Source {
             file: name(&t.path),
             sha256: t.sha256.clone(),
-            role: "validation".into(),
-            nrmse: *e,
+            role: if i == 0 { "estimation" } else { "validation" }.into(),
+            nrmse: fit::nrmse_of(test.y, &ym),
             noise_floor: fit::noise_floor(&t.y, onset),
         });
     }
+    let mut history = previous.map(|p| p.history).unwrap_or_default();
+    history.push(crate::model::HistoryRow {
+        effects: effects.iter().map(|e| e.kind().to_string()).collect(),
+        order: fitted.model.order(),
+        delay: fitted.model.delay,
+        tests: sources
+            .iter()
+            .map(|s| crate::model::HistoryTest {
+                file: s.file.clone(),
+                role: s.role.clone(),
+                nrmse: s.nrmse,
+            })
+            .collect(),
+    });
     let judge = if val_tests.is_empty() {
         std::slice::from_ref(est_test)
     } else {
@@ -442,6 +511,8 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         fit: Some(fitted.report.clone()),
         sources,
         inverse: design,
+        effects,
+        history,
     };
     file.save(&args.output)?;
     if args.json {
@@ -578,7 +649,7 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
     Ok(())
 }
 
-fn json_err(e: serde_json::Error) -> Error {
+pub(crate) fn json_err(e: serde_json::Error) -> Error {
     Error::Numerical {
         context: "json".into(),
         message: e.to_string(),
@@ -675,6 +746,9 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
     let trace = Trace::read(&args.file, &args.columns.columns(false))?;
     check_rate(&file, &trace)?;
     let m = &file.model;
+    // Offset and drift are the probe's, not the pressure's: removed before compensation.
+    let additive = crate::effects::Additive::of(&file.effects);
+    let y_probe = additive.removed_from(&trace.y, m.fs);
     let design = if args.direct {
         None
     } else {
@@ -684,9 +758,9 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         Some(d) => {
             d.check_exportable()?;
             let u_hat = match args.arithmetic {
-                Arithmetic::F32 => d.run::<f32>(&trace.y)?,
-                Arithmetic::F64 => d.run::<f64>(&trace.y)?,
-                Arithmetic::Fixed => run_fixed(d, &args.model, &trace)?,
+                Arithmetic::F32 => d.run::<f32>(&y_probe)?,
+                Arithmetic::F64 => d.run::<f64>(&y_probe)?,
+                Arithmetic::Fixed => run_fixed(d, &args.model, &trace, &y_probe)?,
             };
             (
                 u_hat,
@@ -697,8 +771,8 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         None => {
             m.check_invertible(&name(&args.model))?;
             let u_hat = match args.arithmetic {
-                Arithmetic::F32 => m.compensate::<f32>(&trace.y)?,
-                Arithmetic::F64 => m.compensate::<f64>(&trace.y)?,
+                Arithmetic::F32 => m.compensate::<f32>(&y_probe)?,
+                Arithmetic::F64 => m.compensate::<f64>(&y_probe)?,
                 Arithmetic::Fixed => {
                     return Err(Error::InvalidArgument {
                         what: "--arithmetic",
@@ -759,7 +833,7 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
 }
 
 /// The fixed-point compensator on the trace, refusing to hide a saturation.
-fn run_fixed(d: &inverse::Design, model: &Path, trace: &Trace) -> Result<Vec<f64>> {
+fn run_fixed(d: &inverse::Design, model: &Path, trace: &Trace, y: &[f64]) -> Result<Vec<f64>> {
     let plan = d.fixed.as_ref().ok_or_else(|| Error::InvalidArgument {
         what: "--arithmetic",
         message: format!(
@@ -768,7 +842,7 @@ fn run_fixed(d: &inverse::Design, model: &Path, trace: &Trace) -> Result<Vec<f64
             model.display()
         ),
     })?;
-    let run = plan.run(&trace.y)?;
+    let run = plan.run(y)?;
     if run.clipped_inputs > 0 {
         eprintln!(
             "warning: {} samples of {} lie outside the fixed-point full scale +-{} and were clamped",
@@ -783,7 +857,7 @@ fn run_fixed(d: &inverse::Design, model: &Path, trace: &Trace) -> Result<Vec<f64
     Ok(run.u_hat)
 }
 
-fn check_rate(file: &ModelFile, trace: &Trace) -> Result<()> {
+pub(crate) fn check_rate(file: &ModelFile, trace: &Trace) -> Result<()> {
     let rel = (trace.sample_rate_hz - file.model.fs).abs() / file.model.fs;
     if rel > crate::trace::MAX_JITTER {
         return Err(Error::Mismatch {
@@ -802,7 +876,8 @@ fn run_simulate(args: &SimulateArgs) -> Result<()> {
     let trace = Trace::read(&args.file, &args.columns.columns(true))?;
     check_rate(&file, &trace)?;
     let u = trace.input()?;
-    let y_model = file.model.simulate(u);
+    // The whole model: dynamics plus effects (an offset or drift estimated on this test).
+    let y_model = crate::effects::predict(&file.model, &file.effects, u, &trace.y);
     let error = fit::nrmse_of(&trace.y, &y_model);
     let bytes = trace.to_csv_with(&[("y_model", &y_model)])?;
     crate::trace::write_atomically(&args.output, &bytes)?;

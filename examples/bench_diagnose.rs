@@ -1,0 +1,45 @@
+//! Score table of the modelling loop (issue 7), a benchmark, not a test: for each case of
+//! step tests with a hidden effect, the candidates `unlag diagnose` names, and the validation
+//! error before and after adding the first one. `host-tests/modelling.rs` asserts the same
+//! cases.
+//!
+//! ```sh
+//! cargo run --release --example bench_diagnose          # SEED=N for other noise
+//! ```
+
+#[path = "../host-tests/common/mod.rs"]
+mod common;
+
+use common::hidden::{cases, run};
+
+fn main() {
+    println!("| case | hidden | named (best first) | validation error before | after adding the first | noise floor | verdict |");
+    println!("|---|---|---|---|---|---|---|");
+    let seed = std::env::var("SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(11);
+    let (mut right, mut total) = (0, 0);
+    for case in cases() {
+        let o = run(&case, seed);
+        total += 1;
+        let ok = o.passed(case.kind);
+        right += usize::from(ok);
+        println!(
+            "| {} | `{}` | {} | {:.3} % | {:.3} % | {:.3} % | {} |",
+            case.name,
+            case.kind,
+            o.named
+                .iter()
+                .map(|k| format!("`{k}`"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            100.0 * o.before,
+            100.0 * o.after,
+            100.0 * o.floor,
+            if ok { "right" } else { "WRONG" }
+        );
+    }
+    println!();
+    println!("{right} of {total} cases: the hidden kind named first and the error cut 3x or to within 1.5x of the floor.");
+}

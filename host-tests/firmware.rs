@@ -1,0 +1,190 @@
+//! The board example in QEMU against the host, bit for bit.
+//!
+//! Builds `examples/board_replay.rs` for `thumbv7em-none-eabihf` (Cortex-M4F), boots it in
+//! `qemu-system-arm -M mps2-an386`, and checks that every reconstructed sample it reports over
+//! semihosting has exactly the bits the host gets from the same library code, the same
+//! exported blob and the same recorded trace. Skips with a message when `qemu-system-arm` or
+//! the Rust target is missing, unless `UNLAG_REQUIRE_QEMU=1` (CI sets it), which turns a
+//! missing tool into a failure.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use unlag::blob::{self, CoefficientSet};
+
+mod trace {
+    include!("../examples/data/board_trace.rs");
+}
+
+const TARGET: &str = "thumbv7em-none-eabihf";
+const BLOB: &[u8] = include_bytes!("../examples/data/board_coefficients.bin");
+
+fn required() -> bool {
+    std::env::var("UNLAG_REQUIRE_QEMU").is_ok_and(|v| v == "1")
+}
+
+/// `Some(reason)` when the tools to run firmware are missing.
+fn missing_tools() -> Option<String> {
+    let qemu = Command::new("qemu-system-arm")
+        .arg("--version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status();
+    if !qemu.is_ok_and(|s| s.success()) {
+        return Some(
+            "qemu-system-arm is not installed (apt-get install qemu-system-arm)".to_string(),
+        );
+    }
+    let rustup = Command::new("rustup")
+        .args(["target", "list", "--installed"])
+        .output();
+    match rustup {
+        Ok(o)
+            if String::from_utf8_lossy(&o.stdout)
+                .lines()
+                .any(|l| l.trim() == TARGET) =>
+        {
+            None
+        }
+        _ => Some(format!(
+            "the Rust target {TARGET} is not installed (rustup target add {TARGET})"
+        )),
+    }
+}
+
+/// Builds a board example and returns its ELF.
+fn build_example(name: &str) -> PathBuf {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    // A target directory of its own: the outer `cargo test` may hold the main one's lock.
+    let target_dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firmware");
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = Command::new(cargo)
+        .current_dir(root)
+        .args([
+            "build",
+            "--release",
+            "--no-default-features",
+            "--target",
+            TARGET,
+        ])
+        .args(["--example", name, "--target-dir"])
+        .arg(&target_dir)
+        .env_remove("RUSTFLAGS")
+        .output()
+        .expect("cargo runs");
+    assert!(
+        out.status.success(),
+        "building {name} for {TARGET} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    target_dir
+        .join(TARGET)
+        .join("release")
+        .join("examples")
+        .join(name)
+}
+
+/// Boots `elf` on mps2-an386 and returns (exit status, stdout).
+fn run_in_qemu(elf: &Path) -> (Option<i32>, String) {
+    let mut child = Command::new("qemu-system-arm")
+        .args([
+            "-M",
+            "mps2-an386",
+            "-nographic",
+            "-monitor",
+            "none",
+            "-serial",
+            "none",
+        ])
+        .args([
+            "-semihosting-config",
+            "enable=on,target=native",
+            "-icount",
+            "shift=0",
+        ])
+        .arg("-kernel")
+        .arg(elf)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("qemu starts");
+    let deadline = Instant::now() + Duration::from_secs(120);
+    loop {
+        if child.try_wait().expect("qemu status").is_some() {
+            break;
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("{} did not finish in QEMU within 120 s", elf.display());
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let out = child.wait_with_output().expect("qemu output");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+    )
+}
+
+/// The host's run of the same compensator on the same trace: one `f32` bit pattern per sample.
+fn host_outputs() -> Vec<u32> {
+    let set: CoefficientSet<4> = blob::parse(BLOB).expect("the shipped blob is valid");
+    let mut state = set.cascade.equilibrium(trace::TRACE[0]);
+    trace::TRACE
+        .iter()
+        .map(|&y| set.cascade.process(&mut state, y).to_bits())
+        .collect()
+}
+
+#[test]
+fn board_replay_in_qemu_is_bit_identical_to_the_host() {
+    if let Some(reason) = missing_tools() {
+        assert!(!required(), "UNLAG_REQUIRE_QEMU=1 but {reason}");
+        println!("SKIPPED board_replay_in_qemu_is_bit_identical_to_the_host: {reason}");
+        eprintln!("SKIPPED board_replay_in_qemu_is_bit_identical_to_the_host: {reason}");
+        return;
+    }
+    let elf = build_example("board_replay");
+    let (status, stdout) = run_in_qemu(&elf);
+    assert_eq!(status, Some(0), "board_replay failed in QEMU:\n{stdout}");
+    let board: Vec<(usize, u32)> = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("Y "))
+        .map(|l| {
+            let (k, bits) = l.split_once(' ').expect("Y <k> <bits>");
+            (
+                k.parse().expect("sample index"),
+                u32::from_str_radix(bits, 16).expect("hex bits"),
+            )
+        })
+        .collect();
+    let host = host_outputs();
+    assert_eq!(
+        board.len(),
+        host.len(),
+        "the board reported {} samples, the trace has {}",
+        board.len(),
+        host.len()
+    );
+    for (k, ((i, b), h)) in board.iter().zip(&host).enumerate() {
+        assert_eq!(*i, k, "sample numbering");
+        assert_eq!(
+            b,
+            h,
+            "sample {k}: board {} ({b:#010x}) != host {} ({h:#010x})",
+            f32::from_bits(*b),
+            f32::from_bits(*h)
+        );
+    }
+    assert!(
+        stdout.contains("UPDATE refused: blob corrupted"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("DONE ok"), "{stdout}");
+    // The reconstruction is a real one: it falls with the step like the trace does.
+    let first = f32::from_bits(host[0]);
+    let last = f32::from_bits(host[host.len() - 1]);
+    assert!(first > 700.0 && last < 200.0, "{first} -> {last}");
+}

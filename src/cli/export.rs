@@ -1,0 +1,109 @@
+//! `unlag export`: the designed compensator from a model file to a file the board builds in
+//! (`rust`, `c`) or receives over a serial link (`bin`).
+//!
+//! Owns only the arguments and what is printed; the rendering and the checks live in
+//! [`crate::export`] and [`crate::blob`].
+
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+use serde_json::json;
+
+use crate::error::{Error, Result};
+use crate::export::{self, Format, NumberFormat};
+
+/// Arguments of `unlag export`.
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// The model file, with an `[inverse]` design (from `unlag fit` or `unlag invert`).
+    #[arg(value_name = "MODEL.toml")]
+    pub model: PathBuf,
+    /// What to write: `rust` (const items to `include!`), `c` (a header) or `bin` (the
+    /// versioned, CRC-32-protected blob for a running board).
+    #[arg(long, value_enum)]
+    pub format: FormatArg,
+    /// The board's arithmetic: `f32`, or `fixed` (the fixed-point compensator: the model
+    /// file's plan, or one planned for --full-scale).
+    #[arg(long, value_enum, default_value_t = NumberFormatArg::F32)]
+    pub number_format: NumberFormatArg,
+    /// ADC full scale in the probe's units for `--number-format fixed` (plans anew; without it
+    /// the plan stored by `unlag invert` is used).
+    #[arg(long, value_name = "VALUE")]
+    pub full_scale: Option<f64>,
+    /// Where to write it (written atomically).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Output format on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FormatArg {
+    /// Rust `const` items for `include!`.
+    Rust,
+    /// A C header.
+    C,
+    /// The binary blob (magic, version, number format, fs, delay, sections, CRC-32).
+    Bin,
+}
+
+/// Number format on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum NumberFormatArg {
+    /// IEEE single precision.
+    F32,
+    /// 32-bit fixed point (`unlag::fixed`).
+    Fixed,
+}
+
+/// Runs `unlag export`.
+///
+/// # Errors
+/// See [`export::export`].
+pub fn run_export(args: &ExportArgs) -> Result<()> {
+    let (format, name) = match args.format {
+        FormatArg::Rust => (Format::Rust, "rust"),
+        FormatArg::C => (Format::C, "c"),
+        FormatArg::Bin => (Format::Bin, "bin"),
+    };
+    let number_format = match (args.number_format, args.full_scale) {
+        (NumberFormatArg::F32, None) => NumberFormat::F32,
+        (NumberFormatArg::F32, Some(_)) => {
+            return Err(Error::InvalidArgument {
+                what: "--full-scale",
+                message: "only applies to --number-format fixed".into(),
+            })
+        }
+        (NumberFormatArg::Fixed, full_scale) => NumberFormat::Fixed { full_scale },
+    };
+    let c = export::export_with(&args.model, format, number_format, &args.output)?;
+    if args.json {
+        println!(
+            "{}",
+            json!({
+                "output": args.output.display().to_string(),
+                "format": name,
+                "bytes": c.bytes,
+                "sample_rate_hz": c.sample_rate_hz,
+                "delay_samples": c.delay_samples,
+                "latency_samples": c.latency_samples,
+                "sections": c.sections,
+                "number_format": c.number_format,
+            })
+        );
+    } else {
+        println!(
+            "wrote {} ({name}, {} bytes): {} sections, {}, fs {} Hz, delay {} samples, latency {:.2} samples",
+            args.output.display(),
+            c.bytes,
+            c.sections,
+            c.number_format,
+            c.sample_rate_hz,
+            c.delay_samples,
+            c.latency_samples
+        );
+    }
+    Ok(())
+}

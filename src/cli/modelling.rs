@@ -1,0 +1,251 @@
+//! `unlag compare` and `unlag diagnose`: the modelling loop's view of a model against tests.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use serde_json::json;
+
+use super::{json_err, name, pct, ColumnArgs};
+use crate::diagnose::{self, Candidate, Current};
+use crate::error::{Error, Result};
+use crate::evidence::TestEvidence;
+use crate::fit::{Method, Test};
+use crate::model::ModelFile;
+use crate::trace::Trace;
+
+/// Arguments of `unlag compare` and `unlag diagnose`.
+#[derive(Debug, Args)]
+pub struct LoopArgs {
+    /// The model file.
+    #[arg(value_name = "MODEL.toml")]
+    pub model: PathBuf,
+    /// Step tests (CSV with the reference): the first is the estimation test (refitted on by
+    /// `diagnose`'s trials), the others are held out.
+    #[arg(required = true, value_name = "TEST.csv")]
+    pub files: Vec<PathBuf>,
+    /// Column names.
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+    /// Print one JSON object instead of tables.
+    #[arg(long)]
+    pub json: bool,
+}
+
+struct Loaded {
+    file: ModelFile,
+    traces: Vec<Trace>,
+    names: Vec<String>,
+}
+
+fn load(args: &LoopArgs) -> Result<Loaded> {
+    let file = ModelFile::load(&args.model)?;
+    let columns = args.columns.columns(true);
+    let traces = args
+        .files
+        .iter()
+        .map(|f| Trace::read(f, &columns))
+        .collect::<Result<Vec<_>>>()?;
+    for t in &traces {
+        super::check_rate(&file, t)?;
+    }
+    let names = traces.iter().map(|t| name(&t.path)).collect();
+    Ok(Loaded {
+        file,
+        traces,
+        names,
+    })
+}
+
+fn tests<'a>(l: &'a Loaded) -> Result<Vec<Test<'a>>> {
+    l.traces
+        .iter()
+        .zip(&l.names)
+        .map(|(t, n)| {
+            Ok(Test {
+                name: n,
+                u: t.input()?,
+                y: &t.y,
+            })
+        })
+        .collect()
+}
+
+fn method_of(file: &ModelFile) -> Method {
+    match file.fit.as_ref().map(|f| f.method.as_str()) {
+        Some("arx") => Method::Arx,
+        Some("sm") => Method::Sm,
+        _ => Method::Oe,
+    }
+}
+
+fn print_evidence(evidence: &[TestEvidence]) {
+    println!(
+        "{:<28} {:<10} {:>8} {:>9} {:>9} {:>10} {:>12} {:>10}",
+        "test", "role", "fit %", "nrmse", "floor", "x floor", "Ljung-Box p", "xcorr lag"
+    );
+    for e in evidence {
+        println!(
+            "{:<28} {:<10} {:>8.2} {:>9} {:>9} {:>10.2} {:>12.2e} {:>10}",
+            e.file,
+            e.role,
+            e.fit_percent,
+            pct(e.nrmse),
+            pct(e.noise_floor),
+            e.nrmse / e.noise_floor,
+            e.autocorrelation.p_value,
+            e.cross_correlation.peak_lag
+        );
+    }
+    for e in evidence {
+        println!("{}:", e.file);
+        println!(
+            "  residual autocorrelation: {} of {} lags outside the 99 % band +-{:.3}; Ljung-Box Q = {:.1}",
+            e.autocorrelation.outside,
+            e.autocorrelation.values.len(),
+            e.autocorrelation.band,
+            e.autocorrelation.ljung_box
+        );
+        println!(
+            "  against the input increments: peak {:+.3} at lag {} (band +-{:.3})",
+            e.cross_correlation.peak, e.cross_correlation.peak_lag, e.cross_correlation.band
+        );
+        if e.spectrum.peaks.is_empty() {
+            println!(
+                "  residual spectrum after the step: no peak {} dB above the floor",
+                crate::evidence::PEAK_DB
+            );
+        } else {
+            let peaks: Vec<String> = e
+                .spectrum
+                .peaks
+                .iter()
+                .take(4)
+                .map(|p| {
+                    format!(
+                        "{:.0} Hz (+{:.0} dB, Q {:.0})",
+                        p.frequency_hz, p.above_floor_db, p.q
+                    )
+                })
+                .collect();
+            println!("  residual spectrum peaks: {}", peaks.join(", "));
+        }
+        println!(
+            "  level: {:+.3e} before the step (+-{:.1e}), {:+.3e} at the end (+-{:.1e}); slope {:+.3e}/s; step {:+.4}",
+            e.trend.pre_mean,
+            e.trend.pre_mean_se,
+            e.trend.late_mean,
+            e.trend.late_mean_se,
+            e.trend.slope_per_s,
+            e.step_size
+        );
+    }
+}
+
+fn print_history(file: &ModelFile) {
+    if file.history.is_empty() {
+        return;
+    }
+    println!("error history of this model file (mean nrmse over its tests):");
+    for (i, h) in file.history.iter().enumerate() {
+        let mean = h.tests.iter().map(|t| t.nrmse).sum::<f64>() / h.tests.len().max(1) as f64;
+        println!(
+            "  {:>2}. order {:>2}, delay {:>3}, effects [{}]: {}",
+            i + 1,
+            h.order,
+            h.delay,
+            h.effects.join(", "),
+            pct(mean)
+        );
+    }
+}
+
+fn tests_json(evidence: &[TestEvidence]) -> Result<serde_json::Value> {
+    serde_json::to_value(evidence).map_err(json_err)
+}
+
+/// `unlag compare`: the model against each test, and the residual evidence.
+///
+/// # Errors
+/// The traces' and the model file's errors.
+pub fn run_compare(args: &LoopArgs) -> Result<()> {
+    let l = load(args)?;
+    let tests = tests(&l)?;
+    let current = Current {
+        model: &l.file.model,
+        effects: &l.file.effects,
+        method: method_of(&l.file),
+    };
+    let evidence = diagnose::evidence(&current, &tests);
+    if args.json {
+        let v = json!({
+            "model": name(&args.model),
+            "tests": tests_json(&evidence)?,
+            "history": l.file.history,
+            "candidates": Vec::<Candidate>::new(),
+        });
+        println!("{v}");
+        return Ok(());
+    }
+    print_evidence(&evidence);
+    print_history(&l.file);
+    println!("run `unlag diagnose` with the same arguments to rank the missing effects");
+    Ok(())
+}
+
+/// `unlag diagnose`: candidates for the missing effect, best first.
+///
+/// # Errors
+/// The traces' and the model file's errors.
+pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
+    let l = load(args)?;
+    let tests = tests(&l)?;
+    if tests.is_empty() {
+        return Err(Error::InvalidArgument {
+            what: "TEST.csv",
+            message: "give at least one step test".into(),
+        });
+    }
+    let current = Current {
+        model: &l.file.model,
+        effects: &l.file.effects,
+        method: method_of(&l.file),
+    };
+    let evidence = diagnose::evidence(&current, &tests);
+    let candidates = diagnose::diagnose(&current, &tests, &evidence)?;
+    if args.json {
+        let v = json!({
+            "model": name(&args.model),
+            "tests": tests_json(&evidence)?,
+            "candidates": candidates,
+        });
+        println!("{v}");
+        return Ok(());
+    }
+    println!(
+        "{:<28} {:>8} {:>9} {:>9}",
+        "test", "fit %", "nrmse", "floor"
+    );
+    for e in &evidence {
+        println!(
+            "{:<28} {:>8.2} {:>9} {:>9}",
+            e.file,
+            e.fit_percent,
+            pct(e.nrmse),
+            pct(e.noise_floor)
+        );
+    }
+    println!("candidates, best first (score = ln of the held-out error's fall in a trial refit):");
+    for (i, c) in candidates.iter().enumerate() {
+        println!(
+            "{:>2}. {:<15} score {:.2}: held-out error {} -> {}",
+            i + 1,
+            c.kind,
+            c.score,
+            pct(c.nrmse_before),
+            pct(c.nrmse_after)
+        );
+        println!("    {}", c.reading);
+        println!("    change: {}", c.change);
+    }
+    Ok(())
+}

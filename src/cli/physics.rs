@@ -1,0 +1,685 @@
+//! `unlag simulate-test` and `unlag predict`: the physics subcommands (issue 6).
+//!
+//! Owns the command-line description of a physical probe ([`SystemArgs`]: lines, recessed hole,
+//! cavity, gas, leak, diaphragm, minor losses), the simulated step test written as a CSV
+//! (`t,u,y`, readable by `unlag fit`), and the printed or JSON prediction, with the comparison
+//! against a fitted model file. The physics lives in [`crate::physics`].
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+use serde_json::{json, Value};
+
+use crate::error::{Error, Result};
+use crate::model::ModelFile;
+use crate::physics::gas::Gas;
+use crate::physics::helmholtz::{EndKind, HoleCavity};
+use crate::physics::line::{CavityThermal, Element, Line, Tube, Volume};
+use crate::physics::nonlinear::{equivalent_resistance, MinorLosses};
+use crate::physics::sensor::{Butterworth, Diaphragm};
+use crate::physics::simulate::{simulate, Acquisition, Adc, Excitation, Probe};
+use crate::physics::{compare, predict, Prediction};
+
+/// How the end of a recessed hole meets the space beyond it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EndArg {
+    /// Flush with a wall: end correction 0.85 r (Rayleigh).
+    Flanged,
+    /// A free pipe end: 0.61 r (Levine & Schwinger).
+    Unflanged,
+    /// No end correction.
+    None,
+}
+
+/// The physical probe, shared by `simulate-test` and `predict`. Lengths and diameters in m,
+/// volumes in m^3, temperature in K, pressures in Pa.
+#[derive(Debug, Clone, Args)]
+pub struct SystemArgs {
+    /// A tube LENGTH,DIAMETER in m; repeat for tubes in series, from the measuring point on.
+    #[arg(long = "line", value_name = "L,D")]
+    pub lines: Vec<String>,
+    /// Volume at the closed end (transducer volume or sensor cavity) in m^3.
+    #[arg(long, value_name = "M3")]
+    pub volume: f64,
+    /// A recessed hole LENGTH,DIAMETER in m in front of everything else (a Bergh-Tijdeman tube
+    /// with end-correction inertances at both ends); `--volume` is its cavity.
+    #[arg(long, value_name = "L,D")]
+    pub hole: Option<String>,
+    /// End corrections of the hole (both ends).
+    #[arg(long, value_enum, default_value_t = EndArg::Flanged)]
+    pub hole_end: EndArg,
+    /// Mean gas temperature in K (speed of sound, Sutherland viscosity).
+    #[arg(long, default_value_t = 293.15, value_name = "K")]
+    pub temperature: f64,
+    /// Mean absolute pressure in the line in Pa.
+    #[arg(long, default_value_t = 101_325.0, value_name = "PA")]
+    pub pressure: f64,
+    /// Diaphragm compliance sigma of the end volume (dV/V = sigma dp/p_s; acts as extra volume).
+    #[arg(long, default_value_t = 0.0, value_name = "SIGMA")]
+    pub sigma: f64,
+    /// Polytropic constant k of the gas in the end volume (1.4 isentropic, 1.0 isothermal).
+    #[arg(long, default_value_t = 1.4, value_name = "K")]
+    pub cavity_k: f64,
+    /// Radius of a cylindrical end cavity whose gas relaxes thermally (replaces --cavity-k).
+    #[arg(long, value_name = "M")]
+    pub cavity_radius: Option<f64>,
+    /// Leak conductance of the end volume to the reference pressure in m^3/(s Pa).
+    #[arg(long, default_value_t = 0.0, value_name = "G")]
+    pub leak: f64,
+    /// Quadratic (minor/orifice) loss coefficient K per stroke (entry 0.5 + exit 1.0 = 1.5),
+    /// linearised for the step amplitude `--amplitude`.
+    #[arg(long, value_name = "K")]
+    pub minor_loss: Option<f64>,
+    /// Step amplitude in Pa (the excitation's size; sets the minor-loss damping).
+    #[arg(long, default_value_t = 1000.0, value_name = "PA")]
+    pub amplitude: f64,
+    /// Transducer diaphragm resonance FN,ZETA (Hz, -), e.g. 250e3,0.03.
+    #[arg(long, value_name = "FN,ZETA")]
+    pub diaphragm: Option<String>,
+}
+
+/// Parses `A,B` into two finite numbers.
+fn pair(text: &str, what: &'static str, form: &str) -> Result<(f64, f64)> {
+    let bad = || Error::InvalidArgument {
+        what,
+        message: format!("expected {form}, got '{text}'"),
+    };
+    let mut it = text.split(',').map(|x| x.trim().parse::<f64>());
+    match (it.next(), it.next(), it.next()) {
+        (Some(Ok(a)), Some(Ok(b)), None) if a.is_finite() && b.is_finite() => Ok((a, b)),
+        _ => Err(bad()),
+    }
+}
+
+fn positive(value: f64, what: &'static str) -> Result<f64> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(Error::InvalidArgument {
+            what,
+            message: format!("{value} must be finite and positive"),
+        })
+    }
+}
+
+/// The probe described on the command line.
+struct System {
+    line: Line,
+    gas: Gas,
+    hole: Option<HoleCavity>,
+    diaphragm: Option<Diaphragm>,
+    minor_loss_resistance: Option<f64>,
+}
+
+impl SystemArgs {
+    fn build(&self) -> Result<System> {
+        positive(self.temperature, "--temperature")?;
+        positive(self.pressure, "--pressure")?;
+        let gas = Gas::air(self.temperature, self.pressure);
+        gas.validate()?;
+        if self.lines.is_empty() && self.hole.is_none() {
+            return Err(Error::InvalidArgument {
+                what: "--line",
+                message: "give at least one --line LENGTH,DIAMETER (or a --hole)".into(),
+            });
+        }
+        if !(self.volume.is_finite() && self.volume >= 0.0) {
+            return Err(Error::InvalidArgument {
+                what: "--volume",
+                message: format!("{} m^3 must be finite and non-negative", self.volume),
+            });
+        }
+        let mut line = Line::new();
+        let mut hole = None;
+        if let Some(h) = &self.hole {
+            let (l, d) = pair(h, "--hole", "LENGTH,DIAMETER in m")?;
+            positive(l, "--hole length")?;
+            positive(d, "--hole diameter")?;
+            positive(self.volume, "--volume (the hole's cavity)")?;
+            let end = match self.hole_end {
+                EndArg::Flanged => EndKind::Flanged,
+                EndArg::Unflanged => EndKind::Unflanged,
+                EndArg::None => EndKind::None,
+            };
+            let hc = HoleCavity {
+                hole_length_m: l,
+                hole_diameter_m: d,
+                cavity_volume_m3: self.volume,
+                outer_end: end,
+                inner_end: end,
+            };
+            // The hole's elements without its cavity (the end volume below is the cavity).
+            line.elements.extend(
+                hc.line(&gas)
+                    .elements
+                    .into_iter()
+                    .filter(|e| !matches!(e, Element::Volume(_))),
+            );
+            hole = Some(hc);
+        }
+        for text in &self.lines {
+            let (l, d) = pair(text, "--line", "LENGTH,DIAMETER in m")?;
+            positive(l, "--line length")?;
+            positive(d, "--line diameter")?;
+            line.elements.push(Element::Tube(Tube::with_diameter(l, d)));
+        }
+        let thermal = match self.cavity_radius {
+            Some(r) => CavityThermal::Relaxing {
+                radius_m: positive(r, "--cavity-radius")?,
+            },
+            None => CavityThermal::Polytropic(self.cavity_k),
+        };
+        line.elements.push(Element::Volume(Volume {
+            volume_m3: self.volume,
+            sigma: self.sigma,
+            thermal,
+            leak_m3_per_s_pa: self.leak,
+        }));
+        line.validate()?;
+        let mut minor_loss_resistance = None;
+        if let Some(k) = self.minor_loss {
+            let q = equivalent_resistance(
+                &line,
+                &gas,
+                &MinorLosses {
+                    k,
+                    step_amplitude_pa: self.amplitude.abs(),
+                },
+            )?;
+            minor_loss_resistance = Some(q.resistance_pa_s_per_m3);
+            line = q.line;
+        }
+        let diaphragm = match &self.diaphragm {
+            Some(text) => {
+                let (f, z) = pair(text, "--diaphragm", "FN,ZETA (Hz, -)")?;
+                let d = Diaphragm {
+                    natural_frequency_hz: f,
+                    damping: z,
+                };
+                d.validate()?;
+                Some(d)
+            }
+            None => None,
+        };
+        Ok(System {
+            line,
+            gas,
+            hole,
+            diaphragm,
+            minor_loss_resistance,
+        })
+    }
+}
+
+/// Excitation kind on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ExcitationArg {
+    /// Shock-tube step: rises by --amplitude in --rise (default 1 us).
+    Shock,
+    /// Burst balloon: falls by --amplitude in --rise (default 700 us).
+    Balloon,
+    /// Fast-opening valve: rises by --amplitude in --rise (default 200 us), optional --chamber.
+    Valve,
+    /// Traverse through cascade wakes of depth --amplitude at --wake-hz, with a tunnel
+    /// oscillation at --tunnel-hz.
+    Wake,
+}
+
+/// Arguments of `unlag simulate-test`.
+#[derive(Debug, Args)]
+pub struct SimulateTestArgs {
+    /// The probe.
+    #[command(flatten)]
+    pub system: SystemArgs,
+    /// Sample rate of the acquisition in Hz.
+    #[arg(long, value_name = "HZ")]
+    pub fs: f64,
+    /// Record length in s.
+    #[arg(long, default_value_t = 0.1, value_name = "S")]
+    pub duration: f64,
+    /// Time of the event (step) in the record in s (default: 10 % of the record); need not
+    /// fall on a sample.
+    #[arg(long, value_name = "S")]
+    pub event_at: Option<f64>,
+    /// The facility.
+    #[arg(long, value_enum)]
+    pub excitation: ExcitationArg,
+    /// Rise (shock, valve) or fall (balloon) time in s.
+    #[arg(long, value_name = "S")]
+    pub rise: Option<f64>,
+    /// Valve chamber oscillation HZ,FRACTION (fraction of the step).
+    #[arg(long, value_name = "HZ,FRACTION")]
+    pub chamber: Option<String>,
+    /// Wake passing frequency in Hz (traverse speed / pitch).
+    #[arg(long, default_value_t = 50.0, value_name = "HZ")]
+    pub wake_hz: f64,
+    /// Wake width as a fraction of the pitch.
+    #[arg(long, default_value_t = 0.1, value_name = "FRACTION")]
+    pub wake_width: f64,
+    /// Tunnel oscillation frequency in Hz.
+    #[arg(long, default_value_t = 20.0, value_name = "HZ")]
+    pub tunnel_hz: f64,
+    /// Tunnel oscillation amplitude in Pa (default 5 % of --amplitude).
+    #[arg(long, value_name = "PA")]
+    pub tunnel_amplitude: Option<f64>,
+    /// White noise on the probe channel, standard deviation in Pa.
+    #[arg(long, default_value_t = 0.0, value_name = "PA")]
+    pub noise: f64,
+    /// White noise on the reference channel, standard deviation in Pa.
+    #[arg(long, default_value_t = 0.0, value_name = "PA")]
+    pub reference_noise: f64,
+    /// ADC resolution in bits (both channels).
+    #[arg(long, value_name = "BITS")]
+    pub adc_bits: Option<u32>,
+    /// ADC range MIN,MAX in Pa (default: the signals' range plus 10 % each side).
+    #[arg(long, value_name = "MIN,MAX")]
+    pub adc_range: Option<String>,
+    /// Extra delay of the probe channel in s (timing skew; any fraction of a sample).
+    #[arg(long, default_value_t = 0.0, value_name = "S")]
+    pub skew: f64,
+    /// Reference transducer resonance FN,ZETA (Hz, -); default: an ideal reference.
+    #[arg(long, value_name = "FN,ZETA")]
+    pub reference_sensor: Option<String>,
+    /// Analog anti-alias filter HZ,ORDER (Butterworth) on both channels.
+    #[arg(long, value_name = "HZ,ORDER")]
+    pub anti_alias: Option<String>,
+    /// Internal simulation rate as a multiple of --fs.
+    #[arg(long, default_value_t = 32, value_name = "N")]
+    pub oversample: usize,
+    /// Seed of the noise generator.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub seed: u64,
+    /// Static gain error of the probe channel (0.02 = +2 %).
+    #[arg(long, default_value_t = 0.0, value_name = "E")]
+    pub gain_error: f64,
+    /// Mains hum on the probe channel PA,HZ.
+    #[arg(long, value_name = "PA,HZ")]
+    pub hum: Option<String>,
+    /// Zero drift of the probe channel after the event in Pa/s.
+    #[arg(long, default_value_t = 0.0, value_name = "PA/S")]
+    pub drift: f64,
+    /// Output CSV (columns t, u = reference, y = probe, in Pa relative to the level before
+    /// the event's start).
+    #[arg(short = 'o', long = "output", value_name = "FILE.csv")]
+    pub output: PathBuf,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `unlag predict`.
+#[derive(Debug, Args)]
+pub struct PredictArgs {
+    /// The probe.
+    #[command(flatten)]
+    pub system: SystemArgs,
+    /// Number of exact modes to report.
+    #[arg(long, default_value_t = 3, value_name = "N")]
+    pub modes: usize,
+    /// A fitted model file to compare with the prediction.
+    #[arg(long, value_name = "MODEL.toml")]
+    pub model: Option<PathBuf>,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn excitation_of(args: &SimulateTestArgs) -> Result<Excitation> {
+    let a = args.system.amplitude;
+    let rise = match args.rise {
+        Some(r) => Some(positive(r, "--rise")?),
+        None => None,
+    };
+    let e = match args.excitation {
+        ExcitationArg::Shock => Excitation::ShockTube {
+            amplitude_pa: a,
+            rise_s: rise.unwrap_or(1e-6),
+        },
+        ExcitationArg::Balloon => Excitation::Balloon {
+            amplitude_pa: a,
+            fall_s: rise.unwrap_or(700e-6),
+        },
+        ExcitationArg::Valve => {
+            let (chamber_hz, chamber_fraction) = match &args.chamber {
+                Some(c) => pair(c, "--chamber", "HZ,FRACTION")?,
+                None => (850.0, 0.0),
+            };
+            Excitation::Valve {
+                amplitude_pa: a,
+                opening_s: rise.unwrap_or(200e-6),
+                chamber_hz,
+                chamber_fraction,
+            }
+        }
+        ExcitationArg::Wake => Excitation::CascadeWake {
+            wake_depth_pa: a,
+            wake_hz: args.wake_hz,
+            wake_width: args.wake_width,
+            tunnel_amplitude_pa: args.tunnel_amplitude.unwrap_or(0.05 * a),
+            tunnel_hz: args.tunnel_hz,
+        },
+    };
+    e.validate()?;
+    Ok(e)
+}
+
+/// Runs `unlag simulate-test`.
+///
+/// # Errors
+/// Invalid arguments, numerical failures of the simulation, the output file.
+pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
+    let sys = args.system.build()?;
+    let excitation = excitation_of(args)?;
+    let anti_alias = match &args.anti_alias {
+        Some(text) => {
+            let (f, n) = pair(text, "--anti-alias", "HZ,ORDER")?;
+            if n.fract() != 0.0 || !(1.0..=12.0).contains(&n) {
+                return Err(Error::InvalidArgument {
+                    what: "--anti-alias",
+                    message: format!("order {n} must be a whole number 1..=12"),
+                });
+            }
+            Some(Butterworth {
+                corner_hz: f,
+                order: n as u32,
+            })
+        }
+        None => None,
+    };
+    let reference_sensor = match &args.reference_sensor {
+        Some(text) => {
+            let (f, z) = pair(text, "--reference-sensor", "FN,ZETA (Hz, -)")?;
+            Some(Diaphragm {
+                natural_frequency_hz: f,
+                damping: z,
+            })
+        }
+        None => None,
+    };
+    let probe = Probe {
+        line: sys.line.clone(),
+        gas: sys.gas,
+        diaphragm: sys.diaphragm,
+        anti_alias,
+        skew_s: args.skew,
+    };
+    let (hum_pa, hum_hz) = match &args.hum {
+        Some(text) => pair(text, "--hum", "PA,HZ")?,
+        None => (0.0, 50.0),
+    };
+    let acquisition = Acquisition {
+        sample_rate_hz: args.fs,
+        duration_s: args.duration,
+        event_time_s: args.event_at.unwrap_or(0.1 * args.duration),
+        oversample: args.oversample,
+        probe_noise_pa: args.noise,
+        reference_noise_pa: args.reference_noise,
+        adc: None,
+        reference_sensor,
+        seed: args.seed,
+        probe_gain_error: args.gain_error,
+        hum_pa,
+        hum_hz,
+        drift_pa_per_s: args.drift,
+    };
+    let mut test = simulate(&probe, &excitation, &acquisition)?;
+    if let Some(d) = &sys.diaphragm {
+        if d.natural_frequency_hz > test.impulse.taper_start_hz {
+            eprintln!(
+                "warning: the diaphragm resonance at {} Hz is above the simulated band (taper from {:.0} Hz) and is filtered out: raise --oversample to see it",
+                d.natural_frequency_hz, test.impulse.taper_start_hz
+            );
+        }
+    }
+    let adc = match args.adc_bits {
+        Some(bits) => {
+            let (min_pa, max_pa) = match &args.adc_range {
+                Some(text) => pair(text, "--adc-range", "MIN,MAX in Pa")?,
+                None => {
+                    let all = test.reference.iter().chain(&test.probe);
+                    let lo = all.clone().copied().fold(f64::INFINITY, f64::min);
+                    let hi = all.copied().fold(f64::NEG_INFINITY, f64::max);
+                    let span = (hi - lo).max(1e-9);
+                    (lo - 0.1 * span, hi + 0.1 * span)
+                }
+            };
+            let adc = Adc {
+                bits,
+                min_pa,
+                max_pa,
+            };
+            adc.validate()?;
+            for v in test.reference.iter_mut().chain(test.probe.iter_mut()) {
+                *v = adc.quantise(*v);
+            }
+            Some(adc)
+        }
+        None => {
+            if args.adc_range.is_some() {
+                return Err(Error::InvalidArgument {
+                    what: "--adc-range",
+                    message: "needs --adc-bits".into(),
+                });
+            }
+            None
+        }
+    };
+    let mut csv = String::with_capacity(test.t.len() * 48);
+    csv.push_str("t,u,y\n");
+    for ((t, u), y) in test.t.iter().zip(&test.reference).zip(&test.probe) {
+        let _ = writeln!(csv, "{t:.9},{u},{y}");
+    }
+    crate::trace::write_atomically(&args.output, csv.as_bytes())?;
+    let ir = &test.impulse;
+    if args.json {
+        let v = json!({
+            "output": args.output.display().to_string(),
+            "samples": test.t.len(),
+            "sample_rate_hz": args.fs,
+            "front_delay_s": sys.line.front_delay_s(&sys.gas),
+            "dc_gain": sys.line.dc_gain(&sys.gas),
+            "minor_loss_resistance_pa_s_per_m3": sys.minor_loss_resistance,
+            "adc_lsb_pa": adc.map(|a| a.lsb_pa()),
+            "method": {
+                "internal_rate_hz": ir.rate_hz,
+                "fft_length": ir.fft_length,
+                "impulse_response_s": ir.taps.len() as f64 / ir.rate_hz,
+                "tail_energy": ir.tail_energy,
+                "noncausal_energy": ir.noncausal_energy,
+                "taper_start_hz": ir.taper_start_hz,
+            },
+        });
+        println!("{v}");
+        return Ok(());
+    }
+    println!(
+        "simulated {} samples at {} Hz ({:?}); front delay {:.6} s, DC gain {:.6}",
+        test.t.len(),
+        args.fs,
+        args.excitation,
+        sys.line.front_delay_s(&sys.gas),
+        sys.line.dc_gain(&sys.gas)
+    );
+    if let Some(r) = sys.minor_loss_resistance {
+        println!(
+            "  minor losses linearised for {} Pa: R_eq = {r:.4e} Pa s/m^3",
+            args.system.amplitude
+        );
+    }
+    println!(
+        "  method: impulse response by tapered inverse FFT at {:.0} Hz, length {} ({:.4} s), tail energy {:.1e} (wrap-around bound), non-causal taper energy {:.1e}, taper from {:.0} Hz",
+        ir.rate_hz,
+        ir.fft_length,
+        ir.taps.len() as f64 / ir.rate_hz,
+        ir.tail_energy,
+        ir.noncausal_energy,
+        ir.taper_start_hz
+    );
+    if let Some(a) = adc {
+        println!(
+            "  ADC {} bits over [{}, {}] Pa, LSB {:.4e} Pa",
+            a.bits,
+            a.min_pa,
+            a.max_pa,
+            a.lsb_pa()
+        );
+    }
+    println!("wrote {}", args.output.display());
+    Ok(())
+}
+
+fn prediction_json(sys: &System, p: &Prediction) -> Value {
+    json!({
+        "modes": p.modes.iter().map(|m| json!({
+            "natural_frequency_hz": m.natural_frequency_hz,
+            "damping": m.damping,
+            "damped_frequency_hz": m.damped_frequency_hz(),
+            "overdamped": m.overdamped,
+        })).collect::<Vec<_>>(),
+        "delay_s": p.delay_s,
+        "lumped": p.lumped.map(|l| json!({
+            "natural_frequency_hz": l.natural_frequency_hz,
+            "damping": l.damping,
+            "womersley": l.womersley,
+            "valid": l.womersley < crate::physics::compare::LUMPED_WOMERSLEY_LIMIT,
+        })),
+        "dc_gain": p.dc_gain,
+        "gas": {
+            "temperature_k": sys.gas.temperature_k,
+            "pressure_pa": sys.gas.pressure_pa,
+            "speed_of_sound_m_s": sys.gas.speed_of_sound(),
+            "kinematic_viscosity_m2_s": sys.gas.kinematic_viscosity(),
+        },
+        "helmholtz": sys.hole.map(|h| json!({
+            "frequency_hz": h.helmholtz_frequency_hz(&sys.gas),
+            "poiseuille_damping": h.poiseuille_damping(&sys.gas),
+            "effective_length_m": h.effective_length_m(),
+            "neck_volume_ratio": h.neck_volume_ratio(),
+        })),
+        "diaphragm": sys.diaphragm.map(|d| json!({
+            "natural_frequency_hz": d.natural_frequency_hz,
+            "damping": d.damping,
+        })),
+        "minor_loss_resistance_pa_s_per_m3": sys.minor_loss_resistance,
+    })
+}
+
+/// Runs `unlag predict`.
+///
+/// # Errors
+/// Invalid arguments, a mode search that finds nothing, an unreadable model file.
+pub fn run_predict(args: &PredictArgs) -> Result<()> {
+    if !(1..=20).contains(&args.modes) {
+        return Err(Error::InvalidArgument {
+            what: "--modes",
+            message: format!("{} must be 1..=20", args.modes),
+        });
+    }
+    let sys = args.system.build()?;
+    let p = predict(&sys.line, &sys.gas, args.modes)?;
+    let comparison = match &args.model {
+        Some(path) => {
+            let file = ModelFile::load(path)?;
+            Some(compare(&file.model, &p)?)
+        }
+        None => None,
+    };
+    if args.json {
+        let mut v = prediction_json(&sys, &p);
+        if let Some(c) = &comparison {
+            v["comparison"] = serde_json::to_value(c).map_err(|e| Error::Numerical {
+                context: "JSON output".into(),
+                message: e.to_string(),
+            })?;
+        }
+        println!("{v}");
+        return Ok(());
+    }
+    let g = &sys.gas;
+    println!(
+        "air at {:.2} K, {:.0} Pa: speed of sound {:.2} m/s, kinematic viscosity {:.4e} m^2/s",
+        g.temperature_k,
+        g.pressure_pa,
+        g.speed_of_sound(),
+        g.kinematic_viscosity()
+    );
+    println!("exact modes (Bergh-Tijdeman poles):");
+    for (i, m) in p.modes.iter().enumerate() {
+        println!(
+            "  {}: natural frequency {:10.3} Hz, damping {:.4}{}",
+            i + 1,
+            m.natural_frequency_hz,
+            m.damping,
+            if m.overdamped {
+                " (overdamped: equivalent pair of the two slowest real poles)"
+            } else {
+                ""
+            }
+        );
+    }
+    println!("front delay sum(L)/a: {:.6} s", p.delay_s);
+    match &p.lumped {
+        Some(l) => println!(
+            "lumped approximation: natural frequency {:.3} Hz, damping {:.4}, Womersley {:.2} ({})",
+            l.natural_frequency_hz,
+            l.damping,
+            l.womersley,
+            if p.lumped_valid() {
+                "within its validity, Wo < 2"
+            } else {
+                "outside its validity, Wo >= 2: it under-predicts damping"
+            }
+        ),
+        None => println!("lumped approximation: none (no second-order dynamics)"),
+    }
+    println!("DC gain {:.6}", p.dc_gain);
+    if let Some(h) = &sys.hole {
+        println!(
+            "hole-cavity closed form: Helmholtz {:.1} Hz, Poiseuille damping {:.4}, L_eff {:.4e} m, neck/cavity volume {:.2}{}",
+            h.helmholtz_frequency_hz(g),
+            h.poiseuille_damping(g),
+            h.effective_length_m(),
+            h.neck_volume_ratio(),
+            if h.neck_volume_ratio() > 0.3 {
+                " (too large for the closed form: trust the exact modes)"
+            } else {
+                ""
+            }
+        );
+    }
+    if let Some(d) = &sys.diaphragm {
+        println!(
+            "diaphragm: natural frequency {:.1} Hz, damping {:.4}",
+            d.natural_frequency_hz, d.damping
+        );
+    }
+    if let Some(r) = sys.minor_loss_resistance {
+        println!(
+            "minor losses linearised for {} Pa: R_eq = {r:.4e} Pa s/m^3 (included above)",
+            args.system.amplitude
+        );
+    }
+    if let Some(c) = &comparison {
+        println!(
+            "fitted model against the prediction: natural frequency ratio {:.4} ({:.3} / {:.3} Hz), damping ratio {:.4} ({:.4} / {:.4}), delay difference {:+.6} s ({:.6} - {:.6} s), DC gain ratio {:.5}",
+            c.natural_frequency_ratio,
+            c.fitted.natural_frequency_hz,
+            c.predicted.natural_frequency_hz,
+            c.damping_ratio,
+            c.fitted.damping,
+            c.predicted.damping,
+            c.delay_difference_s,
+            c.fitted_delay_s,
+            c.predicted_delay_s,
+            c.dc_gain_ratio
+        );
+        if c.findings.is_empty() {
+            println!("  agrees within 5 % in frequency, 15 % in damping, one sample in delay");
+        }
+        for f in &c.findings {
+            println!("  {f}");
+        }
+    }
+    Ok(())
+}

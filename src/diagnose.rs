@@ -1,0 +1,417 @@
+//! Naming the missing physical effect from the evidence.
+//!
+//! This module owns the catalogue's decision: for a model and its tests it ranks candidate
+//! effects ([`Candidate`]), each with the numbers behind it, a physical reading, and the exact
+//! change that adds it. Two kinds of evidence are combined:
+//!
+//! 1. the residual's signature on each test ([`crate::evidence`]): a narrow spectral peak for
+//!    a mode, a level before the step for an offset, a ramp for a drift, a slow creep after
+//!    the step for a leak, correlation in time without a cause in the input for coloured
+//!    noise;
+//! 2. a trial: the model is refitted on the estimation test with the effect added
+//!    ([`crate::effects::fit_with`]) and judged on the held-out tests. A candidate whose
+//!    signature is present but whose trial does not lower the held-out error is not offered.
+//!
+//! The score is `ln(error before / error after)` on the held-out tests (the estimation test
+//! when there is none). `none` is the verdict when every test is at its noise floor with white
+//! residuals, or when no candidate's trial helps.
+
+use serde::Serialize;
+use serde_json::{json, Value};
+
+use crate::effects::{self, Effect, FitChanges};
+use crate::error::Result;
+use crate::evidence::TestEvidence;
+use crate::fit::{Method, Options, Order, Test};
+use crate::model::Model;
+
+/// A trial must lower the held-out error by at least this factor to be offered.
+pub const MIN_IMPROVEMENT: f64 = 1.15;
+
+/// Score charged per parameter an effect adds: between two effects that explain the data
+/// equally well, the simpler one ranks first (an offset before a drift, a leak before a mode).
+pub const PARAMETER_PENALTY: f64 = 0.03;
+
+/// Parameters each kind adds to the model.
+#[must_use]
+pub fn parameters(kind: &str) -> usize {
+    match kind {
+        "mode" => 4,
+        "leak" | "drift" => 2,
+        "offset" => 1,
+        _ => 0,
+    }
+}
+
+/// One ranked candidate.
+#[derive(Debug, Clone, Serialize)]
+pub struct Candidate {
+    /// Machine-readable kind (`mode`, `leak`, `offset`, `drift`, `delay`, `coloured-noise`,
+    /// or `none`).
+    pub kind: String,
+    /// `ln(error before / error after)` of the trial, less [`PARAMETER_PENALTY`] per parameter
+    /// the effect adds; larger is stronger.
+    pub score: f64,
+    /// The numbers behind it.
+    pub evidence: Value,
+    /// What it means physically.
+    pub reading: String,
+    /// The exact change that adds it.
+    pub change: String,
+    /// Held-out error before the trial.
+    pub nrmse_before: f64,
+    /// Held-out error after the trial.
+    pub nrmse_after: f64,
+}
+
+/// The current state of a model file that a diagnosis starts from.
+#[derive(Debug, Clone)]
+pub struct Current<'a> {
+    /// The model.
+    pub model: &'a Model,
+    /// Its effects.
+    pub effects: &'a [Effect],
+    /// The method it was fitted with.
+    pub method: Method,
+}
+
+fn mean(x: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = x.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+    if n == 0 {
+        f64::NAN
+    } else {
+        s / n as f64
+    }
+}
+
+/// The held-out error of a model with effects: mean nrmse over the validation tests, or the
+/// estimation test's when there are none.
+fn held_out(model: &Model, effects: &[Effect], tests: &[Test<'_>]) -> f64 {
+    let judged = if tests.len() > 1 { &tests[1..] } else { tests };
+    mean(judged.iter().map(|t| {
+        let ym = effects::predict(model, effects, t.u, t.y);
+        crate::fit::nrmse_of(t.y, &ym)
+    }))
+}
+
+/// Measures the evidence on every test (the first is the estimation test).
+#[must_use]
+pub fn evidence(current: &Current<'_>, tests: &[Test<'_>]) -> Vec<TestEvidence> {
+    tests
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let ym = effects::predict(current.model, current.effects, t.u, t.y);
+            TestEvidence::measure(
+                t.name,
+                if i == 0 { "estimation" } else { "validation" },
+                t.u,
+                t.y,
+                &ym,
+                current.model.fs,
+            )
+        })
+        .collect()
+}
+
+/// Ranks the candidates, best first; `none` alone when nothing is missing.
+///
+/// # Errors
+/// Only when the current model cannot be evaluated; a trial that fails is simply not
+/// offered.
+pub fn diagnose(
+    current: &Current<'_>,
+    tests: &[Test<'_>],
+    evidence: &[TestEvidence],
+) -> Result<Vec<Candidate>> {
+    let fs = current.model.fs;
+    let before = held_out(current.model, current.effects, tests);
+    let have = FitChanges::of(current.effects);
+    let base_order = current
+        .model
+        .order()
+        .saturating_sub(have.extra_order)
+        .max(1);
+    let base = Options {
+        method: current.method,
+        order: Order::Fixed(base_order),
+        delay: Some(current.model.delay),
+    };
+    let Some((estimation, validation)) = tests.split_first() else {
+        return Ok(Vec::new());
+    };
+    let trial = |added: Effect, options: &Options| -> Option<(f64, Vec<Effect>)> {
+        let mut with = current.effects.to_vec();
+        with.retain(|e| e.kind() != added.kind());
+        with.push(added);
+        let (fitted, fx) = effects::fit_with(estimation, validation, fs, options, &with).ok()?;
+        fitted.model.check_stable("trial").ok()?;
+        Some((held_out(&fitted.model, &fx, tests), fx))
+    };
+    let floor = mean(evidence.iter().map(|e| e.noise_floor));
+    let white = evidence.iter().all(|e| e.autocorrelation.p_value > 0.01);
+    let at_floor = evidence.iter().all(TestEvidence::at_noise_floor);
+    let mut out: Vec<Candidate> = Vec::new();
+    let mut offer = |kind: &str, after: f64, evidence: Value, reading: String, change: String| {
+        let ratio = before / after;
+        if after.is_finite() && ratio >= MIN_IMPROVEMENT {
+            out.push(Candidate {
+                kind: kind.into(),
+                score: ratio.ln() - PARAMETER_PENALTY * parameters(kind) as f64,
+                evidence,
+                reading,
+                change,
+                nrmse_before: before,
+                nrmse_after: after,
+            });
+        }
+    };
+
+    // mode: the trial (two more poles and zeros), read with the highest peak of the
+    // model-error spectrum (where the measured response rises above the model's), or its rise
+    // at the top of the band the noise leaves, or a residual spectrum peak.
+    let peak = evidence
+        .iter()
+        .flat_map(|e| e.model_error.peaks.iter().map(move |p| (e, p)))
+        .max_by(|a, b| a.1.above_floor_db.total_cmp(&b.1.above_floor_db));
+    let edge = evidence
+        .iter()
+        .filter_map(|e| {
+            let last = e.model_error.db.last().copied()?;
+            (last > crate::evidence::MODEL_ERROR_PEAK_DB).then_some((e, last))
+        })
+        .max_by(|a, b| a.1.total_cmp(&b.1));
+    let residual_peak = evidence
+        .iter()
+        .flat_map(|e| e.spectrum.peaks.iter().map(move |p| (e, p)))
+        .max_by(|a, b| a.1.above_floor_db.total_cmp(&b.1.above_floor_db));
+    if let Some((after, fx)) = trial(Effect::Mode { near_hz: None }, &base) {
+        let (near, ev, reading) = if let Some((e, p)) = peak {
+            (
+                Some(p.frequency_hz),
+                json!({"frequency_hz": p.frequency_hz, "above_floor_db": p.above_floor_db,
+                       "q": p.q, "test": e.file, "source": "model-error spectrum"}),
+                format!(
+                    "the measured response rises {:.1} dB above the model's at {:.0} Hz (Q about \
+                     {:.0}): an unmodelled acoustic mode of the line or a cavity resonance",
+                    p.above_floor_db, p.frequency_hz, p.q
+                ),
+            )
+        } else if let Some((e, db)) = edge {
+            let f = e.model_error.valid_to_hz;
+            (
+                Some(f),
+                json!({"rise_db": db, "up_to_hz": f, "test": e.file,
+                       "source": "model-error spectrum, top of the band"}),
+                format!(
+                    "the measured response rises {db:.1} dB above the model's towards {f:.0} Hz, \
+                     where the noise takes over: an unmodelled mode at or above it (a higher \
+                     acoustic mode of the line or a cavity resonance)"
+                ),
+            )
+        } else if let Some((e, p)) = residual_peak {
+            (
+                Some(p.frequency_hz),
+                json!({"frequency_hz": p.frequency_hz, "above_floor_db": p.above_floor_db,
+                       "q": p.q, "test": e.file, "source": "residual spectrum"}),
+                format!(
+                    "a narrow residual peak at {:.0} Hz, {:.0} dB above the floor, Q about {:.0}: \
+                     an unmodelled acoustic mode of the line or a cavity resonance",
+                    p.frequency_hz, p.above_floor_db, p.q
+                ),
+            )
+        } else {
+            (
+                None,
+                json!({"source": "trial only"}),
+                "two more poles and zeros lower the held-out error, without a spectral peak to \
+                 point at: a heavily damped extra mode"
+                    .to_string(),
+            )
+        };
+        let _ = fx;
+        offer(
+            "mode",
+            after,
+            ev,
+            reading,
+            match near {
+                Some(f) => format!(
+                    "unlag fit ... --add mode   (model file: effects = [{{ kind = \"mode\", near_hz = {f:.0} }}])"
+                ),
+                None => "unlag fit ... --add mode   (model file: effects = [{ kind = \"mode\" }])"
+                    .into(),
+            },
+        );
+    }
+
+    // offset: a residual level before the step, the same after it.
+    let offset = evidence
+        .iter()
+        .map(|e| e.trend.pre_mean / e.trend.pre_mean_se.max(1e-300))
+        .fold(0.0f64, |m, z| if z.abs() > m.abs() { z } else { m });
+    if offset.abs() > 5.0 && !have.offset {
+        if let Some((after, fx)) = trial(Effect::Offset { value: 0.0 }, &base) {
+            let value = effects::Additive::of(&fx).offset;
+            offer(
+                "offset",
+                after,
+                json!({"pre_step_mean_in_standard_errors": offset, "offset": value}),
+                format!(
+                    "the residual sits {offset:.0} standard errors off zero before the step: a zero \
+                     offset of the probe against the reference ({value:.4e})"
+                ),
+                "unlag fit ... --add offset   (model file: effects = [{ kind = \"offset\" }])"
+                    .into(),
+            );
+        }
+    }
+
+    // drift: a ramp through the residual.
+    let drift = evidence
+        .iter()
+        .map(|e| {
+            let t = e.samples as f64 / fs;
+            (e.trend.slope_per_s * t) / (e.noise_std / (e.samples as f64).sqrt()).max(1e-300)
+        })
+        .fold(0.0f64, |m, z| if z.abs() > m.abs() { z } else { m });
+    if drift.abs() > 10.0 && !have.drift {
+        if let Some((after, fx)) = trial(
+            Effect::Drift {
+                value: 0.0,
+                rate_per_s: 0.0,
+            },
+            &base,
+        ) {
+            let rate = effects::Additive::of(&fx).rate_per_s;
+            let pre = mean(evidence.iter().map(|e| e.trend.pre_slope_per_s));
+            offer(
+                "drift",
+                after,
+                json!({"ramp_in_standard_errors": drift, "rate_per_s": rate,
+                       "pre_step_slope_per_s": pre}),
+                format!(
+                    "a ramp through the whole residual ({rate:.3e} per second, already before the \
+                     step): the sensor drifts in time (thermal drift)"
+                ),
+                "unlag fit ... --add drift   (model file: effects = [{ kind = \"drift\" }])".into(),
+            );
+        }
+    }
+
+    // leak: a slow creep after the step (one more slow pole and zero).
+    let creep = evidence
+        .iter()
+        .map(|e| (e.trend.late_mean - e.trend.pre_mean) / e.step_size.abs().max(1e-300))
+        .fold(0.0f64, |m, v| if v.abs() > m.abs() { v } else { m });
+    if let Some((after, _)) = trial(Effect::Leak, &base) {
+        offer(
+            "leak",
+            after,
+            json!({"late_residual_over_step": creep, "dc_gain": current.model.dc_gain()}),
+            format!(
+                "after the step the residual creeps slowly ({:+.2} % of the step at the end of the \
+                 record) and the model's DC gain is {:.4}: a leaking cavity or side volume, a \
+                 second, slow time scale",
+                100.0 * creep,
+                current.model.dc_gain()
+            ),
+            "unlag fit ... --add leak   (model file: effects = [{ kind = \"leak\" }])".into(),
+        );
+    }
+
+    // delay: a refit that searches the delay.
+    let xc = evidence.first().map_or(0, |e| e.cross_correlation.peak_lag);
+    let search = Options {
+        delay: None,
+        ..base
+    };
+    if have.delay.is_none() {
+        if let Ok(f) = crate::fit::fit(estimation, validation, fs, &search) {
+            let d = f.model.delay;
+            if d != current.model.delay {
+                if let Some((after, _)) = trial(Effect::Delay { samples: d }, &base) {
+                    offer(
+                        "delay",
+                        after,
+                        json!({"model_delay": current.model.delay, "best_delay": d,
+                               "residual_input_xcorr_peak_lag": xc}),
+                        format!(
+                            "the model answers {} samples {} the probe does (loss lowest at d = {d}, \
+                             not {}); the residual against the input peaks at lag {xc}",
+                            current.model.delay.abs_diff(d),
+                            if d > current.model.delay { "before" } else { "after" },
+                            current.model.delay
+                        ),
+                        format!("unlag fit ... --delay {d}   (model file: effects = [{{ kind = \"delay\", samples = {d} }}])"),
+                    );
+                }
+            }
+        }
+    }
+
+    // coloured noise: correlated residuals with no cause in the input and no peak.
+    let p = evidence
+        .iter()
+        .map(|e| e.autocorrelation.p_value)
+        .fold(1.0f64, f64::min);
+    let input_explains = evidence
+        .iter()
+        .any(|e| e.cross_correlation.peak.abs() > 2.0 * e.cross_correlation.band);
+    // With least squares (ARX, SM) an output-error refit is the trial, whatever the residual
+    // correlates with: noise biases least squares; with output error already, the signature
+    // must be clean (no cause in the input).
+    if p < 1e-3 && (current.method != Method::Oe || !input_explains) {
+        let (after, how) = if current.method == Method::Oe {
+            // An output-error fit is not biased by coloured noise: nothing to refit.
+            (before / MIN_IMPROVEMENT, "already output error")
+        } else {
+            (
+                trial(Effect::ColouredNoise, &base).map_or(f64::NAN, |t| t.0),
+                "refit by output error",
+            )
+        };
+        let rho1 = evidence
+            .first()
+            .and_then(|e| e.autocorrelation.values.first().copied())
+            .unwrap_or(0.0);
+        offer(
+            "coloured-noise",
+            after,
+            json!({"ljung_box_p": p, "lag1_autocorrelation": rho1, "fit": how}),
+            format!(
+                "the residual is correlated in time (Ljung-Box p = {p:.1e}, lag-1 correlation \
+                 {rho1:.2}): coloured measurement noise, which biases least squares; an \
+                 output-error fit is unbiased by it ({how})"
+            ),
+            "unlag fit ... --add coloured-noise   (model file: effects = [{ kind = \"coloured-noise\" }])"
+                .into(),
+        );
+    }
+
+    out.sort_by(|a, b| b.score.total_cmp(&a.score));
+    // Nothing is missing when the residual is white noise at the floor, or no trial helps.
+    if (at_floor && white) || out.is_empty() {
+        let none = Candidate {
+            kind: "none".into(),
+            score: 0.0,
+            evidence: json!({"nrmse": before, "noise_floor": floor, "white": white}),
+            reading: format!(
+                "the residuals are consistent with noise (error {:.3} % against a floor of {:.3} %{}); \
+                 no effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x",
+                100.0 * before,
+                100.0 * floor,
+                if white { ", white" } else { "" }
+            ),
+            change: "none".into(),
+            nrmse_before: before,
+            nrmse_after: before,
+        };
+        if at_floor && white {
+            out.insert(0, none);
+        } else {
+            out.push(none);
+        }
+    }
+    Ok(out)
+}

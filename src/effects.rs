@@ -1,0 +1,356 @@
+//! Physical effects added to a model in the modelling loop, and what each changes.
+//!
+//! This module owns [`Effect`] (stored in the model file as `effects = [...]`), how a fit
+//! honours each effect ([`FitChanges`]), and how the model's prediction and the compensator's
+//! input are corrected for the additive ones ([`Additive`]). Finding which effect is missing is
+//! [`crate::diagnose`]'s job; measuring the residual is [`crate::evidence`]'s.
+//!
+//! | kind | change to the model | on the board |
+//! |---|---|---|
+//! | `mode` | two more poles and zeros (a second-order section) | one more section |
+//! | `leak` | one more pole and zero (the slow creep of a leaking cavity) | part of a section |
+//! | `offset` | a constant added to the prediction | subtracted before compensation |
+//! | `drift` | a ramp added to the prediction | subtracted (the board counts samples) |
+//! | `delay` | the delay the evidence points to, instead of the fitted one | the delay |
+//! | `coloured-noise` | output-error fit (the noise needs no model then) | nothing |
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::Result;
+use crate::fit::{Fitted, Method, Options, Order, Test};
+use crate::model::Model;
+
+/// One effect added to the model, with its parameters once fitted.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum Effect {
+    /// An unmodelled resonance: a higher acoustic mode of the line, a cavity's Helmholtz
+    /// resonance. Adds a second-order section.
+    Mode {
+        /// Frequency where the evidence put it (Hz), for the record.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        near_hz: Option<f64>,
+    },
+    /// A leaking cavity or side volume: a slow pole-zero pair (creep after the step).
+    Leak,
+    /// A zero offset of the probe against the reference.
+    Offset {
+        /// Offset in the probe's units (fitted).
+        #[serde(default)]
+        value: f64,
+    },
+    /// A slow drift of the probe in time (thermal drift of the sensor).
+    Drift {
+        /// Offset at the start of a test (fitted).
+        #[serde(default)]
+        value: f64,
+        /// Drift rate in the probe's units per second (fitted).
+        #[serde(default)]
+        rate_per_s: f64,
+    },
+    /// The delay, corrected.
+    Delay {
+        /// Delay in samples.
+        samples: usize,
+    },
+    /// Residuals correlated in time but not explained by the input: fit by output error.
+    ColouredNoise,
+}
+
+/// The machine-readable kinds, in catalogue order.
+pub const KINDS: [&str; 6] = ["mode", "leak", "offset", "drift", "delay", "coloured-noise"];
+
+impl Effect {
+    /// Its machine-readable kind.
+    #[must_use]
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::Mode { .. } => "mode",
+            Self::Leak => "leak",
+            Self::Offset { .. } => "offset",
+            Self::Drift { .. } => "drift",
+            Self::Delay { .. } => "delay",
+            Self::ColouredNoise => "coloured-noise",
+        }
+    }
+
+    /// A fresh effect of `kind` (parameters to be fitted), or `None` for an unknown kind.
+    #[must_use]
+    pub fn parse(kind: &str) -> Option<Self> {
+        Some(match kind {
+            "mode" => Self::Mode { near_hz: None },
+            "leak" => Self::Leak,
+            "offset" => Self::Offset { value: 0.0 },
+            "drift" => Self::Drift {
+                value: 0.0,
+                rate_per_s: 0.0,
+            },
+            "coloured-noise" => Self::ColouredNoise,
+            _ => {
+                let d = kind.strip_prefix("delay=")?.parse().ok()?;
+                Self::Delay { samples: d }
+            }
+        })
+    }
+}
+
+/// What a list of effects changes in a fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FitChanges {
+    /// Poles to add to the order the user asked for.
+    pub extra_order: usize,
+    /// The delay to use instead of searching.
+    pub delay: Option<usize>,
+    /// The method to use instead of the user's.
+    pub method: Option<Method>,
+    /// Whether an offset is fitted.
+    pub offset: bool,
+    /// Whether a drift is fitted.
+    pub drift: bool,
+}
+
+impl FitChanges {
+    /// Collects the changes of `effects`.
+    #[must_use]
+    pub fn of(effects: &[Effect]) -> Self {
+        let mut c = Self::default();
+        for e in effects {
+            match e {
+                Effect::Mode { .. } => c.extra_order += 2,
+                Effect::Leak => c.extra_order += 1,
+                Effect::Offset { .. } => c.offset = true,
+                Effect::Drift { .. } => c.drift = true,
+                Effect::Delay { samples } => c.delay = Some(*samples),
+                Effect::ColouredNoise => c.method = Some(Method::Oe),
+            }
+        }
+        c
+    }
+}
+
+/// The additive part of a model's effects: `offset + rate * t` (t from the test's start).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Additive {
+    /// Constant, probe units.
+    pub offset: f64,
+    /// Rate, probe units per second.
+    pub rate_per_s: f64,
+}
+
+impl Additive {
+    /// The additive part of `effects`.
+    #[must_use]
+    pub fn of(effects: &[Effect]) -> Self {
+        let mut a = Self::default();
+        for e in effects {
+            match e {
+                Effect::Offset { value } => a.offset += value,
+                Effect::Drift { value, rate_per_s } => {
+                    a.offset += value;
+                    a.rate_per_s += rate_per_s;
+                }
+                _ => {}
+            }
+        }
+        a
+    }
+
+    /// The value at sample `k` of a test sampled at `fs`.
+    #[must_use]
+    pub fn at(&self, k: usize, fs: f64) -> f64 {
+        self.offset + self.rate_per_s * k as f64 / fs
+    }
+
+    /// Adds itself to a prediction.
+    pub fn add_to(&self, y: &mut [f64], fs: f64) {
+        for (k, v) in y.iter_mut().enumerate() {
+            *v += self.at(k, fs);
+        }
+    }
+
+    /// The probe signal with the additive effects removed (what the compensator is given).
+    #[must_use]
+    pub fn removed_from(&self, y: &[f64], fs: f64) -> Vec<f64> {
+        y.iter()
+            .enumerate()
+            .map(|(k, v)| v - self.at(k, fs))
+            .collect()
+    }
+}
+
+/// The additive effects of one test, estimated from its residual `r = y - y_dynamics` by
+/// least squares: an offset from the samples before the step (or all, without a step), an
+/// offset and a rate from the whole record. They are nuisances of each record (a drift is not
+/// the same in two tests), so each test gets its own.
+#[must_use]
+pub fn estimate_additive(changes: &FitChanges, r: &[f64], onset: usize, fs: f64) -> Additive {
+    let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len().max(1) as f64;
+    if changes.drift {
+        let n = r.len() as f64;
+        let tm = (n - 1.0) / 2.0;
+        let rm = mean(r);
+        let (mut num, mut den) = (0.0, 0.0);
+        for (i, v) in r.iter().enumerate() {
+            let t = i as f64 - tm;
+            num += t * (v - rm);
+            den += t * t;
+        }
+        let per_sample = if den > 0.0 { num / den } else { 0.0 };
+        Additive {
+            offset: rm - per_sample * tm,
+            rate_per_s: per_sample * fs,
+        }
+    } else if changes.offset {
+        let pre = if onset >= 20 { &r[..onset] } else { r };
+        Additive {
+            offset: mean(pre),
+            rate_per_s: 0.0,
+        }
+    } else {
+        Additive::default()
+    }
+}
+
+/// The model's full prediction for a test: the dynamics started in equilibrium with `u[0]`,
+/// plus the additive effects estimated on this test.
+#[must_use]
+pub fn predict(model: &Model, effects: &[Effect], u: &[f64], y: &[f64]) -> Vec<f64> {
+    let mut ym = model.simulate(u);
+    let changes = FitChanges::of(effects);
+    if changes.offset || changes.drift {
+        let onset = crate::fit::step::find_step(u).map_or(0, |s| s.onset);
+        let r: Vec<f64> = y.iter().zip(&ym).map(|(a, b)| a - b).collect();
+        estimate_additive(&changes, &r, onset, model.fs).add_to(&mut ym, model.fs);
+    }
+    ym
+}
+
+/// Fits with `effects`: the order raised by the modes and leaks, the delay and method they
+/// impose, and the drift removed before the dynamics are fitted (alternating three times).
+/// Returns the fit and the effects with their fitted parameters (from the estimation test).
+///
+/// # Errors
+/// As [`crate::fit::fit`].
+pub fn fit_with(
+    estimation: &Test<'_>,
+    validation: &[Test<'_>],
+    fs: f64,
+    options: &Options,
+    effects: &[Effect],
+) -> Result<(Fitted, Vec<Effect>)> {
+    let changes = FitChanges::of(effects);
+    let order = match options.order {
+        Order::Fixed(m) => Order::Fixed(m + changes.extra_order),
+        Order::Auto { max } => Order::Auto {
+            max: max + changes.extra_order,
+        },
+    };
+    let opts = Options {
+        method: changes.method.unwrap_or(options.method),
+        order,
+        delay: changes.delay.or(options.delay),
+    };
+    let onset = crate::fit::step::find_step(estimation.u).map_or(0, |s| s.onset);
+    let mut additive = Additive::default();
+    let rounds = if changes.drift { 3 } else { 1 };
+    let mut fitted = None;
+    for _ in 0..rounds {
+        let y = additive.removed_from(estimation.y, fs);
+        let est = Test {
+            name: estimation.name,
+            u: estimation.u,
+            y: &y,
+        };
+        let f = crate::fit::fit(&est, validation, fs, &opts)?;
+        let r: Vec<f64> = estimation
+            .y
+            .iter()
+            .zip(f.model.simulate(estimation.u))
+            .map(|(a, b)| a - b)
+            .collect();
+        additive = estimate_additive(&changes, &r, onset, fs);
+        fitted = Some(f);
+    }
+    let fitted = fitted.ok_or_else(|| crate::error::Error::Numerical {
+        context: "fit".into(),
+        message: "no fit".into(),
+    })?;
+    let out = effects
+        .iter()
+        .map(|e| match e {
+            Effect::Offset { .. } => Effect::Offset {
+                value: additive.offset,
+            },
+            Effect::Drift { .. } => Effect::Drift {
+                value: additive.offset,
+                rate_per_s: additive.rate_per_s,
+            },
+            other => other.clone(),
+        })
+        .collect();
+    Ok((fitted, out))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kinds_round_trip_through_toml() {
+        #[derive(Serialize, Deserialize)]
+        struct W {
+            effects: Vec<Effect>,
+        }
+        let w = W {
+            effects: vec![
+                Effect::Mode {
+                    near_hz: Some(410.0),
+                },
+                Effect::Leak,
+                Effect::Drift {
+                    value: 0.1,
+                    rate_per_s: -0.5,
+                },
+                Effect::Delay { samples: 17 },
+                Effect::ColouredNoise,
+            ],
+        };
+        let text = toml::to_string(&w).unwrap();
+        assert!(text.contains("kind = \"coloured-noise\""), "{text}");
+        let back: W = toml::from_str(&text).unwrap();
+        assert_eq!(back.effects, w.effects);
+        for k in KINDS {
+            let e = if k == "delay" {
+                Effect::parse("delay=3")
+            } else {
+                Effect::parse(k)
+            };
+            assert_eq!(e.map(|e| e.kind()), Some(k));
+        }
+        assert!(Effect::parse("gremlins").is_none());
+    }
+
+    #[test]
+    fn changes_and_additive_parts() {
+        let e = [
+            Effect::Mode { near_hz: None },
+            Effect::Leak,
+            Effect::Offset { value: 2.0 },
+            Effect::Drift {
+                value: 1.0,
+                rate_per_s: 10.0,
+            },
+        ];
+        let c = FitChanges::of(&e);
+        assert_eq!(c.extra_order, 3);
+        assert!(c.offset && c.drift);
+        let a = Additive::of(&e);
+        assert_eq!(a.at(0, 100.0), 3.0);
+        assert_eq!(a.at(100, 100.0), 13.0);
+        assert_eq!(a.removed_from(&[3.0, 3.1], 100.0), vec![0.0, 0.0]);
+        // Estimated back from a residual that is exactly a ramp.
+        let r: Vec<f64> = (0..1000).map(|k| 0.5 + 2.0 * k as f64 / 1000.0).collect();
+        let est = estimate_additive(&c, &r, 100, 1000.0);
+        assert!((est.offset - 0.5).abs() < 1e-9 && (est.rate_per_s - 2.0).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,518 @@
+//! Where a model fails on a test: the residual `y - y_model` and the evidence in it.
+//!
+//! This module owns [`TestEvidence`]: fit % and normalised RMS against the noise floor, the
+//! residual's autocorrelation with its 99 % band and the Ljung-Box statistic, its
+//! cross-correlation with the input's increments, its spectrum with the significant peaks, and
+//! its level and trend before the step and at the end of the record. It measures; naming the
+//! missing effect from these numbers is [`crate::diagnose`]'s job.
+
+use rustfft::num_complex::Complex64;
+use rustfft::FftPlanner;
+use serde::Serialize;
+
+use crate::fit::step;
+
+/// Lags of the residual autocorrelation examined (and degrees of freedom of Ljung-Box).
+pub const ACF_LAGS: usize = 30;
+
+/// Two-sided 99 % quantile of the normal distribution: the band `+-Z99 / sqrt(N)`.
+pub const Z99: f64 = 2.575_829_303_548_901;
+
+/// A spectral peak counts when it stands this far above the floor (dB).
+pub const PEAK_DB: f64 = 10.0;
+
+/// The residual's autocorrelation.
+#[derive(Debug, Clone, Serialize)]
+pub struct Autocorrelation {
+    /// `rho(k)` for `k = 1..=ACF_LAGS`.
+    pub values: Vec<f64>,
+    /// 99 % band for white noise, `Z99 / sqrt(N)`.
+    pub band: f64,
+    /// How many lags fall outside the band.
+    pub outside: usize,
+    /// Ljung-Box `Q = N (N + 2) sum rho(k)^2 / (N - k)`.
+    pub ljung_box: f64,
+    /// Its p-value under white residuals (chi-square with `ACF_LAGS` degrees of freedom).
+    pub p_value: f64,
+}
+
+/// The residual's cross-correlation with the input increments `u[k] - u[k-1]`.
+#[derive(Debug, Clone, Serialize)]
+pub struct CrossCorrelation {
+    /// Normalised cross-correlation at lags `0..values.len()` (residual after input).
+    pub values: Vec<f64>,
+    /// 99 % band.
+    pub band: f64,
+    /// Lag of the largest magnitude.
+    pub peak_lag: usize,
+    /// Its value.
+    pub peak: f64,
+}
+
+/// A significant peak of the residual spectrum.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Peak {
+    /// Frequency (Hz).
+    pub frequency_hz: f64,
+    /// Height above the floor (dB).
+    pub above_floor_db: f64,
+    /// Quality factor: frequency / width at half power.
+    pub q: f64,
+}
+
+/// The residual's spectrum after the step.
+#[derive(Debug, Clone, Serialize)]
+pub struct Spectrum {
+    /// Bin spacing (Hz).
+    pub resolution_hz: f64,
+    /// Power spectral density (dB, arbitrary reference), bins `0..`.
+    pub psd_db: Vec<f64>,
+    /// The floor: median of the density (dB).
+    pub floor_db: f64,
+    /// Significant peaks, highest first.
+    pub peaks: Vec<Peak>,
+}
+
+/// The model-error spectrum `20 log10 |FFT(diff y)| / |FFT(diff y_model)|`: where the model's
+/// frequency response departs from the measured one (a step's increments have a flat
+/// spectrum, so this is the ratio of the two frequency responses). Only bins where the model's
+/// response stands 10 dB above the noise are kept.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelError {
+    /// Bin spacing (Hz).
+    pub resolution_hz: f64,
+    /// Highest frequency where the ratio is trusted (Hz).
+    pub valid_to_hz: f64,
+    /// The ratio in dB, bins `0..` up to `valid_to_hz`.
+    pub db: Vec<f64>,
+    /// Peaks of the ratio at least [`MODEL_ERROR_PEAK_DB`] above its median, highest first.
+    pub peaks: Vec<Peak>,
+}
+
+/// A model-error peak counts from this height (dB) above the ratio's median.
+pub const MODEL_ERROR_PEAK_DB: f64 = 2.0;
+
+/// The model-error spectrum of a test (see [`ModelError`]).
+#[must_use]
+pub fn model_error(y: &[f64], y_model: &[f64], noise_std: f64, fs: f64) -> ModelError {
+    let n = y.len().min(y_model.len()).max(2);
+    let nfft = (2 * n).next_power_of_two();
+    let spectrum_of = |x: &[f64]| {
+        let mut buf: Vec<Complex64> = std::iter::once(0.0)
+            .chain(x[..n].windows(2).map(|w| w[1] - w[0]))
+            .map(|v| Complex64::new(v, 0.0))
+            .collect();
+        buf.resize(nfft, Complex64::new(0.0, 0.0));
+        FftPlanner::new().plan_fft_forward(nfft).process(&mut buf);
+        buf
+    };
+    let (fy, fm) = (spectrum_of(y), spectrum_of(y_model));
+    let resolution_hz = fs / nfft as f64;
+    // Power averaged over 9 neighbouring bins (the zero padding correlates pairs of them):
+    // the ratio's scatter from noise falls to a fraction of a dB where the model stands
+    // 10 dB above the noise.
+    let smooth = |f: &[Complex64]| -> Vec<f64> {
+        let p: Vec<f64> = f[..=nfft / 2].iter().map(|c| c.norm_sqr()).collect();
+        (0..p.len())
+            .map(|i| {
+                let (lo, hi) = (i.saturating_sub(4), (i + 5).min(p.len()));
+                p[lo..hi].iter().sum::<f64>() / (hi - lo) as f64
+            })
+            .collect()
+    };
+    let (py, pm) = (smooth(&fy), smooth(&fm));
+    // White noise of std s gives increments of std s sqrt 2, and FFT powers near 2 n s^2.
+    let noise_power = 2.0 * n as f64 * noise_std * noise_std;
+    let valid = (1..pm.len())
+        .take_while(|&i| pm[i] > 10.0 * noise_power)
+        .last()
+        .unwrap_or(0);
+    let db: Vec<f64> = (0..=valid)
+        .map(|i| {
+            if i == 0 {
+                0.0
+            } else {
+                10.0 * (py[i] / pm[i]).log10()
+            }
+        })
+        .collect();
+    let mut sorted: Vec<f64> = db.iter().skip(1).copied().collect();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    let k = 6;
+    let mut peaks: Vec<Peak> = (k..db.len().saturating_sub(k))
+        .filter(|&i| {
+            let v = db[i];
+            v - median > MODEL_ERROR_PEAK_DB && (i - k..=i + k).all(|j| j == i || db[j] < v)
+        })
+        .map(|i| {
+            let half = db[i] - 3.0;
+            let lo = (0..i).rev().find(|&j| db[j] < half).unwrap_or(0);
+            let hi = (i..db.len())
+                .find(|&j| db[j] < half)
+                .unwrap_or(db.len() - 1);
+            let f = i as f64 * resolution_hz;
+            Peak {
+                frequency_hz: f,
+                above_floor_db: db[i] - median,
+                q: f / (((hi - lo) as f64) * resolution_hz).max(resolution_hz),
+            }
+        })
+        .collect();
+    peaks.sort_by(|a, b| b.above_floor_db.total_cmp(&a.above_floor_db));
+    peaks.truncate(8);
+    ModelError {
+        resolution_hz,
+        valid_to_hz: valid as f64 * resolution_hz,
+        db,
+        peaks,
+    }
+}
+
+/// Level and trend of the residual before the step and at the end of the record.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Trend {
+    /// Mean before the step.
+    pub pre_mean: f64,
+    /// Slope before the step (units per second).
+    pub pre_slope_per_s: f64,
+    /// Mean of the last 30 % of the record.
+    pub late_mean: f64,
+    /// Slope over the last 30 % of the record (units per second).
+    pub late_slope_per_s: f64,
+    /// Slope of a straight line through the whole residual (units per second).
+    pub slope_per_s: f64,
+    /// Standard error of a mean of the noise over the pre-step segment.
+    pub pre_mean_se: f64,
+    /// Standard error of a mean of the noise over the late segment.
+    pub late_mean_se: f64,
+}
+
+/// Everything measured on one test.
+#[derive(Debug, Clone, Serialize)]
+pub struct TestEvidence {
+    /// The test's file name.
+    pub file: String,
+    /// `estimation` or `validation`.
+    pub role: String,
+    /// Samples.
+    pub samples: usize,
+    /// `100 (1 - |y - y_model| / |y - mean(y)|)`.
+    pub fit_percent: f64,
+    /// `RMS(y - y_model) / range(y)`.
+    pub nrmse: f64,
+    /// Noise RMS / range(y).
+    pub noise_floor: f64,
+    /// Step onset (sample).
+    pub step_onset: usize,
+    /// Signed step size of the reference.
+    pub step_size: f64,
+    /// Probe noise standard deviation (before the step).
+    pub noise_std: f64,
+    /// Residual RMS over the record.
+    pub residual_rms: f64,
+    /// Residual autocorrelation.
+    pub autocorrelation: Autocorrelation,
+    /// Residual against the input.
+    pub cross_correlation: CrossCorrelation,
+    /// Residual spectrum after the step.
+    pub spectrum: Spectrum,
+    /// Model-error spectrum.
+    pub model_error: ModelError,
+    /// Residual level and trend.
+    pub trend: Trend,
+}
+
+/// Chi-square survival function by the Wilson-Hilferty cube-root normal approximation
+/// (relative error below 1e-2 in the tail for 30 degrees of freedom: enough for a verdict).
+#[must_use]
+pub fn chi2_survival(q: f64, dof: usize) -> f64 {
+    let k = dof as f64;
+    let z = ((q / k).cbrt() - (1.0 - 2.0 / (9.0 * k))) / (2.0 / (9.0 * k)).sqrt();
+    0.5 * libm::erfc(z / std::f64::consts::SQRT_2)
+}
+
+fn mean(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        0.0
+    } else {
+        x.iter().sum::<f64>() / x.len() as f64
+    }
+}
+
+/// Slope of the least-squares line through `x` (per sample).
+fn slope(x: &[f64]) -> f64 {
+    let n = x.len() as f64;
+    if x.len() < 3 {
+        return 0.0;
+    }
+    let tm = (n - 1.0) / 2.0;
+    let xm = mean(x);
+    let (mut num, mut den) = (0.0, 0.0);
+    for (i, v) in x.iter().enumerate() {
+        let t = i as f64 - tm;
+        num += t * (v - xm);
+        den += t * t;
+    }
+    num / den
+}
+
+/// Autocorrelation of `r` at lags `1..=lags`.
+#[must_use]
+pub fn autocorrelation(r: &[f64], lags: usize) -> Autocorrelation {
+    let n = r.len();
+    let m = mean(r);
+    let c0: f64 = r.iter().map(|v| (v - m) * (v - m)).sum();
+    let values: Vec<f64> = (1..=lags)
+        .map(|k| {
+            if k >= n || c0 == 0.0 {
+                return 0.0;
+            }
+            r.iter()
+                .zip(&r[k..])
+                .map(|(a, b)| (a - m) * (b - m))
+                .sum::<f64>()
+                / c0
+        })
+        .collect();
+    let nf = n as f64;
+    let band = Z99 / nf.sqrt();
+    let ljung_box = nf
+        * (nf + 2.0)
+        * values
+            .iter()
+            .enumerate()
+            .map(|(i, rho)| rho * rho / (nf - (i + 1) as f64).max(1.0))
+            .sum::<f64>();
+    Autocorrelation {
+        outside: values.iter().filter(|v| v.abs() > band).count(),
+        p_value: chi2_survival(ljung_box, lags),
+        values,
+        band,
+        ljung_box,
+    }
+}
+
+/// Normalised cross-correlation of `r` with the increments of `u`, lags `0..lags`.
+#[must_use]
+pub fn cross_correlation(u: &[f64], r: &[f64], lags: usize) -> CrossCorrelation {
+    let du: Vec<f64> = std::iter::once(0.0)
+        .chain(u.windows(2).map(|w| w[1] - w[0]))
+        .collect();
+    let n = du.len().min(r.len());
+    let (mu, mr) = (mean(&du[..n]), mean(&r[..n]));
+    let su = du[..n].iter().map(|v| (v - mu).powi(2)).sum::<f64>().sqrt();
+    let sr = r[..n].iter().map(|v| (v - mr).powi(2)).sum::<f64>().sqrt();
+    let values: Vec<f64> = (0..lags.min(n))
+        .map(|k| {
+            if su == 0.0 || sr == 0.0 {
+                return 0.0;
+            }
+            du[..n - k]
+                .iter()
+                .zip(&r[k..n])
+                .map(|(a, b)| (a - mu) * (b - mr))
+                .sum::<f64>()
+                / (su * sr)
+        })
+        .collect();
+    let (peak_lag, peak) = values
+        .iter()
+        .enumerate()
+        .fold((0, 0.0f64), |(bl, bv), (i, &v)| {
+            if v.abs() > bv.abs() {
+                (i, v)
+            } else {
+                (bl, bv)
+            }
+        });
+    CrossCorrelation {
+        band: Z99 / (n as f64).sqrt(),
+        values,
+        peak_lag,
+        peak,
+    }
+}
+
+/// Periodogram of `x` (mean removed, no taper), zero-padded to a power of two of at least
+/// `2 len`, smoothed over 9 bins; the floor is the median bin; peaks are local maxima
+/// [`PEAK_DB`] above it.
+#[must_use]
+pub fn spectrum(x: &[f64], fs: f64) -> Spectrum {
+    let n = x.len().max(2);
+    let nfft = (2 * n).next_power_of_two();
+    let m = mean(x);
+    // No taper: the residual of a step test is a transient that starts with the segment, and a
+    // window would erase it.
+    let mut buf: Vec<Complex64> = x.iter().map(|v| Complex64::new(v - m, 0.0)).collect();
+    buf.resize(nfft, Complex64::new(0.0, 0.0));
+    FftPlanner::new().plan_fft_forward(nfft).process(&mut buf);
+    let half = nfft / 2;
+    let raw: Vec<f64> = buf[..=half]
+        .iter()
+        .map(|c| c.norm_sqr().max(1e-300))
+        .collect();
+    // A periodogram bin scatters like chi-square with 2 degrees of freedom (10 dB above the
+    // median once in a thousand bins); averaging 9 neighbours makes a 10 dB excursion of noise
+    // practically impossible while a resonance, wider than that, stays.
+    let psd: Vec<f64> = (0..raw.len())
+        .map(|i| {
+            let (lo, hi) = (i.saturating_sub(4), (i + 5).min(raw.len()));
+            raw[lo..hi].iter().sum::<f64>() / (hi - lo) as f64
+        })
+        .collect();
+    let psd_db: Vec<f64> = psd.iter().map(|p| 10.0 * p.log10()).collect();
+    let mut sorted = psd_db.clone();
+    sorted.sort_by(f64::total_cmp);
+    let floor_db = sorted[sorted.len() / 2];
+    let resolution_hz = fs / nfft as f64;
+    // Zero padding by 2 makes neighbouring bins correlated: a peak must beat 3 bins each side.
+    let mut peaks: Vec<Peak> = (4..psd_db.len().saturating_sub(4))
+        .filter(|&i| {
+            let v = psd_db[i];
+            v - floor_db > PEAK_DB && (i - 3..=i + 3).all(|j| j == i || psd_db[j] < v)
+        })
+        .map(|i| {
+            let half_power = psd[i] / 2.0;
+            let lo = (0..i).rev().find(|&j| psd[j] < half_power).unwrap_or(0);
+            let hi = (i..psd.len())
+                .find(|&j| psd[j] < half_power)
+                .unwrap_or(psd.len() - 1);
+            let width = ((hi - lo) as f64 * resolution_hz).max(resolution_hz);
+            let f = i as f64 * resolution_hz;
+            Peak {
+                frequency_hz: f,
+                above_floor_db: psd_db[i] - floor_db,
+                q: f / width,
+            }
+        })
+        .collect();
+    peaks.sort_by(|a, b| b.above_floor_db.total_cmp(&a.above_floor_db));
+    peaks.truncate(8);
+    Spectrum {
+        resolution_hz,
+        psd_db,
+        floor_db,
+        peaks,
+    }
+}
+
+impl TestEvidence {
+    /// Measures the residual of the prediction `y_model` against a test.
+    #[must_use]
+    pub fn measure(file: &str, role: &str, u: &[f64], y: &[f64], y_model: &[f64], fs: f64) -> Self {
+        let n = y.len().min(y_model.len()).min(u.len());
+        let r: Vec<f64> = y[..n]
+            .iter()
+            .zip(&y_model[..n])
+            .map(|(a, b)| a - b)
+            .collect();
+        let (onset, step_size) = match step::find_step(&u[..n]) {
+            Ok(s) => (s.onset, s.size()),
+            Err(_) => (0, 0.0),
+        };
+        let ym = mean(&y[..n]);
+        let dev = y[..n].iter().map(|v| (v - ym).powi(2)).sum::<f64>().sqrt();
+        let res = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let noise_std = if onset >= 20 {
+            step::mean_std(&y[..onset]).1
+        } else {
+            step::noise_std(&y[n - n / 5..n])
+        };
+        let late = &r[n - (3 * n / 10).max(1)..];
+        let pre = &r[..onset];
+        Self {
+            file: file.to_string(),
+            role: role.to_string(),
+            samples: n,
+            fit_percent: 100.0 * (1.0 - res / dev),
+            nrmse: crate::fit::nrmse_of(&y[..n], &y_model[..n]),
+            noise_floor: crate::fit::noise_floor(&y[..n], onset),
+            step_onset: onset,
+            step_size,
+            noise_std,
+            residual_rms: res / (n as f64).sqrt(),
+            autocorrelation: autocorrelation(&r, ACF_LAGS),
+            cross_correlation: cross_correlation(&u[..n], &r, (n / 4).min(2000)),
+            spectrum: spectrum(&r[onset.min(n)..], fs),
+            model_error: model_error(&y[..n], &y_model[..n], noise_std, fs),
+            trend: Trend {
+                pre_mean: mean(pre),
+                pre_slope_per_s: slope(pre) * fs,
+                late_mean: mean(late),
+                late_slope_per_s: slope(late) * fs,
+                slope_per_s: slope(&r) * fs,
+                pre_mean_se: noise_std / (pre.len().max(1) as f64).sqrt(),
+                late_mean_se: noise_std / (late.len().max(1) as f64).sqrt(),
+            },
+        }
+    }
+
+    /// The residual is white noise at the floor: no structure left to explain.
+    #[must_use]
+    pub fn at_noise_floor(&self) -> bool {
+        self.nrmse <= 1.2 * self.noise_floor
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn noise(n: usize, seed: u64) -> Vec<f64> {
+        let mut s = seed;
+        (0..n)
+            .map(|_| {
+                // Sum of 12 uniforms minus 6: close enough to Gaussian for these checks.
+                (0..12)
+                    .map(|_| {
+                        s = s
+                            .wrapping_mul(6_364_136_223_846_793_005)
+                            .wrapping_add(1_442_695_040_888_963_407);
+                        (s >> 11) as f64 / (1u64 << 53) as f64
+                    })
+                    .sum::<f64>()
+                    - 6.0
+            })
+            .collect()
+    }
+
+    #[test]
+    fn white_noise_passes_and_coloured_noise_fails_ljung_box() {
+        let w = noise(4000, 1);
+        let a = autocorrelation(&w, ACF_LAGS);
+        assert!(a.p_value > 0.01, "{}", a.p_value);
+        let mut c = vec![0.0; w.len()];
+        for k in 1..w.len() {
+            c[k] = 0.8 * c[k - 1] + w[k];
+        }
+        let a = autocorrelation(&c, ACF_LAGS);
+        assert!(a.p_value < 1e-6 && (a.values[0] - 0.8).abs() < 0.05);
+    }
+
+    #[test]
+    fn chi2_tail_matches_tabulated_quantiles() {
+        // chi-square quantiles for 30 degrees of freedom: 0.99 -> 50.892, 0.95 -> 43.773.
+        assert!((chi2_survival(50.892, 30) - 0.01).abs() < 5e-4);
+        assert!((chi2_survival(43.773, 30) - 0.05).abs() < 1e-3);
+    }
+
+    #[test]
+    fn a_decaying_oscillation_gives_a_peak_at_its_frequency() {
+        let fs = 10_000.0;
+        let w = noise(4000, 2);
+        let x: Vec<f64> = (0..4000)
+            .map(|k| {
+                let t = k as f64 / fs;
+                20.0 * (-2.0 * std::f64::consts::PI * 362.0 * 0.05 * t).exp()
+                    * (2.0 * std::f64::consts::PI * 362.0 * t).sin()
+                    + 0.1 * w[k]
+            })
+            .collect();
+        let s = spectrum(&x, fs);
+        let p = s.peaks.first().expect("a peak");
+        assert!((p.frequency_hz - 362.0).abs() < 5.0, "{p:?}");
+        assert!(p.q > 3.0 && p.q < 30.0, "{p:?}");
+        assert!(spectrum(&w, fs).peaks.is_empty());
+    }
+}

@@ -1,0 +1,272 @@
+//! Physical prediction of a probe ([`predict`]: exact first modes, front delay, lumped
+//! approximation) and how a fitted discrete model disagrees with it ([`compare`]: natural
+//! frequency ratio, damping ratio, delay difference), for the modelling loop.
+//!
+//! A fitted model's modes come from its poles: `s = f_s ln z` (the step-invariant map, exact
+//! for the poles of a sampled continuous system), `ω_n = |s|`, `ζ = −Re s/|s|`. Negative real
+//! poles (ringing at the Nyquist frequency) have no continuous counterpart and are skipped. The
+//! fitted mode compared is the one nearest the predicted first mode in log-frequency.
+
+use serde::Serialize;
+
+use super::gas::Gas;
+use super::line::Line;
+use super::lumped::{lumped, Lumped, POISEUILLE_INERTANCE};
+use super::modes::{find_modes, Mode};
+use crate::error::{Error, Result};
+use crate::model::Model;
+
+/// Womersley number below which the lumped approximation is trusted (README 1.3).
+pub const LUMPED_WOMERSLEY_LIMIT: f64 = 2.0;
+
+/// One mode as it is reported and compared.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ModeSummary {
+    /// Natural frequency [Hz].
+    pub natural_frequency_hz: f64,
+    /// Damping ratio [-].
+    pub damping: f64,
+}
+
+impl From<&Mode> for ModeSummary {
+    fn from(m: &Mode) -> Self {
+        Self {
+            natural_frequency_hz: m.natural_frequency_hz,
+            damping: m.damping,
+        }
+    }
+}
+
+/// What the physics predicts for a probe.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Prediction {
+    /// Exact modes (poles of the Bergh-Tijdeman response), slowest first.
+    pub modes: Vec<Mode>,
+    /// Front delay `ΣL/a` [s].
+    pub delay_s: f64,
+    /// The lumped second-order approximation, if the line has one.
+    pub lumped: Option<Lumped>,
+    /// Static gain `H(0)` [-].
+    pub dc_gain: f64,
+}
+
+impl Prediction {
+    /// `true` when the lumped approximation is within its validity (Womersley below
+    /// [`LUMPED_WOMERSLEY_LIMIT`]).
+    #[must_use]
+    pub fn lumped_valid(&self) -> bool {
+        self.lumped
+            .is_some_and(|l| l.womersley < LUMPED_WOMERSLEY_LIMIT)
+    }
+}
+
+/// Predicts the first `count` exact modes, the front delay and the lumped approximation.
+///
+/// # Errors
+/// Errors of [`find_modes`].
+pub fn predict(line: &Line, gas: &Gas, count: usize) -> Result<Prediction> {
+    let analysis = find_modes(line, gas, count)?;
+    Ok(Prediction {
+        modes: analysis.modes,
+        delay_s: analysis.delay_s,
+        lumped: lumped(line, gas, POISEUILLE_INERTANCE).ok(),
+        dc_gain: line.dc_gain(gas),
+    })
+}
+
+/// The continuous-time modes of a fitted discrete model, slowest first. Complex pole pairs give
+/// one mode each; if there is none, the two slowest positive real poles give an equivalent
+/// overdamped pair (`ω_n = √(σ₁σ₂)`, `ζ = (σ₁+σ₂)/(2ω_n)`).
+///
+/// # Errors
+/// Errors of [`Model::poles`].
+pub fn model_modes(model: &Model) -> Result<Vec<ModeSummary>> {
+    let fs = model.fs;
+    let poles = model.poles()?;
+    let mut modes = Vec::new();
+    let mut reals = Vec::new();
+    for z in &poles {
+        let r = z.norm();
+        if !(r > 0.0 && r.is_finite()) {
+            continue;
+        }
+        let is_real = z.im.abs() <= 1e-9 * r;
+        if is_real {
+            if z.re > 0.0 {
+                reals.push(-fs * r.ln()); // σ > 0 for a stable pole
+            }
+            continue;
+        }
+        if z.im < 0.0 {
+            continue;
+        }
+        let s_re = fs * r.ln();
+        let s_im = fs * z.im.atan2(z.re);
+        let wn = s_re.hypot(s_im);
+        modes.push(ModeSummary {
+            natural_frequency_hz: wn / (2.0 * core::f64::consts::PI),
+            damping: -s_re / wn,
+        });
+    }
+    if modes.is_empty() {
+        reals.sort_by(f64::total_cmp);
+        if let [s1, s2, ..] = reals.as_slice() {
+            let (s1, s2) = (*s1, *s2);
+            if s1 > 0.0 && s2 > 0.0 {
+                let wn = (s1 * s2).sqrt();
+                modes.push(ModeSummary {
+                    natural_frequency_hz: wn / (2.0 * core::f64::consts::PI),
+                    damping: (s1 + s2) / (2.0 * wn),
+                });
+            }
+        }
+    }
+    modes.sort_by(|a, b| a.natural_frequency_hz.total_cmp(&b.natural_frequency_hz));
+    Ok(modes)
+}
+
+/// How a fitted model and a physical prediction disagree.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Comparison {
+    /// The fitted mode compared (nearest the predicted first mode).
+    pub fitted: ModeSummary,
+    /// The predicted (exact) first mode.
+    pub predicted: ModeSummary,
+    /// `f_n,fitted / f_n,predicted` [-].
+    pub natural_frequency_ratio: f64,
+    /// `ζ_fitted / ζ_predicted` [-].
+    pub damping_ratio: f64,
+    /// The fitted model's delay `d/f_s` [s].
+    pub fitted_delay_s: f64,
+    /// The predicted front delay `ΣL/a` [s].
+    pub predicted_delay_s: f64,
+    /// `fitted − predicted` delay [s].
+    pub delay_difference_s: f64,
+    /// The fitted model's DC gain [-] against the predicted one.
+    pub dc_gain_ratio: f64,
+    /// One line per disagreement beyond the tolerances (5 % in frequency, 15 % in damping,
+    /// one sample in delay, 1 % in DC gain), with the physical effects that leave that
+    /// signature (README section 3). Empty when model and physics agree.
+    pub findings: Vec<String>,
+}
+
+/// Compares a fitted model with a prediction.
+///
+/// # Errors
+/// [`Error::Numerical`] when the prediction has no mode or the model has no oscillatory or
+/// overdamped mode; errors of [`model_modes`].
+pub fn compare(model: &Model, prediction: &Prediction) -> Result<Comparison> {
+    let predicted = prediction
+        .modes
+        .first()
+        .map(ModeSummary::from)
+        .ok_or_else(|| Error::Numerical {
+            context: "comparison".into(),
+            message: "the prediction has no mode".into(),
+        })?;
+    let fitted = model_modes(model)?
+        .into_iter()
+        .min_by(|a, b| {
+            let da = (a.natural_frequency_hz / predicted.natural_frequency_hz)
+                .ln()
+                .abs();
+            let db = (b.natural_frequency_hz / predicted.natural_frequency_hz)
+                .ln()
+                .abs();
+            da.total_cmp(&db)
+        })
+        .ok_or_else(|| Error::Numerical {
+            context: "comparison".into(),
+            message:
+                "the fitted model has no mode (no complex pole pair, fewer than two real poles)"
+                    .into(),
+        })?;
+    let fr = fitted.natural_frequency_hz / predicted.natural_frequency_hz;
+    let zr = fitted.damping / predicted.damping;
+    let fitted_delay_s = model.delay as f64 / model.fs;
+    let dd = fitted_delay_s - prediction.delay_s;
+    let dcr = model.dc_gain() / prediction.dc_gain;
+    let mut findings = Vec::new();
+    if (fr - 1.0).abs() > 0.05 {
+        findings.push(format!(
+            "natural frequency {:+.1} % against the prediction: {}",
+            100.0 * (fr - 1.0),
+            if fr < 1.0 {
+                "more volume than modelled (diaphragm compliance, fittings, a larger cavity), a longer or narrower path, or a colder gas"
+            } else {
+                "less volume or a shorter path than modelled, or a warmer gas"
+            }
+        ));
+    }
+    if (zr - 1.0).abs() > 0.15 {
+        findings.push(format!(
+            "damping {:+.1} % against the prediction: {}",
+            100.0 * (zr - 1.0),
+            if zr > 1.0 {
+                "extra losses (minor/orifice losses that grow with step amplitude, a restriction, a lower mean pressure)"
+            } else {
+                "less loss than the viscothermal model (a higher mean pressure or temperature than assumed, or a lumped model used beyond its Womersley limit)"
+            }
+        ));
+    }
+    if dd.abs() > 1.0 / model.fs {
+        findings.push(format!(
+            "delay {:+.3} ms against the front delay: {}",
+            1e3 * dd,
+            if dd > 0.0 {
+                "channel timing skew, an anti-alias filter on the probe channel, or a longer line"
+            } else {
+                "the fitted delay is shorter than the front (a low-order model starting early)"
+            }
+        ));
+    }
+    if (dcr - 1.0).abs() > 0.01 {
+        findings.push(format!(
+            "DC gain {:+.2} % against the prediction: {}",
+            100.0 * (dcr - 1.0),
+            if dcr < 1.0 {
+                "a leak from the cavity, or a static calibration error"
+            } else {
+                "a static calibration error or zero drift"
+            }
+        ));
+    }
+    Ok(Comparison {
+        fitted,
+        predicted,
+        natural_frequency_ratio: fr,
+        damping_ratio: zr,
+        fitted_delay_s,
+        predicted_delay_s: prediction.delay_s,
+        delay_difference_s: dd,
+        dc_gain_ratio: dcr,
+        findings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sampled second-order system `ω²/(s² + 2ζωs + ω²)` (poles `e^{s T}`) has the same mode.
+    #[test]
+    fn model_modes_invert_the_pole_map() {
+        let fs = 10_000.0;
+        let (f, zeta) = (120.0, 0.3);
+        let w = 2.0 * core::f64::consts::PI * f;
+        let s = num_complex::Complex64::new(-zeta * w, w * (1.0 - zeta * zeta).sqrt());
+        let z = (s / fs).exp();
+        let a = vec![-2.0 * z.re, z.norm_sqr()];
+        let gain = 1.0 + a[0] + a[1];
+        let model = Model {
+            fs,
+            delay: 3,
+            a,
+            b: vec![gain],
+        };
+        let m = model_modes(&model).expect("modes");
+        assert_eq!(m.len(), 1);
+        assert!((m[0].natural_frequency_hz / f - 1.0).abs() < 1e-9);
+        assert!((m[0].damping / zeta - 1.0).abs() < 1e-9);
+    }
+}

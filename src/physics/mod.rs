@@ -1,0 +1,44 @@
+//! Physics of pressure-measuring lines, holes and cavities (issue 6): what a probe's tubing,
+//! recessed holes, cavities and transducer do to a pressure signal, predicted from geometry
+//! and gas properties, and step tests simulated from it.
+//!
+//! This module owns:
+//!
+//! * [`gas`]: air properties versus temperature and mean pressure;
+//! * [`bessel`]: the complex Bessel ratio `J₂/J₀` of the viscothermal boundary layers;
+//! * [`fft`]: the radix-2 FFT behind the time-domain simulation;
+//! * [`line`]: the Bergh-Tijdeman (1965) response of tubes, volumes and series impedances,
+//!   as an ABCD chain (leaks, diaphragm compliance, thermally relaxing cavities);
+//! * [`lumped`]: the low-Womersley second-order approximation (natural frequency, damping);
+//! * [`modes`]: the exact poles of the Bergh-Tijdeman response and the front delay;
+//! * [`helmholtz`]: the hole-cavity resonator of a recessed sensor, with end corrections;
+//! * [`sensor`]: the transducer's diaphragm resonance and the DAQ anti-alias filter;
+//! * [`nonlinear`]: amplitude-dependent (quadratic orifice) losses, by describing function;
+//! * [`simulate`]: time-domain step tests (excitations, channels, noise, ADC, delay);
+//! * [`compare`]: the physical prediction of a probe, and how a fitted model disagrees with it.
+//!
+//! SI units throughout: m, m², m³, s, Hz, rad/s, Pa, K, kg/m³, Pa s. Time dependence is
+//! `e^{st}`; responses are `p_end/p_in`, phase negative for a lag. The formulas, their limits
+//! and the validation against the digitised Bergh-Tijdeman curves are in
+//! `../shared/physics/README.md` and `src/physics/NOTES.md`.
+
+pub mod bessel;
+pub mod compare;
+pub mod fft;
+pub mod gas;
+pub mod helmholtz;
+pub mod line;
+pub mod lumped;
+pub mod modes;
+pub mod nonlinear;
+pub mod sensor;
+pub mod simulate;
+
+pub use compare::{compare, predict, Comparison, Prediction};
+pub use gas::Gas;
+pub use helmholtz::{EndKind, HoleCavity};
+pub use line::{CavityThermal, Element, Line, SeriesImpedance, Tube, Volume};
+pub use lumped::{lumped, Lumped, POISEUILLE_INERTANCE};
+pub use modes::{find_modes, Mode, ModeAnalysis};
+pub use sensor::{Butterworth, Diaphragm};
+pub use simulate::{simulate, Acquisition, Excitation, Probe, SimulatedTest};

@@ -1,0 +1,294 @@
+//! Exact modes of a Bergh-Tijdeman line: the poles of the meromorphic response
+//! `H(s) = 1/M₁₁(s)` ([`super::line`]), found by Newton iteration in the complex `s` plane,
+//! and the front delay `ΣL/a`.
+//!
+//! # Method
+//! 1. Lossless guesses: with a vanishing viscosity `M₁₁(iω)` is real; its sign changes on a
+//!    frequency grid give the organ-pipe / Helmholtz modes `ω_m` (`x tan x = V_t/V` for one
+//!    tube, `x = ωL/a`).
+//! 2. Homotopy in viscosity: each guess is followed by Newton's method (central-difference
+//!    derivative) while `μ` grows geometrically from `10⁻⁴ μ` to `μ` in 16 steps, so every pole
+//!    keeps its identity. A pole that reaches the real axis has become overdamped.
+//! 3. Real poles: sign changes of the real function `M₁₁(−σ)` on a logarithmic grid, refined by
+//!    bisection; candidates where `|M₁₁|` is not small are poles of the Bessel ratio, not zeros.
+//!
+//! A complex pole `s = −ζω_n + iω_n√(1−ζ²)` gives the mode `(ω_n = |s|, ζ = −Re s/|s|)`. When the
+//! two slowest real poles `σ₁ < σ₂` are slower than every oscillatory mode (an overdamped line),
+//! they are reported first as the equivalent pair `ω_n = √(σ₁σ₂)`, `ζ = (σ₁+σ₂)/(2ω_n) ≥ 1`; for
+//! very overdamped lines compare only the slowest pole (README 2.C): it is in
+//! [`ModeAnalysis::real_poles_rad_s`].
+
+use num_complex::Complex64;
+
+use super::gas::Gas;
+use super::line::Line;
+use crate::error::{Error, Result};
+
+/// One mode (a pole pair) of the line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mode {
+    /// Natural frequency `f_n = ω_n/2π` [Hz].
+    pub natural_frequency_hz: f64,
+    /// Damping ratio `ζ` [-] (≥ 1 for an overdamped pair of real poles).
+    pub damping: f64,
+    /// The pole in the upper half plane `s` [rad/s] (for an overdamped pair: the slower real
+    /// pole).
+    pub pole: Complex64,
+    /// `true` when the mode is an equivalent pair of two real poles.
+    pub overdamped: bool,
+}
+
+impl Mode {
+    /// Damped frequency `f_d = Im s / 2π` [Hz] (0 for an overdamped pair).
+    #[must_use]
+    pub fn damped_frequency_hz(&self) -> f64 {
+        self.pole.im / (2.0 * core::f64::consts::PI)
+    }
+
+    fn from_pole(pole: Complex64) -> Self {
+        let wn = pole.norm();
+        Self {
+            natural_frequency_hz: wn / (2.0 * core::f64::consts::PI),
+            damping: -pole.re / wn,
+            pole,
+            overdamped: false,
+        }
+    }
+}
+
+/// The exact modes of a line, slowest first, and its front delay.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModeAnalysis {
+    /// Modes in order of natural frequency.
+    pub modes: Vec<Mode>,
+    /// Real poles found, `−σ` [rad/s], slowest first.
+    pub real_poles_rad_s: Vec<f64>,
+    /// Front delay `ΣL/a` [s].
+    pub delay_s: f64,
+}
+
+/// Square of the first zero of `J₀`.
+const J01_SQUARED: f64 = 2.404_825_557_695_773 * 2.404_825_557_695_773;
+
+/// Real poles whose step-response amplitude `|Res/σ|` is below this are ignored.
+const MIN_REAL_POLE_WEIGHT: f64 = 1e-3;
+
+/// Newton's method for a zero of `f` from `s0`, with a step limit. `None` if it fails.
+fn newton(f: &dyn Fn(Complex64) -> Complex64, s0: Complex64) -> Option<Complex64> {
+    let mut s = s0;
+    for _ in 0..80 {
+        let v = f(s);
+        if !v.is_finite() {
+            return None;
+        }
+        let h = 1e-6 * s.norm().max(1e-3);
+        let d = (f(s + h) - f(s - h)) / (2.0 * h);
+        if !d.is_finite() || d.norm() == 0.0 {
+            return None;
+        }
+        let mut step = v / d;
+        let limit = 0.3 * s.norm().max(1e-3);
+        if step.norm() > limit {
+            step *= limit / step.norm();
+        }
+        s -= step;
+        if step.norm() < 1e-13 * s.norm().max(1e-9) {
+            return Some(s);
+        }
+    }
+    None
+}
+
+/// Lossless mode estimates `ω_m` [rad/s] below `omega_max`.
+fn lossless_guesses(line: &Line, gas: &Gas, omega_max: f64) -> Vec<f64> {
+    let inviscid = gas.with_viscosity(gas.viscosity_pa_s * 1e-9);
+    let n = 6000;
+    let f = |w: f64| line.inverse_response(&inviscid, Complex64::new(0.0, w)).re;
+    let mut out = Vec::new();
+    let mut w_prev = omega_max / n as f64 * 0.5;
+    let mut v_prev = f(w_prev);
+    for i in 1..=n {
+        let w = omega_max * i as f64 / n as f64;
+        let v = f(w);
+        if v.signum() != v_prev.signum() && v.is_finite() && v_prev.is_finite() {
+            let (mut lo, mut hi, mut vlo) = (w_prev, w, v_prev);
+            for _ in 0..60 {
+                let mid = 0.5 * (lo + hi);
+                let vm = f(mid);
+                if vm.signum() == vlo.signum() {
+                    lo = mid;
+                    vlo = vm;
+                } else {
+                    hi = mid;
+                }
+            }
+            out.push(0.5 * (lo + hi));
+        }
+        w_prev = w;
+        v_prev = v;
+    }
+    out
+}
+
+/// Real zeros `σ > 0` of `M₁₁(−σ)` in `[sigma_min, sigma_max]` [1/s].
+fn real_poles(line: &Line, gas: &Gas, sigma_min: f64, sigma_max: f64) -> Vec<f64> {
+    let f = |sig: f64| line.inverse_response(gas, Complex64::new(-sig, 0.0)).re;
+    let n = 3000;
+    let ratio = (sigma_max / sigma_min).ln() / n as f64;
+    let mut out: Vec<f64> = Vec::new();
+    let mut s_prev = sigma_min;
+    let mut v_prev = f(s_prev);
+    for i in 1..=n {
+        let sig = sigma_min * (ratio * i as f64).exp();
+        let v = f(sig);
+        if v.is_finite() && v_prev.is_finite() && v.signum() != v_prev.signum() {
+            let (mut lo, mut hi, mut vlo) = (s_prev, sig, v_prev);
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                let vm = f(mid);
+                if vm.signum() == vlo.signum() {
+                    lo = mid;
+                    vlo = vm;
+                } else {
+                    hi = mid;
+                }
+            }
+            let root = 0.5 * (lo + hi);
+            // A zero, not a pole of the Bessel ratio: |M11| is small there compared with the
+            // bracket ends.
+            let scale = v.abs().max(v_prev.abs());
+            if f(root).abs() < 1e-6 * scale.max(1.0) {
+                // Keep only poles that matter: the step-response term of a simple pole −σ is
+                // Res/(−σ) e^{−σt} with Res = 1/M₁₁'(−σ). Zeros accumulating at a pole of the
+                // Bessel ratio (thermal and viscous diffusion modes) have tiny residues.
+                let h = 1e-7 * root;
+                let slope = (f(root + h) - f(root - h)) / (2.0 * h); // d M11/dσ
+                let weight = 1.0 / (slope * root).abs();
+                if weight > MIN_REAL_POLE_WEIGHT {
+                    out.push(root);
+                }
+            }
+        }
+        s_prev = sig;
+        v_prev = v;
+    }
+    out
+}
+
+/// The first `count` modes of `line` in `gas`, with the real poles and the front delay.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for an invalid line or gas, or a line without tubes;
+/// [`Error::Numerical`] if no mode could be found.
+pub fn find_modes(line: &Line, gas: &Gas, count: usize) -> Result<ModeAnalysis> {
+    gas.validate()?;
+    line.validate()?;
+    let total_length: f64 = line.tubes().map(|t| t.length_m).sum();
+    if total_length <= 0.0 {
+        return Err(Error::InvalidArgument {
+            what: "line",
+            message: "needs at least one tube".into(),
+        });
+    }
+    let a = gas.speed_of_sound();
+    let quarter = 2.0 * core::f64::consts::PI * a / (4.0 * total_length);
+    let count = count.max(1);
+    let mut omega_max = quarter * (2.0 * count as f64 + 2.0);
+    let mut guesses = lossless_guesses(line, gas, omega_max);
+    if guesses.len() < count + 1 {
+        omega_max *= 4.0;
+        guesses = lossless_guesses(line, gas, omega_max);
+    }
+
+    let mut complex_poles: Vec<Complex64> = Vec::new();
+    let steps = 16;
+    for &w0 in guesses.iter().take(count + 2) {
+        let mut s = Complex64::new(-1e-3 * w0, w0);
+        let mut alive = true;
+        for k in 0..=steps {
+            let scale = 10f64.powf(-4.0 * (1.0 - k as f64 / steps as f64));
+            let g = gas.with_viscosity(gas.viscosity_pa_s * scale);
+            let f = |z: Complex64| line.inverse_response(&g, z);
+            match newton(&f, s) {
+                Some(root) => s = root,
+                None => {
+                    alive = false;
+                    break;
+                }
+            }
+            if s.im.abs() < 1e-7 * s.norm() {
+                alive = false; // reached the real axis: overdamped
+                break;
+            }
+        }
+        if alive {
+            let s = Complex64::new(s.re, s.im.abs());
+            if !complex_poles
+                .iter()
+                .any(|p| (p - s).norm() < 1e-6 * s.norm())
+            {
+                complex_poles.push(s);
+            }
+        }
+    }
+    complex_poles.sort_by(|x, y| x.norm().total_cmp(&y.norm()));
+
+    // Zeros of M11 accumulate at the thermal Bessel poles σ = j₀₁² ν/(R² Pr); the real poles of
+    // an overdamped line lie below 6ν/R² (lumped: σ₁ + σ₂ = 6ν/R²) < j₀₁²ν/(R² Pr).
+    let nu = gas.kinematic_viscosity();
+    let sigma_accumulation = line
+        .tubes()
+        .map(|t| J01_SQUARED * nu / (t.radius_m * t.radius_m * gas.prandtl))
+        .fold(f64::INFINITY, f64::min);
+    let sigma_max = (4.0 * omega_max).min(0.999 * sigma_accumulation);
+    let reals = real_poles(line, gas, 1e-4 * quarter, sigma_max);
+    let mut modes: Vec<Mode> = complex_poles.iter().map(|&p| Mode::from_pole(p)).collect();
+    if let [s1, s2, ..] = reals.as_slice() {
+        let wn = (s1 * s2).sqrt();
+        if modes.first().is_none_or(|m| wn < m.pole.norm()) {
+            modes.insert(
+                0,
+                Mode {
+                    natural_frequency_hz: wn / (2.0 * core::f64::consts::PI),
+                    damping: (s1 + s2) / (2.0 * wn),
+                    pole: Complex64::new(-s1, 0.0),
+                    overdamped: true,
+                },
+            );
+        }
+    }
+    modes.truncate(count);
+    if modes.is_empty() {
+        return Err(Error::Numerical {
+            context: "mode finder".into(),
+            message: "no pole of the line response was found".into(),
+        });
+    }
+    Ok(ModeAnalysis {
+        modes,
+        real_poles_rad_s: reals.iter().map(|s| -s).collect(),
+        delay_s: line.front_delay_s(gas),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn poles_are_zeros_of_m11() {
+        let gas = Gas::standard_air();
+        let line = Line::new().tube(0.6, 0.55e-3).volume(20e-9);
+        let an = find_modes(&line, &gas, 3).expect("modes");
+        assert_eq!(an.modes.len(), 3);
+        for m in &an.modes {
+            let h = line.response(&gas, m.pole + Complex64::new(0.0, 1e-9 * m.pole.norm()));
+            assert!(h.norm() > 1e6, "{m:?}: |H| {}", h.norm());
+        }
+    }
+
+    #[test]
+    fn rejects_a_line_without_tubes() {
+        assert!(find_modes(&Line::new().volume(1e-6), &Gas::standard_air(), 1).is_err());
+    }
+}

@@ -1,0 +1,900 @@
+//! Time-domain step tests simulated from the physical models: the excitations of real
+//! facilities, a reference channel and a probe channel, measurement noise, ADC quantisation,
+//! and delays that need not be whole samples.
+//!
+//! # Method: padded, tapered inverse FFT, then linear convolution
+//! The Bergh-Tijdeman response is not rational, so it has no state-space form. It is turned into
+//! an impulse response at an internal rate `f_int = oversample × f_s` (default 32×, README 1.6):
+//!
+//! 1. `H(i2πf)` of the whole probe (line × diaphragm × anti-alias filter × `e^{−sτ_skew}`) is
+//!    sampled on the FFT grid `f_k = k f_int/N` and multiplied by a raised-cosine taper from
+//!    `0.8 f_int/2` to `f_int/2`, which removes the Gibbs ringing of the cut-off (content above
+//!    `0.8 f_int/2` is lost: raise the oversampling if the diaphragm resonance is above it);
+//! 2. the inverse FFT gives the periodised impulse response; `N` doubles until the energy in
+//!    `[N/2, 7N/8)` is below [`TAIL_ENERGY`] of the total, i.e. until the response has decayed,
+//!    so the periodisation (wrap-around) error is below that level. The taps `[0, N/2)` are kept;
+//!    the taper's small non-causal part sits in `[7N/8, N)` and is dropped (its energy is
+//!    reported as [`ImpulseResponse::noncausal_energy`]);
+//! 3. the excitation, evaluated analytically on the internal grid and starting with a pre-roll
+//!    as long as the impulse response (so the system is in its steady state when the record
+//!    starts, even under a periodic excitation), is convolved *linearly* with the taps by a
+//!    zero-padded FFT (never circularly: a plain inverse FFT of `H(f)U(f)` would wrap the step
+//!    around the record);
+//! 4. both channels are sampled every `oversample`-th internal sample, then noise and ADC
+//!    quantisation are added.
+//!
+//! The error of the method is measured in the host tests (`host-tests/physics.rs`): against
+//! the closed-form step response of a second-order system with a delay of 7.37 internal samples
+//! (max error 2.8e-5 of the step), against the exact Bergh-Tijdeman step response from its poles
+//! and residues (1.8e-4 after seven front delays, where the check's own truncation to eight
+//! modes dominates; 9e-7 after 25 ms), and for causality (below 1e-10 of the step before the
+//! front). Numbers in `src/physics/NOTES.md`.
+//!
+//! This module owns the excitations ([`Excitation`]), the probe as a whole ([`Probe`]), the
+//! acquisition settings ([`Acquisition`]), the impulse response ([`impulse_response`]) and the
+//! simulated test ([`simulate`]).
+
+use num_complex::Complex64;
+
+use super::fft::{convolve, fft_in_place};
+use super::gas::Gas;
+use super::line::Line;
+use super::sensor::{Butterworth, Diaphragm};
+use crate::error::{Error, Result};
+
+/// Relative energy of the impulse response allowed in `[N/2, 7N/8)` of the FFT buffer.
+pub const TAIL_ENERGY: f64 = 1e-14;
+
+/// Largest FFT length tried for an impulse response (`2^22`).
+pub const MAX_FFT_LENGTH: usize = 1 << 22;
+
+/// The taper starts at this fraction of the internal Nyquist frequency.
+pub const TAPER_START: f64 = 0.8;
+
+/// The physical probe: a line (tubes, holes, cavities) in a gas, the transducer's diaphragm,
+/// the DAQ's anti-alias filter and an extra delay of the probe channel (timing skew).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Probe {
+    /// Tubes, volumes, series impedances from the measuring point to the transducer.
+    pub line: Line,
+    /// The gas at its mean temperature and pressure.
+    pub gas: Gas,
+    /// Diaphragm resonance of the transducer, if modelled.
+    pub diaphragm: Option<Diaphragm>,
+    /// Analog anti-alias filter of the acquisition (applied to both channels), if any.
+    pub anti_alias: Option<Butterworth>,
+    /// Extra delay of the probe channel [s] (timing skew; may be any fraction of a sample).
+    pub skew_s: f64,
+}
+
+impl Probe {
+    /// A probe that is only `line` in `gas`.
+    #[must_use]
+    pub fn new(line: Line, gas: Gas) -> Self {
+        Self {
+            line,
+            gas,
+            diaphragm: None,
+            anti_alias: None,
+            skew_s: 0.0,
+        }
+    }
+
+    /// Checks line, gas, diaphragm, filter and skew.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`].
+    pub fn validate(&self) -> Result<()> {
+        self.gas.validate()?;
+        self.line.validate()?;
+        if let Some(d) = &self.diaphragm {
+            d.validate()?;
+        }
+        if let Some(b) = &self.anti_alias {
+            b.validate()?;
+        }
+        if !(self.skew_s.is_finite() && self.skew_s >= 0.0) {
+            return Err(Error::InvalidArgument {
+                what: "skew",
+                message: format!("{} s must be finite and non-negative", self.skew_s),
+            });
+        }
+        Ok(())
+    }
+
+    /// Response `p_probe/p_in` [-] at complex frequency `s` [rad/s].
+    #[must_use]
+    pub fn response(&self, s: Complex64) -> Complex64 {
+        let mut h = self.line.response(&self.gas, s);
+        if let Some(d) = &self.diaphragm {
+            h *= d.response(s);
+        }
+        if let Some(b) = &self.anti_alias {
+            h *= b.response(s);
+        }
+        if self.skew_s > 0.0 {
+            h *= (-s * self.skew_s).exp();
+        }
+        h
+    }
+}
+
+/// The pressure history of a facility at the measuring point, as a deviation [Pa] from the
+/// level before the event; `t` is the time since the event [s].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Excitation {
+    /// A shock-tube step: rises by `amplitude_pa` in `rise_s` (raised cosine), the shock's
+    /// passage over the probe face.
+    ShockTube {
+        /// Step size [Pa].
+        amplitude_pa: f64,
+        /// Rise time [s] (microseconds for a shock).
+        rise_s: f64,
+    },
+    /// A burst balloon: the pressure starts `amplitude_pa` above the final level and falls to
+    /// it in `fall_s` (about 700 µs; raised cosine).
+    Balloon {
+        /// Initial over-pressure [Pa].
+        amplitude_pa: f64,
+        /// Fall time [s].
+        fall_s: f64,
+    },
+    /// A fast-opening valve into a chamber: rises by `amplitude_pa` in `opening_s` (raised
+    /// cosine), optionally with a decaying chamber oscillation.
+    Valve {
+        /// Step size [Pa].
+        amplitude_pa: f64,
+        /// Opening time [s].
+        opening_s: f64,
+        /// Chamber oscillation frequency [Hz] (VKI report 850 Hz).
+        chamber_hz: f64,
+        /// Chamber oscillation amplitude as a fraction of the step [-] (0: none).
+        chamber_fraction: f64,
+    },
+    /// A traverse through the wakes of a cascade: from the event on, Gaussian pressure deficits
+    /// of `wake_depth_pa` pass at `wake_hz` (width `wake_width` of the pitch, standard
+    /// deviation), on top of a tunnel oscillation (`tunnel_amplitude_pa` at `tunnel_hz`,
+    /// 20 Hz in the VKI tests) that runs all the time.
+    CascadeWake {
+        /// Depth of each wake [Pa].
+        wake_depth_pa: f64,
+        /// Wake passing frequency [Hz] (traverse speed / pitch).
+        wake_hz: f64,
+        /// Wake width as a fraction of the pitch [-].
+        wake_width: f64,
+        /// Amplitude of the tunnel oscillation [Pa].
+        tunnel_amplitude_pa: f64,
+        /// Frequency of the tunnel oscillation [Hz].
+        tunnel_hz: f64,
+    },
+}
+
+/// `∫_{-∞}^{t}` of [`raised_cosine`] [s].
+fn raised_cosine_integral(t: f64, duration: f64) -> f64 {
+    if t <= 0.0 {
+        0.0
+    } else if t >= duration {
+        t - 0.5 * duration
+    } else {
+        0.5 * t
+            - duration / (2.0 * core::f64::consts::PI)
+                * (core::f64::consts::PI * t / duration).sin()
+    }
+}
+
+/// Mean of [`raised_cosine`] over `[t − w/2, t + w/2]`.
+fn raised_cosine_average(t: f64, w: f64, duration: f64) -> f64 {
+    if t + 0.5 * w <= 0.0 {
+        return 0.0;
+    }
+    if t - 0.5 * w >= duration {
+        return 1.0;
+    }
+    (raised_cosine_integral(t + 0.5 * w, duration) - raised_cosine_integral(t - 0.5 * w, duration))
+        / w
+}
+
+/// Mean of a smooth `f` over `[t − w/2, t + w/2]` by the 8-point midpoint rule.
+fn midpoint_average(f: impl Fn(f64) -> f64, t: f64, w: f64) -> f64 {
+    (0..8)
+        .map(|j| f(t + w * ((f64::from(j) + 0.5) / 8.0 - 0.5)))
+        .sum::<f64>()
+        / 8.0
+}
+
+fn raised_cosine(t: f64, duration: f64) -> f64 {
+    if t <= 0.0 {
+        0.0
+    } else if t >= duration {
+        1.0
+    } else {
+        0.5 * (1.0 - (core::f64::consts::PI * t / duration).cos())
+    }
+}
+
+impl Excitation {
+    /// A shock-tube step of `amplitude_pa` with a 1 µs rise.
+    #[must_use]
+    pub fn shock_tube(amplitude_pa: f64) -> Self {
+        Self::ShockTube {
+            amplitude_pa,
+            rise_s: 1e-6,
+        }
+    }
+
+    /// A burst balloon of `amplitude_pa` falling in 700 µs.
+    #[must_use]
+    pub fn balloon(amplitude_pa: f64) -> Self {
+        Self::Balloon {
+            amplitude_pa,
+            fall_s: 700e-6,
+        }
+    }
+
+    /// A fast valve of `amplitude_pa` opening in 200 µs, no chamber oscillation.
+    #[must_use]
+    pub fn valve(amplitude_pa: f64) -> Self {
+        Self::Valve {
+            amplitude_pa,
+            opening_s: 200e-6,
+            chamber_hz: 850.0,
+            chamber_fraction: 0.0,
+        }
+    }
+
+    /// Cascade wakes of `wake_depth_pa` at 50 Hz (width 0.1 pitch) with a 20 Hz tunnel
+    /// oscillation of 5 % of the wake depth.
+    #[must_use]
+    pub fn cascade_wake(wake_depth_pa: f64) -> Self {
+        Self::CascadeWake {
+            wake_depth_pa,
+            wake_hz: 50.0,
+            wake_width: 0.1,
+            tunnel_amplitude_pa: 0.05 * wake_depth_pa,
+            tunnel_hz: 20.0,
+        }
+    }
+
+    /// Checks every parameter is finite and durations positive.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`].
+    pub fn validate(&self) -> Result<()> {
+        let (values, durations): (Vec<f64>, Vec<f64>) = match *self {
+            Self::ShockTube {
+                amplitude_pa,
+                rise_s,
+            } => (vec![amplitude_pa], vec![rise_s]),
+            Self::Balloon {
+                amplitude_pa,
+                fall_s,
+            } => (vec![amplitude_pa], vec![fall_s]),
+            Self::Valve {
+                amplitude_pa,
+                opening_s,
+                chamber_hz,
+                chamber_fraction,
+            } => (
+                vec![amplitude_pa, chamber_fraction],
+                vec![opening_s, chamber_hz],
+            ),
+            Self::CascadeWake {
+                wake_depth_pa,
+                wake_hz,
+                wake_width,
+                tunnel_amplitude_pa,
+                tunnel_hz,
+            } => (
+                vec![wake_depth_pa, tunnel_amplitude_pa],
+                vec![wake_hz, wake_width, tunnel_hz],
+            ),
+        };
+        if values.iter().any(|v| !v.is_finite())
+            || durations.iter().any(|v| !(v.is_finite() && *v > 0.0))
+        {
+            return Err(Error::InvalidArgument {
+                what: "excitation",
+                message: format!(
+                    "{self:?}: amplitudes must be finite, times and frequencies positive"
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// The mean pressure deviation [Pa] over `[t − w/2, t + w/2]` (`t` after the event, `w`
+    /// [s] a sample interval). The simulation samples the excitation this way, so a step
+    /// that falls inside an internal sample interval is placed at its exact time (to second
+    /// order in the interval), not rounded to a sample: the ramps are integrated in closed form,
+    /// the smooth parts by the midpoint rule.
+    #[must_use]
+    pub fn cell_average(&self, t: f64, w: f64) -> f64 {
+        match *self {
+            Self::ShockTube {
+                amplitude_pa,
+                rise_s,
+            } => amplitude_pa * raised_cosine_average(t, w, rise_s),
+            Self::Balloon {
+                amplitude_pa,
+                fall_s,
+            } => amplitude_pa * (1.0 - raised_cosine_average(t, w, fall_s)),
+            Self::Valve {
+                amplitude_pa,
+                opening_s,
+                chamber_fraction,
+                ..
+            } => {
+                let ramp = amplitude_pa * raised_cosine_average(t, w, opening_s);
+                if chamber_fraction == 0.0 {
+                    ramp
+                } else {
+                    let no_chamber = Self::Valve {
+                        amplitude_pa,
+                        opening_s,
+                        chamber_hz: 1.0,
+                        chamber_fraction: 0.0,
+                    };
+                    ramp + midpoint_average(|x| self.value(x) - no_chamber.value(x), t, w)
+                }
+            }
+            Self::CascadeWake { .. } => midpoint_average(|x| self.value(x), t, w),
+        }
+    }
+
+    /// The pressure deviation [Pa] at time `t` [s] after the event.
+    #[must_use]
+    pub fn value(&self, t: f64) -> f64 {
+        match *self {
+            Self::ShockTube {
+                amplitude_pa,
+                rise_s,
+            } => amplitude_pa * raised_cosine(t, rise_s),
+            Self::Balloon {
+                amplitude_pa,
+                fall_s,
+            } => amplitude_pa * (1.0 - raised_cosine(t, fall_s)),
+            Self::Valve {
+                amplitude_pa,
+                opening_s,
+                chamber_hz,
+                chamber_fraction,
+            } => {
+                let mut v = raised_cosine(t, opening_s);
+                if t > 0.0 && chamber_fraction != 0.0 {
+                    let w = 2.0 * core::f64::consts::PI * chamber_hz;
+                    // Decays over about five periods.
+                    v += chamber_fraction
+                        * raised_cosine(t, opening_s)
+                        * (w * t).sin()
+                        * (-t * chamber_hz / 5.0).exp();
+                }
+                amplitude_pa * v
+            }
+            Self::CascadeWake {
+                wake_depth_pa,
+                wake_hz,
+                wake_width,
+                tunnel_amplitude_pa,
+                tunnel_hz,
+            } => {
+                let tunnel =
+                    tunnel_amplitude_pa * (2.0 * core::f64::consts::PI * tunnel_hz * t).sin();
+                if t <= 0.0 {
+                    return tunnel;
+                }
+                // Phase within the pitch, the wake centred half a pitch after the event.
+                let x = (t * wake_hz).fract() - 0.5;
+                let g = (-0.5 * (x / wake_width).powi(2)).exp();
+                // Enter the first wake smoothly (the probe starts outside the wakes).
+                let ramp = raised_cosine(t * wake_hz, 0.5);
+                tunnel - wake_depth_pa * g * ramp
+            }
+        }
+    }
+}
+
+/// An ADC: `bits` over `[min_pa, max_pa]`, rounding to the nearest level and clipping.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Adc {
+    /// Resolution [bits] (1..=32).
+    pub bits: u32,
+    /// Lowest level [Pa].
+    pub min_pa: f64,
+    /// Highest level [Pa].
+    pub max_pa: f64,
+}
+
+impl Adc {
+    /// Checks the resolution and range.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`].
+    pub fn validate(&self) -> Result<()> {
+        let range_ok =
+            self.min_pa.is_finite() && self.max_pa.is_finite() && self.max_pa > self.min_pa;
+        if !((1..=32).contains(&self.bits) && range_ok) {
+            return Err(Error::InvalidArgument {
+                what: "ADC",
+                message: format!(
+                    "{} bits over [{}, {}] Pa: need 1..=32 bits and min < max",
+                    self.bits, self.min_pa, self.max_pa
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// Step between levels [Pa].
+    #[must_use]
+    pub fn lsb_pa(&self) -> f64 {
+        (self.max_pa - self.min_pa) / 2f64.powi(i32::try_from(self.bits).unwrap_or(32))
+    }
+
+    /// `x` [Pa] quantised and clipped to the range.
+    #[must_use]
+    pub fn quantise(&self, x: f64) -> f64 {
+        let q = self.lsb_pa();
+        let levels = 2f64.powi(i32::try_from(self.bits).unwrap_or(32)) - 1.0;
+        let k = ((x - self.min_pa) / q).round().clamp(0.0, levels);
+        self.min_pa + k * q
+    }
+}
+
+/// How the step test is recorded.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Acquisition {
+    /// Sample rate `f_s` [Hz].
+    pub sample_rate_hz: f64,
+    /// Record length [s].
+    pub duration_s: f64,
+    /// Time of the event after the record starts [s] (need not be on a sample).
+    pub event_time_s: f64,
+    /// Internal rate as a multiple of `f_s` (README: 32).
+    pub oversample: usize,
+    /// Standard deviation of the white noise on the probe channel [Pa].
+    pub probe_noise_pa: f64,
+    /// Standard deviation of the white noise on the reference channel [Pa].
+    pub reference_noise_pa: f64,
+    /// ADC of both channels, if quantised.
+    pub adc: Option<Adc>,
+    /// The reference transducer's own resonance, if modelled.
+    pub reference_sensor: Option<Diaphragm>,
+    /// Seed of the noise generator.
+    pub seed: u64,
+    /// Static gain error of the probe channel [-] (`y → (1 + e) y`; 0: none).
+    pub probe_gain_error: f64,
+    /// Mains hum on the probe channel: amplitude [Pa] (0: none) ...
+    pub hum_pa: f64,
+    /// ... and frequency [Hz].
+    pub hum_hz: f64,
+    /// Zero drift of the probe channel after the event [Pa/s] (a ramp; 0: none).
+    pub drift_pa_per_s: f64,
+}
+
+impl Acquisition {
+    /// `duration_s` at `sample_rate_hz`, event at 10 % of the record, 32× oversampling, no
+    /// noise, no ADC, ideal reference sensor.
+    #[must_use]
+    pub fn new(sample_rate_hz: f64, duration_s: f64) -> Self {
+        Self {
+            sample_rate_hz,
+            duration_s,
+            event_time_s: 0.1 * duration_s,
+            oversample: 32,
+            probe_noise_pa: 0.0,
+            reference_noise_pa: 0.0,
+            adc: None,
+            reference_sensor: None,
+            seed: 1,
+            probe_gain_error: 0.0,
+            hum_pa: 0.0,
+            hum_hz: 50.0,
+            drift_pa_per_s: 0.0,
+        }
+    }
+
+    /// Checks the settings.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`].
+    pub fn validate(&self) -> Result<()> {
+        let bad =
+            |what: &'static str, message: String| Err(Error::InvalidArgument { what, message });
+        if !(self.sample_rate_hz.is_finite() && self.sample_rate_hz > 0.0) {
+            return bad(
+                "sample rate",
+                format!("{} Hz must be positive", self.sample_rate_hz),
+            );
+        }
+        if !(self.duration_s.is_finite() && self.duration_s > 0.0) {
+            return bad(
+                "duration",
+                format!("{} s must be positive", self.duration_s),
+            );
+        }
+        let samples = self.duration_s * self.sample_rate_hz;
+        if !(2.0..=1e7).contains(&samples) {
+            return bad(
+                "duration",
+                format!("{samples:.0} samples: need 2 to 10 million"),
+            );
+        }
+        if !(1..=256).contains(&self.oversample) || samples * self.oversample as f64 > 2e8 {
+            return bad(
+                "oversample",
+                format!(
+                    "{} must be 1..=256 and the internal record at most 2e8 samples",
+                    self.oversample
+                ),
+            );
+        }
+        if !(self.event_time_s.is_finite()
+            && self.event_time_s >= 0.0
+            && self.event_time_s < self.duration_s)
+        {
+            return bad(
+                "event time",
+                format!(
+                    "{} s must be inside the record [0, {}) s",
+                    self.event_time_s, self.duration_s
+                ),
+            );
+        }
+        let noise_ok = [self.probe_noise_pa, self.reference_noise_pa]
+            .iter()
+            .all(|x| x.is_finite() && *x >= 0.0);
+        if !noise_ok {
+            return bad("noise", "must be finite and non-negative".into());
+        }
+        if let Some(a) = &self.adc {
+            a.validate()?;
+        }
+        let errors_ok = [self.probe_gain_error, self.hum_pa, self.drift_pa_per_s]
+            .iter()
+            .all(|x| x.is_finite())
+            && self.hum_hz.is_finite()
+            && self.hum_hz > 0.0
+            && self.probe_gain_error > -1.0;
+        if !errors_ok {
+            return bad(
+                "probe channel errors",
+                format!(
+                    "gain error {} (> -1), hum {} Pa at {} Hz (> 0), drift {} Pa/s must be finite",
+                    self.probe_gain_error, self.hum_pa, self.hum_hz, self.drift_pa_per_s
+                ),
+            );
+        }
+        if let Some(d) = &self.reference_sensor {
+            d.validate()?;
+        }
+        Ok(())
+    }
+}
+
+/// A sampled impulse response: `y[n] = Σ taps[k] u[n−k]` at `rate_hz`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImpulseResponse {
+    /// Sample rate [Hz].
+    pub rate_hz: f64,
+    /// Taps (the impulse response times the sample interval) [-].
+    pub taps: Vec<f64>,
+    /// FFT length used.
+    pub fft_length: usize,
+    /// Energy in `[N/2, 7N/8)` relative to the total: bounds the wrap-around error.
+    pub tail_energy: f64,
+    /// Energy in `[7N/8, N)` relative to the total: the taper's non-causal part, dropped.
+    pub noncausal_energy: f64,
+    /// Start of the raised-cosine taper [Hz].
+    pub taper_start_hz: f64,
+}
+
+/// The impulse response of `response(s)` at `rate_hz`, by padded, tapered inverse FFT (see the
+/// module documentation), at least `min_taps` long.
+///
+/// # Errors
+/// [`Error::Numerical`] if the response is not finite on the frequency grid or does not decay
+/// within [`MAX_FFT_LENGTH`] samples.
+pub fn impulse_response(
+    response: &dyn Fn(Complex64) -> Complex64,
+    rate_hz: f64,
+    min_taps: usize,
+) -> Result<ImpulseResponse> {
+    let nyquist = 0.5 * rate_hz;
+    let taper_start = TAPER_START * nyquist;
+    let taper = |f: f64| {
+        if f <= taper_start {
+            1.0
+        } else {
+            0.5 * (1.0
+                + (core::f64::consts::PI * (f - taper_start) / (nyquist - taper_start)).cos())
+        }
+    };
+    let mut n = (2 * min_taps).max(1024).next_power_of_two();
+    loop {
+        let half: Vec<Complex64> = (0..=n / 2)
+            .map(|k| {
+                let f = k as f64 * rate_hz / n as f64;
+                let h = response(Complex64::new(0.0, 2.0 * core::f64::consts::PI * f));
+                if k == n / 2 {
+                    Complex64::new(0.0, 0.0) // the taper is zero at Nyquist
+                } else {
+                    h * taper(f)
+                }
+            })
+            .collect();
+        if let Some((k, _)) = half.iter().enumerate().find(|(_, h)| !h.is_finite()) {
+            return Err(Error::Numerical {
+                context: "impulse response".into(),
+                message: format!(
+                    "the response is not finite at {} Hz",
+                    k as f64 * rate_hz / n as f64
+                ),
+            });
+        }
+        let mut spec: Vec<Complex64> = half
+            .iter()
+            .copied()
+            .chain(
+                half.iter()
+                    .skip(1)
+                    .take(n / 2 - 1)
+                    .rev()
+                    .map(Complex64::conj),
+            )
+            .collect();
+        fft_in_place(&mut spec, true)?;
+        let energy = |from: usize, to: usize| -> f64 {
+            spec.iter()
+                .skip(from)
+                .take(to - from)
+                .map(|c| c.re * c.re)
+                .sum()
+        };
+        let total = energy(0, n);
+        let tail = energy(n / 2, n - n / 8) / total.max(f64::MIN_POSITIVE);
+        let noncausal = energy(n - n / 8, n) / total.max(f64::MIN_POSITIVE);
+        if tail < TAIL_ENERGY {
+            return Ok(ImpulseResponse {
+                rate_hz,
+                taps: spec.iter().take(n / 2).map(|c| c.re).collect(),
+                fft_length: n,
+                tail_energy: tail,
+                noncausal_energy: noncausal,
+                taper_start_hz: taper_start,
+            });
+        }
+        n *= 2;
+        if n > MAX_FFT_LENGTH {
+            return Err(Error::Numerical {
+                context: "impulse response".into(),
+                message: format!(
+                    "the response does not decay within {:.3} s at {rate_hz} Hz (an undamped mode?)",
+                    (MAX_FFT_LENGTH / 2) as f64 / rate_hz
+                ),
+            });
+        }
+    }
+}
+
+/// The unit step response of `probe` sampled at `rate_hz` [Hz], `n` samples from `t = 0`
+/// (the step at `t = 0`), by [`impulse_response`]. The step is sampled by cell averages, as in
+/// [`simulate`] (the first sample of the step is 1/2): `y[k] = Σ_{j<k} h[j] + h[k]/2`.
+///
+/// # Errors
+/// As [`impulse_response`], and [`Probe::validate`].
+pub fn step_response(probe: &Probe, rate_hz: f64, n: usize) -> Result<Vec<f64>> {
+    probe.validate()?;
+    let ir = impulse_response(&|s| probe.response(s), rate_hz, 0)?;
+    let dc = probe.response(Complex64::new(0.0, 0.0)).re;
+    let mut acc = 0.0;
+    Ok((0..n)
+        .map(|k| match ir.taps.get(k) {
+            Some(h) => {
+                acc += h;
+                acc - 0.5 * h
+            }
+            None => dc,
+        })
+        .collect())
+}
+
+/// A simulated step test.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimulatedTest {
+    /// Sample times [s] from the record start.
+    pub t: Vec<f64>,
+    /// Reference channel [Pa] (the excitation through the reference sensor, with noise and ADC).
+    pub reference: Vec<f64>,
+    /// Probe channel [Pa] (with noise and ADC).
+    pub probe: Vec<f64>,
+    /// The excitation itself at the sample times [Pa].
+    pub excitation: Vec<f64>,
+    /// Probe channel without noise and ADC [Pa].
+    pub probe_clean: Vec<f64>,
+    /// The probe's impulse response used, with its error measures.
+    pub impulse: ImpulseResponse,
+}
+
+/// A deterministic Gaussian noise source (SplitMix64 and Box-Muller).
+#[derive(Debug, Clone)]
+struct Noise {
+    state: u64,
+}
+
+impl Noise {
+    fn next_u64(&mut self) -> u64 {
+        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    fn uniform(&mut self) -> f64 {
+        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    fn gauss(&mut self) -> f64 {
+        let (u1, u2) = (self.uniform(), self.uniform());
+        (-2.0 * u1.ln()).sqrt() * (2.0 * core::f64::consts::PI * u2).cos()
+    }
+}
+
+/// Output of a linear system with impulse response `ir` to the input `u` (which is taken to be
+/// constant at `u[0]` before it starts), with DC gain `dc`.
+fn filter_from_rest(ir: &ImpulseResponse, dc: f64, u: &[f64]) -> Result<Vec<f64>> {
+    let u0 = u.first().copied().unwrap_or(0.0);
+    let du: Vec<f64> = u.iter().map(|v| v - u0).collect();
+    let mut y = convolve(&ir.taps, &du, u.len())?;
+    for v in &mut y {
+        *v += dc * u0;
+    }
+    Ok(y)
+}
+
+/// Simulates a step test of `probe` under `excitation`, recorded as `acquisition` says.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for invalid settings; errors of [`impulse_response`].
+pub fn simulate(
+    probe: &Probe,
+    excitation: &Excitation,
+    acquisition: &Acquisition,
+) -> Result<SimulatedTest> {
+    probe.validate()?;
+    excitation.validate()?;
+    acquisition.validate()?;
+    let fs = acquisition.sample_rate_hz;
+    let over = acquisition.oversample;
+    let rate = fs * over as f64;
+    let n_rec = (acquisition.duration_s * fs).round().max(2.0) as usize;
+    let ir = impulse_response(&|s| probe.response(s), rate, 0)?;
+    let dc = probe.response(Complex64::new(0.0, 0.0)).re;
+    // The reference channel: the excitation through the reference sensor and the same
+    // anti-alias filter.
+    let reference_response = |s: Complex64| {
+        let mut h = Complex64::new(1.0, 0.0);
+        if let Some(d) = &acquisition.reference_sensor {
+            h *= d.response(s);
+        }
+        if let Some(b) = &probe.anti_alias {
+            h *= b.response(s);
+        }
+        h
+    };
+    let ir_ref = if acquisition.reference_sensor.is_some() || probe.anti_alias.is_some() {
+        Some(impulse_response(&reference_response, rate, 0)?)
+    } else {
+        None
+    };
+    let pre = ir
+        .taps
+        .len()
+        .max(ir_ref.as_ref().map_or(0, |r| r.taps.len()));
+    let n_int = pre + n_rec * over;
+    let u_int: Vec<f64> = (0..n_int)
+        .map(|i| {
+            let t = (i as f64 - pre as f64) / rate;
+            excitation.cell_average(t - acquisition.event_time_s, 1.0 / rate)
+        })
+        .collect();
+    let y_int = filter_from_rest(&ir, dc, &u_int)?;
+    let r_int = match &ir_ref {
+        Some(r) => filter_from_rest(r, 1.0, &u_int)?,
+        None => u_int.clone(),
+    };
+    let pick = |x: &[f64]| -> Vec<f64> {
+        x.iter()
+            .skip(pre)
+            .step_by(over)
+            .take(n_rec)
+            .copied()
+            .collect()
+    };
+    let probe_clean = pick(&y_int);
+    let reference_clean = pick(&r_int);
+    let excitation_samples = pick(&u_int);
+    let mut noise = Noise {
+        state: acquisition.seed,
+    };
+    let mut finish = |x: &[f64], sigma: f64| -> Vec<f64> {
+        x.iter()
+            .map(|&v| {
+                let v = if sigma > 0.0 {
+                    v + sigma * noise.gauss()
+                } else {
+                    v
+                };
+                match &acquisition.adc {
+                    Some(adc) => adc.quantise(v),
+                    None => v,
+                }
+            })
+            .collect()
+    };
+    let reference = finish(&reference_clean, acquisition.reference_noise_pa);
+    // Additive and static errors of the probe channel, before noise and ADC.
+    let event = acquisition.event_time_s;
+    let with_errors: Vec<f64> = probe_clean
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| {
+            let t = k as f64 / fs;
+            let hum =
+                acquisition.hum_pa * (2.0 * core::f64::consts::PI * acquisition.hum_hz * t).sin();
+            let drift = acquisition.drift_pa_per_s * (t - event).max(0.0);
+            (1.0 + acquisition.probe_gain_error) * v + hum + drift
+        })
+        .collect();
+    let probe_out = finish(&with_errors, acquisition.probe_noise_pa);
+    Ok(SimulatedTest {
+        t: (0..n_rec).map(|k| k as f64 / fs).collect(),
+        reference,
+        probe: probe_out,
+        excitation: excitation_samples,
+        probe_clean,
+        impulse: ir,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn adc_quantises_and_clips() {
+        let adc = Adc {
+            bits: 3,
+            min_pa: 0.0,
+            max_pa: 8.0,
+        };
+        assert_eq!(adc.lsb_pa(), 1.0);
+        assert_eq!(adc.quantise(2.4), 2.0);
+        assert_eq!(adc.quantise(2.6), 3.0);
+        assert_eq!(adc.quantise(100.0), 7.0);
+        assert_eq!(adc.quantise(-5.0), 0.0);
+    }
+
+    #[test]
+    fn noise_is_standard_normal() {
+        let mut n = Noise { state: 7 };
+        let x: Vec<f64> = (0..20_000).map(|_| n.gauss()).collect();
+        let mean = x.iter().sum::<f64>() / x.len() as f64;
+        let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / x.len() as f64;
+        assert!(
+            mean.abs() < 0.03 && (var - 1.0).abs() < 0.05,
+            "{mean} {var}"
+        );
+    }
+
+    #[test]
+    fn excitation_levels() {
+        let b = Excitation::balloon(1000.0);
+        assert_eq!(b.value(-1.0), 1000.0);
+        assert_eq!(b.value(1.0), 0.0);
+        assert!((b.value(350e-6) - 500.0).abs() < 1e-9);
+        let s = Excitation::shock_tube(1.0);
+        assert_eq!(s.value(0.0), 0.0);
+        assert_eq!(s.value(2e-6), 1.0);
+    }
+}

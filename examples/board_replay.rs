@@ -31,7 +31,37 @@ mod trace {
 }
 
 /// The exported coefficient blob.
+/// The fixed-point compensator of the same design (`unlag::quantise::FixedPlan`); only the
+/// full design (m = 8) is replayed here.
+#[allow(dead_code)]
+mod fixed {
+    include!("data/board_fixed.rs");
+}
+
 static BLOB: &[u8] = include_bytes!("data/board_coefficients.bin");
+
+/// The ADC code (Q1.31 of the full scale) of a probe sample, as a board would read it.
+fn code(y: f32) -> i32 {
+    // `as` saturates: no panic for any input.
+    libm::round(f64::from(y) / fixed::FULL_SCALE * 2_147_483_648.0) as i32
+}
+
+/// The fixed-point compensator on the same trace: one output code per sample, on the host and
+/// on the board alike (integer arithmetic, so the two must agree bit for bit).
+fn replay_fixed(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
+    let Ok(c) = unlag::fixed::FixedCascade::<4>::new(&fixed::SECTIONS_M8) else {
+        writeln!(out, "ERROR fixed-point sections refused")?;
+        return Ok(false);
+    };
+    let first = trace::TRACE.first().copied().unwrap_or(0.0);
+    let mut state = c.equilibrium(code(first));
+    for (k, &y) in trace::TRACE.iter().enumerate() {
+        let v = c.process(&mut state, code(y));
+        writeln!(out, "F {k} {:08x}", v as u32)?;
+    }
+    writeln!(out, "FIXED overflow={}", state.overflowed())?;
+    Ok(!state.overflowed())
+}
 
 /// Section capacity of this firmware: up to an 8th-order compensator.
 const SECTIONS: usize = 4;
@@ -80,8 +110,10 @@ fn replay(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
             false
         }
     };
-    writeln!(out, "DONE {}", if refused { "ok" } else { "FAILED" })?;
-    Ok(refused)
+    let fixed_ok = replay_fixed(out)?;
+    let ok = refused && fixed_ok;
+    writeln!(out, "DONE {}", if ok { "ok" } else { "FAILED" })?;
+    Ok(ok)
 }
 
 #[cfg(target_os = "none")]

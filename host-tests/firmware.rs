@@ -138,6 +138,22 @@ fn host_outputs() -> Vec<u32> {
         .collect()
 }
 
+#[allow(dead_code)]
+mod fixed {
+    include!("../examples/data/board_fixed.rs");
+}
+
+/// The host's run of the fixed-point compensator: one output code per sample.
+fn host_fixed_outputs() -> Vec<u32> {
+    let code = |y: f32| (f64::from(y) / fixed::FULL_SCALE * 2_147_483_648.0).round() as i32;
+    let c = unlag::fixed::FixedCascade::<4>::new(&fixed::SECTIONS_M8).expect("valid sections");
+    let mut state = c.equilibrium(code(trace::TRACE[0]));
+    trace::TRACE
+        .iter()
+        .map(|&y| c.process(&mut state, code(y)) as u32)
+        .collect()
+}
+
 #[test]
 fn board_replay_in_qemu_is_bit_identical_to_the_host() {
     if let Some(reason) = missing_tools() {
@@ -178,6 +194,24 @@ fn board_replay_in_qemu_is_bit_identical_to_the_host() {
             f32::from_bits(*h)
         );
     }
+    // The fixed-point compensator, the same way.
+    let board_fixed: Vec<u32> = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("F "))
+        .map(|l| {
+            let (_, bits) = l.split_once(' ').expect("F <k> <code>");
+            u32::from_str_radix(bits, 16).expect("hex code")
+        })
+        .collect();
+    let host_fixed = host_fixed_outputs();
+    assert_eq!(board_fixed.len(), host_fixed.len(), "fixed-point samples");
+    for (k, (b, h)) in board_fixed.iter().zip(&host_fixed).enumerate() {
+        assert_eq!(
+            b, h,
+            "fixed point, sample {k}: board {b:#010x} != host {h:#010x}"
+        );
+    }
+    assert!(stdout.contains("FIXED overflow=false"), "{stdout}");
     assert!(
         stdout.contains("UPDATE refused: blob corrupted"),
         "{stdout}"

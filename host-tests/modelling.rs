@@ -29,3 +29,73 @@ fn every_hidden_effect_is_named_and_adding_it_cuts_the_error() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// The README's walkthrough, through the command line, on the shipped example data (whose probe
+/// has a second line mode): a plain 2nd-order model, the diagnosis, the effect added, the
+/// error history falling, and nothing left.
+#[test]
+fn the_readme_walkthrough_on_the_shipped_data() {
+    use std::process::Command;
+    let dir = std::env::temp_dir().join(format!("unlag-loop-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model = dir.join("probe.toml");
+    let m = model.to_str().unwrap();
+    let t1 = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/data/step_test_1.csv");
+    let t2 = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/data/step_test_2.csv");
+    let run = |args: &[&str]| -> serde_json::Value {
+        let o = Command::new(env!("CARGO_BIN_EXE_unlag"))
+            .args(args)
+            .output()
+            .unwrap();
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(
+            o.status.success(),
+            "{args:?}: {out}{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        serde_json::from_str(out.trim()).expect(&out)
+    };
+    run(&["fit", t1, t2, "--order", "2", "--fresh", "-o", m, "--json"]);
+    let d = run(&["diagnose", m, t1, t2, "--json"]);
+    let first = &d["candidates"][0];
+    assert_eq!(first["kind"], "mode", "{d}");
+    let scores: Vec<f64> = d["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["score"].as_f64().unwrap())
+        .collect();
+    assert!(scores.windows(2).all(|w| w[0] >= w[1]), "{scores:?}");
+    assert!(d["tests"][0]["fit_percent"].as_f64().unwrap() > 90.0);
+    run(&[
+        "fit", t1, t2, "--order", "2", "--add", "mode", "-o", m, "--json",
+    ]);
+    let c = run(&["compare", m, t1, t2, "--json"]);
+    let history = c["history"].as_array().unwrap();
+    assert_eq!(history.len(), 2, "{c}");
+    let mean = |row: &serde_json::Value| {
+        let t = row["tests"].as_array().unwrap();
+        t.iter().map(|x| x["nrmse"].as_f64().unwrap()).sum::<f64>() / t.len() as f64
+    };
+    assert!(mean(&history[1]) < mean(&history[0]) / 2.0, "{c}");
+    assert_eq!(history[1]["effects"][0], "mode");
+    for t in c["tests"].as_array().unwrap() {
+        let (e, floor) = (
+            t["nrmse"].as_f64().unwrap(),
+            t["noise_floor"].as_f64().unwrap(),
+        );
+        assert!(e < 1.5 * floor, "{e} against {floor}");
+    }
+    assert_eq!(c["across_tests"].as_array().unwrap().len(), 2);
+    let d = run(&["diagnose", m, t1, t2, "--json"]);
+    assert_eq!(d["candidates"][0]["kind"], "none", "{d}");
+    // Bad input is one line and exit 1.
+    let o = Command::new(env!("CARGO_BIN_EXE_unlag"))
+        .args(["diagnose", m, "no-such-test.csv"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("no-such-test.csv"), "{err}");
+}

@@ -94,6 +94,76 @@ fn held_out(model: &Model, effects: &[Effect], tests: &[Test<'_>]) -> f64 {
     }))
 }
 
+/// One test seen on its own: the same model structure fitted to it alone, and how big its
+/// residual is for its step. Across tests this shows what one model hides: natural
+/// frequencies that move together (temperature), damping that changes with the step's
+/// amplitude or direction (amplitude-dependent losses), a residual that grows faster than
+/// the step.
+#[derive(Debug, Clone, Serialize)]
+pub struct PerTest {
+    /// The test's file name.
+    pub file: String,
+    /// Signed step size of the reference.
+    pub step_size: f64,
+    /// The shared model's residual RMS over `|step|`.
+    pub residual_per_step: f64,
+    /// Each resonance of the test's own fit: `(natural frequency in Hz, damping)`, lowest
+    /// first.
+    pub resonances: Vec<(f64, f64)>,
+}
+
+/// Fits the current model's structure (order without effects, delay, method) to each test
+/// alone.
+#[must_use]
+pub fn per_test(
+    current: &Current<'_>,
+    tests: &[Test<'_>],
+    evidence: &[TestEvidence],
+) -> Vec<PerTest> {
+    let have = FitChanges::of(current.effects);
+    let order = current
+        .model
+        .order()
+        .saturating_sub(have.extra_order)
+        .max(1);
+    let options = Options {
+        method: current.method,
+        order: Order::Fixed(order),
+        delay: Some(current.model.delay),
+    };
+    tests
+        .iter()
+        .zip(evidence)
+        .map(|(t, e)| {
+            let mut resonances: Vec<(f64, f64)> =
+                crate::fit::fit(t, &[], current.model.fs, &options)
+                    .ok()
+                    .and_then(|f| crate::analysis::Analysis::new(&f.model).ok())
+                    .map(|a| {
+                        a.modes
+                            .iter()
+                            .filter_map(|m| match m.kind {
+                                crate::analysis::ModeKind::Resonance {
+                                    natural_frequency_hz,
+                                    damping,
+                                    ..
+                                } => Some((natural_frequency_hz, damping)),
+                                _ => None,
+                            })
+                            .collect()
+                    })
+                    .unwrap_or_default();
+            resonances.sort_by(|a, b| a.0.total_cmp(&b.0));
+            PerTest {
+                file: e.file.clone(),
+                step_size: e.step_size,
+                residual_per_step: e.residual_rms / e.step_size.abs().max(1e-300),
+                resonances,
+            }
+        })
+        .collect()
+}
+
 /// Measures the evidence on every test (the first is the estimation test).
 #[must_use]
 pub fn evidence(current: &Current<'_>, tests: &[Test<'_>]) -> Vec<TestEvidence> {

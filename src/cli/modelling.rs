@@ -141,6 +141,43 @@ fn print_evidence(evidence: &[TestEvidence]) {
     }
 }
 
+fn print_across(across: &[diagnose::PerTest]) {
+    if across.len() < 2 {
+        return;
+    }
+    println!("across tests (the same structure fitted to each test alone):");
+    let reference = across.first().and_then(|p| p.resonances.first().copied());
+    for p in across {
+        let modes: Vec<String> = p
+            .resonances
+            .iter()
+            .map(|(f, z)| format!("{f:.1} Hz / {z:.3}"))
+            .collect();
+        let ratio = match (reference, p.resonances.first()) {
+            (Some((f0, z0)), Some((f, z))) => {
+                format!(
+                    "  (fn x{:.3}, damping x{:.3} against the first test)",
+                    f / f0,
+                    z / z0
+                )
+            }
+            _ => String::new(),
+        };
+        println!(
+            "  {:<28} step {:>+10.4}  residual/|step| {:.2e}  {}{}",
+            p.file,
+            p.step_size,
+            p.residual_per_step,
+            if modes.is_empty() {
+                "no resonance".into()
+            } else {
+                modes.join(", ")
+            },
+            ratio
+        );
+    }
+}
+
 fn print_history(file: &ModelFile) {
     if file.history.is_empty() {
         return;
@@ -176,10 +213,12 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
         method: method_of(&l.file),
     };
     let evidence = diagnose::evidence(&current, &tests);
+    let across = diagnose::per_test(&current, &tests, &evidence);
     if args.json {
         let v = json!({
             "model": name(&args.model),
             "tests": tests_json(&evidence)?,
+            "across_tests": across,
             "history": l.file.history,
             "candidates": Vec::<Candidate>::new(),
         });
@@ -187,6 +226,7 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
         return Ok(());
     }
     print_evidence(&evidence);
+    print_across(&across);
     print_history(&l.file);
     println!("run `unlag diagnose` with the same arguments to rank the missing effects");
     Ok(())

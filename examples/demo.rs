@@ -32,7 +32,8 @@ fn main() -> ExitCode {
     );
     let (model, compensated) = ("target/demo/model.toml", "target/demo/compensated.csv");
     let steps: [Vec<&str>; 2] = [
-        vec!["unlag", "fit", t1, t2, "-o", model],
+        // --fresh: a rerun starts over instead of extending the model file's history.
+        vec!["unlag", "fit", t1, t2, "--fresh", "-o", model],
         vec!["unlag", "compensate", model, t2, "-o", compensated],
     ];
     for argv in steps {

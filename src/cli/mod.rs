@@ -334,6 +334,24 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
+/// Step tests for the library, one per trace (`names[i]` names `traces[i]`).
+///
+/// # Errors
+/// [`Error::MissingColumn`] when a trace has no reference column.
+pub(crate) fn as_tests<'a>(traces: &'a [Trace], names: &'a [String]) -> Result<Vec<Test<'a>>> {
+    traces
+        .iter()
+        .zip(names)
+        .map(|(t, n)| {
+            Ok(Test {
+                name: n,
+                u: t.input()?,
+                y: &t.y,
+            })
+        })
+        .collect()
+}
+
 pub(crate) fn name(p: &Path) -> String {
     p.display().to_string()
 }
@@ -400,17 +418,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         }
     }
     let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
-    let tests: Vec<Test<'_>> = traces
-        .iter()
-        .zip(&names)
-        .map(|(t, n)| {
-            Ok(Test {
-                name: n,
-                u: t.input()?,
-                y: &t.y,
-            })
-        })
-        .collect::<Result<_>>()?;
+    let tests = as_tests(&traces, &names)?;
     let (est_test, val_tests) = tests.split_first().ok_or_else(|| Error::InvalidArgument {
         what: "FILE",
         message: "give at least one step test".into(),
@@ -617,17 +625,7 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
         check_rate(&file, t)?;
     }
     let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
-    let tests: Vec<Test<'_>> = traces
-        .iter()
-        .zip(&names)
-        .map(|(t, n)| {
-            Ok(Test {
-                name: n,
-                u: t.input()?,
-                y: &t.y,
-            })
-        })
-        .collect::<Result<_>>()?;
+    let tests = as_tests(&traces, &names)?;
     let mut design = inverse::design_auto(&file.model, &tests, &args.inverse.options()?)?;
     design.check_exportable()?;
     args.inverse.plan_fixed(&mut design, &tests)?;

@@ -56,18 +56,8 @@ fn load(args: &LoopArgs) -> Result<Loaded> {
     })
 }
 
-fn tests<'a>(l: &'a Loaded) -> Result<Vec<Test<'a>>> {
-    l.traces
-        .iter()
-        .zip(&l.names)
-        .map(|(t, n)| {
-            Ok(Test {
-                name: n,
-                u: t.input()?,
-                y: &t.y,
-            })
-        })
-        .collect()
+fn tests(l: &Loaded) -> Result<Vec<Test<'_>>> {
+    super::as_tests(&l.traces, &l.names)
 }
 
 fn method_of(file: &ModelFile) -> Method {

@@ -30,7 +30,13 @@ mod trace {
     include!("data/board_trace.rs");
 }
 
-/// The exported coefficient blob.
+/// The same design as Rust constants (`unlag export --format rust`), for the cascades of the
+/// first K sections.
+#[allow(dead_code)]
+mod coefficients {
+    include!("data/board_coefficients.rs");
+}
+
 /// The fixed-point compensator of the same design (`unlag::quantise::FixedPlan`); only the
 /// full design (m = 8) is replayed here.
 #[allow(dead_code)]
@@ -39,6 +45,11 @@ mod fixed {
 }
 
 static BLOB: &[u8] = include_bytes!("data/board_coefficients.bin");
+
+/// Fixed-point sections and input that make the fixed-point cascade saturate on purpose.
+mod stress {
+    include!("data/fixed_stress.rs");
+}
 
 /// The ADC code (Q1.31 of the full scale) of a probe sample, as a board would read it.
 fn code(y: f32) -> i32 {
@@ -61,6 +72,84 @@ fn replay_fixed(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
     }
     writeln!(out, "FIXED overflow={}", state.overflowed())?;
     Ok(!state.overflowed())
+}
+
+/// FNV-1a (64 bits) over the `f32` bit patterns, in order: one line per run instead of
+/// 1024 (`host-tests/firmware.rs` computes the same from the host's outputs).
+fn fnv1a(bits: impl Iterator<Item = u32>) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in bits {
+        for byte in b.to_le_bytes() {
+            h ^= u64::from(byte);
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    h
+}
+
+/// Block lengths for the block-mode run: every remainder modulo 3 (the Cortex-M block
+/// kernel's loop is three samples long), an empty block, and long ones.
+const CHUNKS: [usize; 12] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 64, 100];
+
+/// The cascade of the first `K` sections on the whole trace, from equilibrium: one sample per
+/// call (`C`), and in blocks of the lengths in [`CHUNKS`] (`B`, the rest of the trace in one
+/// last block). Reports whether this build runs the Cortex-M kernel and the FNV-1a hash of the
+/// output bits of each run.
+fn replay_sections<const K: usize>(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
+    let Some(Ok(c)) = coefficients::SECTIONS
+        .get(..K)
+        .map(|s| unlag::compensator::CascadeCoefficients::<f32, K>::new(coefficients::GAIN, s))
+    else {
+        writeln!(out, "ERROR K={K}: sections refused")?;
+        return Ok(false);
+    };
+    let first = trace::TRACE.first().copied().unwrap_or(0.0);
+    let kind = if unlag::compensator::f32_cascade_uses_kernel(K) {
+        "asm"
+    } else {
+        "portable"
+    };
+    writeln!(out, "KERNEL K={K} {kind}")?;
+    let mut state = c.equilibrium(first);
+    let calls = fnv1a(
+        trace::TRACE
+            .iter()
+            .map(|&y| c.process(&mut state, y).to_bits()),
+    );
+    writeln!(out, "H K={K} call {calls:016x}")?;
+    let mut buf = trace::TRACE;
+    let mut state = c.equilibrium(first);
+    let mut rest = &mut buf[..];
+    for n in CHUNKS.iter().cycle().take(40) {
+        let (head, tail) = rest.split_at_mut((*n).min(rest.len()));
+        c.process_in_place(&mut state, head);
+        rest = tail;
+    }
+    c.process_in_place(&mut state, rest);
+    let blocks = fnv1a(buf.iter().map(|v| v.to_bits()));
+    writeln!(out, "H K={K} block {blocks:016x}")?;
+    Ok(true)
+}
+
+/// The fixed-point cascade through its saturation paths: the hash of the outputs and of the
+/// overflow flag after each sample (read and cleared every sample), and how many samples
+/// overflowed.
+fn replay_fixed_stress(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
+    let Ok(c) = unlag::fixed::FixedCascade::<4>::new(&stress::STRESS_SECTIONS) else {
+        writeln!(out, "ERROR stress sections refused")?;
+        return Ok(false);
+    };
+    let mut state = unlag::fixed::FixedState::default();
+    let mut overflows = 0u32;
+    let bits = (0..stress::STRESS_LEN).flat_map(|k| {
+        let y = c.process(&mut state, stress::stress_input(k));
+        let flag = state.take_overflow();
+        overflows += u32::from(flag);
+        [y as u32, u32::from(flag)]
+    });
+    let h = fnv1a(bits);
+    writeln!(out, "STRESS {h:016x} overflows={overflows}")?;
+    Ok(true)
 }
 
 /// Section capacity of this firmware: up to an 8th-order compensator.
@@ -111,7 +200,12 @@ fn replay(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
         }
     };
     let fixed_ok = replay_fixed(out)?;
-    let ok = refused && fixed_ok;
+    let mut sections_ok = replay_sections::<1>(out)?;
+    sections_ok &= replay_sections::<2>(out)?;
+    sections_ok &= replay_sections::<3>(out)?;
+    sections_ok &= replay_sections::<4>(out)?;
+    sections_ok &= replay_fixed_stress(out)?;
+    let ok = refused && fixed_ok && sections_ok;
     writeln!(out, "DONE {}", if ok { "ok" } else { "FAILED" })?;
     Ok(ok)
 }

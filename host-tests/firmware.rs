@@ -139,6 +139,57 @@ fn host_outputs() -> Vec<u32> {
 }
 
 #[allow(dead_code)]
+mod coefficients {
+    include!("../examples/data/board_coefficients.rs");
+}
+
+/// FNV-1a (64 bits) over `f32` bit patterns, as `examples/board_replay.rs` computes it.
+fn fnv1a(bits: impl Iterator<Item = u32>) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in bits {
+        for byte in b.to_le_bytes() {
+            h ^= u64::from(byte);
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    h
+}
+
+/// The host's outputs for the first `K` sections, one portable call per sample.
+fn host_sections<const K: usize>() -> Vec<u32> {
+    let c = unlag::compensator::CascadeCoefficients::<f32, K>::new(
+        coefficients::GAIN,
+        &coefficients::SECTIONS[..K],
+    )
+    .expect("valid sections");
+    let mut state = c.equilibrium(trace::TRACE[0]);
+    trace::TRACE
+        .iter()
+        .map(|&y| c.process_portable(&mut state, y).to_bits())
+        .collect()
+}
+
+mod stress {
+    include!("../examples/data/fixed_stress.rs");
+}
+
+/// The host's run of the fixed-point stress case: the hash of outputs and overflow flags, and
+/// the number of samples that overflowed (as `examples/board_replay.rs` reports them).
+fn host_fixed_stress() -> (u64, u32) {
+    let c = unlag::fixed::FixedCascade::<4>::new(&stress::STRESS_SECTIONS).expect("valid");
+    let mut state = unlag::fixed::FixedState::default();
+    let mut overflows = 0u32;
+    let mut bits = Vec::new();
+    for k in 0..stress::STRESS_LEN {
+        let y = c.process_portable(&mut state, stress::stress_input(k));
+        let flag = state.take_overflow();
+        overflows += u32::from(flag);
+        bits.extend([y as u32, u32::from(flag)]);
+    }
+    (fnv1a(bits.into_iter()), overflows)
+}
+
+#[allow(dead_code)]
 mod fixed {
     include!("../examples/data/board_fixed.rs");
 }
@@ -215,6 +266,58 @@ fn board_replay_in_qemu_is_bit_identical_to_the_host() {
     assert!(
         stdout.contains("UPDATE refused: blob corrupted"),
         "{stdout}"
+    );
+    // The Cortex-M kernels (1 to 4 sections, one call per sample and in blocks of every
+    // length modulo 3) against the host's portable code, bit for bit, through hashes.
+    let host_hashes = [
+        fnv1a(host_sections::<1>().into_iter()),
+        fnv1a(host_sections::<2>().into_iter()),
+        fnv1a(host_sections::<3>().into_iter()),
+        fnv1a(host_sections::<4>().into_iter()),
+    ];
+    assert_eq!(
+        host_hashes[3],
+        fnv1a(host.iter().copied()),
+        "the blob and the Rust constants describe the same design"
+    );
+    for (k, h) in host_hashes.iter().enumerate() {
+        let k = k + 1;
+        assert!(
+            stdout.contains(&format!("KERNEL K={k} asm")),
+            "the board build does not run the Cortex-M kernel for {k} sections:\n{stdout}"
+        );
+        for mode in ["call", "block"] {
+            let want = format!("H K={k} {mode} {h:016x}");
+            assert!(
+                stdout.lines().any(|l| l == want),
+                "{k} sections, {mode}: the board's hash differs from the host's ({want}):\n{}",
+                stdout
+                    .lines()
+                    .filter(|l| l.starts_with("H ") || l.starts_with("KERNEL"))
+                    .collect::<Vec<_>>()
+                    .join("\n")
+            );
+        }
+    }
+    assert!(
+        host_hashes.windows(2).all(|w| w[0] != w[1]),
+        "each number of sections is a different filter"
+    );
+    // The fixed-point kernel's saturation paths against the portable code.
+    let (h, overflows) = host_fixed_stress();
+    assert!(
+        overflows > 100 && (overflows as usize) < stress::STRESS_LEN - 100,
+        "the stress case must saturate sometimes, not always: {overflows}"
+    );
+    let want = format!("STRESS {h:016x} overflows={overflows}");
+    assert!(
+        stdout.lines().any(|l| l == want),
+        "fixed-point stress: board and host differ (host: {want}):\n{}",
+        stdout
+            .lines()
+            .filter(|l| l.starts_with("STRESS"))
+            .collect::<Vec<_>>()
+            .join("\n")
     );
     assert!(stdout.contains("DONE ok"), "{stdout}");
     // The reconstruction is a real one: it falls with the step like the trace does.

@@ -102,9 +102,70 @@ impl Sample for f64 {
 }
 
 mod private {
-    pub trait Sealed {}
+    use super::{CascadeCoefficients, CascadeState};
+
+    /// Seals [`super::Sample`], and lets a sample type route the cascade to a hand-written
+    /// kernel where it has one (`f32` on Cortex-M with an FPU, see `m4`). `None`: no kernel,
+    /// run the portable code.
+    pub trait Sealed: Sized {
+        #[inline(always)]
+        fn kernel_process<const N: usize>(
+            _c: &CascadeCoefficients<Self, N>,
+            _s: &mut CascadeState<Self, N>,
+            _x: Self,
+        ) -> Option<Self> {
+            None
+        }
+        /// `true` when the whole block was processed.
+        #[inline(always)]
+        fn kernel_process_in_place<const N: usize>(
+            _c: &CascadeCoefficients<Self, N>,
+            _s: &mut CascadeState<Self, N>,
+            _buf: &mut [Self],
+        ) -> bool {
+            false
+        }
+    }
+
+    #[cfg(not(all(target_arch = "arm", target_abi = "eabihf", target_os = "none")))]
     impl Sealed for f32 {}
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+    impl Sealed for f32 {
+        #[inline(always)]
+        fn kernel_process<const N: usize>(
+            c: &CascadeCoefficients<f32, N>,
+            s: &mut CascadeState<f32, N>,
+            x: f32,
+        ) -> Option<f32> {
+            super::m4::process(c, s, x)
+        }
+        #[inline(always)]
+        fn kernel_process_in_place<const N: usize>(
+            c: &CascadeCoefficients<f32, N>,
+            s: &mut CascadeState<f32, N>,
+            buf: &mut [f32],
+        ) -> bool {
+            super::m4::process_in_place(c, s, buf)
+        }
+    }
     impl Sealed for f64 {}
+}
+
+/// The Cortex-M kernels of the `f32` cascade (Thumb-2 + single-precision VFP, hard-float ABI).
+#[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+mod m4;
+
+/// `true` when this build runs the `f32` cascade of `N` sections through the hand-scheduled
+/// Cortex-M kernels (`N` = 1..=4 on a hard-float Arm bare-metal target), `false` when it runs
+/// the portable Rust code. Both compute the same bits.
+#[must_use]
+pub const fn f32_cascade_uses_kernel(sections: usize) -> bool {
+    cfg!(all(
+        target_arch = "arm",
+        target_abi = "eabihf",
+        target_os = "none"
+    )) && sections >= 1
+        && sections <= 4
 }
 
 /// Why a coefficient set was refused. Checked once, when the coefficients are built; a built
@@ -506,27 +567,47 @@ pub fn section_pole_radius(a1: f64, a2: f64) -> f64 {
 /// built, so a sample costs 5 multiplies per section and nothing else. `N` is the capacity in
 /// sections; unused sections are identities.
 ///
-/// Cost on a Cortex-M4F (instructions, QEMU, see BENCHMARKS.md "Board (Cortex-M4, QEMU)"):
-/// about 21 per sample in a block and 49 per single-sample call (caller's loop included) for
-/// two sections with the default `target-cpu=cortex-m4` code, which keeps VMUL and VADD apart.
+/// Cost on a Cortex-M4F: instructions counted in QEMU, see BENCHMARKS.md "Board (Cortex-M4,
+/// QEMU)".
+///
+/// On Cortex-M with an FPU (`thumbv7em-none-eabihf` and the other hard-float bare-metal Arm
+/// targets) an `f32` cascade of 1 to 4 sections runs through hand-scheduled Thumb-2 kernels
+/// (module `m4`: one VLDM for all coefficients, VMLA/VMLS, no stack frame; in a block the
+/// coefficients and states stay in registers): about 27 per call and 12.7 per sample in a
+/// block for two sections. VMLA and VMLS round the product before adding, like the portable
+/// code, so the results are the same bits (proven in QEMU by `host-tests/firmware.rs`); see
+/// [`f32_cascade_uses_kernel`].
+///
+/// Memory layout (`#[repr(C)]`, read by the kernels): per section `[b0, b1, a1, a2]`, then
+/// `b2` of every section, contiguous.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
 pub struct CascadeCoefficients<T, const N: usize> {
+    /// `[b0, b1, a1, a2]` of each section.
+    head: [[T; 4]; N],
+    /// `b2` of each section (right after `head`: one contiguous block of `5 N` values).
+    b2: [T; N],
     gain: T,
-    sections: [Biquad<T>; N],
     /// DC gain of each section, for starting in equilibrium.
     dc: [T; N],
 }
 
-/// The states of one cascade channel: `[s1, s2]` per section.
+/// The states of one cascade channel, `s1` and `s2` of each section.
+///
+/// Memory layout (`#[repr(C)]`, read and written by the Cortex-M kernels): `s2` of every
+/// section, then `s1` of every section.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
 pub struct CascadeState<T, const N: usize> {
-    s: [[T; 2]; N],
+    s2: [T; N],
+    s1: [T; N],
 }
 
 impl<T: Sample, const N: usize> Default for CascadeState<T, N> {
     fn default() -> Self {
         Self {
-            s: [[T::ZERO; 2]; N],
+            s2: [T::ZERO; N],
+            s1: [T::ZERO; N],
         }
     }
 }
@@ -579,36 +660,63 @@ impl<T: Sample, const N: usize> CascadeCoefficients<T, N> {
             }
         }
         Ok(Self {
+            head: out.map(
+                |Biquad {
+                     b: [b0, b1, _],
+                     a: [a1, a2],
+                 }| [b0, b1, a1, a2],
+            ),
+            b2: out.map(|Biquad { b: [_, _, b2], .. }| b2),
             gain: T::from_f64(gain),
-            sections: out,
             dc,
         })
     }
 
     /// One sample through the cascade. Panic-free and allocation-free; 5 multiplies per
-    /// section (the gain is folded into the first).
+    /// section (the gain is folded into the first). Runs the Cortex-M kernel where there is
+    /// one ([`f32_cascade_uses_kernel`]), [`Self::process_portable`] elsewhere: the same bits.
     #[inline]
     pub fn process(&self, state: &mut CascadeState<T, N>, x: T) -> T {
+        match T::kernel_process(self, state, x) {
+            Some(y) => y,
+            None => self.process_portable(state, x),
+        }
+    }
+
+    /// [`Self::process`] in portable Rust, on every target: the reference the Cortex-M
+    /// kernels are checked against, bit for bit.
+    #[inline]
+    pub fn process_portable(&self, state: &mut CascadeState<T, N>, x: T) -> T {
         if N == 0 {
             return self.gain * x;
         }
         let mut v = x;
-        for (sec, st) in self.sections.iter().zip(state.s.iter_mut()) {
-            let [b0, b1, b2] = sec.b;
-            let [a1, a2] = sec.a;
-            let [s1, s2] = *st;
-            let y = s1 + b0 * v;
-            *st = [s2 + b1 * v - a1 * y, b2 * v - a2 * y];
+        let sections = self.head.iter().zip(&self.b2);
+        let states = state.s1.iter_mut().zip(state.s2.iter_mut());
+        for ((&[b0, b1, a1, a2], &b2), (s1, s2)) in sections.zip(states) {
+            let y = *s1 + b0 * v;
+            *s1 = *s2 + b1 * v - a1 * y;
+            *s2 = b2 * v - a2 * y;
             v = y;
         }
         v
     }
 
-    /// Processes a block in place, sample by sample.
+    /// Processes a block in place, sample by sample: the same bits as [`Self::process`] on
+    /// each sample. On Cortex-M ([`f32_cascade_uses_kernel`]) the coefficients and states
+    /// stay in registers over the whole block.
     #[inline]
     pub fn process_in_place(&self, state: &mut CascadeState<T, N>, buf: &mut [T]) {
+        if !T::kernel_process_in_place(self, state, buf) {
+            self.process_in_place_portable(state, buf);
+        }
+    }
+
+    /// [`Self::process_in_place`] in portable Rust, on every target.
+    #[inline]
+    pub fn process_in_place_portable(&self, state: &mut CascadeState<T, N>, buf: &mut [T]) {
         for x in buf.iter_mut() {
-            *x = self.process(state, *x);
+            *x = self.process_portable(state, *x);
         }
     }
 
@@ -617,11 +725,12 @@ impl<T: Sample, const N: usize> CascadeCoefficients<T, N> {
     pub fn equilibrium(&self, x0: T) -> CascadeState<T, N> {
         let mut state = CascadeState::default();
         let mut v = if N == 0 { self.gain * x0 } else { x0 };
-        for ((sec, st), dc) in self.sections.iter().zip(state.s.iter_mut()).zip(self.dc) {
-            let [b0, _, b2] = sec.b;
-            let [_, a2] = sec.a;
+        let sections = self.head.iter().zip(&self.b2).zip(self.dc);
+        let states = state.s1.iter_mut().zip(state.s2.iter_mut());
+        for (((&[b0, _, _, a2], &b2), dc), (s1, s2)) in sections.zip(states) {
             let y = dc * v;
-            *st = [y - b0 * v, b2 * v - a2 * y];
+            *s1 = y - b0 * v;
+            *s2 = b2 * v - a2 * y;
             v = y;
         }
         state

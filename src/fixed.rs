@@ -58,7 +58,10 @@ pub const STATE_BITS: u32 = 30;
 pub const MAX_COEFFICIENT: i32 = 1 << 30;
 
 /// One second-order section in normal (coupled) state-space form, as integers.
+///
+/// `#[repr(C)]`: the Cortex-M kernel (module `m4`) reads it at fixed offsets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[repr(C)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FixedSection {
     /// State matrix `[a11, a12, a21, a22]`, Q2.30.
@@ -144,7 +147,10 @@ pub struct FixedCascade<const N: usize> {
 }
 
 /// The states of one channel, and the overflow flag.
+///
+/// `#[repr(C)]`: the Cortex-M kernel reads and writes the states `x` in place.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(C)]
 pub struct FixedState<const N: usize> {
     x: [[i32; 2]; N],
     overflow: bool,
@@ -254,8 +260,27 @@ impl<const N: usize> FixedCascade<N> {
 
     /// One ADC sample (Q1.31 of the design's full scale) through the cascade; the output is
     /// the reconstructed reference in the design's output format. Panic-free, allocation-free.
+    ///
+    /// On hard-float bare-metal Arm targets (`thumbv7em-none-eabihf` and the like) this runs a
+    /// hand-written Thumb-2 kernel (SMULL/SMLAL, SSAT; module `m4`), elsewhere
+    /// [`Self::process_portable`]: the same integer arithmetic, the same bits
+    /// (`host-tests/firmware.rs` checks it in QEMU).
     #[inline]
     pub fn process(&self, state: &mut FixedState<N>, input: i32) -> i32 {
+        #[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+        {
+            m4::process(self, state, input)
+        }
+        #[cfg(not(all(target_arch = "arm", target_abi = "eabihf", target_os = "none")))]
+        {
+            self.process_portable(state, input)
+        }
+    }
+
+    /// [`Self::process`] in portable Rust, on every target: the reference the Cortex-M
+    /// kernel is checked against.
+    #[inline]
+    pub fn process_portable(&self, state: &mut FixedState<N>, input: i32) -> i32 {
         let mut v = input;
         let mut overflow = false;
         for (s, x) in self.sections.iter().zip(state.x.iter_mut()) {
@@ -315,6 +340,10 @@ impl<const N: usize> FixedCascade<N> {
         &self.sections
     }
 }
+
+/// The Cortex-M kernel of the fixed-point cascade.
+#[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+mod m4;
 
 /// A scaled rotation `[[s, -w], [w, s]]` with `s^2 + w^2 < 1`, or lower triangular
 /// `[[p1, 0], [g, p2]]` with `|p1|, |p2| < 1`: the forms for which magnitude truncation

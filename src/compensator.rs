@@ -573,10 +573,10 @@ pub fn section_pole_radius(a1: f64, a2: f64) -> f64 {
 /// On Cortex-M with an FPU (`thumbv7em-none-eabihf` and the other hard-float bare-metal Arm
 /// targets) an `f32` cascade of 1 to 4 sections runs through hand-scheduled Thumb-2 kernels
 /// (module `m4`: one VLDM for all coefficients, VMLA/VMLS, no stack frame; in a block the
-/// coefficients and states stay in registers): about 27 per call and 12.7 per sample in a
-/// block for two sections. VMLA and VMLS round the product before adding, like the portable
-/// code, so the results are the same bits (proven in QEMU by `host-tests/firmware.rs`); see
-/// [`f32_cascade_uses_kernel`].
+/// coefficients and states stay in registers): 29 instructions per call (the caller's loop
+/// included) and 12.7 per sample in a block for two sections. VMLA and VMLS round the
+/// product before adding, like the portable code, so the results are the same bits (proven
+/// in QEMU by `host-tests/firmware.rs`); see [`f32_cascade_uses_kernel`].
 ///
 /// Memory layout (`#[repr(C)]`, read by the kernels): per section `[b0, b1, a1, a2]`, then
 /// `b2` of every section, contiguous.

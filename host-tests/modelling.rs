@@ -99,3 +99,74 @@ fn the_readme_walkthrough_on_the_shipped_data() {
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.contains("no-such-test.csv"), "{err}");
 }
+
+/// The nonlinear-damping cases in detail: the signature across tests is in the evidence with
+/// its numbers (damping rising with the step, residual growing faster than the step), the
+/// refit finds the quadratic loss that was simulated, and a linear probe's tests of different
+/// amplitudes do not show the signature.
+#[test]
+fn nonlinear_damping_is_named_from_its_amplitude_signature() {
+    use unlag::diagnose::{self, Current};
+    use unlag::effects::{self, Effect};
+    use unlag::fit::Test;
+    for case in cases()
+        .into_iter()
+        .filter(|c| c.kind == "nonlinear-damping" || c.name == "none: clean line")
+    {
+        let data = case.tests(5);
+        let tests: Vec<Test<'_>> = data.iter().map(|(u, y)| Test { name: "t", u, y }).collect();
+        let options = case.options();
+        let (plain, fx) =
+            effects::fit_with(&tests[0], &tests[1..], case.fs, &options, &[]).unwrap();
+        let current = Current {
+            model: &plain.model,
+            effects: &fx,
+            method: options.method,
+        };
+        let evidence = diagnose::evidence(&current, &tests);
+        let across = diagnose::per_test(&current, &tests, &evidence);
+        let sig = diagnose::amplitude_signature(&across).unwrap();
+        eprintln!("{}: {sig:?}", case.name);
+        if case.kind == "none" {
+            assert!(!sig.nonlinear_damping(), "{sig:?}");
+            // A linear probe's damping does not change with the step.
+            assert!(sig.damping_rise.abs() < 0.03, "{sig:?}");
+            continue;
+        }
+        assert!(sig.nonlinear_damping(), "{sig:?}");
+        assert!(sig.residual_exponent > 1.6, "{sig:?}");
+        assert!(sig.damping_slope > 0.0, "{sig:?}");
+        // The refit's loss against the one simulated: k = gain * w^2.
+        let (f, fx) = effects::fit_with(
+            &tests[0],
+            &tests[1..],
+            case.fs,
+            &options,
+            &[Effect::NonlinearDamping { gain: 0.0 }],
+        )
+        .unwrap();
+        let w = 2.0 * std::f64::consts::PI * case.mode.0;
+        let k = effects::nonlinear_gain(&fx) * w * w;
+        let common::hidden::Hidden::NonlinearDamping(k_true) = case.hidden else {
+            unreachable!()
+        };
+        let errors: Vec<f64> = tests[1..]
+            .iter()
+            .map(|t| unlag::fit::nrmse_of(t.y, &effects::predict(&f.model, &fx, t.u, t.y)))
+            .collect();
+        eprintln!(
+            "{}: k fitted {k:.4}, simulated {k_true}; held-out errors {errors:?} against {:?}",
+            case.name,
+            evidence[1..].iter().map(|e| e.nrmse).collect::<Vec<_>>()
+        );
+        assert!((k / k_true - 1.0).abs() < 0.25, "k {k} against {k_true}");
+        let candidates = diagnose::diagnose(&current, &tests, &evidence).unwrap();
+        let first = &candidates[0];
+        assert_eq!(first.kind, "nonlinear-damping", "{candidates:#?}");
+        assert!(
+            first.evidence["residual_exponent"].as_f64().unwrap() > 1.6,
+            "{first:?}"
+        );
+        assert!(first.change.contains("--add nonlinear-damping"));
+    }
+}

@@ -568,6 +568,47 @@ impl Design {
             .collect())
     }
 
+    /// The design's own low-pass as `(gain, sections)`, which the board's
+    /// nonlinear-damping correction runs too
+    /// ([`NonlinearDampingCoefficients`](crate::compensator::NonlinearDampingCoefficients)).
+    ///
+    /// # Errors
+    /// As [`lowpass`].
+    pub fn lowpass_sections(&self, fs: f64) -> Result<(f64, Vec<[f64; 5]>)> {
+        let lp = lowpass(self.lowpass, self.lowpass_order, self.lowpass_hz, fs)?;
+        Ok(to_sections(&lp))
+    }
+
+    /// The nonlinear-damping correction `gain fs^2 lowpass(|dy| dy)` for the probe signal `y`
+    /// (quadratic loss `gain` in s^2 per probe unit, see [`crate::effects`]), in arithmetic
+    /// `T` with the board's code, starting in equilibrium with `y[0]`: what the board adds to
+    /// [`Design::run`]'s output.
+    ///
+    /// # Errors
+    /// As [`Design::lowpass_sections`]; [`Error::Numerical`] when the correction's
+    /// coefficients do not validate.
+    pub fn run_nonlinear_correction<T: Sample>(
+        &self,
+        fs: f64,
+        gain: f64,
+        y: &[f64],
+    ) -> Result<Vec<f64>> {
+        let (lp_gain, lp) = self.lowpass_sections(fs)?;
+        let c = crate::compensator::NonlinearDampingCoefficients::<T, 4>::new(
+            gain * fs * fs,
+            lp_gain,
+            &lp,
+        )
+        .map_err(|e| Error::Numerical {
+            context: "nonlinear-damping correction".into(),
+            message: e.to_string(),
+        })?;
+        let mut st = c.equilibrium(T::from_f64(y.first().copied().unwrap_or(0.0)));
+        Ok(y.iter()
+            .map(|&v| c.process(&mut st, T::from_f64(v)).to_f64())
+            .collect())
+    }
+
     /// Checks that the board may run it: every pole inside the unit circle by
     /// [`MIN_POLE_MARGIN`].
     ///

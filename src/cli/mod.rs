@@ -752,14 +752,35 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
     } else {
         file.inverse.as_ref()
     };
-    let (u_hat, latency, what) = match design {
+    // Quadratic losses: the board adds gain * lowpass(|dy| dy) to the linear inverse.
+    let nonlinear = crate::effects::nonlinear_gain(&file.effects);
+    let (mut u_hat, latency, what) = match design {
         Some(d) => {
             d.check_exportable()?;
-            let u_hat = match args.arithmetic {
+            let mut u_hat = match args.arithmetic {
                 Arithmetic::F32 => d.run::<f32>(&y_probe)?,
                 Arithmetic::F64 => d.run::<f64>(&y_probe)?,
+                Arithmetic::Fixed if nonlinear != 0.0 => {
+                    return Err(Error::UnsupportedOnBoard {
+                        path: args.model.clone(),
+                        effect: "nonlinear damping",
+                        arithmetic: "fixed-point",
+                        hint: "use --arithmetic f32",
+                    })
+                }
                 Arithmetic::Fixed => run_fixed(d, &args.model, &trace, &y_probe)?,
             };
+            if nonlinear != 0.0 {
+                let correction = match args.arithmetic {
+                    Arithmetic::F64 => {
+                        d.run_nonlinear_correction::<f64>(m.fs, nonlinear, &y_probe)?
+                    }
+                    _ => d.run_nonlinear_correction::<f32>(m.fs, nonlinear, &y_probe)?,
+                };
+                for (u, c) in u_hat.iter_mut().zip(correction) {
+                    *u += c;
+                }
+            }
             (
                 u_hat,
                 d.latency_samples,
@@ -783,6 +804,22 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
             (u_hat, m.delay as f64, "the paper's direct inverse (eq. 7)")
         }
     };
+    if design.is_none() && nonlinear != 0.0 {
+        // The direct inverse has no band limit: the correction is not filtered either.
+        let c = crate::compensator::NonlinearDampingCoefficients::<f64, 1>::new(
+            nonlinear * m.fs * m.fs,
+            1.0,
+            &[],
+        )
+        .map_err(|e| Error::Numerical {
+            context: "nonlinear-damping correction".into(),
+            message: e.to_string(),
+        })?;
+        let mut st = c.equilibrium(y_probe.first().copied().unwrap_or(0.0));
+        for (u, y) in u_hat.iter_mut().zip(&y_probe) {
+            *u += c.process(&mut st, *y);
+        }
+    }
     // Error against the recorded reference, at the best alignment near the latency.
     let error = trace.u.as_ref().map(|u| {
         let nominal = latency.round().max(0.0) as usize;

@@ -102,17 +102,15 @@ fn the_readme_walkthrough_on_the_shipped_data() {
 
 /// The nonlinear-damping cases in detail: the signature across tests is in the evidence with
 /// its numbers (damping rising with the step, residual growing faster than the step), the
-/// refit finds the quadratic loss that was simulated, and a linear probe's tests of different
-/// amplitudes do not show the signature.
+/// refit finds the quadratic loss that was simulated, and no other case (their tests have
+/// different amplitudes too, but a linear probe's damping does not change with them) shows
+/// the signature.
 #[test]
 fn nonlinear_damping_is_named_from_its_amplitude_signature() {
     use unlag::diagnose::{self, Current};
     use unlag::effects::{self, Effect};
     use unlag::fit::Test;
-    for case in cases()
-        .into_iter()
-        .filter(|c| c.kind == "nonlinear-damping" || c.name == "none: clean line")
-    {
+    for case in cases() {
         let data = case.tests(5);
         let tests: Vec<Test<'_>> = data.iter().map(|(u, y)| Test { name: "t", u, y }).collect();
         let options = case.options();
@@ -126,15 +124,20 @@ fn nonlinear_damping_is_named_from_its_amplitude_signature() {
         let evidence = diagnose::evidence(&current, &tests);
         let across = diagnose::per_test(&current, &tests, &evidence);
         let sig = diagnose::amplitude_signature(&across).unwrap();
-        eprintln!("{}: {sig:?}", case.name);
-        if case.kind == "none" {
-            assert!(!sig.nonlinear_damping(), "{sig:?}");
-            // A linear probe's damping does not change with the step.
-            assert!(sig.damping_rise.abs() < 0.03, "{sig:?}");
+        eprintln!(
+            "{:<45} damping rise {:+.3}, slope {:+.4}, residual exponent {:.2}",
+            case.name, sig.damping_rise, sig.damping_slope, sig.residual_exponent
+        );
+        if case.kind != "nonlinear-damping" {
+            assert!(!sig.nonlinear_damping(), "{}: {sig:?}", case.name);
+            if case.kind == "none" {
+                // A linear probe's damping does not change with the step.
+                assert!(sig.damping_rise.abs() < 0.03, "{sig:?}");
+            }
             continue;
         }
         assert!(sig.nonlinear_damping(), "{sig:?}");
-        assert!(sig.residual_exponent > 1.6, "{sig:?}");
+        assert!(sig.residual_exponent > 1.4, "{sig:?}");
         assert!(sig.damping_slope > 0.0, "{sig:?}");
         // The refit's loss against the one simulated: k = gain * w^2.
         let (f, fx) = effects::fit_with(
@@ -164,7 +167,7 @@ fn nonlinear_damping_is_named_from_its_amplitude_signature() {
         let first = &candidates[0];
         assert_eq!(first.kind, "nonlinear-damping", "{candidates:#?}");
         assert!(
-            first.evidence["residual_exponent"].as_f64().unwrap() > 1.6,
+            first.evidence["residual_exponent"].as_f64().unwrap() > 1.4,
             "{first:?}"
         );
         assert!(first.change.contains("--add nonlinear-damping"));
@@ -242,7 +245,7 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
     let d = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
     let first = &d["candidates"][0];
     assert_eq!(first["kind"], "nonlinear-damping", "{d}");
-    assert!(first["evidence"]["residual_exponent"].as_f64().unwrap() > 1.5);
+    assert!(first["evidence"]["residual_exponent"].as_f64().unwrap() > 1.3);
     assert!(
         first["evidence"]["damping_slope_per_unit_step"]
             .as_f64()
@@ -255,7 +258,7 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
         c["amplitude_signature"]["residual_exponent"]
             .as_f64()
             .unwrap()
-            > 1.5,
+            > 1.3,
         "{c}"
     );
 
@@ -286,6 +289,24 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
     assert_eq!(history.len(), 2, "{c}");
     assert!(mean(&history[1]) < mean(&history[0]) / 3.0, "{c}");
     assert_eq!(history[1]["effects"][0], "nonlinear-damping");
+    // Every test is within 1.5x of its noise floor, and the loss is not named again.
+    for t in c["tests"].as_array().unwrap() {
+        let (e, floor) = (
+            t["nrmse"].as_f64().unwrap(),
+            t["noise_floor"].as_f64().unwrap(),
+        );
+        assert!(e < 1.5 * floor, "{e} against {floor}");
+    }
+    let args = with(&["diagnose", &model], &["--json"]);
+    let d = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        d["candidates"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|c| c["kind"] != "nonlinear-damping"),
+        "{d}"
+    );
     // simulate applies the loss: the large step is followed far better than by the plain
     // model.
     let s_nl = run(&["simulate", &model, &big, "-o", &p("sim.csv"), "--json"]);
@@ -408,6 +429,12 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.contains("nonlinear damping"), "{err}");
     assert!(!std::path::Path::new(&out).exists());
+    let path = std::path::Path::new(&model);
+    let file = unlag::model::ModelFile::load(path).unwrap();
+    assert!(matches!(
+        unlag::export::FixedBoardCoefficients::from_model_file(&file, path, Some(4.0)),
+        Err(unlag::error::Error::UnsupportedOnBoard { .. })
+    ));
     let o = unlag(&[
         "compensate",
         &model,

@@ -124,7 +124,7 @@ pub const MIN_DAMPING_RISE: f64 = 0.1;
 
 /// Lowest exponent of the own-fit residual against the step's amplitude for the
 /// nonlinear-damping signature (1 for a linear probe).
-pub const MIN_RESIDUAL_EXPONENT: f64 = 1.5;
+pub const MIN_RESIDUAL_EXPONENT: f64 = 1.3;
 
 /// Smallest ratio of the largest to the smallest step for an amplitude signature.
 pub const MIN_AMPLITUDE_RATIO: f64 = 1.3;

@@ -334,6 +334,9 @@ pub struct Outcome {
     pub after: f64,
     /// Noise floor of the validation test.
     pub floor: f64,
+    /// Residual against amplitude across the tests (the plain model's structure fitted to
+    /// each alone).
+    pub signature: Option<unlag::diagnose::AmplitudeSignature>,
 }
 
 impl Outcome {
@@ -374,6 +377,7 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
     let evidence = diagnose::evidence(&current, &tests);
     let candidates = diagnose::diagnose(&current, &tests, &evidence).expect("diagnosis");
     let named: Vec<String> = candidates.iter().map(|c| c.kind.clone()).collect();
+    let signature = diagnose::amplitude_signature(&diagnose::per_test(&current, &tests, &evidence));
     let before = evidence[1].nrmse;
     let floor = evidence[1].noise_floor;
     let after = match candidates.first() {
@@ -399,5 +403,6 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
         before,
         after,
         floor,
+        signature,
     }
 }

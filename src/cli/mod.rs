@@ -239,7 +239,7 @@ pub struct FitArgs {
     #[arg(long, value_name = "SAMPLES")]
     pub delay: Option<usize>,
     /// Add a physical effect to the model (repeatable): mode, leak, offset, drift,
-    /// coloured-noise, or delay=N. Effects already in the output model file are kept.
+    /// coloured-noise, nonlinear-damping, or delay=N. Effects already in the output model file are kept.
     #[arg(long = "add", value_name = "KIND")]
     pub add: Vec<String>,
     /// Start afresh: ignore the effects and history of an existing output model file.

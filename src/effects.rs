@@ -550,10 +550,12 @@ mod tests {
                 },
                 Effect::Delay { samples: 17 },
                 Effect::ColouredNoise,
+                Effect::NonlinearDamping { gain: 1.25e-6 },
             ],
         };
         let text = toml::to_string(&w).unwrap();
         assert!(text.contains("kind = \"coloured-noise\""), "{text}");
+        assert!(text.contains("kind = \"nonlinear-damping\""), "{text}");
         let back: W = toml::from_str(&text).unwrap();
         assert_eq!(back.effects, w.effects);
         for k in KINDS {
@@ -589,5 +591,49 @@ mod tests {
         let r: Vec<f64> = (0..1000).map(|k| 0.5 + 2.0 * k as f64 / 1000.0).collect();
         let est = estimate_additive(&c, &r, 100, 1000.0);
         assert!((est.offset - 0.5).abs() < 1e-9 && (est.rate_per_s - 2.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn quadratic_losses_obey_the_model_equation_and_invert_exactly() {
+        // DC gain 1, zeros of B at |z|^2 = 0.2 (invertible), delay 3.
+        let model = Model {
+            fs: 1000.0,
+            delay: 3,
+            a: vec![-1.6, 0.7],
+            b: vec![0.05, 0.04, 0.01],
+        };
+        let u: Vec<f64> = (0..400)
+            .map(|k| match k {
+                0..20 => 0.0,
+                20..150 => 1.0,
+                _ => 0.2,
+            })
+            .collect();
+        assert_eq!(simulate_nonlinear(&model, 0.0, &u), model.simulate(&u));
+        let g = 2e-5;
+        let y = simulate_nonlinear(&model, g, &u);
+        let n = quadratic_rate(&y, model.fs);
+        // The loss is a real part of the response (peak |g N| well above rounding) ...
+        let peak = n.iter().fold(0.0f64, |m, v| m.max((g * v).abs()));
+        assert!(peak > 0.05, "{peak}");
+        // ... and every sample satisfies A y = B (q^-d u - g N), the b0 term included.
+        for k in 5..u.len() {
+            let mut e = y[k] + model.a[0] * y[k - 1] + model.a[1] * y[k - 2];
+            for (i, bi) in model.b.iter().enumerate() {
+                e -= bi * (u[k - i - 3] - g * n[k - i]);
+            }
+            assert!(e.abs() < 1e-12, "sample {k}: {e}");
+        }
+        // The inverse is the linear one plus g N: the reference comes back, d samples late.
+        let linear = model.compensate::<f64>(&y).unwrap();
+        for k in 3..u.len() {
+            let u_hat = linear[k] + g * n[k];
+            assert!((u_hat - u[k - 3]).abs() < 1e-9, "sample {k}: {u_hat}");
+        }
+        // Without the correction it does not.
+        let worst = (3..u.len())
+            .map(|k| (linear[k] - u[k - 3]).abs())
+            .fold(0.0, f64::max);
+        assert!(worst > 0.05, "{worst}");
     }
 }

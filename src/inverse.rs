@@ -667,7 +667,28 @@ pub fn aligned_error(
 /// # Errors
 /// As [`Design::run`].
 pub fn reconstruct(design: &Design, model: &Model, test: &Test<'_>) -> Result<Reconstruction> {
-    let u_hat = design.run::<f64>(test.y)?;
+    reconstruct_with(design, model, test, 0.0)
+}
+
+/// [`reconstruct`] for a model with the `nonlinear-damping` effect: the compensator's output
+/// plus the board's correction for the quadratic loss `nonlinear_gain` (s^2 per probe unit,
+/// see [`crate::effects`]); with `nonlinear_gain = 0` exactly [`reconstruct`].
+///
+/// # Errors
+/// As [`Design::run`] and [`Design::run_nonlinear_correction`].
+pub fn reconstruct_with(
+    design: &Design,
+    model: &Model,
+    test: &Test<'_>,
+    nonlinear_gain: f64,
+) -> Result<Reconstruction> {
+    let mut u_hat = design.run::<f64>(test.y)?;
+    if nonlinear_gain != 0.0 {
+        let c = design.run_nonlinear_correction::<f64>(model.fs, nonlinear_gain, test.y)?;
+        for (u, c) in u_hat.iter_mut().zip(c) {
+            *u += c;
+        }
+    }
     let nominal = design.latency_samples.round().max(0.0) as usize;
     let lo = nominal.saturating_sub(4);
     let (e, lag) = aligned_error(test.u, &u_hat, lo..=nominal + 4);
@@ -688,6 +709,24 @@ pub fn reconstruct(design: &Design, model: &Model, test: &Test<'_>) -> Result<Re
 /// # Errors
 /// As [`design`].
 pub fn design_auto(model: &Model, tests: &[Test<'_>], options: &Options) -> Result<Design> {
+    design_auto_with(model, tests, options, 0.0)
+}
+
+/// [`design_auto`] for a model with the `nonlinear-damping` effect: the corner is chosen, and
+/// the reconstructions are measured, with the board's correction for the quadratic loss
+/// `nonlinear_gain` added ([`reconstruct_with`]); with `nonlinear_gain = 0` exactly
+/// [`design_auto`].
+///
+/// # Errors
+/// As [`design_auto`].
+pub fn design_auto_with(
+    model: &Model,
+    tests: &[Test<'_>],
+    options: &Options,
+    nonlinear_gain: f64,
+) -> Result<Design> {
+    let reconstruct =
+        |d: &Design, model: &Model, t: &Test<'_>| reconstruct_with(d, model, t, nonlinear_gain);
     let fs = model.fs;
     if let Some(fc) = options.bandwidth_hz {
         let mut d = design(model, fc, options)?;

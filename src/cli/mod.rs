@@ -503,7 +503,12 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         val_tests
     };
     // The fit stands on its own: if no compensator can be designed, say why and keep the model.
-    let design = match inverse::design_auto(&fitted.model, judge, &args.inverse.options()?) {
+    let design = match inverse::design_auto_with(
+        &fitted.model,
+        judge,
+        &args.inverse.options()?,
+        crate::effects::nonlinear_gain(&effects),
+    ) {
         Ok(mut d) => {
             args.inverse.plan_fixed(&mut d, judge)?;
             Some(d)
@@ -626,7 +631,12 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
     }
     let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
     let tests = as_tests(&traces, &names)?;
-    let mut design = inverse::design_auto(&file.model, &tests, &args.inverse.options()?)?;
+    let mut design = inverse::design_auto_with(
+        &file.model,
+        &tests,
+        &args.inverse.options()?,
+        crate::effects::nonlinear_gain(&file.effects),
+    )?;
     design.check_exportable()?;
     args.inverse.plan_fixed(&mut design, &tests)?;
     let out = ModelFile {

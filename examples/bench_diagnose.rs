@@ -1,7 +1,8 @@
 //! Score table of the modelling loop (issue 7), a benchmark, not a test: for each case of
 //! step tests with a hidden effect, the candidates `unlag diagnose` names, and the validation
-//! error before and after adding the first one. `host-tests/modelling.rs` asserts the same
-//! cases.
+//! error before and after adding the first one; then, for every case, the residual against
+//! amplitude across its tests (what names `nonlinear-damping`). `host-tests/modelling.rs`
+//! asserts the same cases.
 //!
 //! ```sh
 //! cargo run --release --example bench_diagnose          # SEED=N for other noise
@@ -20,8 +21,10 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(11);
     let (mut right, mut total) = (0, 0);
+    let mut signatures = Vec::new();
     for case in cases() {
         let o = run(&case, seed);
+        signatures.push((case.name, o.signature.clone()));
         total += 1;
         let ok = o.passed(case.kind);
         right += usize::from(ok);
@@ -42,4 +45,34 @@ fn main() {
     }
     println!();
     println!("{right} of {total} cases: the hidden kind named first and the error cut 3x or to within 1.5x of the floor.");
+    println!();
+    println!("Residual against amplitude across tests (each test fitted alone; nonlinear damping needs a damping rise >= {:.0} % and an exponent >= {}):", 100.0 * unlag::diagnose::MIN_DAMPING_RISE, unlag::diagnose::MIN_RESIDUAL_EXPONENT);
+    println!();
+    println!("| case | steps | damping | damping rise | residual exponent | signature |");
+    println!("|---|---|---|---|---|---|");
+    for (name, s) in signatures {
+        match s {
+            Some(s) => println!(
+                "| {name} | {} | {} | {:+.1} % | {:.2} | {} |",
+                s.amplitudes
+                    .iter()
+                    .map(|a| format!("{a:.2}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                s.damping
+                    .iter()
+                    .map(|z| format!("{z:.3}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                100.0 * s.damping_rise,
+                s.residual_exponent,
+                if s.nonlinear_damping() {
+                    "nonlinear damping"
+                } else {
+                    "-"
+                }
+            ),
+            None => println!("| {name} | - | - | - | - | - |"),
+        }
+    }
 }

@@ -99,3 +99,356 @@ fn the_readme_walkthrough_on_the_shipped_data() {
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.contains("no-such-test.csv"), "{err}");
 }
+
+/// The nonlinear-damping cases in detail: the signature across tests is in the evidence with
+/// its numbers (damping rising with the step, residual growing faster than the step), the
+/// refit finds the quadratic loss that was simulated, and no other case (their tests have
+/// different amplitudes too, but a linear probe's damping does not change with them) shows
+/// the signature.
+#[test]
+fn nonlinear_damping_is_named_from_its_amplitude_signature() {
+    use unlag::diagnose::{self, Current};
+    use unlag::effects::{self, Effect};
+    use unlag::fit::Test;
+    for case in cases() {
+        let data = case.tests(5);
+        let tests: Vec<Test<'_>> = data.iter().map(|(u, y)| Test { name: "t", u, y }).collect();
+        let options = case.options();
+        let (plain, fx) =
+            effects::fit_with(&tests[0], &tests[1..], case.fs, &options, &[]).unwrap();
+        let current = Current {
+            model: &plain.model,
+            effects: &fx,
+            method: options.method,
+        };
+        let evidence = diagnose::evidence(&current, &tests);
+        let across = diagnose::per_test(&current, &tests, &evidence);
+        let sig = diagnose::amplitude_signature(&across).unwrap();
+        eprintln!(
+            "{:<45} damping rise {:+.3}, slope {:+.4}, residual exponent {:.2}",
+            case.name, sig.damping_rise, sig.damping_slope, sig.residual_exponent
+        );
+        if case.kind != "nonlinear-damping" {
+            assert!(!sig.nonlinear_damping(), "{}: {sig:?}", case.name);
+            if case.kind == "none" {
+                // A linear probe's damping does not change with the step.
+                assert!(sig.damping_rise.abs() < 0.03, "{sig:?}");
+            }
+            continue;
+        }
+        assert!(sig.nonlinear_damping(), "{sig:?}");
+        assert!(sig.residual_exponent > 1.4, "{sig:?}");
+        assert!(sig.damping_slope > 0.0, "{sig:?}");
+        // The refit's loss against the one simulated: k = gain * w^2.
+        let (f, fx) = effects::fit_with(
+            &tests[0],
+            &tests[1..],
+            case.fs,
+            &options,
+            &[Effect::NonlinearDamping { gain: 0.0 }],
+        )
+        .unwrap();
+        let w = 2.0 * std::f64::consts::PI * case.mode.0;
+        let k = effects::nonlinear_gain(&fx) * w * w;
+        let common::hidden::Hidden::NonlinearDamping(k_true) = case.hidden else {
+            unreachable!()
+        };
+        let errors: Vec<f64> = tests[1..]
+            .iter()
+            .map(|t| unlag::fit::nrmse_of(t.y, &effects::predict(&f.model, &fx, t.u, t.y)))
+            .collect();
+        eprintln!(
+            "{}: k fitted {k:.4}, simulated {k_true}; held-out errors {errors:?} against {:?}",
+            case.name,
+            evidence[1..].iter().map(|e| e.nrmse).collect::<Vec<_>>()
+        );
+        assert!((k / k_true - 1.0).abs() < 0.25, "k {k} against {k_true}");
+        let candidates = diagnose::diagnose(&current, &tests, &evidence).unwrap();
+        let first = &candidates[0];
+        assert_eq!(first.kind, "nonlinear-damping", "{candidates:#?}");
+        assert!(
+            first.evidence["residual_exponent"].as_f64().unwrap() > 1.4,
+            "{first:?}"
+        );
+        assert!(first.change.contains("--add nonlinear-damping"));
+    }
+}
+
+/// The nonlinear-damping loop through the command line, down to the board: a plain model, the
+/// diagnosis, the effect added (the error history falls), `simulate` with it, the compensator
+/// with its correction reconstructing a large step better than the linear compensator, the
+/// correction carried by every export format (the blob parsed back by the board's parser
+/// gives the same reconstruction), and fixed point refused with one clear line.
+#[test]
+fn nonlinear_damping_through_the_cli_down_to_the_board() {
+    use std::process::Command;
+    let case = cases()
+        .into_iter()
+        .find(|c| c.kind == "nonlinear-damping")
+        .unwrap();
+    let dir = std::env::temp_dir().join(format!("unlag-nonlinear-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = |f: &str| dir.join(f).to_str().unwrap().to_string();
+    let data = case.tests(3);
+    let files: Vec<String> = (0..data.len())
+        .map(|i| p(&format!("test{i}.csv")))
+        .collect();
+    for ((u, y), f) in data.iter().zip(&files) {
+        common::write_csv(std::path::Path::new(f), case.fs, u, y);
+    }
+    // A large step, beyond the tests' amplitudes, with its true reference.
+    let big_u = common::step(case.n, case.n / 8, 0.0, 1.5);
+    let common::hidden::Hidden::NonlinearDamping(k) = case.hidden else {
+        unreachable!()
+    };
+    let mut rng = common::Rng::new(99);
+    let big_y = common::add_noise(
+        &common::hidden::quadratic_line(&big_u, case.fs, case.mode, k, case.delay),
+        0.002,
+        &mut rng,
+    );
+    let big = p("big.csv");
+    common::write_csv(std::path::Path::new(&big), case.fs, &big_u, &big_y);
+
+    let unlag = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_unlag"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let run = |args: &[&str]| -> serde_json::Value {
+        let o = unlag(args);
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(
+            o.status.success(),
+            "{args:?}: {out}{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        serde_json::from_str(out.trim()).expect(&out)
+    };
+    let (model, linear) = (p("probe.toml"), p("linear.toml"));
+    let tests: Vec<&str> = files.iter().map(String::as_str).collect();
+    let with = |head: &[&str], tail: &[&str]| -> Vec<String> {
+        head.iter()
+            .chain(&tests)
+            .chain(tail)
+            .map(|s| s.to_string())
+            .collect()
+    };
+    let args = with(
+        &["fit"],
+        &["--order", "2", "--fresh", "-o", &model, "--json"],
+    );
+    run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    std::fs::copy(&model, &linear).unwrap();
+    let args = with(&["diagnose", &model], &["--json"]);
+    let d = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let first = &d["candidates"][0];
+    assert_eq!(first["kind"], "nonlinear-damping", "{d}");
+    assert!(first["evidence"]["residual_exponent"].as_f64().unwrap() > 1.3);
+    assert!(
+        first["evidence"]["damping_slope_per_unit_step"]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
+    let args = with(&["compare", &model], &["--json"]);
+    let c = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        c["amplitude_signature"]["residual_exponent"]
+            .as_f64()
+            .unwrap()
+            > 1.3,
+        "{c}"
+    );
+
+    let args = with(
+        &["fit"],
+        &[
+            "--order",
+            "2",
+            "--add",
+            "nonlinear-damping",
+            "-o",
+            &model,
+            "--json",
+        ],
+    );
+    run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let file = unlag::model::ModelFile::load(std::path::Path::new(&model)).unwrap();
+    let gain = unlag::effects::nonlinear_gain(&file.effects);
+    let w = 2.0 * std::f64::consts::PI * case.mode.0;
+    assert!((gain * w * w / k - 1.0).abs() < 0.25, "gain {gain}");
+    let args = with(&["compare", &model], &["--json"]);
+    let c = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let history = c["history"].as_array().unwrap();
+    let mean = |row: &serde_json::Value| {
+        let t = row["tests"].as_array().unwrap();
+        t.iter().map(|x| x["nrmse"].as_f64().unwrap()).sum::<f64>() / t.len() as f64
+    };
+    assert_eq!(history.len(), 2, "{c}");
+    assert!(mean(&history[1]) < mean(&history[0]) / 3.0, "{c}");
+    assert_eq!(history[1]["effects"][0], "nonlinear-damping");
+    // Every test is within 1.5x of its noise floor, and the loss is not named again.
+    for t in c["tests"].as_array().unwrap() {
+        let (e, floor) = (
+            t["nrmse"].as_f64().unwrap(),
+            t["noise_floor"].as_f64().unwrap(),
+        );
+        assert!(e < 1.5 * floor, "{e} against {floor}");
+    }
+    let args = with(&["diagnose", &model], &["--json"]);
+    let d = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        d["candidates"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|c| c["kind"] != "nonlinear-damping"),
+        "{d}"
+    );
+    // simulate applies the loss: the large step is followed far better than by the plain
+    // model.
+    let s_nl = run(&["simulate", &model, &big, "-o", &p("sim.csv"), "--json"]);
+    let s_lin = run(&["simulate", &linear, &big, "-o", &p("sim.csv"), "--json"]);
+    let (e_nl, e_lin) = (
+        s_nl["nrmse"].as_f64().unwrap(),
+        s_lin["nrmse"].as_f64().unwrap(),
+    );
+    eprintln!("simulate on the large step: {e_nl:.5} with the loss, {e_lin:.5} without");
+    assert!(e_nl < e_lin / 3.0, "{e_nl} against {e_lin}");
+
+    // Compensation of the large step, the same band limit for both.
+    let mut rebuilt = Vec::new();
+    for m in [&model, &linear] {
+        let v = run(&[
+            "invert",
+            m,
+            &files[0],
+            "--bandwidth",
+            "1000",
+            "-o",
+            m,
+            "--json",
+        ]);
+        rebuilt.push(v["reconstruction"][0]["nrmse_u_hat"].as_f64().unwrap());
+    }
+    // invert's own numbers include the correction.
+    eprintln!("invert's reconstruction of the estimation test: {rebuilt:?}");
+    assert!(rebuilt[0] < rebuilt[1] / 1.3, "{rebuilt:?}");
+    let comp = |m: &str, arith: &str| -> f64 {
+        let tag = if m == model { "nl" } else { "lin" };
+        let v = run(&[
+            "compensate",
+            m,
+            &big,
+            "-o",
+            &p(&format!("comp-{tag}-{arith}.csv")),
+            "--arithmetic",
+            arith,
+            "--json",
+        ]);
+        v["nrmse_u_hat"].as_f64().unwrap()
+    };
+    let (c_nl, c_lin) = (comp(&model, "f32"), comp(&linear, "f32"));
+    let c_nl64 = comp(&model, "f64");
+    eprintln!(
+        "compensation of the large step: {c_nl:.5} with the correction (f64 {c_nl64:.5}), {c_lin:.5} linear"
+    );
+    assert!(c_nl < c_lin / 2.0, "{c_nl} against {c_lin}");
+    assert!((c_nl - c_nl64).abs() < 0.05 * c_nl64);
+
+    // The board's view: the blob carries the correction; parsed and run by the board's
+    // code, it gives what `unlag compensate` gave.
+    run(&[
+        "export",
+        &model,
+        "--format",
+        "bin",
+        "-o",
+        &p("nl.bin"),
+        "--json",
+    ]);
+    let bytes = std::fs::read(p("nl.bin")).unwrap();
+    let set: unlag::blob::CoefficientSet<8> = unlag::blob::parse(&bytes).unwrap();
+    let correction = set.nonlinear.expect("the correction in the blob");
+    let mut st = set.cascade.equilibrium(big_y[0] as f32);
+    let mut sn = correction.equilibrium(big_y[0] as f32);
+    let board: Vec<f64> = big_y
+        .iter()
+        .map(|&y| {
+            let y = y as f32;
+            f64::from(set.cascade.process(&mut st, y) + correction.process(&mut sn, y))
+        })
+        .collect();
+    let text = std::fs::read_to_string(p("comp-nl-f32.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "u_hat").unwrap();
+    let host: Vec<f64> = lines
+        .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
+        .collect();
+    let worst = board
+        .iter()
+        .zip(&host)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-3, "board and host differ by {worst}");
+    for (format, needle) in [("rust", "NONLINEAR_GAIN"), ("c", "unlag_nonlinear_gain")] {
+        let out = p(&format!("nl.{format}"));
+        run(&["export", &model, "--format", format, "-o", &out, "--json"]);
+        assert!(std::fs::read_to_string(&out).unwrap().contains(needle));
+    }
+    // The linear model's blob stays format version 1.
+    run(&[
+        "export",
+        &linear,
+        "--format",
+        "bin",
+        "-o",
+        &p("lin.bin"),
+        "--json",
+    ]);
+    let lin = std::fs::read(p("lin.bin")).unwrap();
+    assert_eq!(
+        u16::from_le_bytes([lin[4], lin[5]]),
+        unlag::blob::FORMAT_VERSION
+    );
+
+    // Fixed point does not run the correction: refused, one line, exit 1, nothing written.
+    let out = p("nl-fixed.bin");
+    let o = unlag(&[
+        "export",
+        &model,
+        "--format",
+        "bin",
+        "--number-format",
+        "fixed",
+        "--full-scale",
+        "4",
+        "-o",
+        &out,
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("nonlinear damping"), "{err}");
+    assert!(!std::path::Path::new(&out).exists());
+    let path = std::path::Path::new(&model);
+    let file = unlag::model::ModelFile::load(path).unwrap();
+    assert!(matches!(
+        unlag::export::FixedBoardCoefficients::from_model_file(&file, path, Some(4.0)),
+        Err(unlag::error::Error::UnsupportedOnBoard { .. })
+    ));
+    let o = unlag(&[
+        "compensate",
+        &model,
+        &big,
+        "-o",
+        &p("fixed.csv"),
+        "--arithmetic",
+        "fixed",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("nonlinear damping"));
+}

@@ -24,6 +24,25 @@
 //! | 28 | 20 `n` | sections, each `[b0, b1, b2, a1, a2]` as five `f32` |
 //! | 28 + 20 `n` | 4 | CRC-32 (ISO-HDLC, the zlib/PNG CRC) of bytes `0 .. 28 + 20 n`, `u32` |
 //!
+//! # Format version 2: the nonlinear-damping correction
+//!
+//! A compensator with the `nonlinear-damping` correction
+//! ([`crate::compensator::NonlinearDampingCoefficients`], `f32` only) is written as format
+//! version 2 ([`FORMAT_VERSION_NONLINEAR`], [`encode_nonlinear`]); a compensator without it is
+//! still written as version 1, so boards that read version 1 only keep working and refuse a
+//! correction they cannot run. Version 2 differs in two places:
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 22 | 2 | the correction's low-pass section count `m`, `u16` (reserved in version 1) |
+//! | 28 + 20 `n` | 4 | the correction's gain (per squared sample difference), `f32` |
+//! | 32 + 20 `n` | 4 | the correction's low-pass input gain, `f32` |
+//! | 36 + 20 `n` | 20 `m` | the low-pass sections, five `f32` each |
+//! | 36 + 20 (`n` + `m`) | 4 | CRC-32 of every byte before it |
+//!
+//! The parser checks the correction like the cascade: finite, every low-pass section stable,
+//! `m` within the capacity `N`. Fixed point has no version 2.
+//!
 //! With number format 1 (fixed point, [`parse_fixed`], [`encode_fixed`]) the fractional-bits
 //! byte is [`crate::fixed::STATE_BITS`] (30), the four bytes at offset 24 hold the output
 //! exponent `e` (`i32`: the output is Q1.31 of `full_scale 2^e`), an `f64` full scale (the
@@ -63,14 +82,22 @@
 
 use core::fmt;
 
-use crate::compensator::{CascadeCoefficients, InverseError};
+use crate::compensator::{CascadeCoefficients, InverseError, NonlinearDampingCoefficients};
 use crate::fixed::{FixedCascade, FixedError, FixedSection, STATE_BITS};
 
 /// The first four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"UNLG";
 
-/// The blob format version this crate writes and reads.
+/// The blob format version this crate writes for a compensator without the nonlinear-damping
+/// correction (and reads).
 pub const FORMAT_VERSION: u16 = 1;
+
+/// The blob format version with the nonlinear-damping correction (`f32` only, see the module
+/// docs); this crate reads both.
+pub const FORMAT_VERSION_NONLINEAR: u16 = 2;
+
+/// Bytes of the version-2 extension before the correction's sections: two `f32` gains.
+pub const NONLINEAR_EXTRA_LEN: usize = 8;
 
 /// Bytes before the sections: magic, version, number format, fractional bits, sample rate,
 /// delay, section count, reserved, gain.
@@ -101,6 +128,15 @@ pub const fn encoded_len(sections: usize) -> usize {
     HEADER_LEN
         .saturating_add(sections.saturating_mul(SECTION_LEN))
         .saturating_add(CRC_LEN)
+}
+
+/// Length in bytes of a version-2 blob with `sections` sections and `lowpass` sections of the
+/// nonlinear-damping correction (saturates).
+#[must_use]
+pub const fn encoded_len_nonlinear(sections: usize, lowpass: usize) -> usize {
+    encoded_len(sections)
+        .saturating_add(NONLINEAR_EXTRA_LEN)
+        .saturating_add(lowpass.saturating_mul(SECTION_LEN))
 }
 
 /// Length in bytes of a fixed-point blob with `sections` sections (saturates).
@@ -227,7 +263,7 @@ impl fmt::Display for BlobError {
             Self::BadMagic => write!(f, "not an unlag coefficient blob (bad magic)"),
             Self::UnsupportedVersion { found } => write!(
                 f,
-                "blob format version {found} is not supported (this firmware reads {FORMAT_VERSION})"
+                "blob format version {found} is not supported (this firmware reads {FORMAT_VERSION} and, for f32, {FORMAT_VERSION_NONLINEAR})"
             ),
             Self::CrcMismatch { stored, computed } => write!(
                 f,
@@ -324,6 +360,9 @@ pub struct CoefficientSet<const N: usize> {
     pub sections: usize,
     /// The compensator, ready for `process(&mut state, x)`.
     pub cascade: CascadeCoefficients<f32, N>,
+    /// The nonlinear-damping correction to add to the cascade's output (format version 2),
+    /// `None` for a linear compensator.
+    pub nonlinear: Option<NonlinearDampingCoefficients<f32, N>>,
 }
 
 impl<const N: usize> CoefficientSet<N> {
@@ -369,6 +408,9 @@ impl<'a> Reader<'a> {
 
 /// The fields every blob starts with, checked for length and integrity.
 struct Header<'a> {
+    version: u16,
+    /// Version 2: the correction's low-pass section count (offset 22).
+    lowpass_sections: usize,
     format_code: u8,
     frac_bits: u8,
     sample_rate_hz: f64,
@@ -391,7 +433,7 @@ fn header(bytes: &[u8]) -> Result<Header<'_>, BlobError> {
         return Err(BlobError::BadMagic);
     }
     let version = r.u16().ok_or(short(min_len))?;
-    if version != FORMAT_VERSION {
+    if version != FORMAT_VERSION && version != FORMAT_VERSION_NONLINEAR {
         return Err(BlobError::UnsupportedVersion { found: version });
     }
     let [format_code, frac_bits] = r.take().ok_or(short(min_len))?;
@@ -404,6 +446,8 @@ fn header(bytes: &[u8]) -> Result<Header<'_>, BlobError> {
     // measured as f32; its CRC then fails or it is refused by the caller.
     let expected = if format_code == (NumberFormat::Fixed { frac_bits }).code() {
         encoded_len_fixed(sections)
+    } else if version == FORMAT_VERSION_NONLINEAR {
+        encoded_len_nonlinear(sections, usize::from(reserved))
     } else {
         encoded_len(sections)
     };
@@ -429,7 +473,10 @@ fn header(bytes: &[u8]) -> Result<Header<'_>, BlobError> {
     if computed != stored {
         return Err(BlobError::CrcMismatch { stored, computed });
     }
-    if reserved != 0 {
+    // Offset 22: reserved in version 1, the correction's section count in version 2.
+    let nonlinear_f32 =
+        version == FORMAT_VERSION_NONLINEAR && format_code == NumberFormat::F32.code();
+    if reserved != 0 && !nonlinear_f32 {
         return Err(BlobError::ReservedNotZero { offset: 22 });
     }
     if !(sample_rate_hz.is_finite() && sample_rate_hz > 0.0) {
@@ -439,6 +486,12 @@ fn header(bytes: &[u8]) -> Result<Header<'_>, BlobError> {
         .get(HEADER_LEN.saturating_sub(4)..)
         .ok_or(short(expected))?;
     Ok(Header {
+        version,
+        lowpass_sections: if nonlinear_f32 {
+            usize::from(reserved)
+        } else {
+            0
+        },
         format_code,
         frac_bits,
         sample_rate_hz,
@@ -487,11 +540,40 @@ pub fn parse<const N: usize>(bytes: &[u8]) -> Result<CoefficientSet<N>, BlobErro
     let used = designed.get(..h.sections).ok_or(short)?;
     // f32 -> f64 -> f32 is exact, so the board runs exactly the exported values.
     let cascade = CascadeCoefficients::new(f64::from(gain), used)?;
+    let nonlinear = if h.version == FORMAT_VERSION_NONLINEAR {
+        let short = BlobError::Truncated {
+            needed: encoded_len_nonlinear(h.sections, h.lowpass_sections),
+            got: bytes.len(),
+        };
+        if h.lowpass_sections > N {
+            return Err(BlobError::TooManySections {
+                sections: h.lowpass_sections,
+                capacity: N,
+            });
+        }
+        let gain = h.rest.f32().ok_or(short)?;
+        let lowpass_gain = h.rest.f32().ok_or(short)?;
+        let mut lowpass = [[0.0f64; 5]; N];
+        for section in lowpass.iter_mut().take(h.lowpass_sections) {
+            for c in section.iter_mut() {
+                *c = f64::from(h.rest.f32().ok_or(short)?);
+            }
+        }
+        let used = lowpass.get(..h.lowpass_sections).ok_or(short)?;
+        Some(NonlinearDampingCoefficients::new(
+            f64::from(gain),
+            f64::from(lowpass_gain),
+            used,
+        )?)
+    } else {
+        None
+    };
     Ok(CoefficientSet {
         sample_rate_hz: h.sample_rate_hz,
         delay_samples: h.delay_samples,
         sections: h.sections,
         cascade,
+        nonlinear,
     })
 }
 
@@ -540,6 +622,9 @@ pub fn parse_fixed<const N: usize>(bytes: &[u8]) -> Result<FixedCoefficientSet<N
         return Err(BlobError::UnsupportedNumberFormat {
             code: h.format_code,
         });
+    }
+    if h.version != FORMAT_VERSION {
+        return Err(BlobError::UnsupportedVersion { found: h.version });
     }
     if u32::from(h.frac_bits) != STATE_BITS {
         return Err(BlobError::UnsupportedFractionalBits { found: h.frac_bits });
@@ -661,11 +746,68 @@ pub fn encode(
     gain: f32,
     sections: &[[f32; 5]],
 ) -> Result<usize, BlobError> {
-    let count = u16::try_from(sections.len()).map_err(|_| BlobError::TooManySections {
-        sections: sections.len(),
-        capacity: MAX_SECTIONS,
-    })?;
-    let needed = encoded_len(sections.len());
+    encode_any(out, sample_rate_hz, delay_samples, gain, sections, None)
+}
+
+/// The nonlinear-damping correction as [`encode_nonlinear`] writes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NonlinearCorrection<'a> {
+    /// Gain per squared sample difference of the probe signal.
+    pub gain: f32,
+    /// Input gain of the low-pass.
+    pub lowpass_gain: f32,
+    /// The low-pass sections `[b0, b1, b2, a1, a2]`.
+    pub lowpass: &'a [[f32; 5]],
+}
+
+/// Writes a version-[`FORMAT_VERSION_NONLINEAR`] `f32` blob (the cascade and the
+/// nonlinear-damping correction) into `out` and returns its length
+/// ([`encoded_len_nonlinear`]). Values are written as given; [`parse`] validates them.
+///
+/// # Errors
+/// As [`encode`]; [`BlobError::TooManySections`] also for more than [`MAX_SECTIONS`] low-pass
+/// sections.
+pub fn encode_nonlinear(
+    out: &mut [u8],
+    sample_rate_hz: f64,
+    delay_samples: u32,
+    gain: f32,
+    sections: &[[f32; 5]],
+    correction: &NonlinearCorrection<'_>,
+) -> Result<usize, BlobError> {
+    encode_any(
+        out,
+        sample_rate_hz,
+        delay_samples,
+        gain,
+        sections,
+        Some(correction),
+    )
+}
+
+fn encode_any(
+    out: &mut [u8],
+    sample_rate_hz: f64,
+    delay_samples: u32,
+    gain: f32,
+    sections: &[[f32; 5]],
+    correction: Option<&NonlinearCorrection<'_>>,
+) -> Result<usize, BlobError> {
+    let count = |n: usize| {
+        u16::try_from(n).map_err(|_| BlobError::TooManySections {
+            sections: n,
+            capacity: MAX_SECTIONS,
+        })
+    };
+    let n = count(sections.len())?;
+    let (version, m, needed) = match correction {
+        Some(c) => (
+            FORMAT_VERSION_NONLINEAR,
+            count(c.lowpass.len())?,
+            encoded_len_nonlinear(sections.len(), c.lowpass.len()),
+        ),
+        None => (FORMAT_VERSION, 0, encoded_len(sections.len())),
+    };
     let available = out.len();
     let too_small = BlobError::BufferTooSmall { needed, available };
     let out = out.get_mut(..needed).ok_or(too_small)?;
@@ -676,15 +818,22 @@ pub fn encode(
         ok: true,
     };
     w.put(&MAGIC);
-    w.put(&FORMAT_VERSION.to_le_bytes());
+    w.put(&version.to_le_bytes());
     w.put(&[NumberFormat::F32.code(), 0]);
     w.put(&sample_rate_hz.to_le_bytes());
     w.put(&delay_samples.to_le_bytes());
-    w.put(&count.to_le_bytes());
-    w.put(&0u16.to_le_bytes());
+    w.put(&n.to_le_bytes());
+    w.put(&m.to_le_bytes());
     w.put(&gain.to_le_bytes());
     for c in sections.iter().flatten() {
         w.put(&c.to_le_bytes());
+    }
+    if let Some(c) = correction {
+        w.put(&c.gain.to_le_bytes());
+        w.put(&c.lowpass_gain.to_le_bytes());
+        for v in c.lowpass.iter().flatten() {
+            w.put(&v.to_le_bytes());
+        }
     }
     if !w.ok {
         return Err(too_small);
@@ -772,10 +921,10 @@ mod tests {
         bad[0] = b'X';
         assert_eq!(parse::<4>(&bad), Err(BlobError::BadMagic));
         let mut bad = buf;
-        bad[4] = 2;
+        bad[4] = 3;
         assert_eq!(
             parse::<4>(&bad),
-            Err(BlobError::UnsupportedVersion { found: 2 })
+            Err(BlobError::UnsupportedVersion { found: 3 })
         );
         let mut bad = buf;
         bad[30] ^= 1;
@@ -944,5 +1093,104 @@ mod tests {
                 available: 10
             })
         );
+    }
+
+    const LOWPASS: [[f32; 5]; 1] = [[0.25, 0.5, 0.25, -0.2, 0.1]];
+
+    fn blob_v2() -> ([u8; encoded_len_nonlinear(2, 1)], usize) {
+        let mut buf = [0u8; encoded_len_nonlinear(2, 1)];
+        let correction = NonlinearCorrection {
+            gain: 37.5,
+            lowpass_gain: 0.9,
+            lowpass: &LOWPASS,
+        };
+        let n = encode_nonlinear(&mut buf, 20_000.0, 30, 0.125, &SECTIONS, &correction).unwrap();
+        (buf, n)
+    }
+
+    #[test]
+    fn version_2_carries_the_nonlinear_correction() {
+        let (buf, n) = blob_v2();
+        assert_eq!(n, 28 + 2 * 20 + 8 + 20 + 4);
+        assert_eq!(
+            u16::from_le_bytes([buf[4], buf[5]]),
+            FORMAT_VERSION_NONLINEAR
+        );
+        let set: CoefficientSet<4> = parse(&buf).unwrap();
+        assert_eq!(set.delay_samples, 30);
+        let direct = NonlinearDampingCoefficients::<f32, 4>::new(
+            37.5,
+            0.9,
+            &LOWPASS.map(|s| s.map(f64::from)),
+        )
+        .unwrap();
+        assert_eq!(set.nonlinear, Some(direct));
+        // A version-1 blob has none.
+        let (v1, _) = blob();
+        assert_eq!(parse::<4>(&v1).unwrap().nonlinear, None);
+
+        // Every field of the extension is checked.
+        let resign = |mut b: [u8; encoded_len_nonlinear(2, 1)]| {
+            let crc = crc32(&b[..n - 4]).to_le_bytes();
+            b[n - 4..].copy_from_slice(&crc);
+            b
+        };
+        assert!(matches!(
+            parse::<4>(&buf[..n - 1]),
+            Err(BlobError::Truncated { .. })
+        ));
+        let mut bad = buf;
+        bad[70] ^= 0x10;
+        assert!(matches!(
+            parse::<4>(&bad),
+            Err(BlobError::CrcMismatch { .. })
+        ));
+        // The correction's gain (offset 68) not finite.
+        let mut bad = buf;
+        bad[68..72].copy_from_slice(&f32::NAN.to_le_bytes());
+        assert_eq!(
+            parse::<4>(&resign(bad)),
+            Err(BlobError::InvalidCoefficients(InverseError::NonFinite))
+        );
+        // An unstable low-pass section (a1 = -2.1 at offset 76 + 12).
+        let mut bad = buf;
+        bad[88..92].copy_from_slice(&(-2.1f32).to_le_bytes());
+        assert!(matches!(
+            parse::<4>(&resign(bad)),
+            Err(BlobError::InvalidCoefficients(
+                InverseError::UnstableSection { .. }
+            ))
+        ));
+        // More low-pass sections than the capacity.
+        let mut wide = [0u8; encoded_len_nonlinear(1, 3)];
+        let lp = [LOWPASS[0]; 3];
+        let c = NonlinearCorrection {
+            gain: 1.0,
+            lowpass_gain: 1.0,
+            lowpass: &lp,
+        };
+        let m = encode_nonlinear(&mut wide, 1000.0, 1, 1.0, &SECTIONS[..1], &c).unwrap();
+        assert_eq!(
+            parse::<2>(&wide[..m]),
+            Err(BlobError::TooManySections {
+                sections: 3,
+                capacity: 2
+            })
+        );
+        // A version-2 header on a version-1 length.
+        let (v1, n1) = blob();
+        let mut bad = v1;
+        bad[4] = 2;
+        assert!(matches!(
+            parse::<4>(&bad[..n1]),
+            Err(BlobError::Truncated { .. })
+        ));
+        // The parser never panics on any single-byte corruption of the extension.
+        for i in 0..n {
+            let mut b = buf;
+            b[i] = b[i].wrapping_add(0x5a);
+            let _ = parse::<4>(&b);
+            let _ = parse::<4>(&resign(b));
+        }
     }
 }

@@ -737,6 +737,66 @@ impl<T: Sample, const N: usize> CascadeCoefficients<T, N> {
     }
 }
 
+/// The board's share of the `nonlinear-damping` effect (see [`crate::effects`]): the
+/// correction `gain * lowpass(|dy| dy)`, `dy = y[k] - y[k-1]`, to add to the linear
+/// compensator's output ([`CascadeCoefficients`]) for the same sample.
+///
+/// A probe with quadratic losses obeys `A y = B (q^-d u - g N)` with
+/// `N = fs^2 |dy| dy`; its inverse is the linear one plus `g N`, both reconstructing `u[k-d]`,
+/// so the correction needs no delay of its own. It passes through the design's own low-pass,
+/// so that it is band-limited like the linear part. `gain` here is `g fs^2` (the correction
+/// per squared sample difference); the low-pass is `N` sections, like the cascade. Per sample:
+/// one subtraction, two multiplies and the low-pass (5 multiplies per section, the gain folded
+/// into the first).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NonlinearDampingCoefficients<T, const N: usize> {
+    lowpass: CascadeCoefficients<T, N>,
+}
+
+/// The state of one channel's nonlinear correction: the previous probe sample and the
+/// low-pass.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NonlinearDampingState<T, const N: usize> {
+    previous: T,
+    lowpass: CascadeState<T, N>,
+}
+
+impl<T: Sample, const N: usize> NonlinearDampingCoefficients<T, N> {
+    /// Builds the correction from `gain` (per squared sample difference of the probe signal)
+    /// and the low-pass `lowpass_gain`, `lowpass` sections `[b0, b1, b2, a1, a2]`, designed in
+    /// `f64`.
+    ///
+    /// # Errors
+    /// As [`CascadeCoefficients::new`] ([`InverseError::NonFinite`] for a gain that is not
+    /// finite).
+    pub fn new(gain: f64, lowpass_gain: f64, lowpass: &[[f64; 5]]) -> Result<Self, InverseError> {
+        if !gain.is_finite() {
+            return Err(InverseError::NonFinite);
+        }
+        Ok(Self {
+            lowpass: CascadeCoefficients::new(gain * lowpass_gain, lowpass)?,
+        })
+    }
+
+    /// The correction for the probe sample `y`. Panic-free and allocation-free.
+    #[inline]
+    pub fn process(&self, state: &mut NonlinearDampingState<T, N>, y: T) -> T {
+        let d = y - state.previous;
+        state.previous = y;
+        let magnitude = if d < T::ZERO { T::ZERO - d } else { d };
+        self.lowpass.process(&mut state.lowpass, magnitude * d)
+    }
+
+    /// The state after the constant probe signal `y0` forever (no correction, no transient).
+    #[must_use]
+    pub fn equilibrium(&self, y0: T) -> NonlinearDampingState<T, N> {
+        NonlinearDampingState {
+            previous: y0,
+            lowpass: self.lowpass.equilibrium(T::ZERO),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -859,5 +919,42 @@ mod tests {
         for _ in 0..5 {
             assert!((c.push(0.9) - 1.0).abs() < 1e-6);
         }
+    }
+
+    #[test]
+    fn nonlinear_correction_is_the_filtered_quadratic_rate() {
+        // A pass-through low-pass: the correction is exactly gain * |dy| dy.
+        let c = NonlinearDampingCoefficients::<f32, 2>::new(4.0, 1.0, &[]).unwrap();
+        let mut st = c.equilibrium(1.0);
+        assert_eq!(c.process(&mut st, 1.0), 0.0);
+        assert_eq!(c.process(&mut st, 1.5), 4.0 * 0.25);
+        assert_eq!(c.process(&mut st, 1.0), -4.0 * 0.25);
+        assert_eq!(c.process(&mut st, 1.0), 0.0);
+        // Odd in the rate, zero on a steady signal whatever its level, and low-passed.
+        let lp = [[0.1, 0.0, 0.0, -0.9, 0.0]];
+        let c = NonlinearDampingCoefficients::<f64, 2>::new(2.0, 1.0, &lp).unwrap();
+        let ramp = |slope: f64| {
+            let mut st = c.equilibrium(3.0);
+            let mut out = 0.0;
+            for k in 0..200 {
+                out = c.process(&mut st, 3.0 + slope * f64::from(k));
+            }
+            out
+        };
+        // A ramp of 0.1 per sample: N = 0.01, the low-pass's DC gain 1.
+        assert!((ramp(0.1) - 2.0 * 0.01).abs() < 1e-9, "{}", ramp(0.1));
+        assert!((ramp(-0.1) + 2.0 * 0.01).abs() < 1e-9);
+        assert!(ramp(0.0).abs() < 1e-15);
+        // A low-pass that is not stable, or a gain that is not finite, is refused.
+        assert!(NonlinearDampingCoefficients::<f32, 2>::new(
+            1.0,
+            1.0,
+            &[[1.0, 0.0, 0.0, -1.0, 0.0]]
+        )
+        .is_err());
+        assert_eq!(
+            NonlinearDampingCoefficients::<f32, 2>::new(f64::NAN, 1.0, &[]),
+            Err(InverseError::NonFinite)
+        );
     }
 }

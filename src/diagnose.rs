@@ -7,7 +7,8 @@
 //! 1. the residual's signature on each test ([`crate::evidence`]): a narrow spectral peak for
 //!    a mode, a level before the step for an offset, a ramp for a drift, a slow creep after
 //!    the step for a leak, correlation in time without a cause in the input for coloured
-//!    noise;
+//!    noise; and across tests ([`amplitude_signature`]), a damping that rises with the step's
+//!    amplitude and a residual that grows faster than the step, for nonlinear damping;
 //! 2. a trial: the model is refitted on the estimation test with the effect added
 //!    ([`crate::effects::fit_with`]) and judged on the held-out tests. A candidate whose
 //!    signature is present but whose trial does not lower the held-out error is not offered.
@@ -38,7 +39,7 @@ pub fn parameters(kind: &str) -> usize {
     match kind {
         "mode" => 4,
         "leak" | "drift" => 2,
-        "offset" => 1,
+        "offset" | "nonlinear-damping" => 1,
         _ => 0,
     }
 }
@@ -47,6 +48,7 @@ pub fn parameters(kind: &str) -> usize {
 #[derive(Debug, Clone, Serialize)]
 pub struct Candidate {
     /// Machine-readable kind (`mode`, `leak`, `offset`, `drift`, `delay`, `coloured-noise`,
+    /// `nonlinear-damping`,
     /// or `none`).
     pub kind: String,
     /// `ln(error before / error after)` of the trial, less [`PARAMETER_PENALTY`] per parameter
@@ -110,6 +112,101 @@ pub struct PerTest {
     /// Each resonance of the test's own fit: `(natural frequency in Hz, damping)`, lowest
     /// first.
     pub resonances: Vec<(f64, f64)>,
+    /// What the test's own (linear) fit leaves above the noise, RMS over `|step|`:
+    /// `sqrt(max(rms^2 - noise^2, (noise / 10)^2)) / |step|`. A linear probe leaves the same
+    /// share of every step; amplitude-dependent losses leave more of a larger one.
+    pub own_residual_per_step: f64,
+}
+
+/// Lowest relative rise of the damping over the tests' amplitudes for the nonlinear-damping
+/// signature.
+pub const MIN_DAMPING_RISE: f64 = 0.1;
+
+/// Lowest exponent of the own-fit residual against the step's amplitude for the
+/// nonlinear-damping signature (1 for a linear probe).
+pub const MIN_RESIDUAL_EXPONENT: f64 = 1.3;
+
+/// Smallest ratio of the largest to the smallest step for an amplitude signature.
+pub const MIN_AMPLITUDE_RATIO: f64 = 1.3;
+
+/// Residual against amplitude across tests: how the fitted damping and what a linear fit
+/// cannot explain change with the step's size.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AmplitudeSignature {
+    /// `|step|` of each test, smallest first.
+    pub amplitudes: Vec<f64>,
+    /// Damping of the lowest resonance of each test's own fit, in the same order.
+    pub damping: Vec<f64>,
+    /// Own-fit residual per unit step ([`PerTest::own_residual_per_step`]), same order.
+    pub residual_per_step: Vec<f64>,
+    /// Least-squares slope of the damping against `|step|` (per probe unit).
+    pub damping_slope: f64,
+    /// Damping at the largest step over the damping at the smallest, less one.
+    pub damping_rise: f64,
+    /// Exponent `p` of the own-fit residual against amplitude, `residual ~ |step|^p` (least
+    /// squares on the logarithms): 1 for a linear probe, 2 for quadratic losses.
+    pub residual_exponent: f64,
+}
+
+impl AmplitudeSignature {
+    /// Whether it is the signature of amplitude-dependent losses: the damping rises by
+    /// [`MIN_DAMPING_RISE`] and the residual grows as `|step|^p`, `p >=`
+    /// [`MIN_RESIDUAL_EXPONENT`].
+    #[must_use]
+    pub fn nonlinear_damping(&self) -> bool {
+        self.damping_rise >= MIN_DAMPING_RISE && self.residual_exponent >= MIN_RESIDUAL_EXPONENT
+    }
+}
+
+fn slope(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len()) as f64;
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let (mut num, mut den) = (0.0, 0.0);
+    for (a, b) in x.iter().zip(y) {
+        num += (a - mx) * (b - my);
+        den += (a - mx) * (a - mx);
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        0.0
+    }
+}
+
+/// The residual-against-amplitude signature across tests, or `None` with fewer than two
+/// tests with a resonance, or steps too alike in size (ratio under [`MIN_AMPLITUDE_RATIO`]).
+#[must_use]
+pub fn amplitude_signature(per_test: &[PerTest]) -> Option<AmplitudeSignature> {
+    let mut points: Vec<(f64, f64, f64)> = per_test
+        .iter()
+        .filter_map(|p| {
+            let a = p.step_size.abs();
+            let z = p.resonances.first()?.1;
+            (a > 0.0 && a.is_finite() && p.own_residual_per_step > 0.0).then_some((
+                a,
+                z,
+                p.own_residual_per_step,
+            ))
+        })
+        .collect();
+    points.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (first, last) = (points.first()?, points.last()?);
+    if points.len() < 2 || last.0 < MIN_AMPLITUDE_RATIO * first.0 {
+        return None;
+    }
+    let amplitudes: Vec<f64> = points.iter().map(|p| p.0).collect();
+    let damping: Vec<f64> = points.iter().map(|p| p.1).collect();
+    let residual_per_step: Vec<f64> = points.iter().map(|p| p.2).collect();
+    let ln_a: Vec<f64> = amplitudes.iter().map(|a| a.ln()).collect();
+    let ln_r: Vec<f64> = points.iter().map(|p| (p.2 * p.0).ln()).collect();
+    Some(AmplitudeSignature {
+        damping_slope: slope(&amplitudes, &damping),
+        damping_rise: last.1 / first.1 - 1.0,
+        residual_exponent: slope(&ln_a, &ln_r),
+        amplitudes,
+        damping,
+        residual_per_step,
+    })
 }
 
 /// Fits the current model's structure (order without effects, delay, method) to each test
@@ -135,30 +232,43 @@ pub fn per_test(
         .iter()
         .zip(evidence)
         .map(|(t, e)| {
-            let mut resonances: Vec<(f64, f64)> =
-                crate::fit::fit(t, &[], current.model.fs, &options)
-                    .ok()
-                    .and_then(|f| crate::analysis::Analysis::new(&f.model).ok())
-                    .map(|a| {
-                        a.modes
-                            .iter()
-                            .filter_map(|m| match m.kind {
-                                crate::analysis::ModeKind::Resonance {
-                                    natural_frequency_hz,
-                                    damping,
-                                    ..
-                                } => Some((natural_frequency_hz, damping)),
-                                _ => None,
-                            })
-                            .collect()
-                    })
-                    .unwrap_or_default();
+            let own = crate::fit::fit(t, &[], current.model.fs, &options).ok();
+            let own_rms = own.as_ref().map_or(f64::NAN, |f| {
+                let ym = f.model.simulate(t.u);
+                let n = t.y.len().min(ym.len()).max(1) as f64;
+                (t.y.iter()
+                    .zip(&ym)
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>()
+                    / n)
+                    .sqrt()
+            });
+            let noise2 = e.noise_std * e.noise_std;
+            let excess = (own_rms * own_rms - noise2).max(0.01 * noise2).sqrt();
+            let mut resonances: Vec<(f64, f64)> = own
+                .as_ref()
+                .and_then(|f| crate::analysis::Analysis::new(&f.model).ok())
+                .map(|a| {
+                    a.modes
+                        .iter()
+                        .filter_map(|m| match m.kind {
+                            crate::analysis::ModeKind::Resonance {
+                                natural_frequency_hz,
+                                damping,
+                                ..
+                            } => Some((natural_frequency_hz, damping)),
+                            _ => None,
+                        })
+                        .collect()
+                })
+                .unwrap_or_default();
             resonances.sort_by(|a, b| a.0.total_cmp(&b.0));
             PerTest {
                 file: e.file.clone(),
                 step_size: e.step_size,
                 residual_per_step: e.residual_rms / e.step_size.abs().max(1e-300),
                 resonances,
+                own_residual_per_step: excess / e.step_size.abs().max(1e-300),
             }
         })
         .collect()
@@ -416,6 +526,43 @@ pub fn diagnose(
                         format!("unlag fit ... --delay {d}   (model file: effects = [{{ kind = \"delay\", samples = {d} }}])"),
                     );
                 }
+            }
+        }
+    }
+
+    // nonlinear damping: across tests, the damping rises with the step and the residual of
+    // each test's own linear fit grows faster than the step.
+    if !have.nonlinear && tests.len() > 1 {
+        let across = per_test(current, tests, evidence);
+        if let Some(sig) =
+            amplitude_signature(&across).filter(AmplitudeSignature::nonlinear_damping)
+        {
+            if let Some((after, fx)) = trial(Effect::NonlinearDamping { gain: 0.0 }, &base) {
+                let gain = effects::nonlinear_gain(&fx);
+                let (a0, a1) = (
+                    sig.amplitudes.first().copied().unwrap_or(0.0),
+                    sig.amplitudes.last().copied().unwrap_or(0.0),
+                );
+                let (z0, z1) = (
+                    sig.damping.first().copied().unwrap_or(0.0),
+                    sig.damping.last().copied().unwrap_or(0.0),
+                );
+                offer(
+                    "nonlinear-damping",
+                    after,
+                    json!({"amplitudes": sig.amplitudes, "damping": sig.damping,
+                           "residual_per_step": sig.residual_per_step,
+                           "damping_slope_per_unit_step": sig.damping_slope,
+                           "damping_rise": sig.damping_rise,
+                           "residual_exponent": sig.residual_exponent,
+                           "gain_s2_per_unit": gain}),
+                    format!(
+                        "the damping fitted to each test alone rises from {z0:.3} at a step of                          {a0:.3} to {z1:.3} at {a1:.3} ({:+.3} per unit step), and what a linear                          fit leaves grows as |step|^{:.2} (a linear probe: 1): amplitude-dependent                          losses, orifice or turbulent flow at large steps (quadratic loss                          {gain:.3e} s^2 per unit)",
+                        sig.damping_slope, sig.residual_exponent
+                    ),
+                    "unlag fit ... --add nonlinear-damping   (model file: effects = [{ kind = \"nonlinear-damping\" }])"
+                        .into(),
+                );
             }
         }
     }

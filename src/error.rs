@@ -210,6 +210,21 @@ pub enum Error {
         /// What happened.
         message: String,
     },
+    /// The model has an effect the chosen board arithmetic does not run (the nonlinear-damping
+    /// correction is `f32` only).
+    #[error(
+        "{path}: the model has {effect}, which the {arithmetic} compensator does not run: {hint}"
+    )]
+    UnsupportedOnBoard {
+        /// The model file.
+        path: PathBuf,
+        /// The effect's kind.
+        effect: &'static str,
+        /// The arithmetic asked for.
+        arithmetic: &'static str,
+        /// What to do instead.
+        hint: &'static str,
+    },
 }
 
 /// Host-side result.

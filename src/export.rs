@@ -20,7 +20,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::blob;
-use crate::compensator::CascadeCoefficients;
+use crate::compensator::{CascadeCoefficients, NonlinearDampingCoefficients};
 use crate::error::{Error, Result};
 use crate::fixed::{FixedCascade, FixedSection};
 use crate::model::ModelFile;
@@ -54,6 +54,35 @@ pub struct BoardCoefficients {
     pub gain: f32,
     /// Sections `[b0, b1, b2, a1, a2]`, rounded to `f32`.
     pub sections: Vec<[f32; 5]>,
+    /// The nonlinear-damping correction, when the model has that effect.
+    pub nonlinear: Option<BoardNonlinear>,
+}
+
+/// The board's nonlinear-damping correction as exported
+/// ([`crate::compensator::NonlinearDampingCoefficients`]), rounded to `f32`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoardNonlinear {
+    /// Gain per squared sample difference of the probe signal: the quadratic loss (s^2 per
+    /// probe unit) times the sample rate squared.
+    pub gain: f32,
+    /// Input gain of the low-pass (the design's own).
+    pub lowpass_gain: f32,
+    /// The low-pass sections `[b0, b1, b2, a1, a2]`.
+    pub lowpass: Vec<[f32; 5]>,
+}
+
+/// Refuses a model the fixed-point compensator cannot run (the nonlinear-damping correction
+/// is `f32` only).
+fn check_fixed_point(file: &ModelFile, path: &Path) -> Result<()> {
+    if crate::effects::nonlinear_gain(&file.effects) != 0.0 {
+        return Err(Error::UnsupportedOnBoard {
+            path: path.to_path_buf(),
+            effect: "nonlinear damping",
+            arithmetic: "fixed-point",
+            hint: "export it as f32",
+        });
+    }
+    Ok(())
 }
 
 #[allow(clippy::cast_possible_truncation)]
@@ -104,12 +133,36 @@ impl BoardCoefficients {
         let widened: Vec<[f64; 5]> = sections.iter().map(|s| s.map(f64::from)).collect();
         CascadeCoefficients::<f32, MAX_EXPORT_SECTIONS>::new(f64::from(gain), &widened)
             .map_err(|e| bad(format!("the compensator rounded to f32 is not valid: {e}")))?;
+        let loss = crate::effects::nonlinear_gain(&file.effects);
+        let nonlinear = if loss == 0.0 {
+            None
+        } else {
+            let (lp_gain, lp) = design.lowpass_sections(fs)?;
+            let n = BoardNonlinear {
+                gain: to_f32(loss * fs * fs),
+                lowpass_gain: to_f32(lp_gain),
+                lowpass: lp.iter().map(|s| s.map(to_f32)).collect(),
+            };
+            let widened: Vec<[f64; 5]> = n.lowpass.iter().map(|s| s.map(f64::from)).collect();
+            NonlinearDampingCoefficients::<f32, MAX_EXPORT_SECTIONS>::new(
+                f64::from(n.gain),
+                f64::from(n.lowpass_gain),
+                &widened,
+            )
+            .map_err(|e| {
+                bad(format!(
+                    "the nonlinear-damping correction rounded to f32 is not valid: {e}"
+                ))
+            })?;
+            Some(n)
+        };
         Ok(Self {
             sample_rate_hz: fs,
             delay_samples,
             latency_samples: design.latency_samples,
             gain,
             sections,
+            nonlinear,
         })
     }
 
@@ -159,6 +212,34 @@ impl BoardCoefficients {
             let _ = writeln!(s, "    [{}],", v.join(", "));
         }
         s.push_str("];\n");
+        if let Some(n) = &self.nonlinear {
+            s.push_str(
+                "// Nonlinear damping: add `NonlinearDampingCoefficients::<f32, NONLINEAR_SECTION_COUNT>::new(\n\
+                 // NONLINEAR_GAIN, NONLINEAR_LOWPASS_GAIN, &NONLINEAR_SECTIONS)`'s output, fed the same\n\
+                 // probe sample, to the cascade's output.\n",
+            );
+            let _ = writeln!(
+                s,
+                "/// Nonlinear-damping correction: gain per squared sample difference.\npub const NONLINEAR_GAIN: f64 = {:?};",
+                f64::from(n.gain)
+            );
+            let _ = writeln!(
+                s,
+                "/// Input gain of the correction's low-pass.\npub const NONLINEAR_LOWPASS_GAIN: f64 = {:?};",
+                f64::from(n.lowpass_gain)
+            );
+            let _ = writeln!(
+                s,
+                "/// Sections of the correction's low-pass.\npub const NONLINEAR_SECTION_COUNT: usize = {};",
+                n.lowpass.len()
+            );
+            s.push_str("/// The correction's low-pass sections `[b0, b1, b2, a1, a2]`.\npub const NONLINEAR_SECTIONS: [[f64; 5]; NONLINEAR_SECTION_COUNT] = [\n");
+            for sec in &n.lowpass {
+                let v: Vec<String> = sec.iter().map(|c| format!("{:?}", f64::from(*c))).collect();
+                let _ = writeln!(s, "    [{}],", v.join(", "));
+            }
+            s.push_str("];\n");
+        }
         s
     }
 
@@ -205,7 +286,36 @@ impl BoardCoefficients {
             let v: Vec<String> = sec.iter().map(|c| format!("{c:?}f")).collect();
             let _ = writeln!(s, "    {{{}}},", v.join(", "));
         }
-        s.push_str("};\n\n#endif /* UNLAG_COEFFICIENTS_H */\n");
+        s.push_str("};\n");
+        if let Some(n) = &self.nonlinear {
+            s.push_str(
+                "\n/* Nonlinear damping: with d = y[k] - y[k-1], add\n\
+                 * cascade(unlag_nonlinear_gain * unlag_nonlinear_lowpass_gain * |d| d) through the\n\
+                 * sections below to the compensator's output for the same sample. */\n",
+            );
+            let _ = writeln!(
+                s,
+                "#define UNLAG_NONLINEAR_SECTION_COUNT {}u",
+                n.lowpass.len()
+            );
+            let _ = writeln!(
+                s,
+                "static const float unlag_nonlinear_gain = {:?}f;",
+                n.gain
+            );
+            let _ = writeln!(
+                s,
+                "static const float unlag_nonlinear_lowpass_gain = {:?}f;",
+                n.lowpass_gain
+            );
+            s.push_str("static const float unlag_nonlinear_sections[UNLAG_NONLINEAR_SECTION_COUNT][5] = {\n");
+            for sec in &n.lowpass {
+                let v: Vec<String> = sec.iter().map(|c| format!("{c:?}f")).collect();
+                let _ = writeln!(s, "    {{{}}},", v.join(", "));
+            }
+            s.push_str("};\n");
+        }
+        s.push_str("\n#endif /* UNLAG_COEFFICIENTS_H */\n");
         s
     }
 
@@ -219,14 +329,34 @@ impl BoardCoefficients {
             context: "export".into(),
             message,
         };
-        let mut out = vec![0u8; blob::encoded_len(self.sections.len())];
-        let n = blob::encode(
-            &mut out,
-            self.sample_rate_hz,
-            self.delay_samples,
-            self.gain,
-            &self.sections,
-        )
+        let mut out = vec![
+            0u8;
+            blob::encoded_len_nonlinear(
+                self.sections.len(),
+                self.nonlinear.as_ref().map_or(0, |n| n.lowpass.len())
+            )
+        ];
+        let n = match &self.nonlinear {
+            None => blob::encode(
+                &mut out,
+                self.sample_rate_hz,
+                self.delay_samples,
+                self.gain,
+                &self.sections,
+            ),
+            Some(n) => blob::encode_nonlinear(
+                &mut out,
+                self.sample_rate_hz,
+                self.delay_samples,
+                self.gain,
+                &self.sections,
+                &blob::NonlinearCorrection {
+                    gain: n.gain,
+                    lowpass_gain: n.lowpass_gain,
+                    lowpass: &n.lowpass,
+                },
+            ),
+        }
         .map_err(|e| fail(e.to_string()))?;
         out.truncate(n);
         let back = blob::parse::<MAX_EXPORT_SECTIONS>(&out)
@@ -235,7 +365,24 @@ impl BoardCoefficients {
         let direct =
             CascadeCoefficients::<f32, MAX_EXPORT_SECTIONS>::new(f64::from(self.gain), &widened)
                 .map_err(|e| fail(e.to_string()))?;
-        if back.cascade != direct || back.sections != self.sections.len() {
+        let direct_nonlinear = match &self.nonlinear {
+            None => None,
+            Some(n) => {
+                let widened: Vec<[f64; 5]> = n.lowpass.iter().map(|s| s.map(f64::from)).collect();
+                Some(
+                    NonlinearDampingCoefficients::<f32, MAX_EXPORT_SECTIONS>::new(
+                        f64::from(n.gain),
+                        f64::from(n.lowpass_gain),
+                        &widened,
+                    )
+                    .map_err(|e| fail(e.to_string()))?,
+                )
+            }
+        };
+        if back.cascade != direct
+            || back.sections != self.sections.len()
+            || back.nonlinear != direct_nonlinear
+        {
             return Err(fail("the blob parses back to other coefficients".into()));
         }
         Ok(out)
@@ -277,9 +424,13 @@ impl FixedBoardCoefficients {
     /// `full_scale` when it is given (it replaces a stored plan).
     ///
     /// # Errors
-    /// [`Error::Model`] naming `path` when there is no design, no plan and no full scale, or
-    /// the plan's sections are refused by the board's validation; the planner's errors.
+    /// [`Error::UnsupportedOnBoard`] when the model has nonlinear damping (the fixed-point
+    /// compensator does not run its correction); [`Error::Model`] naming `path` when there is
+    /// no design, no plan and no full
+    /// scale, or the plan's sections are refused by the board's validation; the planner's
+    /// errors.
     pub fn from_model_file(file: &ModelFile, path: &Path, full_scale: Option<f64>) -> Result<Self> {
+        check_fixed_point(file, path)?;
         let bad = |message: String| Error::Model {
             path: path.to_path_buf(),
             message,

@@ -568,6 +568,47 @@ impl Design {
             .collect())
     }
 
+    /// The design's own low-pass as `(gain, sections)`, which the board's
+    /// nonlinear-damping correction runs too
+    /// ([`NonlinearDampingCoefficients`](crate::compensator::NonlinearDampingCoefficients)).
+    ///
+    /// # Errors
+    /// As [`lowpass`].
+    pub fn lowpass_sections(&self, fs: f64) -> Result<(f64, Vec<[f64; 5]>)> {
+        let lp = lowpass(self.lowpass, self.lowpass_order, self.lowpass_hz, fs)?;
+        Ok(to_sections(&lp))
+    }
+
+    /// The nonlinear-damping correction `gain fs^2 lowpass(|dy| dy)` for the probe signal `y`
+    /// (quadratic loss `gain` in s^2 per probe unit, see [`crate::effects`]), in arithmetic
+    /// `T` with the board's code, starting in equilibrium with `y[0]`: what the board adds to
+    /// [`Design::run`]'s output.
+    ///
+    /// # Errors
+    /// As [`Design::lowpass_sections`]; [`Error::Numerical`] when the correction's
+    /// coefficients do not validate.
+    pub fn run_nonlinear_correction<T: Sample>(
+        &self,
+        fs: f64,
+        gain: f64,
+        y: &[f64],
+    ) -> Result<Vec<f64>> {
+        let (lp_gain, lp) = self.lowpass_sections(fs)?;
+        let c = crate::compensator::NonlinearDampingCoefficients::<T, 4>::new(
+            gain * fs * fs,
+            lp_gain,
+            &lp,
+        )
+        .map_err(|e| Error::Numerical {
+            context: "nonlinear-damping correction".into(),
+            message: e.to_string(),
+        })?;
+        let mut st = c.equilibrium(T::from_f64(y.first().copied().unwrap_or(0.0)));
+        Ok(y.iter()
+            .map(|&v| c.process(&mut st, T::from_f64(v)).to_f64())
+            .collect())
+    }
+
     /// Checks that the board may run it: every pole inside the unit circle by
     /// [`MIN_POLE_MARGIN`].
     ///
@@ -626,7 +667,28 @@ pub fn aligned_error(
 /// # Errors
 /// As [`Design::run`].
 pub fn reconstruct(design: &Design, model: &Model, test: &Test<'_>) -> Result<Reconstruction> {
-    let u_hat = design.run::<f64>(test.y)?;
+    reconstruct_with(design, model, test, 0.0)
+}
+
+/// [`reconstruct`] for a model with the `nonlinear-damping` effect: the compensator's output
+/// plus the board's correction for the quadratic loss `nonlinear_gain` (s^2 per probe unit,
+/// see [`crate::effects`]); with `nonlinear_gain = 0` exactly [`reconstruct`].
+///
+/// # Errors
+/// As [`Design::run`] and [`Design::run_nonlinear_correction`].
+pub fn reconstruct_with(
+    design: &Design,
+    model: &Model,
+    test: &Test<'_>,
+    nonlinear_gain: f64,
+) -> Result<Reconstruction> {
+    let mut u_hat = design.run::<f64>(test.y)?;
+    if nonlinear_gain != 0.0 {
+        let c = design.run_nonlinear_correction::<f64>(model.fs, nonlinear_gain, test.y)?;
+        for (u, c) in u_hat.iter_mut().zip(c) {
+            *u += c;
+        }
+    }
     let nominal = design.latency_samples.round().max(0.0) as usize;
     let lo = nominal.saturating_sub(4);
     let (e, lag) = aligned_error(test.u, &u_hat, lo..=nominal + 4);
@@ -647,6 +709,24 @@ pub fn reconstruct(design: &Design, model: &Model, test: &Test<'_>) -> Result<Re
 /// # Errors
 /// As [`design`].
 pub fn design_auto(model: &Model, tests: &[Test<'_>], options: &Options) -> Result<Design> {
+    design_auto_with(model, tests, options, 0.0)
+}
+
+/// [`design_auto`] for a model with the `nonlinear-damping` effect: the corner is chosen, and
+/// the reconstructions are measured, with the board's correction for the quadratic loss
+/// `nonlinear_gain` added ([`reconstruct_with`]); with `nonlinear_gain = 0` exactly
+/// [`design_auto`].
+///
+/// # Errors
+/// As [`design_auto`].
+pub fn design_auto_with(
+    model: &Model,
+    tests: &[Test<'_>],
+    options: &Options,
+    nonlinear_gain: f64,
+) -> Result<Design> {
+    let reconstruct =
+        |d: &Design, model: &Model, t: &Test<'_>| reconstruct_with(d, model, t, nonlinear_gain);
     let fs = model.fs;
     if let Some(fc) = options.bandwidth_hz {
         let mut d = design(model, fc, options)?;

@@ -1,10 +1,10 @@
 //! Step tests with a hidden physical effect, for the modelling loop's tests and its score table
 //! (`host-tests/modelling.rs`, `examples/bench_diagnose.rs`).
 //!
-//! Each case simulates an estimation test (a rising step) and a validation test (a falling step
-//! of another amplitude) of a lumped line, with one effect the user's plain model does not
-//! have; the user fits the plain model with the case's options, runs the diagnosis, adds what
-//! it names and refits.
+//! Each case simulates an estimation test (a rising step) and validation tests (steps of other
+//! amplitudes, falling by default) of a lumped line, with one effect the user's plain model
+//! does not have; the user fits the plain model with the case's options, runs the diagnosis,
+//! adds what it names and refits.
 
 use super::{continuous_line, step, Rng};
 use unlag::fit::{Method, Options, Order};
@@ -26,9 +26,16 @@ pub enum Hidden {
     /// AR(1) measurement noise with this lag-1 correlation; the user fits by direct least
     /// squares.
     ColouredNoise(f64),
+    /// Orifice (quadratic) losses on the line's mode:
+    /// `y'' + (2 zeta w + k |y'|) y' + w^2 y = w^2 u(t - delay)`, with this `k` (per probe
+    /// unit), simulated by fine-step RK4.
+    NonlinearDamping(f64),
     /// Nothing hidden.
     None,
 }
+
+/// The default excitation: a rising unit step (estimation), a falling step of 0.65.
+pub const TWO_STEPS: &[(f64, f64)] = &[(0.0, 1.0), (1.0, 0.35)];
 
 /// One case.
 #[derive(Debug, Clone, Copy)]
@@ -51,6 +58,8 @@ pub struct Case {
     pub hidden: Hidden,
     /// The order of the user's plain model.
     pub order: usize,
+    /// The tests' steps `(from, to)`; the first is the estimation test.
+    pub steps: &'static [(f64, f64)],
 }
 
 impl Case {
@@ -70,56 +79,93 @@ impl Case {
         }
     }
 
-    /// `(u, y)` of the estimation and the validation test.
+    /// `(u, y)` of the estimation test and the validation tests.
     #[must_use]
-    pub fn tests(&self, seed: u64) -> [(Vec<f64>, Vec<f64>); 2] {
+    pub fn tests(&self, seed: u64) -> Vec<(Vec<f64>, Vec<f64>)> {
         let mut rng = Rng::new(seed);
-        [(0.0, 1.0, self.n / 8), (1.0, 0.35, self.n / 5)].map(|(lo, hi, at)| {
-            let u_true = step(self.n, at, lo, hi);
-            let size = hi - lo;
-            let modes: Vec<(f64, f64)> = match self.hidden {
-                Hidden::Mode(f, z) => vec![self.mode, (f, z)],
-                _ => vec![self.mode],
-            };
-            let mut y = continuous_line(&u_true, self.fs, &modes, self.delay);
-            match self.hidden {
-                Hidden::Leak { fraction, tau_s } => {
-                    // y = fraction * line + (1 - fraction) * slow(line), slow a first-order lag
-                    // in equilibrium at the start.
-                    let p = (-1.0 / (tau_s * self.fs)).exp();
-                    let mut s = y[0];
-                    for v in &mut y {
-                        let line = *v;
-                        s = p * s + (1.0 - p) * line;
-                        *v = fraction * line + (1.0 - fraction) * s;
+        let onsets = [self.n / 8, self.n / 5, self.n / 6, self.n / 7];
+        self.steps
+            .iter()
+            .zip(onsets.iter().cycle())
+            .map(|(&(lo, hi), &at)| {
+                let u_true = step(self.n, at, lo, hi);
+                let size = hi - lo;
+                let modes: Vec<(f64, f64)> = match self.hidden {
+                    Hidden::Mode(f, z) => vec![self.mode, (f, z)],
+                    _ => vec![self.mode],
+                };
+                let mut y = match self.hidden {
+                    Hidden::NonlinearDamping(k) => {
+                        quadratic_line(&u_true, self.fs, self.mode, k, self.delay)
                     }
-                }
-                Hidden::Offset(c) => y.iter_mut().for_each(|v| *v += c),
-                Hidden::Drift(rate) => y
-                    .iter_mut()
-                    .enumerate()
-                    .for_each(|(k, v)| *v += rate * k as f64 / self.fs),
-                _ => {}
-            }
-            let sigma = self.noise * size.abs();
-            match self.hidden {
-                Hidden::ColouredNoise(rho) => {
-                    let mut e = 0.0;
-                    let scale = (1.0 - rho * rho).sqrt();
-                    for v in &mut y {
-                        e = rho * e + scale * sigma * rng.gauss();
-                        *v += e;
+                    _ => continuous_line(&u_true, self.fs, &modes, self.delay),
+                };
+                match self.hidden {
+                    Hidden::Leak { fraction, tau_s } => {
+                        // y = fraction * line + (1 - fraction) * slow(line), slow a first-order lag
+                        // in equilibrium at the start.
+                        let p = (-1.0 / (tau_s * self.fs)).exp();
+                        let mut s = y[0];
+                        for v in &mut y {
+                            let line = *v;
+                            s = p * s + (1.0 - p) * line;
+                            *v = fraction * line + (1.0 - fraction) * s;
+                        }
                     }
+                    Hidden::Offset(c) => y.iter_mut().for_each(|v| *v += c),
+                    Hidden::Drift(rate) => y
+                        .iter_mut()
+                        .enumerate()
+                        .for_each(|(k, v)| *v += rate * k as f64 / self.fs),
+                    _ => {}
                 }
-                _ => y.iter_mut().for_each(|v| *v += sigma * rng.gauss()),
-            }
-            let u: Vec<f64> = u_true
-                .iter()
-                .map(|v| v + 0.2 * sigma * rng.gauss())
-                .collect();
-            (u, y)
-        })
+                let sigma = self.noise * size.abs();
+                match self.hidden {
+                    Hidden::ColouredNoise(rho) => {
+                        let mut e = 0.0;
+                        let scale = (1.0 - rho * rho).sqrt();
+                        for v in &mut y {
+                            e = rho * e + scale * sigma * rng.gauss();
+                            *v += e;
+                        }
+                    }
+                    _ => y.iter_mut().for_each(|v| *v += sigma * rng.gauss()),
+                }
+                let u: Vec<f64> = u_true
+                    .iter()
+                    .map(|v| v + 0.2 * sigma * rng.gauss())
+                    .collect();
+                (u, y)
+            })
+            .collect()
     }
+}
+
+/// One mode with orifice losses, `y'' + (2 zeta w + k |y'|) y' + w^2 y = w^2 u(t - delay)`,
+/// driven by `u` held between samples, by RK4 with 64 steps per sample, from rest at `u[0]`.
+/// Written apart from the crate (which models the same losses in discrete time).
+pub fn quadratic_line(u: &[f64], fs: f64, mode: (f64, f64), k: f64, delay: usize) -> Vec<f64> {
+    let (f, zeta) = mode;
+    let w = 2.0 * std::f64::consts::PI * f;
+    let sub = 64;
+    let h = 1.0 / (fs * sub as f64);
+    let u0 = u[0];
+    let (mut x, mut v) = (u0, 0.0);
+    let mut y = Vec::with_capacity(u.len());
+    for i in 0..u.len() {
+        y.push(x);
+        let ui = if i >= delay { u[i - delay] } else { u0 };
+        let deriv = |x: f64, v: f64| (v, w * w * (ui - x) - (2.0 * zeta * w + k * v.abs()) * v);
+        for _ in 0..sub {
+            let k1 = deriv(x, v);
+            let k2 = deriv(x + 0.5 * h * k1.0, v + 0.5 * h * k1.1);
+            let k3 = deriv(x + 0.5 * h * k2.0, v + 0.5 * h * k2.1);
+            let k4 = deriv(x + h * k3.0, v + h * k3.1);
+            x += h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0);
+            v += h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+        }
+    }
+    y
 }
 
 /// The catalogue's cases: every supported kind twice, with different parameters and sample
@@ -136,6 +182,7 @@ pub fn cases() -> Vec<Case> {
         n: 4000,
         hidden,
         order,
+        steps: TWO_STEPS,
     };
     vec![
         line(
@@ -249,6 +296,30 @@ pub fn cases() -> Vec<Case> {
             Hidden::None,
             2,
         ),
+        Case {
+            name: "nonlinear damping: orifice, 110 Hz, steps 1, -0.6, 0.3",
+            kind: "nonlinear-damping",
+            fs: 10_000.0,
+            mode: (110.0, 0.12),
+            delay: 17,
+            noise: 0.002,
+            n: 4000,
+            hidden: Hidden::NonlinearDamping(0.5),
+            order: 2,
+            steps: &[(0.0, 1.0), (1.0, 0.4), (0.0, 0.3)],
+        },
+        Case {
+            name: "nonlinear damping: turbulent, 70 Hz, 20 kHz, steps 1.5, -0.5",
+            kind: "nonlinear-damping",
+            fs: 20_000.0,
+            mode: (70.0, 0.2),
+            delay: 30,
+            noise: 0.002,
+            n: 6000,
+            hidden: Hidden::NonlinearDamping(0.3),
+            order: 2,
+            steps: &[(-0.5, 1.0), (1.0, 0.5)],
+        },
     ]
 }
 
@@ -263,6 +334,9 @@ pub struct Outcome {
     pub after: f64,
     /// Noise floor of the validation test.
     pub floor: f64,
+    /// Residual against amplitude across the tests (the plain model's structure fitted to
+    /// each alone).
+    pub signature: Option<unlag::diagnose::AmplitudeSignature>,
 }
 
 impl Outcome {
@@ -284,19 +358,14 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
     use unlag::diagnose::{self, Current};
     use unlag::effects::{self, Effect};
     use unlag::fit::Test;
-    let [(ue, ye), (uv, yv)] = case.tests(seed);
-    let tests = [
-        Test {
-            name: "estimation",
-            u: &ue,
-            y: &ye,
-        },
-        Test {
-            name: "validation",
-            u: &uv,
-            y: &yv,
-        },
-    ];
+    let data = case.tests(seed);
+    let names = ["estimation", "validation", "validation 2", "validation 3"];
+    let tests: Vec<Test<'_>> = data
+        .iter()
+        .zip(names.iter().cycle())
+        .map(|((u, y), name)| Test { name, u, y })
+        .collect();
+    let (uv, yv) = (&data[1].0, &data[1].1);
     let options = case.options();
     let (plain, fx) =
         effects::fit_with(&tests[0], &tests[1..], case.fs, &options, &[]).expect("plain fit");
@@ -308,6 +377,7 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
     let evidence = diagnose::evidence(&current, &tests);
     let candidates = diagnose::diagnose(&current, &tests, &evidence).expect("diagnosis");
     let named: Vec<String> = candidates.iter().map(|c| c.kind.clone()).collect();
+    let signature = diagnose::amplitude_signature(&diagnose::per_test(&current, &tests, &evidence));
     let before = evidence[1].nrmse;
     let floor = evidence[1].noise_floor;
     let after = match candidates.first() {
@@ -320,8 +390,8 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
             };
             match effects::fit_with(&tests[0], &tests[1..], case.fs, &options, &[effect]) {
                 Ok((f, fx)) => {
-                    let ym = effects::predict(&f.model, &fx, &uv, &yv);
-                    unlag::fit::nrmse_of(&yv, &ym)
+                    let ym = effects::predict(&f.model, &fx, uv, yv);
+                    unlag::fit::nrmse_of(yv, &ym)
                 }
                 Err(_) => f64::NAN,
             }
@@ -333,5 +403,6 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
         before,
         after,
         floor,
+        signature,
     }
 }

@@ -239,7 +239,7 @@ pub struct FitArgs {
     #[arg(long, value_name = "SAMPLES")]
     pub delay: Option<usize>,
     /// Add a physical effect to the model (repeatable): mode, leak, offset, drift,
-    /// coloured-noise, or delay=N. Effects already in the output model file are kept.
+    /// coloured-noise, nonlinear-damping, or delay=N. Effects already in the output model file are kept.
     #[arg(long = "add", value_name = "KIND")]
     pub add: Vec<String>,
     /// Start afresh: ignore the effects and history of an existing output model file.
@@ -503,7 +503,12 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         val_tests
     };
     // The fit stands on its own: if no compensator can be designed, say why and keep the model.
-    let design = match inverse::design_auto(&fitted.model, judge, &args.inverse.options()?) {
+    let design = match inverse::design_auto_with(
+        &fitted.model,
+        judge,
+        &args.inverse.options()?,
+        crate::effects::nonlinear_gain(&effects),
+    ) {
         Ok(mut d) => {
             args.inverse.plan_fixed(&mut d, judge)?;
             Some(d)
@@ -626,7 +631,12 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
     }
     let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
     let tests = as_tests(&traces, &names)?;
-    let mut design = inverse::design_auto(&file.model, &tests, &args.inverse.options()?)?;
+    let mut design = inverse::design_auto_with(
+        &file.model,
+        &tests,
+        &args.inverse.options()?,
+        crate::effects::nonlinear_gain(&file.effects),
+    )?;
     design.check_exportable()?;
     args.inverse.plan_fixed(&mut design, &tests)?;
     let out = ModelFile {
@@ -752,14 +762,35 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
     } else {
         file.inverse.as_ref()
     };
-    let (u_hat, latency, what) = match design {
+    // Quadratic losses: the board adds gain * lowpass(|dy| dy) to the linear inverse.
+    let nonlinear = crate::effects::nonlinear_gain(&file.effects);
+    let (mut u_hat, latency, what) = match design {
         Some(d) => {
             d.check_exportable()?;
-            let u_hat = match args.arithmetic {
+            let mut u_hat = match args.arithmetic {
                 Arithmetic::F32 => d.run::<f32>(&y_probe)?,
                 Arithmetic::F64 => d.run::<f64>(&y_probe)?,
+                Arithmetic::Fixed if nonlinear != 0.0 => {
+                    return Err(Error::UnsupportedOnBoard {
+                        path: args.model.clone(),
+                        effect: "nonlinear damping",
+                        arithmetic: "fixed-point",
+                        hint: "use --arithmetic f32",
+                    })
+                }
                 Arithmetic::Fixed => run_fixed(d, &args.model, &trace, &y_probe)?,
             };
+            if nonlinear != 0.0 {
+                let correction = match args.arithmetic {
+                    Arithmetic::F64 => {
+                        d.run_nonlinear_correction::<f64>(m.fs, nonlinear, &y_probe)?
+                    }
+                    _ => d.run_nonlinear_correction::<f32>(m.fs, nonlinear, &y_probe)?,
+                };
+                for (u, c) in u_hat.iter_mut().zip(correction) {
+                    *u += c;
+                }
+            }
             (
                 u_hat,
                 d.latency_samples,
@@ -783,6 +814,22 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
             (u_hat, m.delay as f64, "the paper's direct inverse (eq. 7)")
         }
     };
+    if design.is_none() && nonlinear != 0.0 {
+        // The direct inverse has no band limit: the correction is not filtered either.
+        let c = crate::compensator::NonlinearDampingCoefficients::<f64, 1>::new(
+            nonlinear * m.fs * m.fs,
+            1.0,
+            &[],
+        )
+        .map_err(|e| Error::Numerical {
+            context: "nonlinear-damping correction".into(),
+            message: e.to_string(),
+        })?;
+        let mut st = c.equilibrium(y_probe.first().copied().unwrap_or(0.0));
+        for (u, y) in u_hat.iter_mut().zip(&y_probe) {
+            *u += c.process(&mut st, *y);
+        }
+    }
     // Error against the recorded reference, at the best alignment near the latency.
     let error = trace.u.as_ref().map(|u| {
         let nominal = latency.round().max(0.0) as usize;

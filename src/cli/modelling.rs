@@ -154,16 +154,31 @@ fn print_across(across: &[diagnose::PerTest]) {
             _ => String::new(),
         };
         println!(
-            "  {:<28} step {:>+10.4}  residual/|step| {:.2e}  {}{}",
+            "  {:<28} step {:>+10.4}  residual/|step| {:.2e} (own fit {:.2e})  {}{}",
             p.file,
             p.step_size,
             p.residual_per_step,
+            p.own_residual_per_step,
             if modes.is_empty() {
                 "no resonance".into()
             } else {
                 modes.join(", ")
             },
             ratio
+        );
+    }
+    if let Some(s) = diagnose::amplitude_signature(across) {
+        println!(
+            "  residual against amplitude: damping {:+.3} per unit step ({:+.0} % from the smallest \
+             step to the largest), own-fit residual ~ |step|^{:.2} (linear probe: 1){}",
+            s.damping_slope,
+            100.0 * s.damping_rise,
+            s.residual_exponent,
+            if s.nonlinear_damping() {
+                ": amplitude-dependent losses"
+            } else {
+                ""
+            }
         );
     }
 }
@@ -209,6 +224,7 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
             "model": name(&args.model),
             "tests": tests_json(&evidence)?,
             "across_tests": across,
+            "amplitude_signature": diagnose::amplitude_signature(&across),
             "history": l.file.history,
             "candidates": Vec::<Candidate>::new(),
         });

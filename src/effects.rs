@@ -13,9 +13,18 @@
 //! | `drift` | a ramp added to the prediction | subtracted (the board counts samples) |
 //! | `delay` | the delay the evidence points to, instead of the fitted one | the delay |
 //! | `coloured-noise` | output-error fit (the noise needs no model then) | nothing |
+//! | `sensor-resonance` | both channels low-passed below the transducers' diaphragm resonance (Butterworth, order [`PREFILTER_ORDER`], at half the resonance, as the paper does) before fitting; the model describes the probe below it, and errors are measured on the prefiltered signals | the prefilter's sections run first, in the compensator's cascade |
+//! | `temperature` | the model belongs to `reference_k`; at a gas temperature `T` every natural frequency scales by `k = sqrt(T / reference_k)` (speed of sound) and the delay by `1 / k`, through the continuous-time model ([`scaled`]) | a coefficient set rescaled for the temperature it is given (`unlag export --temperature K`, swapped in as a blob) |
+//!
+//! A test's temperature: `unlag simulate`, `unlag compensate` and `unlag export` take it as
+//! `--temperature K`. Where tests are judged against the model (`fit`, `compare`, `diagnose`)
+//! each test's scale factor `k` is estimated from the test itself (one number, like the
+//! offset of an `offset`: [`estimate_scale`]) and reported with the temperature it implies,
+//! `reference_k k^2`.
 
 use serde::{Deserialize, Serialize};
 
+use crate::continuous::Continuous;
 use crate::error::Result;
 use crate::fit::{Fitted, Method, Options, Order, Test};
 use crate::model::Model;
@@ -55,10 +64,50 @@ pub enum Effect {
     },
     /// Residuals correlated in time but not explained by the input: fit by output error.
     ColouredNoise,
+    /// The transducers' own diaphragm resonance, ringing in both channels: both are
+    /// prefiltered below it before fitting.
+    SensorResonance {
+        /// The diaphragm's natural frequency (Hz); 0 until found in the reference's spectrum.
+        #[serde(default)]
+        natural_frequency_hz: f64,
+        /// Corner of the prefilter (Hz): half the natural frequency.
+        #[serde(default)]
+        prefilter_hz: f64,
+    },
+    /// Tests at other gas temperatures: the model scaled by `sqrt(T / reference_k)`.
+    Temperature {
+        /// Gas temperature the model's coefficients belong to (K): the estimation test's.
+        #[serde(default = "default_reference_k")]
+        reference_k: f64,
+    },
 }
 
+/// Reference temperature when the user gives none (K): 20 degrees Celsius.
+pub const DEFAULT_REFERENCE_K: f64 = 293.15;
+
+fn default_reference_k() -> f64 {
+    DEFAULT_REFERENCE_K
+}
+
+/// Order of the sensor-resonance prefilter (Butterworth): -24 dB at the resonance when the
+/// corner is at half of it.
+pub const PREFILTER_ORDER: usize = 4;
+
+/// Range of the time-scale factor `k` searched per test (temperatures from about 0.5 to 2
+/// times the reference).
+pub const SCALE_RANGE: (f64, f64) = (0.7, 1.4);
+
 /// The machine-readable kinds, in catalogue order.
-pub const KINDS: [&str; 6] = ["mode", "leak", "offset", "drift", "delay", "coloured-noise"];
+pub const KINDS: [&str; 8] = [
+    "mode",
+    "leak",
+    "offset",
+    "drift",
+    "delay",
+    "coloured-noise",
+    "sensor-resonance",
+    "temperature",
+];
 
 impl Effect {
     /// Its machine-readable kind.
@@ -71,6 +120,8 @@ impl Effect {
             Self::Drift { .. } => "drift",
             Self::Delay { .. } => "delay",
             Self::ColouredNoise => "coloured-noise",
+            Self::SensorResonance { .. } => "sensor-resonance",
+            Self::Temperature { .. } => "temperature",
         }
     }
 
@@ -86,6 +137,30 @@ impl Effect {
                 rate_per_s: 0.0,
             },
             "coloured-noise" => Self::ColouredNoise,
+            "sensor-resonance" => Self::SensorResonance {
+                natural_frequency_hz: 0.0,
+                prefilter_hz: 0.0,
+            },
+            "temperature" => Self::Temperature {
+                reference_k: DEFAULT_REFERENCE_K,
+            },
+            _ if kind.starts_with("sensor-resonance=") => {
+                let f: f64 = kind.strip_prefix("sensor-resonance=")?.parse().ok()?;
+                if !(f.is_finite() && f > 0.0) {
+                    return None;
+                }
+                Self::SensorResonance {
+                    natural_frequency_hz: f,
+                    prefilter_hz: 0.5 * f,
+                }
+            }
+            _ if kind.starts_with("temperature=") => {
+                let t: f64 = kind.strip_prefix("temperature=")?.parse().ok()?;
+                if !(t.is_finite() && t > 0.0) {
+                    return None;
+                }
+                Self::Temperature { reference_k: t }
+            }
             _ => {
                 let d = kind.strip_prefix("delay=")?.parse().ok()?;
                 Self::Delay { samples: d }
@@ -122,6 +197,7 @@ impl FitChanges {
                 Effect::Drift { .. } => c.drift = true,
                 Effect::Delay { samples } => c.delay = Some(*samples),
                 Effect::ColouredNoise => c.method = Some(Method::Oe),
+                Effect::SensorResonance { .. } | Effect::Temperature { .. } => {}
             }
         }
         c
@@ -212,17 +288,253 @@ pub fn estimate_additive(changes: &FitChanges, r: &[f64], onset: usize, fs: f64)
 }
 
 /// The model's full prediction for a test: the dynamics started in equilibrium with `u[0]`,
-/// plus the additive effects estimated on this test.
+/// plus the additive effects estimated on this test. With a `sensor-resonance` it predicts
+/// the prefiltered probe signal ([`observed`]); with a `temperature` the model is scaled by
+/// the factor estimated on this test ([`estimate_scale`]).
 #[must_use]
 pub fn predict(model: &Model, effects: &[Effect], u: &[f64], y: &[f64]) -> Vec<f64> {
-    let mut ym = model.simulate(u);
+    predict_with(model, effects, u, y, None)
+}
+
+/// As [`predict`], with the time-scale factor `k = sqrt(T / reference_k)` given instead of
+/// estimated (`None`: estimated when the effects have a `temperature`).
+#[must_use]
+pub fn predict_with(
+    model: &Model,
+    effects: &[Effect],
+    u: &[f64],
+    y: &[f64],
+    scale: Option<f64>,
+) -> Vec<f64> {
+    let fs = model.fs;
+    let (u, y) = (prefiltered(effects, fs, u), prefiltered(effects, fs, y));
+    let k = match scale {
+        Some(k) => k,
+        None if reference_k(effects).is_some() => estimate_scale(model, &u, &y),
+        None => 1.0,
+    };
+    let rescaled = if (k - 1.0).abs() > 1e-12 {
+        scaled(model, k).ok()
+    } else {
+        None
+    };
+    let model = rescaled.as_ref().unwrap_or(model);
+    let mut ym = model.simulate(&u);
     let changes = FitChanges::of(effects);
     if changes.offset || changes.drift {
-        let onset = crate::fit::step::find_step(u).map_or(0, |s| s.onset);
+        let onset = crate::fit::step::find_step(&u).map_or(0, |s| s.onset);
         let r: Vec<f64> = y.iter().zip(&ym).map(|(a, b)| a - b).collect();
-        estimate_additive(&changes, &r, onset, model.fs).add_to(&mut ym, model.fs);
+        estimate_additive(&changes, &r, onset, fs).add_to(&mut ym, fs);
     }
     ym
+}
+
+/// What a prediction of [`predict`] is compared with: the probe signal, prefiltered when the
+/// effects have a `sensor-resonance`.
+#[must_use]
+pub fn observed(effects: &[Effect], fs: f64, y: &[f64]) -> Vec<f64> {
+    prefiltered(effects, fs, y)
+}
+
+/// The prefilter corner of `effects` (Hz), when they have a sensor resonance with a known
+/// frequency.
+#[must_use]
+pub fn prefilter_hz(effects: &[Effect]) -> Option<f64> {
+    effects.iter().find_map(|e| match e {
+        Effect::SensorResonance { prefilter_hz, .. } if *prefilter_hz > 0.0 => Some(*prefilter_hz),
+        _ => None,
+    })
+}
+
+/// The prefilter as `(gain, sections [b0, b1, b2, a1, a2])` at sample rate `fs`: a Butterworth
+/// low-pass of order [`PREFILTER_ORDER`] with unit DC gain.
+///
+/// # Errors
+/// [`crate::error::Error::InvalidArgument`] when the corner is not below half the sample
+/// rate.
+pub fn prefilter_sections(corner_hz: f64, fs: f64) -> Result<(f64, Vec<[f64; 5]>)> {
+    let zpk = crate::inverse::lowpass(
+        crate::inverse::LowpassKind::Butterworth,
+        PREFILTER_ORDER,
+        corner_hz,
+        fs,
+    )?;
+    Ok(crate::inverse::to_sections(&zpk))
+}
+
+/// `x` through the prefilter of `effects`, started in equilibrium with `x[0]`; `x` unchanged
+/// when there is none.
+#[must_use]
+pub fn prefiltered(effects: &[Effect], fs: f64, x: &[f64]) -> Vec<f64> {
+    match prefilter_hz(effects).and_then(|fc| prefilter_sections(fc, fs).ok()) {
+        Some((gain, sections)) => {
+            let x0 = x.first().copied().unwrap_or(0.0);
+            let mut v: Vec<f64> = x.iter().map(|a| a - x0).collect();
+            for s in &sections {
+                v = crate::model::filter(&s[..3], &s[3..], 0, &v);
+            }
+            v.iter().map(|a| gain * a + x0).collect()
+        }
+        None => x.to_vec(),
+    }
+}
+
+/// The reference temperature of `effects` (K), when they have a `temperature`.
+#[must_use]
+pub fn reference_k(effects: &[Effect]) -> Option<f64> {
+    effects.iter().find_map(|e| match e {
+        Effect::Temperature { reference_k } => Some(*reference_k),
+        _ => None,
+    })
+}
+
+/// The time-scale factor at gas temperature `temperature_k` for a model at `reference_k`:
+/// `sqrt(T / T_ref)`, the ratio of the speeds of sound of an ideal gas.
+///
+/// # Errors
+/// [`crate::error::Error::InvalidArgument`] for a temperature that is not a positive number
+/// of kelvin.
+pub fn scale_for(temperature_k: f64, reference_k: f64) -> Result<f64> {
+    if !(temperature_k.is_finite()
+        && temperature_k > 0.0
+        && reference_k.is_finite()
+        && reference_k > 0.0)
+    {
+        return Err(crate::error::Error::InvalidArgument {
+            what: "--temperature",
+            message: format!(
+                "temperatures must be positive numbers of kelvin, not {temperature_k} K (model at {reference_k} K)"
+            ),
+        });
+    }
+    Ok((temperature_k / reference_k).sqrt())
+}
+
+fn scale_continuous(ct: &Continuous, k: f64, fs: f64) -> Result<Model> {
+    let mut ct = ct.clone();
+    for r in ct.poles.iter_mut().chain(ct.residues.iter_mut()) {
+        r.re *= k;
+        r.im *= k;
+        r.magnitude *= k;
+    }
+    ct.delay_s /= k;
+    Ok(ct.discretise(fs)?.model)
+}
+
+/// The model with time scaled by `k`: `H_k(s) = H(s / k)`, every pole (natural frequency) times
+/// `k` and the delay over `k`, re-discretised at the model's rate (step invariant, through
+/// [`Continuous`]).
+///
+/// # Errors
+/// As [`Continuous::from_model`] and [`Continuous::discretise`].
+pub fn scaled(model: &Model, k: f64) -> Result<Model> {
+    let ct = Continuous::from_model(model)?;
+    scale_continuous(&ct, k, model.fs)
+}
+
+/// The time-scale factor `k` in [`SCALE_RANGE`] that makes the scaled model fit the test best
+/// (least squares of the residual about its mean: a log grid, then a golden-section search
+/// between the best point's neighbours). 1 when the model has no continuous-time equivalent.
+#[must_use]
+pub fn estimate_scale(model: &Model, u: &[f64], y: &[f64]) -> f64 {
+    let Ok(ct) = Continuous::from_model(model) else {
+        return 1.0;
+    };
+    let cost = |ln_k: f64| -> f64 {
+        let Ok(m) = scale_continuous(&ct, ln_k.exp(), model.fs) else {
+            return f64::INFINITY;
+        };
+        let r: Vec<f64> = y.iter().zip(m.simulate(u)).map(|(a, b)| a - b).collect();
+        let mean = r.iter().sum::<f64>() / r.len().max(1) as f64;
+        let sse: f64 = r.iter().map(|v| (v - mean) * (v - mean)).sum();
+        if sse.is_finite() {
+            sse
+        } else {
+            f64::INFINITY
+        }
+    };
+    let (lo, hi) = (SCALE_RANGE.0.ln(), SCALE_RANGE.1.ln());
+    let n = 29;
+    let grid: Vec<f64> = (0..n)
+        .map(|i| lo + (hi - lo) * i as f64 / (n - 1) as f64)
+        .collect();
+    let costs: Vec<f64> = grid.iter().map(|&x| cost(x)).collect();
+    let best = costs
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0, |(i, _)| i);
+    let (mut a, mut b) = (grid[best.saturating_sub(1)], grid[(best + 1).min(n - 1)]);
+    let g = 0.5 * (5.0f64.sqrt() - 1.0);
+    let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
+    let (mut f1, mut f2) = (cost(x1), cost(x2));
+    for _ in 0..30 {
+        if f1 < f2 {
+            b = x2;
+            (x2, f2) = (x1, f1);
+            x1 = b - g * (b - a);
+            f1 = cost(x1);
+        } else {
+            a = x1;
+            (x1, f1) = (x2, f2);
+            x2 = a + g * (b - a);
+            f2 = cost(x2);
+        }
+    }
+    let x = 0.5 * (a + b);
+    if cost(x) <= costs[best] {
+        x.exp()
+    } else {
+        grid[best].exp()
+    }
+}
+
+/// The effects with their frequency-domain parameters resolved on the estimation test: a
+/// sensor resonance without a frequency takes the reference's ringing peak, and its prefilter
+/// half of it.
+///
+/// # Errors
+/// [`crate::error::Error::InvalidArgument`] when the reference shows no resonance to filter
+/// below, or the prefilter's corner is not below half the sample rate.
+pub fn resolve(effects: &[Effect], u: &[f64], fs: f64) -> Result<Vec<Effect>> {
+    effects
+        .iter()
+        .map(|e| match e {
+            Effect::SensorResonance {
+                natural_frequency_hz,
+                prefilter_hz,
+            } => {
+                let f = if *natural_frequency_hz > 0.0 {
+                    *natural_frequency_hz
+                } else {
+                    crate::evidence::reference_ringing(u, fs)
+                        .map(|p| p.frequency_hz)
+                        .ok_or_else(|| crate::error::Error::InvalidArgument {
+                            what: "sensor-resonance",
+                            message: "the estimation test's reference shows no resonance to \
+                                      filter below; give the transducer's natural frequency: \
+                                      --add sensor-resonance=HZ"
+                                .into(),
+                        })?
+                };
+                let corner = if *prefilter_hz > 0.0 {
+                    *prefilter_hz
+                } else {
+                    0.5 * f
+                };
+                prefilter_sections(corner, fs)?;
+                Ok(Effect::SensorResonance {
+                    natural_frequency_hz: f,
+                    prefilter_hz: corner,
+                })
+            }
+            Effect::Temperature { reference_k } => {
+                scale_for(*reference_k, *reference_k)?;
+                Ok(e.clone())
+            }
+            other => Ok(other.clone()),
+        })
+        .collect()
 }
 
 /// Fits with `effects`: the order raised by the modes and leaks, the delay and method they
@@ -250,6 +562,29 @@ pub fn fit_with(
         order,
         delay: changes.delay.or(options.delay),
     };
+    // A sensor resonance: both channels of every test prefiltered below it.
+    let effects = resolve(effects, estimation.u, fs)?;
+    let filtered: Vec<(Vec<f64>, Vec<f64>)> = std::iter::once(estimation)
+        .chain(validation)
+        .map(|t| {
+            (
+                prefiltered(&effects, fs, t.u),
+                prefiltered(&effects, fs, t.y),
+            )
+        })
+        .collect();
+    let mut tests = filtered
+        .iter()
+        .zip(std::iter::once(estimation).chain(validation))
+        .map(|((u, y), t)| Test { name: t.name, u, y });
+    let Some(estimation) = tests.next() else {
+        return Err(crate::error::Error::Numerical {
+            context: "fit".into(),
+            message: "no estimation test".into(),
+        });
+    };
+    let validation: Vec<Test<'_>> = tests.collect();
+    let validation = validation.as_slice();
     let onset = crate::fit::step::find_step(estimation.u).map_or(0, |s| s.onset);
     let mut additive = Additive::default();
     let rounds = if changes.drift { 3 } else { 1 };

@@ -489,6 +489,123 @@ pub fn estimate_scale(model: &Model, u: &[f64], y: &[f64]) -> f64 {
     }
 }
 
+/// Puts the sensor-resonance prefilter of `effects` in front of a compensator designed for
+/// the model (which was fitted on prefiltered signals): its sections run first on the board,
+/// its gain multiplies the cascade's, its group delay at low frequency adds to the latency,
+/// and the pole margin is the smaller of the two. Nothing happens without a prefilter.
+///
+/// # Errors
+/// As [`prefilter_sections`].
+pub fn with_prefilter(
+    design: &mut crate::inverse::Design,
+    effects: &[Effect],
+    fs: f64,
+) -> Result<()> {
+    let Some(fc) = prefilter_hz(effects) else {
+        return Ok(());
+    };
+    let (gain, sections) = prefilter_sections(fc, fs)?;
+    // Group delay at DC from the phase at a low frequency (the prefilter's phase is linear
+    // there).
+    let w: f64 = 1e-4;
+    let h = crate::inverse::cascade_response(
+        gain,
+        &sections,
+        crate::poly::Complex::new(w.cos(), w.sin()),
+    );
+    let delay = -h.im.atan2(h.re) / w;
+    let margin = sections
+        .iter()
+        .map(|s| {
+            // |poles| of 1 + a1 z^-1 + a2 z^-2: sqrt(a2) for a complex pair.
+            let (a1, a2) = (s[3], s[4]);
+            let disc = a1 * a1 - 4.0 * a2;
+            let r = if disc < 0.0 {
+                a2.abs().sqrt()
+            } else {
+                0.5 * (a1.abs() + disc.sqrt())
+            };
+            1.0 - r
+        })
+        .fold(f64::INFINITY, f64::min);
+    design.sections.splice(0..0, sections);
+    design.gain *= gain;
+    design.latency_samples += delay;
+    design.latency_s = design.latency_samples / fs;
+    design.pole_margin = design.pole_margin.min(margin);
+    design.method = format!(
+        "sensor-resonance prefilter (Butterworth order {PREFILTER_ORDER} at {fc:.1} Hz), then {}",
+        design.method
+    );
+    Ok(())
+}
+
+/// The model file at gas temperature `temperature_k`: the model scaled by
+/// `sqrt(T / reference_k)` ([`scaled`]), its compensator designed anew for it (same low-pass
+/// family and order, corner scaled by the same factor, the sensor prefilter kept, the
+/// fixed-point plan redone for the same full scale), and its `temperature` effect now at `T`.
+/// This is the coefficient set a board is given for that temperature.
+///
+/// # Errors
+/// [`crate::error::Error::InvalidArgument`] when the file has no `temperature` effect (no
+/// reference temperature) or `T` is not a positive number of kelvin; the scaling's and the
+/// design's errors.
+pub fn at_temperature(
+    file: &crate::model::ModelFile,
+    temperature_k: f64,
+) -> Result<crate::model::ModelFile> {
+    let reference =
+        reference_k(&file.effects).ok_or_else(|| crate::error::Error::InvalidArgument {
+            what: "--temperature",
+            message:
+                "the model file has no temperature effect, so no reference temperature: refit \
+                  with `unlag fit ... --add temperature` (or add effects = [{ kind = \
+                  \"temperature\", reference_k = K }])"
+                    .into(),
+        })?;
+    let k = scale_for(temperature_k, reference)?;
+    let model = scaled(&file.model, k)?;
+    let fs = model.fs;
+    let inverse = match &file.inverse {
+        Some(d) => {
+            let options = crate::inverse::Options {
+                bandwidth_hz: Some((d.lowpass_hz * k).min(0.45 * fs)),
+                lowpass: d.lowpass,
+                lowpass_order: d.lowpass_order,
+                stabilise: !d.method.contains("direct inverse"),
+            };
+            let fc = options.bandwidth_hz.unwrap_or(d.lowpass_hz);
+            let mut nd = crate::inverse::design(&model, fc, &options)?;
+            nd.bandwidth_selection = format!(
+                "{} at the reference temperature, scaled by {k:.4} to {temperature_k} K",
+                d.bandwidth_selection
+            );
+            with_prefilter(&mut nd, &file.effects, fs)?;
+            if let Some(p) = &d.fixed {
+                nd.fixed = Some(crate::quantise::FixedPlan::new(&nd, p.full_scale)?);
+            }
+            Some(nd)
+        }
+        None => None,
+    };
+    let effects = file
+        .effects
+        .iter()
+        .map(|e| match e {
+            Effect::Temperature { .. } => Effect::Temperature {
+                reference_k: temperature_k,
+            },
+            other => other.clone(),
+        })
+        .collect();
+    Ok(crate::model::ModelFile {
+        model,
+        inverse,
+        effects,
+        ..file.clone()
+    })
+}
+
 /// The effects with their frequency-domain parameters resolved on the estimation test: a
 /// sensor resonance without a frequency takes the reference's ringing peak, and its prefilter
 /// half of it.
@@ -687,5 +804,160 @@ mod tests {
         let r: Vec<f64> = (0..1000).map(|k| 0.5 + 2.0 * k as f64 / 1000.0).collect();
         let est = estimate_additive(&c, &r, 100, 1000.0);
         assert!((est.offset - 0.5).abs() < 1e-9 && (est.rate_per_s - 2.0).abs() < 1e-9);
+    }
+
+    /// A ZOH-discretised second-order probe (unit DC gain), built from its poles
+    /// `z = exp(s / fs)` directly.
+    fn second_order(f: f64, zeta: f64, fs: f64, delay: usize) -> (Model, crate::poly::Complex) {
+        let w = 2.0 * std::f64::consts::PI * f;
+        let s = crate::poly::Complex::new(-zeta * w, w * (1.0 - zeta * zeta).sqrt());
+        let z = (s / fs).exp();
+        let a = vec![-2.0 * z.re, z.norm_sqr()];
+        let g = 1.0 + a[0] + a[1];
+        let model = Model {
+            fs,
+            delay,
+            a,
+            b: vec![0.0, 0.6 * g, 0.4 * g],
+        };
+        (model, s)
+    }
+
+    #[test]
+    fn scaling_multiplies_every_pole_and_divides_the_delay() {
+        let fs = 10_000.0;
+        let (m, s) = second_order(95.0, 0.3, fs, 17);
+        let k = 1.08;
+        let scaled_model = scaled(&m, k).unwrap();
+        let want = (s * k / fs).exp();
+        let got = scaled_model.poles().unwrap();
+        assert!(
+            got.iter().any(|p| (*p - want).norm() < 1e-9)
+                && got.iter().any(|p| (*p - want.conj()).norm() < 1e-9),
+            "{got:?} against {want:?}"
+        );
+        assert!((scaled_model.dc_gain() - 1.0).abs() < 1e-9);
+        // 17 samples plus the fraction the b coefficients carry, over 1.08.
+        assert!(
+            scaled_model.delay <= 17 && scaled_model.delay >= 15,
+            "{}",
+            scaled_model.delay
+        );
+        // And back: scaling by 1/k returns the model's step response.
+        let back = scaled(&scaled_model, 1.0 / k).unwrap();
+        let (s0, s1) = (
+            crate::continuous::step_response(&m, 400),
+            crate::continuous::step_response(&back, 400),
+        );
+        let worst = s0
+            .iter()
+            .zip(&s1)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-6, "{worst}");
+        assert!((scale_for(343.15, 293.15).unwrap() - (343.15f64 / 293.15).sqrt()).abs() < 1e-15);
+        assert!(scale_for(-1.0, 293.15).is_err());
+    }
+
+    #[test]
+    fn the_scale_of_a_test_is_estimated_from_it() {
+        let fs = 10_000.0;
+        let (m, _) = second_order(95.0, 0.3, fs, 17);
+        let u: Vec<f64> = (0..4000)
+            .map(|k| if k >= 500 { 1.0 } else { 0.0 })
+            .collect();
+        let mut seed = 7u64;
+        let truth = scaled(&m, 0.93).unwrap();
+        let y: Vec<f64> = truth
+            .simulate(&u)
+            .iter()
+            .map(|v| {
+                seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+                v + 0.002 * ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
+            })
+            .collect();
+        let k = estimate_scale(&m, &u, &y);
+        assert!((k - 0.93).abs() < 0.002, "{k}");
+        let e = [Effect::Temperature {
+            reference_k: 293.15,
+        }];
+        let ym = predict(&m, &e, &u, &y);
+        assert!(crate::fit::nrmse_of(&y, &ym) < 0.002);
+        assert!(crate::fit::nrmse_of(&y, &m.simulate(&u)) > 0.01);
+    }
+
+    #[test]
+    fn the_prefilter_passes_a_step_and_stops_the_resonance() {
+        let fs = 10_000.0;
+        let e = resolve(&[Effect::parse("sensor-resonance=2000").unwrap()], &[], fs).unwrap();
+        assert_eq!(prefilter_hz(&e), Some(1000.0));
+        let step: Vec<f64> = (0..2000)
+            .map(|k| if k >= 100 { 3.0 } else { 1.0 })
+            .collect();
+        let f = prefiltered(&e, fs, &step);
+        assert!((f[0] - 1.0).abs() < 1e-12 && (f[1999] - 3.0).abs() < 1e-9);
+        let ring: Vec<f64> = (0..4000)
+            .map(|k| (2.0 * std::f64::consts::PI * 2000.0 * k as f64 / fs).sin())
+            .collect();
+        let out = prefiltered(&e, fs, &ring);
+        // Amplitude from the RMS over whole periods (2000 samples are 400 of them).
+        let peak = (2.0 * out[2000..].iter().map(|v| v * v).sum::<f64>() / 2000.0).sqrt();
+        // Butterworth of order 4 by the bilinear transform: |H| = 1 / sqrt(1 + r^8) with
+        // r = tan(pi f / fs) / tan(pi fc / fs) (about -28 dB here).
+        let r = (std::f64::consts::PI * 0.2).tan() / (std::f64::consts::PI * 0.1).tan();
+        let want = 1.0 / (1.0 + r.powi(8)).sqrt();
+        assert!((peak / want - 1.0).abs() < 0.01, "{peak} against {want}");
+        // Without a frequency and without ringing in the reference it refuses.
+        assert!(resolve(&[Effect::parse("sensor-resonance").unwrap()], &step, fs).is_err());
+        assert!(resolve(
+            &[Effect::parse("sensor-resonance=12000").unwrap()],
+            &step,
+            fs
+        )
+        .is_err());
+        // On the board: the prefilter's sections run first.
+        let (m, _) = second_order(95.0, 0.3, fs, 17);
+        let mut d = crate::inverse::design(&m, 800.0, &crate::inverse::Options::default()).unwrap();
+        let (n, latency) = (d.sections.len(), d.latency_samples);
+        with_prefilter(&mut d, &e, fs).unwrap();
+        assert_eq!(d.sections.len(), n + PREFILTER_ORDER / 2);
+        assert!(
+            d.latency_samples > latency + 1.0,
+            "{} {latency}",
+            d.latency_samples
+        );
+        let out = d.run::<f64>(&step).unwrap();
+        assert!(
+            (out[1999] - 3.0 / m.dc_gain()).abs() < 1e-6,
+            "{}",
+            out[1999]
+        );
+    }
+
+    #[test]
+    fn new_kinds_round_trip_through_toml() {
+        #[derive(Serialize, Deserialize)]
+        struct W {
+            effects: Vec<Effect>,
+        }
+        let text = "effects = [{ kind = \"sensor-resonance\", natural_frequency_hz = 2000.0, prefilter_hz = 1000.0 }, { kind = \"temperature\" }]";
+        let w: W = toml::from_str(text).unwrap();
+        assert_eq!(
+            w.effects,
+            vec![
+                Effect::SensorResonance {
+                    natural_frequency_hz: 2000.0,
+                    prefilter_hz: 1000.0
+                },
+                Effect::Temperature {
+                    reference_k: DEFAULT_REFERENCE_K
+                }
+            ]
+        );
+        assert_eq!(
+            Effect::parse("temperature=310"),
+            Some(Effect::Temperature { reference_k: 310.0 })
+        );
+        assert!(Effect::parse("temperature=-3").is_none());
     }
 }

@@ -489,6 +489,24 @@ pub fn estimate_scale(model: &Model, u: &[f64], y: &[f64]) -> f64 {
     }
 }
 
+/// The sensor-resonance prefilter's group delay at low frequency (samples), 0 without one.
+#[must_use]
+pub fn prefilter_delay(effects: &[Effect], fs: f64) -> f64 {
+    let Some((gain, sections)) =
+        prefilter_hz(effects).and_then(|fc| prefilter_sections(fc, fs).ok())
+    else {
+        return 0.0;
+    };
+    // From the phase at a low frequency (the prefilter's phase is linear there).
+    let w: f64 = 1e-4;
+    let h = crate::inverse::cascade_response(
+        gain,
+        &sections,
+        crate::poly::Complex::new(w.cos(), w.sin()),
+    );
+    -h.im.atan2(h.re) / w
+}
+
 /// Puts the sensor-resonance prefilter of `effects` in front of a compensator designed for
 /// the model (which was fitted on prefiltered signals): its sections run first on the board,
 /// its gain multiplies the cascade's, its group delay at low frequency adds to the latency,
@@ -505,15 +523,7 @@ pub fn with_prefilter(
         return Ok(());
     };
     let (gain, sections) = prefilter_sections(fc, fs)?;
-    // Group delay at DC from the phase at a low frequency (the prefilter's phase is linear
-    // there).
-    let w: f64 = 1e-4;
-    let h = crate::inverse::cascade_response(
-        gain,
-        &sections,
-        crate::poly::Complex::new(w.cos(), w.sin()),
-    );
-    let delay = -h.im.atan2(h.re) / w;
+    let delay = prefilter_delay(effects, fs);
     let margin = sections
         .iter()
         .map(|s| {

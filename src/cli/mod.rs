@@ -838,8 +838,16 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         }
     };
     // Error against the recorded reference, at the best alignment near the latency.
+    // With a sensor resonance the reference is judged below it (the compensator does not
+    // and should not reproduce the reference transducer's own ringing).
     let error = trace.u.as_ref().map(|u| {
-        let nominal = latency.round().max(0.0) as usize;
+        let u = &crate::effects::observed(&file.effects, m.fs, u);
+        let prefilter = if design.is_some() {
+            crate::effects::prefilter_delay(&file.effects, m.fs)
+        } else {
+            0.0
+        };
+        let nominal = (latency - prefilter).round().max(0.0) as usize;
         let (e, lag) = inverse::aligned_error(u, &u_hat, nominal.saturating_sub(4)..=nominal + 4);
         let (raw, _) = inverse::aligned_error(u, &trace.y, 0..=m.delay + 4 * nominal.max(10));
         (e, raw, lag)

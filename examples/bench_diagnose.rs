@@ -1,7 +1,9 @@
 //! Score table of the modelling loop (issue 7), a benchmark, not a test: for each case of
 //! step tests with a hidden effect, the candidates `unlag diagnose` names, and the validation
 //! error before and after adding the first one. `host-tests/modelling.rs` asserts the same
-//! cases.
+//! cases. With a `sensor-resonance` added, the error after is measured on the prefiltered
+//! signals (the model claims nothing above the prefilter); with a `temperature`, the model is
+//! scaled by the factor estimated on the validation test.
 //!
 //! ```sh
 //! cargo run --release --example bench_diagnose          # SEED=N for other noise

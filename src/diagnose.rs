@@ -7,7 +7,11 @@
 //! 1. the residual's signature on each test ([`crate::evidence`]): a narrow spectral peak for
 //!    a mode, a level before the step for an offset, a ramp for a drift, a slow creep after
 //!    the step for a leak, correlation in time without a cause in the input for coloured
-//!    noise;
+//!    noise, a peak in the reference's own increments at the frequency where the probe's
+//!    residual peaks for a sensor resonance (a line or cavity mode never shows in the
+//!    reference, so a matched sensor resonance goes before `mode`), and natural frequencies of
+//!    the tests fitted alone that all move by one common factor against the model's, with the
+//!    damping about the same, for a temperature ([`temperature_evidence`]);
 //! 2. a trial: the model is refitted on the estimation test with the effect added
 //!    ([`crate::effects::fit_with`]) and judged on the held-out tests. A candidate whose
 //!    signature is present but whose trial does not lower the held-out error is not offered.
@@ -47,7 +51,7 @@ pub fn parameters(kind: &str) -> usize {
 #[derive(Debug, Clone, Serialize)]
 pub struct Candidate {
     /// Machine-readable kind (`mode`, `leak`, `offset`, `drift`, `delay`, `coloured-noise`,
-    /// or `none`).
+    /// `sensor-resonance`, `temperature`, or `none`).
     pub kind: String,
     /// `ln(error before / error after)` of the trial, less [`PARAMETER_PENALTY`] per parameter
     /// the effect adds; larger is stronger.

@@ -239,7 +239,9 @@ pub struct FitArgs {
     #[arg(long, value_name = "SAMPLES")]
     pub delay: Option<usize>,
     /// Add a physical effect to the model (repeatable): mode, leak, offset, drift,
-    /// coloured-noise, or delay=N. Effects already in the output model file are kept.
+    /// coloured-noise, delay=N, sensor-resonance (frequency found in the reference) or
+    /// sensor-resonance=HZ, temperature (reference 293.15 K) or temperature=K (the estimation
+    /// test's gas temperature). Effects already in the output model file are kept.
     #[arg(long = "add", value_name = "KIND")]
     pub add: Vec<String>,
     /// Start afresh: ignore the effects and history of an existing output model file.
@@ -450,7 +452,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         let e = crate::effects::Effect::parse(kind).ok_or_else(|| Error::InvalidArgument {
             what: "--add",
             message: format!(
-                "unknown effect '{kind}': one of {}, or delay=N",
+                "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, temperature=K",
                 crate::effects::KINDS
                     .iter()
                     .filter(|k| **k != "delay")

@@ -2,7 +2,9 @@
 //! step tests with a hidden effect, the candidates `unlag diagnose` names, and the validation
 //! error before and after adding the first one; then, for every case, the residual against
 //! amplitude across its tests (what names `nonlinear-damping`). `host-tests/modelling.rs`
-//! asserts the same cases.
+//! asserts the same cases. With a `sensor-resonance` added, the error after is measured on the
+//! prefiltered signals (the model claims nothing above the prefilter); with a `temperature`,
+//! the model is scaled by the factor estimated on the validation test.
 //!
 //! ```sh
 //! cargo run --release --example bench_diagnose          # SEED=N for other noise

@@ -452,3 +452,183 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("nonlinear damping"));
 }
+
+/// Runs the binary; `(success, stdout, stderr)`.
+fn unlag(args: &[&str]) -> (bool, String, String) {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_unlag"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn unlag_json(args: &[&str]) -> serde_json::Value {
+    let (ok, out, err) = unlag(args);
+    assert!(ok, "{args:?}: {out}{err}");
+    serde_json::from_str(out.trim()).expect(&out)
+}
+
+/// The two cases' tests written as CSV: `(estimation, validation)` paths.
+fn case_files(kind: &str, dir: &std::path::Path) -> (String, String, common::hidden::Case) {
+    let case = cases().into_iter().find(|c| c.kind == kind).unwrap();
+    let tests = case.tests(11);
+    let [(ue, ye), (uv, yv)] = [&tests[0], &tests[1]];
+    let (e, v) = (
+        dir.join(format!("{kind}-est.csv")),
+        dir.join(format!("{kind}-val.csv")),
+    );
+    common::write_csv(&e, case.fs, ue, ye);
+    common::write_csv(&v, case.fs, uv, yv);
+    (
+        e.to_str().unwrap().to_string(),
+        v.to_str().unwrap().to_string(),
+        case,
+    )
+}
+
+/// `sensor-resonance` through the whole product: `fit --add` finds the diaphragm in the
+/// reference and prefilters at half of it, `simulate` applies it, the compensator (and so the
+/// export) runs the prefilter's sections first.
+#[test]
+fn sensor_resonance_through_the_command_line() {
+    let dir = std::env::temp_dir().join(format!("unlag-sensor-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (est, val, _) = case_files("sensor-resonance", &dir);
+    let p = dir.join("plain.toml");
+    let s = dir.join("sensor.toml");
+    let (p, s) = (p.to_str().unwrap(), s.to_str().unwrap());
+    unlag_json(&["fit", &est, &val, "--order", "2", "-o", p, "--json"]);
+    let d = unlag_json(&["diagnose", p, &est, &val, "--json"]);
+    assert_eq!(d["candidates"][0]["kind"], "sensor-resonance", "{d}");
+    let f = unlag_json(&[
+        "fit",
+        &est,
+        &val,
+        "--order",
+        "2",
+        "--add",
+        "sensor-resonance",
+        "-o",
+        s,
+        "--json",
+    ]);
+    let e = &f["effects"][0];
+    assert_eq!(e["kind"], "sensor-resonance", "{f}");
+    let fn_hz = e["natural_frequency_hz"].as_f64().unwrap();
+    assert!((fn_hz / 2000.0 - 1.0).abs() < 0.05, "{fn_hz}");
+    assert!((e["prefilter_hz"].as_f64().unwrap() - 0.5 * fn_hz).abs() < 1e-9);
+    let sections = f["inverse"]["sections"].as_array().unwrap().len();
+    assert!(
+        f["inverse"]["method"]
+            .as_str()
+            .unwrap()
+            .starts_with("sensor-resonance prefilter"),
+        "{f}"
+    );
+    let out = dir.join("y.csv");
+    let o = out.to_str().unwrap();
+    let plain = unlag_json(&["simulate", p, &val, "-o", o, "--json"])["nrmse"]
+        .as_f64()
+        .unwrap();
+    let with = unlag_json(&["simulate", s, &val, "-o", o, "--json"])["nrmse"]
+        .as_f64()
+        .unwrap();
+    assert!(with * 3.0 < plain, "{with} against {plain}");
+    let c = unlag_json(&["compensate", s, &val, "-o", o, "--json"]);
+    let (u_hat, raw) = (
+        c["nrmse_u_hat"].as_f64().unwrap(),
+        c["nrmse_raw"].as_f64().unwrap(),
+    );
+    assert!(u_hat < raw / 2.0, "{c}");
+    let bin = dir.join("s.bin");
+    let x = unlag_json(&[
+        "export",
+        s,
+        "--format",
+        "bin",
+        "-o",
+        bin.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(x["sections"].as_u64().unwrap() as usize, sections, "{x}");
+}
+
+/// `temperature` through the whole product: `fit --add temperature`, then `simulate`,
+/// `compensate` and `export` at the gas temperature of the recording; a model without the
+/// effect refuses `--temperature` in one line.
+#[test]
+fn temperature_through_the_command_line() {
+    let dir = std::env::temp_dir().join(format!("unlag-temperature-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (est, val, case) = case_files("temperature", &dir);
+    let t_val = match case.hidden {
+        common::hidden::Hidden::Temperature(t) => t,
+        _ => unreachable!(),
+    };
+    let t = format!("{t_val}");
+    let m = dir.join("t.toml");
+    let p = dir.join("plain.toml");
+    let (m, p) = (m.to_str().unwrap(), p.to_str().unwrap());
+    unlag_json(&["fit", &est, &val, "--order", "2", "-o", p, "--json"]);
+    let d = unlag_json(&["diagnose", p, &est, &val, "--json"]);
+    assert_eq!(d["candidates"][0]["kind"], "temperature", "{d}");
+    let ratio = d["candidates"][0]["evidence"]["temperature_ratio"]
+        .as_f64()
+        .unwrap();
+    assert!((ratio / (t_val / 293.15) - 1.0).abs() < 0.03, "{ratio}");
+    unlag_json(&[
+        "fit",
+        &est,
+        &val,
+        "--order",
+        "2",
+        "--add",
+        "temperature",
+        "-o",
+        m,
+        "--json",
+    ]);
+    let out = dir.join("y.csv");
+    let o = out.to_str().unwrap();
+    let at = |model: &str, extra: &[&str], cmd: &str, key: &str| {
+        let mut args = vec![cmd, model, val.as_str(), "-o", o, "--json"];
+        args.extend_from_slice(extra);
+        unlag_json(&args)[key].as_f64().unwrap()
+    };
+    let hot = at(m, &["--temperature", &t], "simulate", "nrmse");
+    let cold = at(m, &["--temperature", "293.15"], "simulate", "nrmse");
+    assert!(hot * 3.0 < cold, "{hot} against {cold}");
+    let hot = at(m, &["--temperature", &t], "compensate", "nrmse_u_hat");
+    let cold = at(m, &[], "compensate", "nrmse_u_hat");
+    assert!(hot < cold, "{hot} against {cold}");
+    let rs = dir.join("t.rs");
+    unlag_json(&[
+        "export",
+        m,
+        "--format",
+        "rust",
+        "--temperature",
+        &t,
+        "-o",
+        rs.to_str().unwrap(),
+        "--json",
+    ]);
+    let (ok, _, err) = unlag(&[
+        "export",
+        p,
+        "--format",
+        "rust",
+        "--temperature",
+        "300",
+        "-o",
+        rs.to_str().unwrap(),
+    ]);
+    assert!(
+        !ok && err.lines().count() == 1 && err.contains("temperature"),
+        "{err}"
+    );
+}

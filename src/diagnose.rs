@@ -7,8 +7,13 @@
 //! 1. the residual's signature on each test ([`crate::evidence`]): a narrow spectral peak for
 //!    a mode, a level before the step for an offset, a ramp for a drift, a slow creep after
 //!    the step for a leak, correlation in time without a cause in the input for coloured
-//!    noise; and across tests ([`amplitude_signature`]), a damping that rises with the step's
-//!    amplitude and a residual that grows faster than the step, for nonlinear damping;
+//!    noise, a peak in the reference's own increments at the frequency where the probe's
+//!    residual peaks for a sensor resonance (a line or cavity mode never shows in the
+//!    reference, so a matched sensor resonance goes before `mode`), and natural frequencies of
+//!    the tests fitted alone that all move by one common factor against the model's, with the
+//!    damping about the same, for a temperature ([`temperature_evidence`]); and across tests
+//!    ([`amplitude_signature`]), a damping that rises with the step's amplitude and a residual
+//!    that grows faster than the step, for nonlinear damping;
 //! 2. a trial: the model is refitted on the estimation test with the effect added
 //!    ([`crate::effects::fit_with`]) and judged on the held-out tests. A candidate whose
 //!    signature is present but whose trial does not lower the held-out error is not offered.
@@ -39,7 +44,7 @@ pub fn parameters(kind: &str) -> usize {
     match kind {
         "mode" => 4,
         "leak" | "drift" => 2,
-        "offset" | "nonlinear-damping" => 1,
+        "offset" | "nonlinear-damping" | "temperature" | "sensor-resonance" => 1,
         _ => 0,
     }
 }
@@ -48,8 +53,7 @@ pub fn parameters(kind: &str) -> usize {
 #[derive(Debug, Clone, Serialize)]
 pub struct Candidate {
     /// Machine-readable kind (`mode`, `leak`, `offset`, `drift`, `delay`, `coloured-noise`,
-    /// `nonlinear-damping`,
-    /// or `none`).
+    /// `nonlinear-damping`, `sensor-resonance`, `temperature`, or `none`).
     pub kind: String,
     /// `ln(error before / error after)` of the trial, less [`PARAMETER_PENALTY`] per parameter
     /// the effect adds; larger is stronger.
@@ -92,7 +96,7 @@ fn held_out(model: &Model, effects: &[Effect], tests: &[Test<'_>]) -> f64 {
     let judged = if tests.len() > 1 { &tests[1..] } else { tests };
     mean(judged.iter().map(|t| {
         let ym = effects::predict(model, effects, t.u, t.y);
-        crate::fit::nrmse_of(t.y, &ym)
+        crate::fit::nrmse_of(&effects::observed(effects, model.fs, t.y), &ym)
     }))
 }
 
@@ -209,6 +213,131 @@ pub fn amplitude_signature(per_test: &[PerTest]) -> Option<AmplitudeSignature> {
     })
 }
 
+/// Two peaks within this relative distance are at the same frequency.
+pub const SAME_FREQUENCY: f64 = 0.15;
+
+/// A test's natural frequencies must move by at least this factor (3 %) together to point at
+/// a temperature.
+pub const MIN_FREQUENCY_SHIFT: f64 = 1.03;
+
+/// The per-test evidence of a temperature change.
+#[derive(Debug, Clone, Serialize)]
+pub struct TemperatureRow {
+    /// The test.
+    pub file: String,
+    /// Each resonance of its own fit against the model's nearest: `(test Hz, model Hz, ratio)`.
+    pub modes: Vec<(f64, f64, f64)>,
+    /// The common ratio (geometric mean over the modes).
+    pub ratio: f64,
+    /// Largest relative departure of a mode's ratio from the common one.
+    pub spread: f64,
+    /// Geometric mean of the damping ratios (test over model).
+    pub damping_ratio: f64,
+}
+
+/// What [`temperature_evidence`] found.
+#[derive(Debug, Clone)]
+pub struct TemperatureEvidence {
+    /// One row per test.
+    pub rows: Vec<TemperatureRow>,
+    /// Spread of the strongest test.
+    pub spread: f64,
+    /// Damping ratio of the strongest test.
+    pub damping_ratio: f64,
+}
+
+impl TemperatureEvidence {
+    /// The test whose frequencies moved most, and its common ratio.
+    #[must_use]
+    pub fn strongest(&self) -> (String, f64) {
+        self.rows
+            .iter()
+            .max_by(|a, b| a.ratio.ln().abs().total_cmp(&b.ratio.ln().abs()))
+            .map_or((String::new(), 1.0), |r| (r.file.clone(), r.ratio))
+    }
+}
+
+/// The natural frequencies of each test fitted alone against the model's: present when a test's
+/// frequencies all move by one common factor of at least [`MIN_FREQUENCY_SHIFT`] (spread
+/// across modes under a third of the shift) while its damping stays about the same (a change
+/// of damping much larger than of frequency is an amplitude effect, not temperature).
+#[must_use]
+pub fn temperature_evidence(
+    current: &Current<'_>,
+    tests: &[Test<'_>],
+    evidence: &[TestEvidence],
+) -> Option<TemperatureEvidence> {
+    let model_modes: Vec<(f64, f64)> = crate::analysis::Analysis::new(current.model)
+        .ok()?
+        .modes
+        .iter()
+        .filter_map(|m| match m.kind {
+            crate::analysis::ModeKind::Resonance {
+                natural_frequency_hz,
+                damping,
+                ..
+            } => Some((natural_frequency_hz, damping)),
+            _ => None,
+        })
+        .collect();
+    if model_modes.is_empty() {
+        return None;
+    }
+    let rows: Vec<TemperatureRow> = per_test(current, tests, evidence)
+        .into_iter()
+        .filter(|p| !p.resonances.is_empty())
+        .map(|p| {
+            let pairs: Vec<((f64, f64), (f64, f64))> = p
+                .resonances
+                .iter()
+                .filter_map(|&(f, z)| {
+                    model_modes
+                        .iter()
+                        .min_by(|a, b| (a.0 / f).ln().abs().total_cmp(&(b.0 / f).ln().abs()))
+                        .map(|&m| ((f, z), m))
+                })
+                .collect();
+            let n = pairs.len().max(1) as f64;
+            let ln_ratio = pairs
+                .iter()
+                .map(|((f, _), (g, _))| (f / g).ln())
+                .sum::<f64>()
+                / n;
+            let spread = pairs
+                .iter()
+                .map(|((f, _), (g, _))| ((f / g).ln() - ln_ratio).abs())
+                .fold(0.0, f64::max);
+            let ln_damping = pairs
+                .iter()
+                .map(|((_, z), (_, w))| (z.max(1e-6) / w.max(1e-6)).ln())
+                .sum::<f64>()
+                / n;
+            TemperatureRow {
+                file: p.file,
+                modes: pairs
+                    .iter()
+                    .map(|((f, _), (g, _))| (*f, *g, f / g))
+                    .collect(),
+                ratio: ln_ratio.exp(),
+                spread,
+                damping_ratio: ln_damping.exp(),
+            }
+        })
+        .collect();
+    let strongest = rows
+        .iter()
+        .max_by(|a, b| a.ratio.ln().abs().total_cmp(&b.ratio.ln().abs()))?;
+    let shift = strongest.ratio.ln().abs();
+    let ok = shift >= MIN_FREQUENCY_SHIFT.ln()
+        && strongest.spread <= shift / 3.0 + 0.005
+        && strongest.damping_ratio.ln().abs() <= 2.0 * shift + 0.1;
+    ok.then(|| TemperatureEvidence {
+        spread: strongest.spread,
+        damping_ratio: strongest.damping_ratio,
+        rows: rows.clone(),
+    })
+}
+
 /// Fits the current model's structure (order without effects, delay, method) to each test
 /// alone.
 #[must_use]
@@ -281,14 +410,16 @@ pub fn evidence(current: &Current<'_>, tests: &[Test<'_>]) -> Vec<TestEvidence> 
         .iter()
         .enumerate()
         .map(|(i, t)| {
+            // With a sensor resonance the model is judged below it: on the prefiltered signals.
+            let fs = current.model.fs;
             let ym = effects::predict(current.model, current.effects, t.u, t.y);
             TestEvidence::measure(
                 t.name,
                 if i == 0 { "estimation" } else { "validation" },
-                t.u,
-                t.y,
+                &effects::observed(current.effects, fs, t.u),
+                &effects::observed(current.effects, fs, t.y),
                 &ym,
-                current.model.fs,
+                fs,
             )
         })
         .collect()
@@ -500,6 +631,109 @@ pub fn diagnose(
         );
     }
 
+    // sensor-resonance: the reference rings too, at the frequency where the probe's residual
+    // or model error peaks: the transducers' own diaphragm, in both channels. A line or cavity
+    // mode never shows in the reference.
+    let ringing = evidence
+        .iter()
+        .filter_map(|e| e.reference_ringing.map(|p| (e, p)))
+        .max_by(|a, b| a.1.above_floor_db.total_cmp(&b.1.above_floor_db));
+    let mut sensor_matched = false;
+    if let (Some((e, rp)), None) = (ringing, effects::prefilter_hz(current.effects)) {
+        let near = |f: f64| (f / rp.frequency_hz - 1.0).abs() < SAME_FREQUENCY;
+        let probe = evidence
+            .iter()
+            .flat_map(|e| {
+                e.spectrum
+                    .peaks
+                    .iter()
+                    .map(|p| (p, "residual spectrum"))
+                    .chain(
+                        e.model_error
+                            .peaks
+                            .iter()
+                            .map(|p| (p, "model-error spectrum")),
+                    )
+            })
+            .filter(|(p, _)| near(p.frequency_hz))
+            .max_by(|a, b| a.0.above_floor_db.total_cmp(&b.0.above_floor_db));
+        if let Some((pp, source)) = probe {
+            let f = rp.frequency_hz;
+            let added = Effect::SensorResonance {
+                natural_frequency_hz: f,
+                prefilter_hz: 0.5 * f,
+            };
+            if let Some((after, _)) = trial(added, &base) {
+                sensor_matched = true;
+                offer(
+                    "sensor-resonance",
+                    after,
+                    json!({"reference_peak_hz": f, "reference_above_floor_db": rp.above_floor_db,
+                           "reference_q": rp.q, "reference_test": e.file,
+                           "probe_peak_hz": pp.frequency_hz, "probe_above_floor_db": pp.above_floor_db,
+                           "probe_source": source, "prefilter_hz": 0.5 * f,
+                           "prefilter": format!("Butterworth order {}", effects::PREFILTER_ORDER)}),
+                    format!(
+                        "the reference itself rings at {f:.0} Hz ({:.0} dB above the floor of its \
+                         increments, Q about {:.0}) and the probe's {source} peaks at {:.0} Hz: the \
+                         transducers' own diaphragm resonance, in both channels, not the line's; \
+                         fit below it, both channels prefiltered at half of it ({:.0} Hz)",
+                        rp.above_floor_db,
+                        rp.q,
+                        pp.frequency_hz,
+                        0.5 * f
+                    ),
+                    format!(
+                        "unlag fit ... --add sensor-resonance={f:.0}   (model file: effects = [{{ kind = \"sensor-resonance\", natural_frequency_hz = {f:.0}, prefilter_hz = {:.0} }}])",
+                        0.5 * f
+                    ),
+                );
+            }
+        }
+    }
+
+    // temperature: every natural frequency of the per-test fits moves by one common factor
+    // against the model's, with the damping about the same: the speed of sound changed.
+    if tests.len() >= 2 && effects::reference_k(current.effects).is_none() {
+        if let Some(t) = temperature_evidence(current, tests, evidence) {
+            if let Some((after, fx)) = trial(
+                Effect::Temperature {
+                    reference_k: effects::DEFAULT_REFERENCE_K,
+                },
+                &base,
+            ) {
+                let reference_k = effects::reference_k(&fx).unwrap_or(effects::DEFAULT_REFERENCE_K);
+                let estimated: Vec<Value> = tests
+                    .iter()
+                    .map(|t| {
+                        let k = effects::estimate_scale(current.model, t.u, t.y);
+                        json!({"test": t.name, "scale": k,
+                               "temperature_k": reference_k * k * k})
+                    })
+                    .collect();
+                let (file, ratio) = t.strongest();
+                offer(
+                    "temperature",
+                    after,
+                    json!({"per_test": t.rows, "common_ratio": ratio, "test": file,
+                           "temperature_ratio": ratio * ratio,
+                           "estimated_scale": estimated, "reference_k": reference_k}),
+                    format!(
+                        "every natural frequency of {file} fitted alone is {ratio:.3} times the \
+                         model's (spread across modes {:.1} %, damping x{:.2}): the same probe at \
+                         another gas temperature, T/T_ref = {:.3} (speed of sound goes as the root \
+                         of temperature)",
+                        100.0 * t.spread,
+                        t.damping_ratio,
+                        ratio * ratio
+                    ),
+                    "unlag fit ... --add temperature   (model file: effects = [{ kind = \"temperature\", reference_k = 293.15 }]; the estimation test's temperature)"
+                        .into(),
+                );
+            }
+        }
+    }
+
     // delay: a refit that searches the delay.
     let xc = evidence.first().map_or(0, |e| e.cross_correlation.peak_lag);
     let search = Options {
@@ -607,6 +841,18 @@ pub fn diagnose(
     }
 
     out.sort_by(|a, b| b.score.total_cmp(&a.score));
+    // A resonance that shows in the reference as well is the transducers', not the line's:
+    // the sensor resonance goes before a mode that would only model it.
+    if sensor_matched {
+        let s = out.iter().position(|c| c.kind == "sensor-resonance");
+        let m = out.iter().position(|c| c.kind == "mode");
+        if let (Some(s), Some(m)) = (s, m) {
+            if m < s {
+                let c = out.remove(s);
+                out.insert(m, c);
+            }
+        }
+    }
     // Nothing is missing when the residual is white noise at the floor, or no trial helps.
     if (at_floor && white) || out.is_empty() {
         let none = Candidate {

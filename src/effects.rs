@@ -14,6 +14,14 @@
 //! | `delay` | the delay the evidence points to, instead of the fitted one | the delay |
 //! | `coloured-noise` | output-error fit (the noise needs no model then) | nothing |
 //! | `nonlinear-damping` | a quadratic loss `gain * \|dy/dt\| dy/dt` taken off the input the dynamics see (fitted by least squares, alternating with the linear part) | `gain * lowpass(\|dy\| dy)` added to the linear inverse ([`crate::compensator::NonlinearDampingCoefficients`]); f32 only, the fixed-point export refuses it |
+//! | `sensor-resonance` | both channels low-passed below the transducers' diaphragm resonance (Butterworth, order [`PREFILTER_ORDER`], at half the resonance, as the paper does) before fitting; the model describes the probe below it, and errors are measured on the prefiltered signals | the prefilter's sections run first, in the compensator's cascade |
+//! | `temperature` | the model belongs to `reference_k`; at a gas temperature `T` every natural frequency scales by `k = sqrt(T / reference_k)` (speed of sound) and the delay by `1 / k`, through the continuous-time model ([`scaled`]) | a coefficient set rescaled for the temperature it is given (`unlag export --temperature K`, swapped in as a blob) |
+//!
+//! A test's temperature: `unlag simulate`, `unlag compensate` and `unlag export` take it as
+//! `--temperature K`. Where tests are judged against the model (`fit`, `compare`, `diagnose`)
+//! each test's scale factor `k` is estimated from the test itself (one number, like the
+//! offset of an `offset`: [`estimate_scale`]) and reported with the temperature it implies,
+//! `reference_k k^2`.
 //!
 //! # Nonlinear damping
 //!
@@ -32,6 +40,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::continuous::Continuous;
 use crate::error::Result;
 use crate::fit::{Fitted, Method, Options, Order, Test};
 use crate::model::Model;
@@ -79,10 +88,41 @@ pub enum Effect {
         #[serde(default)]
         gain: f64,
     },
+    /// The transducers' own diaphragm resonance, ringing in both channels: both are
+    /// prefiltered below it before fitting.
+    SensorResonance {
+        /// The diaphragm's natural frequency (Hz); 0 until found in the reference's spectrum.
+        #[serde(default)]
+        natural_frequency_hz: f64,
+        /// Corner of the prefilter (Hz): half the natural frequency.
+        #[serde(default)]
+        prefilter_hz: f64,
+    },
+    /// Tests at other gas temperatures: the model scaled by `sqrt(T / reference_k)`.
+    Temperature {
+        /// Gas temperature the model's coefficients belong to (K): the estimation test's.
+        #[serde(default = "default_reference_k")]
+        reference_k: f64,
+    },
 }
 
+/// Reference temperature when the user gives none (K): 20 degrees Celsius.
+pub const DEFAULT_REFERENCE_K: f64 = 293.15;
+
+fn default_reference_k() -> f64 {
+    DEFAULT_REFERENCE_K
+}
+
+/// Order of the sensor-resonance prefilter (Butterworth): -24 dB at the resonance when the
+/// corner is at half of it.
+pub const PREFILTER_ORDER: usize = 4;
+
+/// Range of the time-scale factor `k` searched per test (temperatures from about 0.5 to 2
+/// times the reference).
+pub const SCALE_RANGE: (f64, f64) = (0.7, 1.4);
+
 /// The machine-readable kinds, in catalogue order.
-pub const KINDS: [&str; 7] = [
+pub const KINDS: [&str; 9] = [
     "mode",
     "leak",
     "offset",
@@ -90,6 +130,8 @@ pub const KINDS: [&str; 7] = [
     "delay",
     "coloured-noise",
     "nonlinear-damping",
+    "sensor-resonance",
+    "temperature",
 ];
 
 impl Effect {
@@ -104,6 +146,8 @@ impl Effect {
             Self::Delay { .. } => "delay",
             Self::ColouredNoise => "coloured-noise",
             Self::NonlinearDamping { .. } => "nonlinear-damping",
+            Self::SensorResonance { .. } => "sensor-resonance",
+            Self::Temperature { .. } => "temperature",
         }
     }
 
@@ -120,6 +164,30 @@ impl Effect {
             },
             "coloured-noise" => Self::ColouredNoise,
             "nonlinear-damping" => Self::NonlinearDamping { gain: 0.0 },
+            "sensor-resonance" => Self::SensorResonance {
+                natural_frequency_hz: 0.0,
+                prefilter_hz: 0.0,
+            },
+            "temperature" => Self::Temperature {
+                reference_k: DEFAULT_REFERENCE_K,
+            },
+            _ if kind.starts_with("sensor-resonance=") => {
+                let f: f64 = kind.strip_prefix("sensor-resonance=")?.parse().ok()?;
+                if !(f.is_finite() && f > 0.0) {
+                    return None;
+                }
+                Self::SensorResonance {
+                    natural_frequency_hz: f,
+                    prefilter_hz: 0.5 * f,
+                }
+            }
+            _ if kind.starts_with("temperature=") => {
+                let t: f64 = kind.strip_prefix("temperature=")?.parse().ok()?;
+                if !(t.is_finite() && t > 0.0) {
+                    return None;
+                }
+                Self::Temperature { reference_k: t }
+            }
             _ => {
                 let d = kind.strip_prefix("delay=")?.parse().ok()?;
                 Self::Delay { samples: d }
@@ -159,6 +227,7 @@ impl FitChanges {
                 Effect::Delay { samples } => c.delay = Some(*samples),
                 Effect::ColouredNoise => c.method = Some(Method::Oe),
                 Effect::NonlinearDamping { .. } => c.nonlinear = true,
+                Effect::SensorResonance { .. } | Effect::Temperature { .. } => {}
             }
         }
         c
@@ -328,20 +397,48 @@ pub fn simulate_nonlinear(model: &Model, gain: f64, u: &[f64]) -> Vec<f64> {
 }
 
 /// The model's full prediction for a test: the dynamics (with their quadratic damping, if
-/// any) started in equilibrium with `u[0]`, plus the additive effects estimated on this test.
+/// any) started in equilibrium with `u[0]`, plus the additive effects estimated on this test. With a `sensor-resonance` it predicts
+/// the prefiltered probe signal ([`observed`]); with a `temperature` the model is scaled by
+/// the factor estimated on this test ([`estimate_scale`]).
 #[must_use]
 pub fn predict(model: &Model, effects: &[Effect], u: &[f64], y: &[f64]) -> Vec<f64> {
+    predict_with(model, effects, u, y, None)
+}
+
+/// As [`predict`], with the time-scale factor `k = sqrt(T / reference_k)` given instead of
+/// estimated (`None`: estimated when the effects have a `temperature`).
+#[must_use]
+pub fn predict_with(
+    model: &Model,
+    effects: &[Effect],
+    u: &[f64],
+    y: &[f64],
+    scale: Option<f64>,
+) -> Vec<f64> {
+    let fs = model.fs;
+    let (u, y) = (prefiltered(effects, fs, u), prefiltered(effects, fs, y));
+    let k = match scale {
+        Some(k) => k,
+        None if reference_k(effects).is_some() => estimate_scale(model, &u, &y),
+        None => 1.0,
+    };
+    let rescaled = if (k - 1.0).abs() > 1e-12 {
+        scaled(model, k).ok()
+    } else {
+        None
+    };
+    let model = rescaled.as_ref().unwrap_or(model);
     let gain = nonlinear_gain(effects);
     let mut ym = if gain == 0.0 {
-        model.simulate(u)
+        model.simulate(&u)
     } else {
-        simulate_nonlinear(model, gain, u)
+        simulate_nonlinear(model, gain, &u)
     };
     let changes = FitChanges::of(effects);
     if changes.offset || changes.drift {
-        let onset = crate::fit::step::find_step(u).map_or(0, |s| s.onset);
+        let onset = crate::fit::step::find_step(&u).map_or(0, |s| s.onset);
         let r: Vec<f64> = y.iter().zip(&ym).map(|(a, b)| a - b).collect();
-        estimate_additive(&changes, &r, onset, model.fs).add_to(&mut ym, model.fs);
+        estimate_additive(&changes, &r, onset, fs).add_to(&mut ym, fs);
     }
     ym
 }
@@ -452,6 +549,341 @@ fn fit_nonlinear(
     Ok(best.map_or((plain, 0.0), |(_, g, f)| (f, g)))
 }
 
+/// What a prediction of [`predict`] is compared with: the probe signal, prefiltered when the
+/// effects have a `sensor-resonance`.
+#[must_use]
+pub fn observed(effects: &[Effect], fs: f64, y: &[f64]) -> Vec<f64> {
+    prefiltered(effects, fs, y)
+}
+
+/// The prefilter corner of `effects` (Hz), when they have a sensor resonance with a known
+/// frequency.
+#[must_use]
+pub fn prefilter_hz(effects: &[Effect]) -> Option<f64> {
+    effects.iter().find_map(|e| match e {
+        Effect::SensorResonance { prefilter_hz, .. } if *prefilter_hz > 0.0 => Some(*prefilter_hz),
+        _ => None,
+    })
+}
+
+/// The prefilter as `(gain, sections [b0, b1, b2, a1, a2])` at sample rate `fs`: a Butterworth
+/// low-pass of order [`PREFILTER_ORDER`] with unit DC gain.
+///
+/// # Errors
+/// [`crate::error::Error::InvalidArgument`] when the corner is not below half the sample
+/// rate.
+pub fn prefilter_sections(corner_hz: f64, fs: f64) -> Result<(f64, Vec<[f64; 5]>)> {
+    let zpk = crate::inverse::lowpass(
+        crate::inverse::LowpassKind::Butterworth,
+        PREFILTER_ORDER,
+        corner_hz,
+        fs,
+    )?;
+    Ok(crate::inverse::to_sections(&zpk))
+}
+
+/// `x` through the prefilter of `effects`, started in equilibrium with `x[0]`; `x` unchanged
+/// when there is none.
+#[must_use]
+pub fn prefiltered(effects: &[Effect], fs: f64, x: &[f64]) -> Vec<f64> {
+    match prefilter_hz(effects).and_then(|fc| prefilter_sections(fc, fs).ok()) {
+        Some((gain, sections)) => {
+            let x0 = x.first().copied().unwrap_or(0.0);
+            let mut v: Vec<f64> = x.iter().map(|a| a - x0).collect();
+            for s in &sections {
+                v = crate::model::filter(&s[..3], &s[3..], 0, &v);
+            }
+            v.iter().map(|a| gain * a + x0).collect()
+        }
+        None => x.to_vec(),
+    }
+}
+
+/// The reference temperature of `effects` (K), when they have a `temperature`.
+#[must_use]
+pub fn reference_k(effects: &[Effect]) -> Option<f64> {
+    effects.iter().find_map(|e| match e {
+        Effect::Temperature { reference_k } => Some(*reference_k),
+        _ => None,
+    })
+}
+
+/// The time-scale factor at gas temperature `temperature_k` for a model at `reference_k`:
+/// `sqrt(T / T_ref)`, the ratio of the speeds of sound of an ideal gas.
+///
+/// # Errors
+/// [`crate::error::Error::InvalidArgument`] for a temperature that is not a positive number
+/// of kelvin.
+pub fn scale_for(temperature_k: f64, reference_k: f64) -> Result<f64> {
+    if !(temperature_k.is_finite()
+        && temperature_k > 0.0
+        && reference_k.is_finite()
+        && reference_k > 0.0)
+    {
+        return Err(crate::error::Error::InvalidArgument {
+            what: "--temperature",
+            message: format!(
+                "temperatures must be positive numbers of kelvin, not {temperature_k} K (model at {reference_k} K)"
+            ),
+        });
+    }
+    Ok((temperature_k / reference_k).sqrt())
+}
+
+fn scale_continuous(ct: &Continuous, k: f64, fs: f64) -> Result<Model> {
+    let mut ct = ct.clone();
+    for r in ct.poles.iter_mut().chain(ct.residues.iter_mut()) {
+        r.re *= k;
+        r.im *= k;
+        r.magnitude *= k;
+    }
+    ct.delay_s /= k;
+    Ok(ct.discretise(fs)?.model)
+}
+
+/// The model with time scaled by `k`: `H_k(s) = H(s / k)`, every pole (natural frequency) times
+/// `k` and the delay over `k`, re-discretised at the model's rate (step invariant, through
+/// [`Continuous`]).
+///
+/// # Errors
+/// As [`Continuous::from_model`] and [`Continuous::discretise`].
+pub fn scaled(model: &Model, k: f64) -> Result<Model> {
+    let ct = Continuous::from_model(model)?;
+    scale_continuous(&ct, k, model.fs)
+}
+
+/// The time-scale factor `k` in [`SCALE_RANGE`] that makes the scaled model fit the test best
+/// (least squares of the residual about its mean: a log grid, then a golden-section search
+/// between the best point's neighbours). 1 when the model has no continuous-time equivalent.
+#[must_use]
+pub fn estimate_scale(model: &Model, u: &[f64], y: &[f64]) -> f64 {
+    let Ok(ct) = Continuous::from_model(model) else {
+        return 1.0;
+    };
+    let cost = |ln_k: f64| -> f64 {
+        let Ok(m) = scale_continuous(&ct, ln_k.exp(), model.fs) else {
+            return f64::INFINITY;
+        };
+        let r: Vec<f64> = y.iter().zip(m.simulate(u)).map(|(a, b)| a - b).collect();
+        let mean = r.iter().sum::<f64>() / r.len().max(1) as f64;
+        let sse: f64 = r.iter().map(|v| (v - mean) * (v - mean)).sum();
+        if sse.is_finite() {
+            sse
+        } else {
+            f64::INFINITY
+        }
+    };
+    let (lo, hi) = (SCALE_RANGE.0.ln(), SCALE_RANGE.1.ln());
+    let n = 29;
+    let grid: Vec<f64> = (0..n)
+        .map(|i| lo + (hi - lo) * i as f64 / (n - 1) as f64)
+        .collect();
+    let costs: Vec<f64> = grid.iter().map(|&x| cost(x)).collect();
+    let best = costs
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0, |(i, _)| i);
+    let (mut a, mut b) = (grid[best.saturating_sub(1)], grid[(best + 1).min(n - 1)]);
+    let g = 0.5 * (5.0f64.sqrt() - 1.0);
+    let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
+    let (mut f1, mut f2) = (cost(x1), cost(x2));
+    for _ in 0..30 {
+        if f1 < f2 {
+            b = x2;
+            (x2, f2) = (x1, f1);
+            x1 = b - g * (b - a);
+            f1 = cost(x1);
+        } else {
+            a = x1;
+            (x1, f1) = (x2, f2);
+            x2 = a + g * (b - a);
+            f2 = cost(x2);
+        }
+    }
+    let x = 0.5 * (a + b);
+    if cost(x) <= costs[best] {
+        x.exp()
+    } else {
+        grid[best].exp()
+    }
+}
+
+/// The sensor-resonance prefilter's group delay at low frequency (samples), 0 without one.
+#[must_use]
+pub fn prefilter_delay(effects: &[Effect], fs: f64) -> f64 {
+    let Some((gain, sections)) =
+        prefilter_hz(effects).and_then(|fc| prefilter_sections(fc, fs).ok())
+    else {
+        return 0.0;
+    };
+    // From the phase at a low frequency (the prefilter's phase is linear there).
+    let w: f64 = 1e-4;
+    let h = crate::inverse::cascade_response(
+        gain,
+        &sections,
+        crate::poly::Complex::new(w.cos(), w.sin()),
+    );
+    -h.im.atan2(h.re) / w
+}
+
+/// Puts the sensor-resonance prefilter of `effects` in front of a compensator designed for
+/// the model (which was fitted on prefiltered signals): its sections run first on the board,
+/// its gain multiplies the cascade's, its group delay at low frequency adds to the latency,
+/// and the pole margin is the smaller of the two. Nothing happens without a prefilter.
+///
+/// # Errors
+/// As [`prefilter_sections`].
+pub fn with_prefilter(
+    design: &mut crate::inverse::Design,
+    effects: &[Effect],
+    fs: f64,
+) -> Result<()> {
+    let Some(fc) = prefilter_hz(effects) else {
+        return Ok(());
+    };
+    let (gain, sections) = prefilter_sections(fc, fs)?;
+    let delay = prefilter_delay(effects, fs);
+    let margin = sections
+        .iter()
+        .map(|s| {
+            // |poles| of 1 + a1 z^-1 + a2 z^-2: sqrt(a2) for a complex pair.
+            let (a1, a2) = (s[3], s[4]);
+            let disc = a1 * a1 - 4.0 * a2;
+            let r = if disc < 0.0 {
+                a2.abs().sqrt()
+            } else {
+                0.5 * (a1.abs() + disc.sqrt())
+            };
+            1.0 - r
+        })
+        .fold(f64::INFINITY, f64::min);
+    design.sections.splice(0..0, sections);
+    design.gain *= gain;
+    design.latency_samples += delay;
+    design.latency_s = design.latency_samples / fs;
+    design.pole_margin = design.pole_margin.min(margin);
+    design.method = format!(
+        "sensor-resonance prefilter (Butterworth order {PREFILTER_ORDER} at {fc:.1} Hz), then {}",
+        design.method
+    );
+    Ok(())
+}
+
+/// The model file at gas temperature `temperature_k`: the model scaled by
+/// `sqrt(T / reference_k)` ([`scaled`]), its compensator designed anew for it (same low-pass
+/// family and order, corner scaled by the same factor, the sensor prefilter kept, the
+/// fixed-point plan redone for the same full scale), and its `temperature` effect now at `T`.
+/// This is the coefficient set a board is given for that temperature.
+///
+/// # Errors
+/// [`crate::error::Error::InvalidArgument`] when the file has no `temperature` effect (no
+/// reference temperature) or `T` is not a positive number of kelvin; the scaling's and the
+/// design's errors.
+pub fn at_temperature(
+    file: &crate::model::ModelFile,
+    temperature_k: f64,
+) -> Result<crate::model::ModelFile> {
+    let reference =
+        reference_k(&file.effects).ok_or_else(|| crate::error::Error::InvalidArgument {
+            what: "--temperature",
+            message:
+                "the model file has no temperature effect, so no reference temperature: refit \
+                  with `unlag fit ... --add temperature` (or add effects = [{ kind = \
+                  \"temperature\", reference_k = K }])"
+                    .into(),
+        })?;
+    let k = scale_for(temperature_k, reference)?;
+    let model = scaled(&file.model, k)?;
+    let fs = model.fs;
+    let inverse = match &file.inverse {
+        Some(d) => {
+            let options = crate::inverse::Options {
+                bandwidth_hz: Some((d.lowpass_hz * k).min(0.45 * fs)),
+                lowpass: d.lowpass,
+                lowpass_order: d.lowpass_order,
+                stabilise: !d.method.contains("direct inverse"),
+            };
+            let fc = options.bandwidth_hz.unwrap_or(d.lowpass_hz);
+            let mut nd = crate::inverse::design(&model, fc, &options)?;
+            nd.bandwidth_selection = format!(
+                "{} at the reference temperature, scaled by {k:.4} to {temperature_k} K",
+                d.bandwidth_selection
+            );
+            with_prefilter(&mut nd, &file.effects, fs)?;
+            if let Some(p) = &d.fixed {
+                nd.fixed = Some(crate::quantise::FixedPlan::new(&nd, p.full_scale)?);
+            }
+            Some(nd)
+        }
+        None => None,
+    };
+    let effects = file
+        .effects
+        .iter()
+        .map(|e| match e {
+            Effect::Temperature { .. } => Effect::Temperature {
+                reference_k: temperature_k,
+            },
+            other => other.clone(),
+        })
+        .collect();
+    Ok(crate::model::ModelFile {
+        model,
+        inverse,
+        effects,
+        ..file.clone()
+    })
+}
+
+/// The effects with their frequency-domain parameters resolved on the estimation test: a
+/// sensor resonance without a frequency takes the reference's ringing peak, and its prefilter
+/// half of it.
+///
+/// # Errors
+/// [`crate::error::Error::InvalidArgument`] when the reference shows no resonance to filter
+/// below, or the prefilter's corner is not below half the sample rate.
+pub fn resolve(effects: &[Effect], u: &[f64], fs: f64) -> Result<Vec<Effect>> {
+    effects
+        .iter()
+        .map(|e| match e {
+            Effect::SensorResonance {
+                natural_frequency_hz,
+                prefilter_hz,
+            } => {
+                let f = if *natural_frequency_hz > 0.0 {
+                    *natural_frequency_hz
+                } else {
+                    crate::evidence::reference_ringing(u, fs)
+                        .map(|p| p.frequency_hz)
+                        .ok_or_else(|| crate::error::Error::InvalidArgument {
+                            what: "sensor-resonance",
+                            message: "the estimation test's reference shows no resonance to \
+                                      filter below; give the transducer's natural frequency: \
+                                      --add sensor-resonance=HZ"
+                                .into(),
+                        })?
+                };
+                let corner = if *prefilter_hz > 0.0 {
+                    *prefilter_hz
+                } else {
+                    0.5 * f
+                };
+                prefilter_sections(corner, fs)?;
+                Ok(Effect::SensorResonance {
+                    natural_frequency_hz: f,
+                    prefilter_hz: corner,
+                })
+            }
+            Effect::Temperature { reference_k } => {
+                scale_for(*reference_k, *reference_k)?;
+                Ok(e.clone())
+            }
+            other => Ok(other.clone()),
+        })
+        .collect()
+}
+
 /// Fits with `effects`: the order raised by the modes and leaks, the delay and method they
 /// impose, and the drift removed before the dynamics are fitted (alternating three times).
 /// With `nonlinear-damping` the linear part and the quadratic loss are fitted together (a
@@ -479,6 +911,29 @@ pub fn fit_with(
         order,
         delay: changes.delay.or(options.delay),
     };
+    // A sensor resonance: both channels of every test prefiltered below it.
+    let effects = resolve(effects, estimation.u, fs)?;
+    let filtered: Vec<(Vec<f64>, Vec<f64>)> = std::iter::once(estimation)
+        .chain(validation)
+        .map(|t| {
+            (
+                prefiltered(&effects, fs, t.u),
+                prefiltered(&effects, fs, t.y),
+            )
+        })
+        .collect();
+    let mut tests = filtered
+        .iter()
+        .zip(std::iter::once(estimation).chain(validation))
+        .map(|((u, y), t)| Test { name: t.name, u, y });
+    let Some(estimation) = tests.next() else {
+        return Err(crate::error::Error::Numerical {
+            context: "fit".into(),
+            message: "no estimation test".into(),
+        });
+    };
+    let validation: Vec<Test<'_>> = tests.collect();
+    let validation = validation.as_slice();
     let onset = crate::fit::step::find_step(estimation.u).map_or(0, |s| s.onset);
     let mut additive = Additive::default();
     let rounds = if changes.drift { 3 } else { 1 };
@@ -635,5 +1090,160 @@ mod tests {
             .map(|k| (linear[k] - u[k - 3]).abs())
             .fold(0.0, f64::max);
         assert!(worst > 0.05, "{worst}");
+    }
+
+    /// A ZOH-discretised second-order probe (unit DC gain), built from its poles
+    /// `z = exp(s / fs)` directly.
+    fn second_order(f: f64, zeta: f64, fs: f64, delay: usize) -> (Model, crate::poly::Complex) {
+        let w = 2.0 * std::f64::consts::PI * f;
+        let s = crate::poly::Complex::new(-zeta * w, w * (1.0 - zeta * zeta).sqrt());
+        let z = (s / fs).exp();
+        let a = vec![-2.0 * z.re, z.norm_sqr()];
+        let g = 1.0 + a[0] + a[1];
+        let model = Model {
+            fs,
+            delay,
+            a,
+            b: vec![0.0, 0.6 * g, 0.4 * g],
+        };
+        (model, s)
+    }
+
+    #[test]
+    fn scaling_multiplies_every_pole_and_divides_the_delay() {
+        let fs = 10_000.0;
+        let (m, s) = second_order(95.0, 0.3, fs, 17);
+        let k = 1.08;
+        let scaled_model = scaled(&m, k).unwrap();
+        let want = (s * k / fs).exp();
+        let got = scaled_model.poles().unwrap();
+        assert!(
+            got.iter().any(|p| (*p - want).norm() < 1e-9)
+                && got.iter().any(|p| (*p - want.conj()).norm() < 1e-9),
+            "{got:?} against {want:?}"
+        );
+        assert!((scaled_model.dc_gain() - 1.0).abs() < 1e-9);
+        // 17 samples plus the fraction the b coefficients carry, over 1.08.
+        assert!(
+            scaled_model.delay <= 17 && scaled_model.delay >= 15,
+            "{}",
+            scaled_model.delay
+        );
+        // And back: scaling by 1/k returns the model's step response.
+        let back = scaled(&scaled_model, 1.0 / k).unwrap();
+        let (s0, s1) = (
+            crate::continuous::step_response(&m, 400),
+            crate::continuous::step_response(&back, 400),
+        );
+        let worst = s0
+            .iter()
+            .zip(&s1)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-6, "{worst}");
+        assert!((scale_for(343.15, 293.15).unwrap() - (343.15f64 / 293.15).sqrt()).abs() < 1e-15);
+        assert!(scale_for(-1.0, 293.15).is_err());
+    }
+
+    #[test]
+    fn the_scale_of_a_test_is_estimated_from_it() {
+        let fs = 10_000.0;
+        let (m, _) = second_order(95.0, 0.3, fs, 17);
+        let u: Vec<f64> = (0..4000)
+            .map(|k| if k >= 500 { 1.0 } else { 0.0 })
+            .collect();
+        let mut seed = 7u64;
+        let truth = scaled(&m, 0.93).unwrap();
+        let y: Vec<f64> = truth
+            .simulate(&u)
+            .iter()
+            .map(|v| {
+                seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+                v + 0.002 * ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
+            })
+            .collect();
+        let k = estimate_scale(&m, &u, &y);
+        assert!((k - 0.93).abs() < 0.002, "{k}");
+        let e = [Effect::Temperature {
+            reference_k: 293.15,
+        }];
+        let ym = predict(&m, &e, &u, &y);
+        assert!(crate::fit::nrmse_of(&y, &ym) < 0.002);
+        assert!(crate::fit::nrmse_of(&y, &m.simulate(&u)) > 0.01);
+    }
+
+    #[test]
+    fn the_prefilter_passes_a_step_and_stops_the_resonance() {
+        let fs = 10_000.0;
+        let e = resolve(&[Effect::parse("sensor-resonance=2000").unwrap()], &[], fs).unwrap();
+        assert_eq!(prefilter_hz(&e), Some(1000.0));
+        let step: Vec<f64> = (0..2000)
+            .map(|k| if k >= 100 { 3.0 } else { 1.0 })
+            .collect();
+        let f = prefiltered(&e, fs, &step);
+        assert!((f[0] - 1.0).abs() < 1e-12 && (f[1999] - 3.0).abs() < 1e-9);
+        let ring: Vec<f64> = (0..4000)
+            .map(|k| (2.0 * std::f64::consts::PI * 2000.0 * k as f64 / fs).sin())
+            .collect();
+        let out = prefiltered(&e, fs, &ring);
+        // Amplitude from the RMS over whole periods (2000 samples are 400 of them).
+        let peak = (2.0 * out[2000..].iter().map(|v| v * v).sum::<f64>() / 2000.0).sqrt();
+        // Butterworth of order 4 by the bilinear transform: |H| = 1 / sqrt(1 + r^8) with
+        // r = tan(pi f / fs) / tan(pi fc / fs) (about -28 dB here).
+        let r = (std::f64::consts::PI * 0.2).tan() / (std::f64::consts::PI * 0.1).tan();
+        let want = 1.0 / (1.0 + r.powi(8)).sqrt();
+        assert!((peak / want - 1.0).abs() < 0.01, "{peak} against {want}");
+        // Without a frequency and without ringing in the reference it refuses.
+        assert!(resolve(&[Effect::parse("sensor-resonance").unwrap()], &step, fs).is_err());
+        assert!(resolve(
+            &[Effect::parse("sensor-resonance=12000").unwrap()],
+            &step,
+            fs
+        )
+        .is_err());
+        // On the board: the prefilter's sections run first.
+        let (m, _) = second_order(95.0, 0.3, fs, 17);
+        let mut d = crate::inverse::design(&m, 800.0, &crate::inverse::Options::default()).unwrap();
+        let (n, latency) = (d.sections.len(), d.latency_samples);
+        with_prefilter(&mut d, &e, fs).unwrap();
+        assert_eq!(d.sections.len(), n + PREFILTER_ORDER / 2);
+        assert!(
+            d.latency_samples > latency + 1.0,
+            "{} {latency}",
+            d.latency_samples
+        );
+        let out = d.run::<f64>(&step).unwrap();
+        assert!(
+            (out[1999] - 3.0 / m.dc_gain()).abs() < 1e-6,
+            "{}",
+            out[1999]
+        );
+    }
+
+    #[test]
+    fn new_kinds_round_trip_through_toml() {
+        #[derive(Serialize, Deserialize)]
+        struct W {
+            effects: Vec<Effect>,
+        }
+        let text = "effects = [{ kind = \"sensor-resonance\", natural_frequency_hz = 2000.0, prefilter_hz = 1000.0 }, { kind = \"temperature\" }]";
+        let w: W = toml::from_str(text).unwrap();
+        assert_eq!(
+            w.effects,
+            vec![
+                Effect::SensorResonance {
+                    natural_frequency_hz: 2000.0,
+                    prefilter_hz: 1000.0
+                },
+                Effect::Temperature {
+                    reference_k: DEFAULT_REFERENCE_K
+                }
+            ]
+        );
+        assert_eq!(
+            Effect::parse("temperature=310"),
+            Some(Effect::Temperature { reference_k: 310.0 })
+        );
+        assert!(Effect::parse("temperature=-3").is_none());
     }
 }

@@ -221,6 +221,26 @@ pub struct TestEvidence {
     pub model_error: ModelError,
     /// Residual level and trend.
     pub trend: Trend,
+    /// The reference's own ringing after the step ([`reference_ringing`]), if any.
+    pub reference_ringing: Option<Peak>,
+}
+
+/// The reference channel's own ringing: the highest narrow peak (Q at least 2) of the spectrum
+/// of its increments from the step on. A clean step's increments are an impulse with a flat
+/// spectrum; a transducer's diaphragm ringing in the reference makes a peak at its natural
+/// frequency. A line or cavity mode of the probe never shows here.
+#[must_use]
+pub fn reference_ringing(u: &[f64], fs: f64) -> Option<Peak> {
+    let onset = step::find_step(u).map_or(0, |s| s.onset);
+    let du: Vec<f64> = u
+        .get(onset.saturating_sub(2)..)?
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .collect();
+    if du.len() < 32 {
+        return None;
+    }
+    spectrum(&du, fs).peaks.into_iter().find(|p| p.q >= 2.0)
 }
 
 /// Chi-square survival function by the Wilson-Hilferty cube-root normal approximation
@@ -445,6 +465,7 @@ impl TestEvidence {
                 pre_mean_se: noise_std / (pre.len().max(1) as f64).sqrt(),
                 late_mean_se: noise_std / (late.len().max(1) as f64).sqrt(),
             },
+            reference_ringing: reference_ringing(&u[..n], fs),
         }
     }
 

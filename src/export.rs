@@ -679,6 +679,22 @@ pub fn export_with(
     output: &Path,
 ) -> Result<Summary> {
     let file = ModelFile::load(model)?;
+    export_file(&file, model, format, number_format, output)
+}
+
+/// Exports the compensator of an already loaded (or derived, e.g. rescaled to a temperature)
+/// model file `file` that came from `model`, and writes `output` atomically.
+///
+/// # Errors
+/// As [`export_with`], less the loading.
+pub fn export_file(
+    file: &ModelFile,
+    model: &Path,
+    format: Format,
+    number_format: NumberFormat,
+    output: &Path,
+) -> Result<Summary> {
+    let file = file.clone();
     let source = model.file_name().map_or_else(
         || model.display().to_string(),
         |n| n.to_string_lossy().into_owned(),

@@ -30,12 +30,23 @@ pub enum Hidden {
     /// `y'' + (2 zeta w + k |y'|) y' + w^2 y = w^2 u(t - delay)`, with this `k` (per probe
     /// unit), simulated by fine-step RK4.
     NonlinearDamping(f64),
+    /// The transducers' diaphragm resonance (natural frequency Hz, damping): the reference is
+    /// measured through it (`u = S p`), and the probe's identical transducer, shaken by the
+    /// same shock, rings by `probe` times the step (`y = L p + probe (S p - p)`).
+    SensorResonance { f: f64, zeta: f64, probe: f64 },
+    /// The validation tests are made at this gas temperature (K), the estimation test at
+    /// 293.15 K: the line's natural frequencies scale by the ratio of the speeds of sound
+    /// (the physics module's air), its delay by the inverse.
+    Temperature(f64),
     /// Nothing hidden.
     None,
 }
 
 /// The default excitation: a rising unit step (estimation), a falling step of 0.65.
 pub const TWO_STEPS: &[(f64, f64)] = &[(0.0, 1.0), (1.0, 0.35)];
+
+/// Gas temperature of the estimation tests (K).
+pub const REFERENCE_K: f64 = 293.15;
 
 /// One case.
 #[derive(Debug, Clone, Copy)]
@@ -60,6 +71,8 @@ pub struct Case {
     pub order: usize,
     /// The tests' steps `(from, to)`; the first is the estimation test.
     pub steps: &'static [(f64, f64)],
+    /// A second line mode present in every test (natural frequency, damping), if any.
+    pub second: Option<(f64, f64)>,
 }
 
 impl Case {
@@ -87,18 +100,41 @@ impl Case {
         self.steps
             .iter()
             .zip(onsets.iter().cycle())
-            .map(|(&(lo, hi), &at)| {
+            .enumerate()
+            .map(|(i, (&(lo, hi), &at))| {
                 let u_true = step(self.n, at, lo, hi);
                 let size = hi - lo;
-                let modes: Vec<(f64, f64)> = match self.hidden {
+                let mut modes: Vec<(f64, f64)> = match self.hidden {
                     Hidden::Mode(f, z) => vec![self.mode, (f, z)],
                     _ => vec![self.mode],
                 };
+                modes.extend(self.second);
+                let mut delay = self.delay;
+                if let Hidden::Temperature(t) = self.hidden {
+                    if i > 0 {
+                        let a = |t| unlag::physics::gas::Gas::air(t, 101_325.0).speed_of_sound();
+                        let k = a(t) / a(REFERENCE_K);
+                        modes.iter_mut().for_each(|m| m.0 *= k);
+                        delay = (self.delay as f64 / k).round() as usize;
+                    }
+                }
                 let mut y = match self.hidden {
                     Hidden::NonlinearDamping(k) => {
                         quadratic_line(&u_true, self.fs, self.mode, k, self.delay)
                     }
-                    _ => continuous_line(&u_true, self.fs, &modes, self.delay),
+                    _ => continuous_line(&u_true, self.fs, &modes, delay),
+                };
+                // The transducers' ringing: the reference through its diaphragm, the probe
+                // shaken.
+                let u_true = match self.hidden {
+                    Hidden::SensorResonance { f, zeta, probe } => {
+                        let sp = continuous_line(&u_true, self.fs, &[(f, zeta)], 0);
+                        y.iter_mut()
+                            .zip(sp.iter().zip(&u_true))
+                            .for_each(|(v, (s, p))| *v += probe * (s - p));
+                        sp
+                    }
+                    _ => u_true,
                 };
                 match self.hidden {
                     Hidden::Leak { fraction, tau_s } => {
@@ -183,6 +219,7 @@ pub fn cases() -> Vec<Case> {
         hidden,
         order,
         steps: TWO_STEPS,
+        second: None,
     };
     vec![
         line(
@@ -287,6 +324,53 @@ pub fn cases() -> Vec<Case> {
             Hidden::ColouredNoise(0.97),
             2,
         ),
+        line(
+            "sensor resonance: 2 kHz, both channels",
+            "sensor-resonance",
+            10_000.0,
+            17,
+            Hidden::SensorResonance {
+                f: 2_000.0,
+                zeta: 0.03,
+                probe: 0.3,
+            },
+            2,
+        ),
+        Case {
+            steps: &[(1.0, 0.0), (0.2, 0.9)],
+            ..line(
+                "sensor resonance: 5 kHz, falling step, 20 kHz",
+                "sensor-resonance",
+                20_000.0,
+                30,
+                Hidden::SensorResonance {
+                    f: 5_000.0,
+                    zeta: 0.05,
+                    probe: 0.5,
+                },
+                2,
+            )
+        },
+        line(
+            "temperature: validation at 343 K",
+            "temperature",
+            10_000.0,
+            17,
+            Hidden::Temperature(343.15),
+            2,
+        ),
+        Case {
+            steps: &[(1.0, 0.0), (0.2, 0.9)],
+            second: Some((362.0, 0.16)),
+            ..line(
+                "temperature: two modes, validation at 253 K, falling step, 20 kHz",
+                "temperature",
+                20_000.0,
+                30,
+                Hidden::Temperature(253.15),
+                4,
+            )
+        },
         line("none: clean line", "none", 10_000.0, 17, Hidden::None, 2),
         line(
             "none: clean line, 20 kHz",
@@ -307,6 +391,7 @@ pub fn cases() -> Vec<Case> {
             hidden: Hidden::NonlinearDamping(0.5),
             order: 2,
             steps: &[(0.0, 1.0), (1.0, 0.4), (0.0, 0.3)],
+            second: None,
         },
         Case {
             name: "nonlinear damping: turbulent, 70 Hz, 20 kHz, steps 1.5, -0.5",
@@ -319,6 +404,7 @@ pub fn cases() -> Vec<Case> {
             hidden: Hidden::NonlinearDamping(0.3),
             order: 2,
             steps: &[(-0.5, 1.0), (1.0, 0.5)],
+            second: None,
         },
     ]
 }
@@ -391,7 +477,7 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
             match effects::fit_with(&tests[0], &tests[1..], case.fs, &options, &[effect]) {
                 Ok((f, fx)) => {
                     let ym = effects::predict(&f.model, &fx, uv, yv);
-                    unlag::fit::nrmse_of(yv, &ym)
+                    unlag::fit::nrmse_of(&effects::observed(&fx, case.fs, yv), &ym)
                 }
                 Err(_) => f64::NAN,
             }

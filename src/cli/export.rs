@@ -30,6 +30,11 @@ pub struct ExportArgs {
     /// the plan stored by `unlag invert` is used).
     #[arg(long, value_name = "VALUE")]
     pub full_scale: Option<f64>,
+    /// Gas temperature (K) the board will measure at: the model (with a `temperature` effect)
+    /// is scaled to it through its continuous-time equivalent and the compensator designed
+    /// anew; a running board swaps to the new set as a blob.
+    #[arg(long, value_name = "K")]
+    pub temperature: Option<f64>,
     /// Where to write it (written atomically).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
@@ -78,7 +83,14 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
         }
         (NumberFormatArg::Fixed, full_scale) => NumberFormat::Fixed { full_scale },
     };
-    let c = export::export_with(&args.model, format, number_format, &args.output)?;
+    let c = match args.temperature {
+        Some(t) => {
+            let file =
+                crate::effects::at_temperature(&crate::model::ModelFile::load(&args.model)?, t)?;
+            export::export_file(&file, &args.model, format, number_format, &args.output)?
+        }
+        None => export::export_with(&args.model, format, number_format, &args.output)?,
+    };
     if args.json {
         println!(
             "{}",

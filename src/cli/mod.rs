@@ -239,7 +239,10 @@ pub struct FitArgs {
     #[arg(long, value_name = "SAMPLES")]
     pub delay: Option<usize>,
     /// Add a physical effect to the model (repeatable): mode, leak, offset, drift,
-    /// coloured-noise, nonlinear-damping, or delay=N. Effects already in the output model file are kept.
+    /// coloured-noise, nonlinear-damping, delay=N, sensor-resonance (frequency found in the
+    /// reference) or sensor-resonance=HZ, temperature (reference 293.15 K) or temperature=K
+    /// (the estimation test's gas temperature). Effects already in the output model file are
+    /// kept.
     #[arg(long = "add", value_name = "KIND")]
     pub add: Vec<String>,
     /// Start afresh: ignore the effects and history of an existing output model file.
@@ -286,6 +289,10 @@ pub struct CompensateArgs {
     /// Use the paper's direct inverse (eq. 7) even when the model file has a compensator.
     #[arg(long)]
     pub direct: bool,
+    /// Gas temperature of the recording (K): the model (with a `temperature` effect) is scaled
+    /// to it and its compensator designed anew, as a board given that temperature runs it.
+    #[arg(long, value_name = "K")]
+    pub temperature: Option<f64>,
     /// Column names.
     #[command(flatten)]
     pub columns: ColumnArgs,
@@ -306,6 +313,10 @@ pub struct SimulateArgs {
     /// Output CSV: the input columns plus `y_model`.
     #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
     pub output: PathBuf,
+    /// Gas temperature of the recording (K), for a model with a `temperature` effect; without
+    /// it the time-scale factor is estimated from the recording.
+    #[arg(long, value_name = "K")]
+    pub temperature: Option<f64>,
     /// Column names.
     #[command(flatten)]
     pub columns: ColumnArgs,
@@ -442,7 +453,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         let e = crate::effects::Effect::parse(kind).ok_or_else(|| Error::InvalidArgument {
             what: "--add",
             message: format!(
-                "unknown effect '{kind}': one of {}, or delay=N",
+                "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, temperature=K",
                 crate::effects::KINDS
                     .iter()
                     .filter(|k| **k != "delay")
@@ -475,11 +486,12 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     for (i, (t, test)) in traces.iter().zip(&tests).enumerate() {
         let onset = fit::step::find_step(test.u).map_or(0, |s| s.onset);
         let ym = crate::effects::predict(&fitted.model, &effects, test.u, test.y);
+        let observed = crate::effects::observed(&effects, est.sample_rate_hz, test.y);
         sources.push(Source {
             file: name(&t.path),
             sha256: t.sha256.clone(),
             role: if i == 0 { "estimation" } else { "validation" }.into(),
-            nrmse: fit::nrmse_of(test.y, &ym),
+            nrmse: fit::nrmse_of(&observed, &ym),
             noise_floor: fit::noise_floor(&t.y, onset),
         });
     }
@@ -502,13 +514,26 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     } else {
         val_tests
     };
+    // With a sensor resonance the inverse is designed on the prefiltered tests, and the
+    // prefilter runs in front of it.
+    let filtered = prefiltered_tests(judge, &effects, est.sample_rate_hz);
+    let judge: Vec<Test<'_>> = filtered
+        .iter()
+        .zip(judge)
+        .map(|((u, y), t)| Test { name: t.name, u, y })
+        .collect();
+    let judge = judge.as_slice();
     // The fit stands on its own: if no compensator can be designed, say why and keep the model.
     let design = match inverse::design_auto_with(
         &fitted.model,
         judge,
         &args.inverse.options()?,
         crate::effects::nonlinear_gain(&effects),
-    ) {
+    )
+    .and_then(|mut d| {
+        crate::effects::with_prefilter(&mut d, &effects, est.sample_rate_hz)?;
+        Ok(d)
+    }) {
         Ok(mut d) => {
             args.inverse.plan_fixed(&mut d, judge)?;
             Some(d)
@@ -541,6 +566,24 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     }
     println!("wrote {}", args.output.display());
     Ok(())
+}
+
+/// Both channels of each test through the sensor-resonance prefilter of `effects` (unchanged
+/// without one).
+fn prefiltered_tests(
+    tests: &[Test<'_>],
+    effects: &[crate::effects::Effect],
+    fs: f64,
+) -> Vec<(Vec<f64>, Vec<f64>)> {
+    tests
+        .iter()
+        .map(|t| {
+            (
+                crate::effects::prefiltered(effects, fs, t.u),
+                crate::effects::prefiltered(effects, fs, t.y),
+            )
+        })
+        .collect()
 }
 
 fn print_inverse(d: &inverse::Design) {
@@ -631,12 +674,19 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
     }
     let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
     let tests = as_tests(&traces, &names)?;
+    let filtered = prefiltered_tests(&tests, &file.effects, file.model.fs);
+    let tests: Vec<Test<'_>> = filtered
+        .iter()
+        .zip(&tests)
+        .map(|((u, y), t)| Test { name: t.name, u, y })
+        .collect();
     let mut design = inverse::design_auto_with(
         &file.model,
         &tests,
         &args.inverse.options()?,
         crate::effects::nonlinear_gain(&file.effects),
     )?;
+    crate::effects::with_prefilter(&mut design, &file.effects, file.model.fs)?;
     design.check_exportable()?;
     args.inverse.plan_fixed(&mut design, &tests)?;
     let out = ModelFile {
@@ -751,6 +801,11 @@ fn print_fit(file: &ModelFile, est: &Trace) {
 
 fn run_compensate(args: &CompensateArgs) -> Result<()> {
     let file = ModelFile::load(&args.model)?;
+    // A board given the gas temperature runs the coefficient set rescaled to it.
+    let file = match args.temperature {
+        Some(t) => crate::effects::at_temperature(&file, t)?,
+        None => file,
+    };
     let trace = Trace::read(&args.file, &args.columns.columns(false))?;
     check_rate(&file, &trace)?;
     let m = &file.model;
@@ -799,6 +854,8 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         }
         None => {
             m.check_invertible(&name(&args.model))?;
+            // The direct inverse of a model fitted below a sensor resonance gets the prefilter.
+            let y_probe = crate::effects::prefiltered(&file.effects, m.fs, &y_probe);
             let u_hat = match args.arithmetic {
                 Arithmetic::F32 => m.compensate::<f32>(&y_probe)?,
                 Arithmetic::F64 => m.compensate::<f64>(&y_probe)?,
@@ -831,8 +888,16 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         }
     }
     // Error against the recorded reference, at the best alignment near the latency.
+    // With a sensor resonance the reference is judged below it (the compensator does not
+    // and should not reproduce the reference transducer's own ringing).
     let error = trace.u.as_ref().map(|u| {
-        let nominal = latency.round().max(0.0) as usize;
+        let u = &crate::effects::observed(&file.effects, m.fs, u);
+        let prefilter = if design.is_some() {
+            crate::effects::prefilter_delay(&file.effects, m.fs)
+        } else {
+            0.0
+        };
+        let nominal = (latency - prefilter).round().max(0.0) as usize;
         let (e, lag) = inverse::aligned_error(u, &u_hat, nominal.saturating_sub(4)..=nominal + 4);
         let (raw, _) = inverse::aligned_error(u, &trace.y, 0..=m.delay + 4 * nominal.max(10));
         (e, raw, lag)
@@ -922,8 +987,21 @@ fn run_simulate(args: &SimulateArgs) -> Result<()> {
     check_rate(&file, &trace)?;
     let u = trace.input()?;
     // The whole model: dynamics plus effects (an offset or drift estimated on this test).
-    let y_model = crate::effects::predict(&file.model, &file.effects, u, &trace.y);
-    let error = fit::nrmse_of(&trace.y, &y_model);
+    let scale = match (args.temperature, crate::effects::reference_k(&file.effects)) {
+        (Some(t), Some(reference)) => Some(crate::effects::scale_for(t, reference)?),
+        (Some(_), None) => {
+            return Err(Error::InvalidArgument {
+                what: "--temperature",
+                message: "the model file has no temperature effect, so no reference \
+                          temperature: refit with `unlag fit ... --add temperature`"
+                    .into(),
+            })
+        }
+        (None, _) => None,
+    };
+    let y_model = crate::effects::predict_with(&file.model, &file.effects, u, &trace.y, scale);
+    let observed = crate::effects::observed(&file.effects, file.model.fs, &trace.y);
+    let error = fit::nrmse_of(&observed, &y_model);
     let bytes = trace.to_csv_with(&[("y_model", &y_model)])?;
     crate::trace::write_atomically(&args.output, &bytes)?;
     if args.json {

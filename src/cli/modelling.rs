@@ -119,6 +119,12 @@ fn print_evidence(evidence: &[TestEvidence]) {
                 .collect();
             println!("  residual spectrum peaks: {}", peaks.join(", "));
         }
+        if let Some(p) = e.reference_ringing {
+            println!(
+                "  the reference itself rings: {:.0} Hz (+{:.0} dB, Q {:.0}) in its increments",
+                p.frequency_hz, p.above_floor_db, p.q
+            );
+        }
         println!(
             "  level: {:+.3e} before the step (+-{:.1e}), {:+.3e} at the end (+-{:.1e}); slope {:+.3e}/s; step {:+.4}",
             e.trend.pre_mean,

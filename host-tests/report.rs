@@ -336,3 +336,44 @@ fn bad_input_writes_no_report() {
     assert!(stderr.contains("cannot write"), "{stderr}");
     assert!(!out.exists());
 }
+
+/// The "data drawn" check can fail: a chart with its axes, guides and legend but no data
+/// does not pass it, and the same chart with data does.
+#[test]
+fn an_empty_chart_fails_the_data_check() {
+    use unlag::report::plot::{colour, figure, Panel, Series, Style};
+    let empty = Panel::new(
+        "nothing",
+        "time (s)",
+        "pressure",
+        vec![
+            Series::with("probe", Vec::new(), colour::PROBE, Style::Line(2)),
+            Series::with("stems", Vec::new(), colour::RESIDUAL, Style::Stems),
+        ],
+    )
+    .guides(vec![(0.5, "band".into()), (-0.5, String::new())]);
+    let svg = figure("empty", &[empty.clone(), empty], 300, 2).unwrap();
+    let (lines, marks) = data_marks(&svg);
+    assert!(
+        lines == 0 && marks < 6,
+        "an empty chart passed: {lines}, {marks}"
+    );
+    let trace: Vec<(f64, f64)> = (0..50).map(|k| (f64::from(k), f64::from(k % 7))).collect();
+    let full = Panel::new(
+        "data",
+        "time (s)",
+        "pressure",
+        vec![Series::line("probe", &trace, colour::PROBE, 2)],
+    );
+    let (lines, _) = data_marks(&figure("full", &[full], 300, 1).unwrap());
+    assert!(lines >= 1);
+    let stems: Vec<(f64, f64)> = (1..=30).map(|k| (f64::from(k), 0.1)).collect();
+    let acf = Panel::new(
+        "stems",
+        "lag",
+        "rho",
+        vec![Series::with("rho", stems, colour::PROBE, Style::Stems)],
+    );
+    let (_, marks) = data_marks(&figure("stems", &[acf], 300, 1).unwrap());
+    assert!(marks >= 6, "{marks}");
+}

@@ -240,20 +240,11 @@ fn summary_table(h: &mut String, inputs: &Inputs<'_>) {
          <th>error (nrmse)</th><th>noise floor</th><th>error / floor</th><th>Ljung-Box p</th>\
          <th>reconstruction u&#770; / raw probe</th></tr>\n",
     );
-    for e in inputs.evidence {
-        let rec = inputs
-            .file
-            .inverse
-            .as_ref()
-            .and_then(|d| {
-                d.reconstruction
-                    .iter()
-                    .find(|r| same_file(&r.file, &e.file))
-            })
-            .map_or_else(
-                || "&ndash;".to_string(),
-                |r| format!("{} / {}", pct(r.nrmse_u_hat), pct(r.nrmse_raw)),
-            );
+    for (e, test) in inputs.evidence.iter().zip(inputs.tests) {
+        let rec = compensated_signal(inputs, test).map_or_else(
+            || "&ndash;".to_string(),
+            |c| format!("{} / {}", pct(c.error), pct(c.raw_error)),
+        );
         let _ = writeln!(
             h,
             "<tr><td>{}</td><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{:.2}</td>\
@@ -426,6 +417,38 @@ fn per_test(
     Ok(())
 }
 
+/// The compensated signal of a test and its errors against the reference.
+struct Compensated {
+    /// `u_hat` as the compensator gives it (lagging by `lag`).
+    u_hat: Vec<f64>,
+    /// Its lag behind the reference (samples).
+    lag: usize,
+    /// Which compensator.
+    how: String,
+    /// Error of `u_hat` against the reference at that lag (RMS / range).
+    error: f64,
+    /// Error of the raw probe against the reference at its best alignment (as
+    /// [`crate::inverse::reconstruct`] measures it).
+    raw_error: f64,
+}
+
+fn compensated_signal(inputs: &Inputs<'_>, test: &Test<'_>) -> Option<Compensated> {
+    let (u_hat, lag, how) = compensate(inputs, test)?;
+    let (error, _) = crate::inverse::aligned_error(test.u, &u_hat, lag..=lag);
+    let (raw_error, _) = crate::inverse::aligned_error(
+        test.u,
+        test.y,
+        0..=inputs.file.model.delay + 4 * lag.max(10),
+    );
+    Some(Compensated {
+        u_hat,
+        lag,
+        how,
+        error,
+        raw_error,
+    })
+}
+
 /// `u_hat` aligned on the reference: `(estimate, lag, how)`.
 fn compensate(inputs: &Inputs<'_>, test: &Test<'_>) -> Option<(Vec<f64>, usize, String)> {
     let file = inputs.file;
@@ -464,7 +487,14 @@ fn compensated(
 ) -> Result<()> {
     let fs = inputs.file.model.fs;
     let n = test.y.len().min(test.u.len());
-    let Some((u_hat, lag, how)) = compensate(inputs, test) else {
+    let Some(Compensated {
+        u_hat,
+        lag,
+        how,
+        error: e_hat,
+        raw_error: e_raw,
+    }) = compensated_signal(inputs, test)
+    else {
         let _ = writeln!(
             h,
             "<p class=\"note\">No compensated signal: the model has no stable inverse and the \
@@ -474,8 +504,6 @@ fn compensated(
     };
     let aligned: Vec<f64> = u_hat.iter().skip(lag).copied().collect();
     let (scale, t_label) = time_unit(n, fs);
-    let (e_hat, _) = crate::inverse::aligned_error(test.u, &u_hat, lag..=lag);
-    let (e_raw, _) = crate::inverse::aligned_error(test.u, test.y, 0..=0);
     let panel = |range: std::ops::Range<usize>, what: &str| {
         let aligned_range = range.start..range.end.min(aligned.len());
         let mut p = Panel::new(
@@ -520,8 +548,8 @@ fn compensated(
         &format!("compensated-{number}"),
         &svg,
         &format!(
-            "Reconstructed reference u&#770; by {}. Error against the reference {} (raw probe, \
-             not delayed: {}).",
+            "Reconstructed reference u&#770; by {}. Error against the reference {} (raw probe at \
+             its best alignment: {}).",
             escape(&how),
             pct(e_hat),
             pct(e_raw)
@@ -739,7 +767,8 @@ fn bode(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
     };
     let hm: Vec<(f64, f64)> = analysis::frequency_response(model, &freqs);
     // Phase with the pure delays removed (they would swamp the dynamics with thousands of
-    // degrees): the model's d samples, the compensator's latency, their sum for the product.
+    // degrees): the model's d samples; the design's latency is that of u_hat behind u, the
+    // product's, of which the compensator adds latency - d.
     let delay = model.delay as f64;
     let latency = file.inverse.as_ref().map_or(0.0, |c| c.latency_samples);
     let turn = |f: f64, samples: f64| 360.0 * f * samples / fs;
@@ -800,7 +829,7 @@ fn bode(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
             freqs
                 .iter()
                 .zip(pc)
-                .map(|(f, p)| (*f, p + turn(*f, -latency)))
+                .map(|(f, p)| (*f, p + turn(*f, latency - delay)))
                 .collect(),
             colour::COMPENSATED,
             Style::Line(2),
@@ -810,7 +839,7 @@ fn bode(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
             freqs
                 .iter()
                 .zip(pp)
-                .map(|(f, p)| (*f, p + turn(*f, delay + latency)))
+                .map(|(f, p)| (*f, p + turn(*f, latency)))
                 .collect(),
             colour::PRODUCT,
             Style::Line(2),
@@ -878,9 +907,9 @@ fn bode(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
     }
     let _ = write!(
         caption,
-        ". Phase drawn with the pure delays taken out: the model's {} samples (the physical \
-         prediction's likewise), the compensator's latency of {latency:.2} samples, and both for \
-         the corrected response",
+        ". Phase drawn with the pure delays taken out: the model's {} samples (from the \
+         physical prediction likewise), the corrected response's latency of {latency:.2} samples, \
+         and their difference from the compensator",
         model.delay
     );
     caption.push('.');
@@ -1118,7 +1147,14 @@ fn history(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
     if let Some(f) = floor {
         p = p.guides(vec![(f, "noise floor (mean)".into())]);
     }
-    p.y.start = p.y.start.min(0.0).max(-0.05 * p.y.end.abs());
+    // From zero, with room above the highest point for its mark.
+    let top = p
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|q| q.1))
+        .chain(floor)
+        .fold(0.0f64, f64::max);
+    p.y = 0.0..(1.15 * top).max(1e-6);
     p.x = 0.5..(rows.len().max(1) as f64 + 0.5);
     p.x_names = (0..rows.len()).map(step_name).collect();
     let svg = figure("history", &[p], 320, 1)?;

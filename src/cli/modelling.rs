@@ -266,9 +266,6 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
                 candidates: &candidates,
             },
         )?;
-        if !args.json {
-            println!("wrote the report {}: open it in a browser", path.display());
-        }
     }
     if args.json {
         let v = json!({
@@ -304,6 +301,9 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
         );
         println!("    {}", c.reading);
         println!("    change: {}", c.change);
+    }
+    if let Some(path) = &args.report {
+        println!("wrote the report {}: open it in a browser", path.display());
     }
     Ok(())
 }

@@ -1198,6 +1198,25 @@ fn history(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
     Ok(())
 }
 
+/// The evidence's numbers to four significant digits (the full ones are in `--json`).
+fn rounded(v: &serde_json::Value) -> serde_json::Value {
+    use serde_json::Value;
+    match v {
+        Value::Number(n) => match n.as_f64() {
+            Some(x) if n.is_f64() && x != 0.0 && x.is_finite() => {
+                let digits = 3 - x.abs().log10().floor() as i32;
+                let scale = 10f64.powi(digits);
+                serde_json::Number::from_f64((x * scale).round() / scale)
+                    .map_or_else(|| v.clone(), Value::Number)
+            }
+            _ => v.clone(),
+        },
+        Value::Array(a) => Value::Array(a.iter().map(rounded).collect()),
+        Value::Object(o) => Value::Object(o.iter().map(|(k, x)| (k.clone(), rounded(x))).collect()),
+        _ => v.clone(),
+    }
+}
+
 fn candidates(h: &mut String, inputs: &Inputs<'_>) {
     h.push_str(
         "<h3>Candidates for the missing effect, best first</h3>\n\
@@ -1205,7 +1224,7 @@ fn candidates(h: &mut String, inputs: &Inputs<'_>) {
          <th>held-out error</th><th>reading and evidence</th><th>change</th></tr>\n",
     );
     for (i, c) in inputs.candidates.iter().enumerate() {
-        let evidence = serde_json::to_string(&c.evidence).unwrap_or_default();
+        let evidence = serde_json::to_string(&rounded(&c.evidence)).unwrap_or_default();
         let _ = writeln!(
             h,
             "<tr><td class=\"num\">{}</td><td><b>{}</b></td><td class=\"num\">{:.2}</td>\
@@ -1347,6 +1366,18 @@ mod tests {
         assert!(html.contains(&pct(ev[0].nrmse)));
         assert!(html.contains("a slow creep &amp; more"));
         assert!(html.contains("a&lt;b&gt;.csv") && !html.contains("a<b>.csv"));
+    }
+
+    #[test]
+    fn evidence_numbers_are_shortened_not_changed() {
+        let v = serde_json::json!({"a": 0.000_716_295_602_505_328_9, "b": [303.955_078_125, 7],
+                                   "c": "x", "d": -2.526_434_974_417_220_8});
+        let r = rounded(&v);
+        assert_eq!(r["a"].as_f64(), Some(0.000_716_3));
+        assert_eq!(r["b"][0].as_f64(), Some(304.0));
+        assert_eq!(r["b"][1].as_u64(), Some(7));
+        assert_eq!(r["c"], "x");
+        assert_eq!(r["d"].as_f64(), Some(-2.526));
     }
 
     #[test]

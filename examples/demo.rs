@@ -6,8 +6,9 @@
 //!
 //! It runs exactly what a user would type, through the same code as the `unlag` binary:
 //!
-//! 1. `unlag fit examples/data/step_test_1.csv examples/data/step_test_2.csv -o target/demo/model.toml`
-//!    (fit on the first test, validate on the second, print the model and its errors);
+//! 1. `unlag fit examples/data/step_test_1.csv examples/data/step_test_2.csv --fresh -o target/demo/model.toml --report target/demo/report.html`
+//!    (fit on the first test, validate on the second, print the model and its errors, and write
+//!    the HTML report: traces, residuals, spectra, Bode and pole-zero plots, the diagnosis);
 //! 2. `unlag compensate target/demo/model.toml examples/data/step_test_2.csv -o target/demo/compensated.csv`
 //!    (reconstruct the reference of the second test with the board's f32 compensator).
 
@@ -30,10 +31,16 @@ fn main() -> ExitCode {
         "examples/data/step_test_1.csv",
         "examples/data/step_test_2.csv",
     );
-    let (model, compensated) = ("target/demo/model.toml", "target/demo/compensated.csv");
+    let (model, compensated, report) = (
+        "target/demo/model.toml",
+        "target/demo/compensated.csv",
+        "target/demo/report.html",
+    );
     let steps: [Vec<&str>; 2] = [
         // --fresh: a rerun starts over instead of extending the model file's history.
-        vec!["unlag", "fit", t1, t2, "--fresh", "-o", model],
+        vec![
+            "unlag", "fit", t1, t2, "--fresh", "-o", model, "--report", report,
+        ],
         vec!["unlag", "compensate", model, t2, "-o", compensated],
     ];
     for argv in steps {
@@ -43,5 +50,6 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     }
+    println!("\nthe report: open {root}/{report} in a browser");
     ExitCode::SUCCESS
 }

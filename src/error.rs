@@ -225,6 +225,24 @@ pub enum Error {
         /// What to do instead.
         hint: &'static str,
     },
+    /// A plot of the HTML report could not be drawn (`unlag report`).
+    #[error("report: plot '{plot}' could not be drawn: {message}")]
+    Plot {
+        /// Which plot.
+        plot: String,
+        /// What the plotting library said.
+        message: String,
+    },
+}
+
+impl Error {
+    /// A plot of the HTML report could not be drawn.
+    pub(crate) fn plot(plot: &str, e: impl std::fmt::Display) -> Self {
+        Self::Plot {
+            plot: plot.to_string(),
+            message: e.to_string(),
+        }
+    }
 }
 
 /// Host-side result.

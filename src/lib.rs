@@ -38,6 +38,8 @@ pub mod poly;
 #[cfg(feature = "std")]
 pub mod quantise;
 #[cfg(feature = "std")]
+pub mod report;
+#[cfg(feature = "std")]
 pub mod trace;
 
 #[cfg(feature = "std")]

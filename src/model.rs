@@ -254,6 +254,40 @@ pub struct ModelFile {
     /// added.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub history: Vec<HistoryRow>,
+    /// The probe's physical geometry, when the user writes it into the file (`[probe]`): the
+    /// report then draws the physical prediction beside the fitted model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe: Option<ProbeGeometry>,
+}
+
+/// A probe's geometry in a model file: tubes in series from the measuring point on, then the
+/// transducer volume (the `unlag predict --line L,D --volume V` description).
+///
+/// ```toml
+/// [probe]
+/// lines = [[0.6, 1.1e-3]]   # [length, inner diameter] in m, from the measuring point on
+/// volume_m3 = 20e-9
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProbeGeometry {
+    /// Tubes as `[length_m, diameter_m]`, from the measuring point on.
+    pub lines: Vec<[f64; 2]>,
+    /// Volume at the closed end in m^3.
+    pub volume_m3: f64,
+    /// Mean gas temperature in K (air).
+    #[serde(default = "default_temperature_k")]
+    pub temperature_k: f64,
+    /// Mean absolute pressure in Pa.
+    #[serde(default = "default_pressure_pa")]
+    pub pressure_pa: f64,
+}
+
+fn default_temperature_k() -> f64 {
+    293.15
+}
+
+fn default_pressure_pa() -> f64 {
+    101_325.0
 }
 
 /// One fit in a model file's history.
@@ -413,6 +447,7 @@ mod tests {
             inverse: None,
             effects: Vec::new(),
             history: Vec::new(),
+            probe: None,
         };
         let text = f.to_toml().unwrap();
         assert!(text.contains("delay = 3"), "{text}");

@@ -19,6 +19,7 @@ pub mod export;
 pub mod inspect;
 pub mod modelling;
 pub mod physics;
+pub mod report;
 
 /// Give pressure probes back their bandwidth: fit a model from a step test, compensate.
 #[derive(Debug, Parser)]
@@ -63,6 +64,9 @@ pub enum Command {
     /// Predict a physical probe's exact first modes, front delay and lumped approximation,
     /// and compare them with a fitted model (--model).
     Predict(physics::PredictArgs),
+    /// Write an HTML report of a model against step tests: traces, residuals, spectra,
+    /// correlations, Bode and pole-zero plots, error history and the ranked candidates.
+    Report(report::ReportArgs),
 }
 
 /// Column names and sample rate of the input CSV.
@@ -248,6 +252,9 @@ pub struct FitArgs {
     /// Start afresh: ignore the effects and history of an existing output model file.
     #[arg(long)]
     pub fresh: bool,
+    /// Also write the HTML report of the fitted model against the tests (as `unlag report`).
+    #[arg(long, value_name = "REPORT.html")]
+    pub report: Option<PathBuf>,
     /// Compensator design (on the validation tests, or the estimation test if there are none).
     #[command(flatten)]
     pub inverse: InverseArgs,
@@ -342,6 +349,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::SimulateTest(a) => physics::run_simulate_test(&a),
         Command::Predict(a) => physics::run_predict(&a),
         Command::Export(a) => export::run_export(&a),
+        Command::Report(a) => report::run_report(&a),
     }
 }
 
@@ -465,6 +473,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         effects.retain(|x| x.kind() != e.kind() || e.kind() == "mode");
         effects.push(e);
     }
+    let progress = report::Progress::start(args.json, "fitting");
     let fitted =
         crate::effects::fit_with(est_test, val_tests, est.sample_rate_hz, &options, &effects)
             .map(|(f, fx)| {
@@ -495,6 +504,12 @@ fn run_fit(args: &FitArgs) -> Result<()> {
             noise_floor: fit::noise_floor(&t.y, onset),
         });
     }
+    // The probe's geometry describes the hardware, not the fit: kept even with --fresh.
+    let probe = if args.fresh {
+        ModelFile::load(&args.output).ok().and_then(|p| p.probe)
+    } else {
+        previous.as_ref().and_then(|p| p.probe.clone())
+    };
     let mut history = previous.map(|p| p.history).unwrap_or_default();
     history.push(crate::model::HistoryRow {
         effects: effects.iter().map(|e| e.kind().to_string()).collect(),
@@ -524,6 +539,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         .collect();
     let judge = judge.as_slice();
     // The fit stands on its own: if no compensator can be designed, say why and keep the model.
+    progress.step("designing the compensator");
     let design = match inverse::design_auto_with(
         &fitted.model,
         judge,
@@ -551,12 +567,27 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         inverse: design,
         effects,
         history,
+        probe,
     };
     file.save(&args.output)?;
+    let report_bytes = match &args.report {
+        Some(path) => Some(report::write_report(
+            path,
+            &name(&args.output),
+            &file,
+            &tests,
+            &progress,
+        )?),
+        None => None,
+    };
+    progress.finish();
     if args.json {
         let mut v = serde_json::to_value(&file).map_err(json_err)?;
         v["output"] = json!(name(&args.output));
         v["dc_gain"] = json!(file.model.dc_gain());
+        if let Some(path) = &args.report {
+            v["report"] = json!(name(path));
+        }
         println!("{v}");
         return Ok(());
     }
@@ -565,6 +596,13 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         print_inverse(d);
     }
     println!("wrote {}", args.output.display());
+    if let (Some(path), Some(bytes)) = (&args.report, report_bytes) {
+        println!(
+            "wrote the report {} ({:.0} kB): open it in a browser",
+            path.display(),
+            bytes as f64 / 1e3
+        );
+    }
     Ok(())
 }
 

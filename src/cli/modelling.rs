@@ -29,6 +29,9 @@ pub struct LoopArgs {
     /// Print one JSON object instead of tables.
     #[arg(long)]
     pub json: bool,
+    /// Also write the HTML report (as `unlag report`).
+    #[arg(long, value_name = "REPORT.html")]
+    pub report: Option<PathBuf>,
 }
 
 struct Loaded {
@@ -60,7 +63,7 @@ fn tests(l: &Loaded) -> Result<Vec<Test<'_>>> {
     super::as_tests(&l.traces, &l.names)
 }
 
-fn method_of(file: &ModelFile) -> Method {
+pub(crate) fn method_of(file: &ModelFile) -> Method {
     match file.fit.as_ref().map(|f| f.method.as_str()) {
         Some("arx") => Method::Arx,
         Some("sm") => Method::Sm,
@@ -225,8 +228,12 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
     };
     let evidence = diagnose::evidence(&current, &tests);
     let across = diagnose::per_test(&current, &tests, &evidence);
+    if let Some(path) = &args.report {
+        let progress = super::report::Progress::start(args.json, "report");
+        super::report::write_report(path, &name(&args.model), &l.file, &tests, &progress)?;
+    }
     if args.json {
-        let v = json!({
+        let mut v = json!({
             "model": name(&args.model),
             "tests": tests_json(&evidence)?,
             "across_tests": across,
@@ -234,6 +241,9 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
             "history": l.file.history,
             "candidates": Vec::<Candidate>::new(),
         });
+        if let Some(path) = &args.report {
+            v["report"] = json!(name(path));
+        }
         println!("{v}");
         return Ok(());
     }
@@ -241,6 +251,9 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
     print_across(&across);
     print_history(&l.file);
     println!("run `unlag diagnose` with the same arguments to rank the missing effects");
+    if let Some(path) = &args.report {
+        println!("wrote the report {}: open it in a browser", path.display());
+    }
     Ok(())
 }
 
@@ -264,6 +277,18 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
     };
     let evidence = diagnose::evidence(&current, &tests);
     let candidates = diagnose::diagnose(&current, &tests, &evidence)?;
+    if let Some(path) = &args.report {
+        crate::report::write(
+            path,
+            &crate::report::Inputs {
+                model_name: &name(&args.model),
+                file: &l.file,
+                tests: &tests,
+                evidence: &evidence,
+                candidates: &candidates,
+            },
+        )?;
+    }
     if args.json {
         let v = json!({
             "model": name(&args.model),
@@ -298,6 +323,9 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
         );
         println!("    {}", c.reading);
         println!("    change: {}", c.change);
+    }
+    if let Some(path) = &args.report {
+        println!("wrote the report {}: open it in a browser", path.display());
     }
     Ok(())
 }

@@ -1,0 +1,171 @@
+//! `unlag report` and the `--report FILE` of `unlag fit` and `unlag compare`: the HTML report
+//! written from a model file and its tests, and the progress indication of long commands.
+//! The page itself is [`crate::report`]'s.
+
+use std::io::IsTerminal as _;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use clap::Args;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde_json::json;
+
+use super::{name, ColumnArgs};
+use crate::diagnose::{self, Current};
+use crate::error::{Error, Result};
+use crate::fit::Test;
+use crate::model::ModelFile;
+use crate::report::{self, Inputs};
+
+/// Arguments of `unlag report`.
+#[derive(Debug, Args)]
+pub struct ReportArgs {
+    /// The model file.
+    #[arg(value_name = "MODEL.toml")]
+    pub model: PathBuf,
+    /// Step tests (CSV with the reference): the first is the estimation test, the others are
+    /// held out (as for `unlag compare`).
+    #[arg(required = true, value_name = "TEST.csv")]
+    pub files: Vec<PathBuf>,
+    /// Where to write the report (one self-contained HTML file).
+    #[arg(short = 'o', long = "output", value_name = "REPORT.html")]
+    pub output: PathBuf,
+    /// Column names.
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// A spinner on stderr for work that may take more than a second: it appears only after a
+/// second, and never under `--json` or when stdout is not a terminal.
+pub(crate) struct Progress {
+    bar: Option<ProgressBar>,
+    done: Arc<AtomicBool>,
+}
+
+impl Progress {
+    /// Starts the (hidden) spinner with a first message.
+    pub(crate) fn start(json: bool, message: &str) -> Self {
+        let done = Arc::new(AtomicBool::new(false));
+        if json || !std::io::stdout().is_terminal() {
+            return Self { bar: None, done };
+        }
+        let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
+        if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} ({elapsed})") {
+            bar.set_style(style);
+        }
+        bar.set_message(message.to_string());
+        let (shown, flag) = (bar.clone(), Arc::clone(&done));
+        std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_secs(1));
+            if !flag.load(Ordering::SeqCst) {
+                shown.set_draw_target(ProgressDrawTarget::stderr());
+                shown.enable_steady_tick(Duration::from_millis(120));
+            }
+        });
+        Self {
+            bar: Some(bar),
+            done,
+        }
+    }
+
+    /// What is being done now.
+    pub(crate) fn step(&self, message: &str) {
+        if let Some(b) = &self.bar {
+            b.set_message(message.to_string());
+        }
+    }
+
+    /// Removes the spinner (also on drop).
+    pub(crate) fn finish(&self) {
+        self.done.store(true, Ordering::SeqCst);
+        if let Some(b) = &self.bar {
+            b.finish_and_clear();
+        }
+    }
+}
+
+impl Drop for Progress {
+    fn drop(&mut self) {
+        self.finish();
+    }
+}
+
+/// Measures the evidence, runs the diagnosis and writes the report to `output`; returns the
+/// report's size in bytes.
+///
+/// # Errors
+/// The diagnosis' and the report's errors.
+pub(crate) fn write_report(
+    output: &Path,
+    model_name: &str,
+    file: &ModelFile,
+    tests: &[Test<'_>],
+    progress: &Progress,
+) -> Result<usize> {
+    if tests.is_empty() {
+        return Err(Error::InvalidArgument {
+            what: "TEST.csv",
+            message: "give at least one step test for the report".into(),
+        });
+    }
+    let current = Current {
+        model: &file.model,
+        effects: &file.effects,
+        method: super::modelling::method_of(file),
+    };
+    progress.step("report: measuring the residuals");
+    let evidence = diagnose::evidence(&current, tests);
+    progress.step("report: diagnosing (trial refits)");
+    let candidates = diagnose::diagnose(&current, tests, &evidence)?;
+    progress.step("report: drawing");
+    report::write(
+        output,
+        &Inputs {
+            model_name,
+            file,
+            tests,
+            evidence: &evidence,
+            candidates: &candidates,
+        },
+    )
+}
+
+/// `unlag report`.
+///
+/// # Errors
+/// The traces', the model file's and the report's errors.
+pub fn run_report(args: &ReportArgs) -> Result<()> {
+    let file = ModelFile::load(&args.model)?;
+    let columns = args.columns.columns(true);
+    let traces = args
+        .files
+        .iter()
+        .map(|f| crate::trace::Trace::read(f, &columns))
+        .collect::<Result<Vec<_>>>()?;
+    for t in &traces {
+        super::check_rate(&file, t)?;
+    }
+    let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
+    let tests = super::as_tests(&traces, &names)?;
+    let progress = Progress::start(args.json, "report");
+    let bytes = write_report(&args.output, &name(&args.model), &file, &tests, &progress)?;
+    progress.finish();
+    if args.json {
+        println!(
+            "{}",
+            json!({"output": name(&args.output), "bytes": bytes, "tests": names})
+        );
+    } else {
+        println!(
+            "wrote the report {} ({:.0} kB): open it in a browser",
+            args.output.display(),
+            bytes as f64 / 1e3
+        );
+    }
+    Ok(())
+}

@@ -93,6 +93,12 @@ for b, label in (("default", "default (VMUL + VADD)"), ("vmla", "`-slowfpvmlx` (
 for b, label in (("default", "default (VMUL + VADD)"), ("vmla", "`-slowfpvmlx` (VMLA)")):
     e = res[b][("empty", 0, "call", 1024)] / 1024
     lines.append(f"| {label} | - | empty call | - | - | {e:.2f} | 0 |")
+for b, label in (("default", "default (VMUL + VADD)"), ("vmla", "`-slowfpvmlx` (VMLA)")):
+    key = ("nonlin", 4, "call", 1024)
+    if key in res[b]:
+        n = res[b][key] / 1024
+        e = res[b][("empty", 0, "call", 1024)] / 1024
+        lines.append(f"| {label} | 4 | unlag + nonlinear-damping correction | - | - | {n:.2f} | {n - e:.2f} |")
 lines.append("")
 lines.append("Goals for m = 4 (issue 5): f32 at most 30 per single-sample call and at most 14 per")
 d4 = cols(res["default"], "unlag", 4); v4 = cols(res["vmla"], "unlag", 4)
@@ -116,6 +122,13 @@ lines.append("VMUL) where VMUL + VADD code takes 18; the kernel wins back loads 
 lines.append("against 2 per VLDR) and the frame. With VMUL + VADD the block loop would need about 21")
 lines.append("instructions per sample: the 14-instruction goal needs multiply-accumulate, and fused")
 lines.append("VFMA would change the bits.")
+nl = res["default"].get(("nonlin", 4, "call", 1024))
+if nl is not None:
+    lines.append("")
+    lines.append(f"With the `nonlinear-damping` effect (issue 7) the board adds `gain * lowpass(|dy| dy)` to the")
+    lines.append(f"m = 4 compensator's output: {nl / 1024:.2f} per call in all, against {d4[2]:.2f} without it (the")
+    lines.append("correction is the rate term and a second cascade, its own two-section low-pass, through")
+    lines.append("the same kernels).")
 f4 = cols(res["default"], "fixed", 4)
 f2 = cols(res["default"], "fixed", 2)
 lines.append("")

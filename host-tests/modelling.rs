@@ -33,7 +33,7 @@ fn every_hidden_effect_is_named_and_adding_it_cuts_the_error() {
 }
 
 /// The physics cases' step tests are the Bergh-Tijdeman response: the probe stays at its level
-/// until the front has travelled the line (`L/a`) and settles at the line's DC gain times the
+/// until the front has travelled the line (`ΣL/a`) and settles at the line's DC gain times the
 /// new level, while the reference reaches it within the facility's opening time.
 #[test]
 fn physical_step_tests_wait_for_the_front_and_settle() {
@@ -46,7 +46,7 @@ fn physical_step_tests_wait_for_the_front_and_settle() {
             let (u, y) = p.step_test(case.fs, case.n, at, (lo, hi), REFERENCE_K);
             let gas = unlag::physics::Gas::air(REFERENCE_K, 101_325.0);
             let dc = p.line().dc_gain(&gas);
-            let front = (p.length_m / gas.speed_of_sound() * case.fs).floor() as usize;
+            let front = (p.line().front_delay_s(&gas) * case.fs).floor() as usize;
             assert!(front >= 2, "{}: front {front}", case.name);
             let size = (hi - lo).abs();
             for (k, v) in y.iter().enumerate().take(at + front - 1) {

@@ -16,7 +16,8 @@
 //!   Bergh-Tijdeman response of a tube and its end volume in air (non-rational: viscothermal
 //!   damping that depends on frequency, every acoustic mode, the front delay `L/a`), driven by
 //!   a shock tube, a balloon or a valve; the hidden effect is what the physics puts there:
-//!   - `mode`: lines whose second acoustic mode the plain order-2 model misses;
+//!   - `mode`: lines whose second acoustic mode the plain order-2 model misses, and series
+//!     lines (tube, intermediate volume, tube, transducer volume) whose second stage adds one;
 //!   - `leak`: a large end cavity whose gas relaxes thermally (the physics module's
 //!     `CavityThermal::Relaxing`): a slow creep after the step, the catalogue's `leak`
 //!     signature (a slow pole-zero pair). The physics module's cavity *leak* to the reference
@@ -112,6 +113,9 @@ pub struct Physical {
     /// The reference transducer's diaphragm resonance `(Hz, damping)`, if any (the probe's
     /// transducer is ideal).
     pub reference_sensor: Option<(f64, f64)>,
+    /// A second tube and volume `(length m, radius m, volume m^3)` after the first volume
+    /// (which is then an intermediate volume: a series line, BT section 2), if any.
+    pub second_stage: Option<(f64, f64, f64)>,
 }
 
 impl Physical {
@@ -119,7 +123,7 @@ impl Physical {
     #[must_use]
     pub fn line(&self) -> unlag::physics::Line {
         use unlag::physics::{CavityThermal, Element, Line, Volume};
-        Line::new()
+        let line = Line::new()
             .tube(self.length_m, self.radius_m)
             .with(Element::Volume(Volume {
                 volume_m3: self.volume_m3,
@@ -129,7 +133,13 @@ impl Physical {
                     None => CavityThermal::Polytropic(1.4),
                 },
                 leak_m3_per_s_pa: self.leak_m3_per_s_pa,
-            }))
+            }));
+        match self.second_stage {
+            Some((length_m, radius_m, volume_m3)) => {
+                line.tube(length_m, radius_m).volume(volume_m3)
+            }
+            None => line,
+        }
     }
 
     /// Noise-free `(reference, probe)` of a step from `lo` to `hi` at sample `at`, `n`
@@ -584,6 +594,7 @@ pub fn physical_cases() -> Vec<Case> {
         minor_loss_k: 0.0,
         pa_per_unit: 1.0,
         reference_sensor: None,
+        second_stage: None,
     };
     let case = |name, kind, fs, n, order, steps, p| Case {
         name,
@@ -620,6 +631,37 @@ pub fn physical_cases() -> Vec<Case> {
                 radius_m: 0.75e-3,
                 volume_m3: 50e-9,
                 facility: Facility::Valve,
+                ..tight
+            },
+        ),
+        case(
+            "physics mode: two stages, 0.1 m x 1 mm to 1000 mm3, 0.05 m x 0.6 mm to 100 mm3",
+            "mode",
+            10_000.0,
+            4000,
+            2,
+            TWO_STEPS,
+            Physical {
+                length_m: 0.1,
+                radius_m: 0.5e-3,
+                volume_m3: 1000e-9,
+                second_stage: Some((0.05, 0.3e-3, 100e-9)),
+                ..tight
+            },
+        ),
+        case(
+            "physics mode: two stages, 0.2 m x 1.6 mm to 2000 mm3, 0.05 m x 1 mm to 50 mm3, balloon",
+            "mode",
+            10_000.0,
+            4000,
+            2,
+            &[(1.0, 0.0), (0.2, 0.9)],
+            Physical {
+                length_m: 0.2,
+                radius_m: 0.8e-3,
+                volume_m3: 2000e-9,
+                second_stage: Some((0.05, 0.5e-3, 50e-9)),
+                facility: Facility::Balloon,
                 ..tight
             },
         ),

@@ -2,9 +2,36 @@
 //! (`host-tests/modelling.rs`, `examples/bench_diagnose.rs`).
 //!
 //! Each case simulates an estimation test (a rising step) and validation tests (steps of other
-//! amplitudes, falling by default) of a lumped line, with one effect the user's plain model
-//! does not have; the user fits the plain model with the case's options, runs the diagnosis,
-//! adds what it names and refits.
+//! amplitudes, falling by default) of a line, with one effect the user's plain model does not
+//! have; the user fits the plain model with the case's options, runs the diagnosis, adds what
+//! it names and refits.
+//!
+//! Where the tests come from:
+//!
+//! * the cases of [`cases`] before the `physics ...` ones: lumped second-order modes
+//!   ([`continuous_line`], RK4, written apart from the crate), with the effect added by hand;
+//!   the `temperature` ones take the speed of sound from the physics module's air;
+//! * the `physics ...` cases ([`physical_cases`], [`Hidden::Physics`]): every test simulated by
+//!   the physics module at the library level ([`unlag::physics::simulate`]): the
+//!   Bergh-Tijdeman response of a tube and its end volume in air (non-rational: viscothermal
+//!   damping that depends on frequency, every acoustic mode, the front delay `L/a`), driven by
+//!   a shock tube, a balloon or a valve; the hidden effect is what the physics puts there:
+//!   - `mode`: lines whose second acoustic mode the plain order-2 model misses, and series
+//!     lines (tube, intermediate volume, tube, transducer volume) whose second stage adds one;
+//!   - `leak`: a large end cavity whose gas relaxes thermally (the physics module's
+//!     `CavityThermal::Relaxing`): a slow creep after the step, the catalogue's `leak`
+//!     signature (a slow pole-zero pair). The physics module's cavity *leak* to the reference
+//!     pressure (`leak_m3_per_s_pa`) only lowers the DC gain (`1/(1 + R_line G)`) with the
+//!     dynamics unchanged; the plain model's free gain absorbs it, so that case is a `none`;
+//!   - `none`: short lines with a large volume (the first mode well separated, the higher
+//!     ones weakly excited), where the plain order 2 is adequate, and the leaking cavity;
+//!   - `temperature`: the same line's Bergh-Tijdeman response with the validation tests in air
+//!     at another temperature (speed of sound, Sutherland viscosity, density: all move);
+//! * [`physical_limits`]: physical cases that do not meet the criterion, kept apart (shown by
+//!   the score table, not asserted), each with the reason beside it: a thermal creep behind a
+//!   line whose second mode is named first, a well-damped line whose damping changes with
+//!   temperature more than the `temperature` effect models, a reference transducer's resonance
+//!   that the line makes invisible, and the physics module's describing-function minor losses.
 
 use super::{continuous_line, step, Rng};
 use unlag::fit::{Method, Options, Order};
@@ -40,6 +67,137 @@ pub enum Hidden {
     Temperature(f64),
     /// Nothing hidden.
     None,
+    /// Every test simulated by the physics module ([`unlag::physics::simulate`]): the
+    /// Bergh-Tijdeman response of this tube and end volume in air, sampled from a facility's
+    /// excitation. What is hidden is whatever the physics makes of it (named by the case's
+    /// `kind`); the case's `mode`, `delay` and `second` are not used.
+    Physics(Physical),
+}
+
+/// How a facility makes each step of a [`Physical`] case (the physics module's excitations).
+#[derive(Debug, Clone, Copy)]
+pub enum Facility {
+    /// A shock-tube step (1 µs rise).
+    ShockTube,
+    /// A burst balloon (700 µs raised-cosine fall; a rising step rises the same way).
+    Balloon,
+    /// A fast-opening valve (200 µs opening).
+    Valve,
+}
+
+/// A probe of the physics module: one Bergh-Tijdeman tube ending in a volume, in air at
+/// one atmosphere.
+#[derive(Debug, Clone, Copy)]
+pub struct Physical {
+    /// Tube length (m).
+    pub length_m: f64,
+    /// Tube inner radius (m).
+    pub radius_m: f64,
+    /// The end (transducer) volume (m^3).
+    pub volume_m3: f64,
+    /// Leak conductance of the end volume to the reference pressure (m^3/(s Pa)); 0: tight.
+    pub leak_m3_per_s_pa: f64,
+    /// The end volume's gas relaxes thermally (a cylindrical cavity of this radius, m), else
+    /// it is isentropic.
+    pub relaxing_radius_m: Option<f64>,
+    /// Gas temperature of the validation tests (K); the estimation test is at [`REFERENCE_K`].
+    pub validation_k: f64,
+    /// How the steps are made.
+    pub facility: Facility,
+    /// Minor (orifice) loss coefficient `K` of the line's ends (0: none), applied by the
+    /// physics module's describing function for each test's step amplitude
+    /// ([`unlag::physics::nonlinear`]).
+    pub minor_loss_k: f64,
+    /// Pascal per unit of the steps (sets the flow amplitude of the minor losses).
+    pub pa_per_unit: f64,
+    /// The reference transducer's diaphragm resonance `(Hz, damping)`, if any (the probe's
+    /// transducer is ideal).
+    pub reference_sensor: Option<(f64, f64)>,
+    /// A second tube and volume `(length m, radius m, volume m^3)` after the first volume
+    /// (which is then an intermediate volume: a series line, BT section 2), if any.
+    pub second_stage: Option<(f64, f64, f64)>,
+}
+
+impl Physical {
+    /// The line of the physics module.
+    #[must_use]
+    pub fn line(&self) -> unlag::physics::Line {
+        use unlag::physics::{CavityThermal, Element, Line, Volume};
+        let line = Line::new()
+            .tube(self.length_m, self.radius_m)
+            .with(Element::Volume(Volume {
+                volume_m3: self.volume_m3,
+                sigma: 0.0,
+                thermal: match self.relaxing_radius_m {
+                    Some(radius_m) => CavityThermal::Relaxing { radius_m },
+                    None => CavityThermal::Polytropic(1.4),
+                },
+                leak_m3_per_s_pa: self.leak_m3_per_s_pa,
+            }));
+        match self.second_stage {
+            Some((length_m, radius_m, volume_m3)) => {
+                line.tube(length_m, radius_m).volume(volume_m3)
+            }
+            None => line,
+        }
+    }
+
+    /// Noise-free `(reference, probe)` of a step from `lo` to `hi` at sample `at`, `n`
+    /// samples at `fs`, in air at `temperature_k`, by the physics module's time-domain
+    /// simulation (32x oversampled). The levels are the step's units (the line is linear).
+    ///
+    /// # Panics
+    /// When the physics module refuses the settings (a broken case).
+    #[must_use]
+    pub fn step_test(
+        &self,
+        fs: f64,
+        n: usize,
+        at: usize,
+        (lo, hi): (f64, f64),
+        temperature_k: f64,
+    ) -> (Vec<f64>, Vec<f64>) {
+        use unlag::physics::{simulate, Acquisition, Excitation, Gas, Probe};
+        let gas = Gas::air(temperature_k, 101_325.0);
+        let line = if self.minor_loss_k > 0.0 {
+            let losses = unlag::physics::nonlinear::MinorLosses {
+                k: self.minor_loss_k,
+                step_amplitude_pa: (hi - lo).abs() * self.pa_per_unit,
+            };
+            unlag::physics::nonlinear::equivalent_resistance(&self.line(), &gas, &losses)
+                .expect("minor losses")
+                .line
+        } else {
+            self.line()
+        };
+        let dc = line.dc_gain(&gas);
+        let probe = Probe::new(line, gas);
+        let excitation = match self.facility {
+            Facility::ShockTube => Excitation::shock_tube(hi - lo),
+            // A balloon starts `amplitude` above its final level.
+            Facility::Balloon => Excitation::balloon(lo - hi),
+            Facility::Valve => Excitation::valve(hi - lo),
+        };
+        let mut acquisition = Acquisition::new(fs, n as f64 / fs);
+        // Mid-sample, so the step's first sample is a cell average like a real ADC's.
+        acquisition.event_time_s = (at as f64 - 0.5) / fs;
+        acquisition.reference_sensor =
+            self.reference_sensor
+                .map(
+                    |(natural_frequency_hz, damping)| unlag::physics::Diaphragm {
+                        natural_frequency_hz,
+                        damping,
+                    },
+                );
+        let t = simulate(&probe, &excitation, &acquisition).expect("physics step test");
+        let base = match self.facility {
+            Facility::Balloon => hi,
+            _ => lo,
+        };
+        let u = t.reference.iter().map(|v| v + base).collect();
+        let y = t.probe_clean.iter().map(|v| v + dc * base).collect();
+        (u, y)
+    }
 }
 
 /// The default excitation: a rising unit step (estimation), a falling step of 0.65.
@@ -102,8 +260,19 @@ impl Case {
             .zip(onsets.iter().cycle())
             .enumerate()
             .map(|(i, (&(lo, hi), &at))| {
-                let u_true = step(self.n, at, lo, hi);
                 let size = hi - lo;
+                if let Hidden::Physics(p) = self.hidden {
+                    let t = if i > 0 { p.validation_k } else { REFERENCE_K };
+                    let (u_true, mut y) = p.step_test(self.fs, self.n, at, (lo, hi), t);
+                    let sigma = self.noise * size.abs();
+                    y.iter_mut().for_each(|v| *v += sigma * rng.gauss());
+                    let u: Vec<f64> = u_true
+                        .iter()
+                        .map(|v| v + 0.2 * sigma * rng.gauss())
+                        .collect();
+                    return (u, y);
+                }
+                let u_true = step(self.n, at, lo, hi);
                 let mut modes: Vec<(f64, f64)> = match self.hidden {
                     Hidden::Mode(f, z) => vec![self.mode, (f, z)],
                     _ => vec![self.mode],
@@ -221,7 +390,7 @@ pub fn cases() -> Vec<Case> {
         steps: TWO_STEPS,
         second: None,
     };
-    vec![
+    let mut v = vec![
         line(
             "mode: second mode 362 Hz",
             "mode",
@@ -406,6 +575,202 @@ pub fn cases() -> Vec<Case> {
             steps: &[(-0.5, 1.0), (1.0, 0.5)],
             second: None,
         },
+    ];
+    v.extend(physical_cases());
+    v
+}
+
+/// The cases simulated by the physics module (Bergh-Tijdeman lines, [`Hidden::Physics`]).
+#[must_use]
+pub fn physical_cases() -> Vec<Case> {
+    let tight = Physical {
+        length_m: 0.6,
+        radius_m: 0.55e-3,
+        volume_m3: 20e-9,
+        leak_m3_per_s_pa: 0.0,
+        relaxing_radius_m: None,
+        validation_k: REFERENCE_K,
+        facility: Facility::ShockTube,
+        minor_loss_k: 0.0,
+        pa_per_unit: 1.0,
+        reference_sensor: None,
+        second_stage: None,
+    };
+    let case = |name, kind, fs, n, order, steps, p| Case {
+        name,
+        kind,
+        fs,
+        mode: (0.0, 0.0),
+        delay: 0,
+        noise: 0.002,
+        n,
+        hidden: Hidden::Physics(p),
+        order,
+        steps,
+        second: None,
+    };
+    vec![
+        case(
+            "physics mode: BT 0.6 m x 1.1 mm, 20 mm3 (112/362 Hz), shock tube",
+            "mode",
+            10_000.0,
+            4000,
+            2,
+            TWO_STEPS,
+            tight,
+        ),
+        case(
+            "physics mode: BT 1 m x 1.5 mm, 50 mm3, valve, 20 kHz",
+            "mode",
+            20_000.0,
+            8000,
+            2,
+            &[(0.2, 1.2), (1.0, 0.4)],
+            Physical {
+                length_m: 1.0,
+                radius_m: 0.75e-3,
+                volume_m3: 50e-9,
+                facility: Facility::Valve,
+                ..tight
+            },
+        ),
+        case(
+            "physics mode: two stages, 0.1 m x 1 mm to 1000 mm3, 0.05 m x 0.6 mm to 100 mm3",
+            "mode",
+            10_000.0,
+            4000,
+            2,
+            TWO_STEPS,
+            Physical {
+                length_m: 0.1,
+                radius_m: 0.5e-3,
+                volume_m3: 1000e-9,
+                second_stage: Some((0.05, 0.3e-3, 100e-9)),
+                ..tight
+            },
+        ),
+        case(
+            "physics mode: two stages, 0.2 m x 1.6 mm to 2000 mm3, 0.05 m x 1 mm to 50 mm3, balloon",
+            "mode",
+            10_000.0,
+            4000,
+            2,
+            &[(1.0, 0.0), (0.2, 0.9)],
+            Physical {
+                length_m: 0.2,
+                radius_m: 0.8e-3,
+                volume_m3: 2000e-9,
+                second_stage: Some((0.05, 0.5e-3, 50e-9)),
+                facility: Facility::Balloon,
+                ..tight
+            },
+        ),
+        case(
+            "physics leak: thermal creep, 0.5 m x 1.34 mm, 4000 mm3 r 2.5 mm, balloon, 20 kHz",
+            "leak",
+            20_000.0,
+            8000,
+            2,
+            &[(1.0, 0.0), (0.2, 0.9)],
+            Physical {
+                length_m: 0.5,
+                radius_m: 0.67e-3,
+                volume_m3: 4000e-9,
+                relaxing_radius_m: Some(2.5e-3),
+                facility: Facility::Balloon,
+                ..tight
+            },
+        ),
+        case(
+            "physics leak: thermal creep, 0.5 m x 1.34 mm, 4000 mm3 cavity r 2 mm",
+            "leak",
+            10_000.0,
+            4000,
+            2,
+            TWO_STEPS,
+            Physical {
+                length_m: 0.5,
+                radius_m: 0.67e-3,
+                volume_m3: 4000e-9,
+                relaxing_radius_m: Some(2e-3),
+                ..tight
+            },
+        ),
+        case(
+            "physics none: leaking cavity (G 5e-10, DC gain 0.964), BT 0.1 m x 1 mm",
+            "none",
+            10_000.0,
+            4000,
+            2,
+            TWO_STEPS,
+            Physical {
+                length_m: 0.1,
+                radius_m: 0.5e-3,
+                volume_m3: 1000e-9,
+                leak_m3_per_s_pa: 5e-10,
+                ..tight
+            },
+        ),
+        case(
+            "physics none: BT 0.1 m x 1 mm, 1000 mm3",
+            "none",
+            10_000.0,
+            4000,
+            2,
+            TWO_STEPS,
+            Physical {
+                length_m: 0.1,
+                radius_m: 0.5e-3,
+                volume_m3: 1000e-9,
+                ..tight
+            },
+        ),
+        case(
+            "physics none: BT 0.3 m x 0.7 mm, 300 mm3, balloon, 20 kHz",
+            "none",
+            20_000.0,
+            8000,
+            2,
+            &[(1.0, 0.0), (0.2, 0.9)],
+            Physical {
+                length_m: 0.3,
+                radius_m: 0.35e-3,
+                volume_m3: 300e-9,
+                facility: Facility::Balloon,
+                ..tight
+            },
+        ),
+        case(
+            "physics temperature: BT 0.1 m x 1.6 mm, 1000 mm3, 343 K",
+            "temperature",
+            10_000.0,
+            4000,
+            2,
+            TWO_STEPS,
+            Physical {
+                length_m: 0.1,
+                radius_m: 0.8e-3,
+                volume_m3: 1000e-9,
+                validation_k: 343.15,
+                ..tight
+            },
+        ),
+        case(
+            "physics temperature: BT 0.2 m x 2 mm, 2000 mm3, 253 K, valve, 20 kHz",
+            "temperature",
+            20_000.0,
+            8000,
+            2,
+            &[(1.0, 0.0), (0.2, 0.9)],
+            Physical {
+                length_m: 0.2,
+                radius_m: 1e-3,
+                volume_m3: 2000e-9,
+                validation_k: 253.15,
+                facility: Facility::Valve,
+                ..tight
+            },
+        ),
     ]
 }
 
@@ -491,4 +856,110 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
         floor,
         signature,
     }
+}
+
+/// Physical cases that do not meet the criterion of [`Outcome::passed`], kept apart (shown by
+/// `examples/bench_diagnose.rs`, not asserted): see the comment on each.
+#[must_use]
+pub fn physical_limits() -> Vec<Case> {
+    let tight = physical_cases()
+        .first()
+        .and_then(|c| match c.hidden {
+            Hidden::Physics(p) => Some(p),
+            _ => None,
+        })
+        .expect("a physical case");
+    let case = |name, kind, fs, n, order, steps, p| Case {
+        name,
+        kind,
+        fs,
+        mode: (0.0, 0.0),
+        delay: 0,
+        noise: 0.002,
+        n,
+        hidden: Hidden::Physics(p),
+        order,
+        steps,
+        second: None,
+    };
+    vec![
+        // The thermal creep is there, but so is the 1 m line's second acoustic mode: the
+        // diagnosis names `mode` first (both are real; the user's plain model misses both).
+        case(
+            "physics leak: thermal creep, 1 m x 1.34 mm, 2000 mm3 cavity r 2 mm",
+            "leak",
+            10_000.0,
+            4000,
+            2,
+            TWO_STEPS,
+            Physical {
+                length_m: 1.0,
+                radius_m: 0.67e-3,
+                volume_m3: 2000e-9,
+                relaxing_radius_m: Some(2e-3),
+                ..tight
+            },
+        ),
+        // Named `temperature` first, but adding it cuts the error only about 1.6x: the effect
+        // scales the natural frequencies by the speed of sound and keeps the damping, while the
+        // Bergh-Tijdeman damping (about 0.22 here) rises some 20 % from 293 to 343 K (the
+        // kinematic viscosity goes as T^1.7); the lightly damped lines above pass.
+        case(
+            "physics temperature: BT 0.1 m x 1 mm, 1000 mm3, validation at 343 K",
+            "temperature",
+            10_000.0,
+            4000,
+            2,
+            TWO_STEPS,
+            Physical {
+                length_m: 0.1,
+                radius_m: 0.5e-3,
+                volume_m3: 1000e-9,
+                validation_k: 343.15,
+                ..tight
+            },
+        ),
+        // Only the reference transducer rings (2 kHz): the probe's line takes nothing above a
+        // few hundred Hz from it, so the plain model is already at the noise floor and the
+        // diagnosis says `none`, rightly. The catalogue's `sensor-resonance` cases have the
+        // probe's transducer shaken by the shock (mechanical ringing), which the physics module
+        // does not model: behind a line, a pressure transducer's diaphragm is never excited.
+        case(
+            "physics sensor resonance: reference transducer 2 kHz, 0.1 m x 1 mm",
+            "sensor-resonance",
+            10_000.0,
+            4000,
+            2,
+            TWO_STEPS,
+            Physical {
+                length_m: 0.1,
+                radius_m: 0.5e-3,
+                volume_m3: 1000e-9,
+                reference_sensor: Some((2_000.0, 0.03)),
+                ..tight
+            },
+        ),
+        // The physics module's minor losses are a describing function: each test is linear,
+        // with its own damping (0.35, 0.41, 0.48 for steps of 0.3, 0.6, 1: the rise is there),
+        // but without the waveform distortion of a real quadratic loss, so the residual of each
+        // test fitted alone grows like the step (exponent 0.89), not faster; the diagnosis
+        // needs both signatures and says `none` (validation error 0.64 % against a floor of
+        // 0.15 %). The lumped `nonlinear damping` cases above integrate the real quadratic loss.
+        case(
+            "physics nonlinear damping: K 1.5, 0.2 m x 1.1 mm, 1000 mm3, 30/18/9 kPa",
+            "nonlinear-damping",
+            10_000.0,
+            4000,
+            2,
+            &[(0.0, 1.0), (1.0, 0.4), (0.0, 0.3)],
+            Physical {
+                length_m: 0.2,
+                radius_m: 0.55e-3,
+                volume_m3: 1000e-9,
+                minor_loss_k: 1.5,
+                pa_per_unit: 30e3,
+                ..tight
+            },
+        ),
+    ]
 }

@@ -155,6 +155,10 @@ mod private {
 #[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
 mod m4;
 
+/// The board's share of the `temperature` effect: coefficient sets by gas temperature.
+pub mod bank;
+pub use bank::{BankChannel, BankError, TemperatureBank};
+
 /// `true` when this build runs the `f32` cascade of `N` sections through the hand-scheduled
 /// Cortex-M kernels (`N` = 1..=4 on a hard-float Arm bare-metal target), `false` when it runs
 /// the portable Rust code. Both compute the same bits.

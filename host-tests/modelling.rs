@@ -700,18 +700,14 @@ fn temperature_bank_picks_the_set_for_the_measured_temperature() {
         "{header}"
     );
     assert!(header.contains("unlag_bank_select(uint32_t current, float temp_k)"));
-    for (model, format, what) in [
-        (p, "rust", "temperature"),
-        (m, "bin", "bank"),
-        (m, "rust", "FROM:TO:STEP"),
+    for (model, format, range, extra, what) in [
+        (p, "rust", "253:353:10", None, "temperature"),
+        (m, "bin", "253:353:10", None, "bank"),
+        (m, "rust", "253:353", None, "FROM:TO:STEP"),
+        (m, "c", "253:353:10", Some("fixed"), "f32 only"),
     ] {
         let out = dir.join(format!("refused-{format}-{what}"));
-        let range = if what == "FROM:TO:STEP" {
-            "253:353"
-        } else {
-            "253:353:10"
-        };
-        let (ok, _, err) = unlag(&[
+        let mut args = vec![
             "export",
             model,
             "--format",
@@ -720,7 +716,11 @@ fn temperature_bank_picks_the_set_for_the_measured_temperature() {
             range,
             "-o",
             out.to_str().unwrap(),
-        ]);
+        ];
+        if let Some(number_format) = extra {
+            args.extend(["--number-format", number_format]);
+        }
+        let (ok, _, err) = unlag(&args);
         assert!(
             !ok && err.lines().count() == 1 && err.contains(what),
             "{model} {format}: {err}"

@@ -680,8 +680,8 @@ mod tests {
         let mut ch = b.channel(273.0, 0.0);
         assert!(b.set_temperature(&mut ch, 300.0));
         assert!(b.set_temperature(&mut ch, 270.0));
-        for k in 0..60 {
-            assert_eq!(b.process(&mut ch, input(k)), cold[k]);
+        for (k, &c) in cold.iter().enumerate().take(60) {
+            assert_eq!(b.process(&mut ch, input(k)), c);
         }
         assert_eq!((ch.selected(), ch.target()), (0, 0));
     }

@@ -28,6 +28,9 @@
 //! [`InverseState`]) so one validated set can serve several channels and be swapped between
 //! samples; [`Compensator`] bundles the two for the common one-channel case.
 //!
+//! A board that measures the gas temperature runs a table of cascades, one per temperature,
+//! through [`bank::TemperatureBank`] (the `temperature` effect of [`crate::effects`]).
+//!
 //! # Capacity
 //!
 //! The model order capacity is the const generic `M`; a model of lower order is zero-padded.

@@ -502,6 +502,37 @@ pub fn export_bank(
 mod tests {
     use super::*;
 
+    fn set(sections: Vec<[f32; 5]>) -> BoardCoefficients {
+        BoardCoefficients {
+            sample_rate_hz: 1000.0,
+            delay_samples: 1,
+            latency_samples: 1.0,
+            gain: 1.0,
+            sections,
+            nonlinear: None,
+        }
+    }
+
+    #[test]
+    fn the_warm_up_lasts_until_the_slowest_pole_has_decayed_to_a_millionth() {
+        // Poles 0.5 and 0.9 (a real pair): 0.9^132 < 1e-6 < 0.9^131.
+        let sets = [
+            set(vec![[1.0, 0.0, 0.0, -0.5, 0.0]]),
+            set(vec![[1.0, 0.0, 0.0, -1.4, 0.45]]),
+        ];
+        assert_eq!(warm_up_samples(&sets), 132);
+        // A complex pair of radius 0.5: 0.5^20 < 1e-6 < 0.5^19; no pole at all: 1.
+        assert_eq!(
+            warm_up_samples(&[set(vec![[1.0, 0.0, 0.0, 0.0, 0.25]])]),
+            20
+        );
+        assert_eq!(warm_up_samples(&[set(vec![[1.0, 0.0, 0.0, 0.0, 0.0]])]), 1);
+        assert_eq!(
+            warm_up_samples(&[set(vec![[1.0, 0.0, 0.0, -0.999_999, 0.0]])]),
+            MAX_WARM_UP_SAMPLES
+        );
+    }
+
     #[test]
     fn parses_ranges_and_refuses_bad_ones() {
         let r = TemperatureRange::parse("253:353:10").unwrap();

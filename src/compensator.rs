@@ -28,6 +28,9 @@
 //! [`InverseState`]) so one validated set can serve several channels and be swapped between
 //! samples; [`Compensator`] bundles the two for the common one-channel case.
 //!
+//! A board that measures the gas temperature runs a table of cascades, one per temperature,
+//! through [`bank::TemperatureBank`] (the `temperature` effect of [`crate::effects`]).
+//!
 //! # Capacity
 //!
 //! The model order capacity is the const generic `M`; a model of lower order is zero-padded.
@@ -154,6 +157,10 @@ mod private {
 /// The Cortex-M kernels of the `f32` cascade (Thumb-2 + single-precision VFP, hard-float ABI).
 #[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
 mod m4;
+
+/// The board's share of the `temperature` effect: coefficient sets by gas temperature.
+pub mod bank;
+pub use bank::{BankChannel, BankError, TemperatureBank};
 
 /// `true` when this build runs the `f32` cascade of `N` sections through the hand-scheduled
 /// Cortex-M kernels (`N` = 1..=4 on a hard-float Arm bare-metal target), `false` when it runs

@@ -15,9 +15,14 @@
 //! compensator of [`crate::fixed`] (the integers of [`crate::quantise::FixedPlan`]). The output file is written atomically. Every section is
 //! `[b0, b1, b2, a1, a2]` in the crate's sign convention (see [`crate::compensator`]);
 //! CMSIS-DSP's biquad functions want `a1`, `a2` negated, which the C header says.
+//!
+//! A table of sets, one per gas temperature, for a board that measures it (`--temperatures`),
+//! is [`bank`]'s.
 
 use std::fmt::Write as _;
 use std::path::Path;
+
+pub mod bank;
 
 use crate::blob;
 use crate::compensator::{CascadeCoefficients, NonlinearDampingCoefficients};

@@ -33,8 +33,14 @@ pub struct ExportArgs {
     /// Gas temperature (K) the board will measure at: the model (with a `temperature` effect)
     /// is scaled to it through its continuous-time equivalent and the compensator designed
     /// anew; a running board swaps to the new set as a blob.
-    #[arg(long, value_name = "K")]
+    #[arg(long, value_name = "K", conflicts_with = "temperatures")]
     pub temperature: Option<f64>,
+    /// A bank of sets, one per gas temperature FROM, FROM+STEP, ... up to TO (K, e.g.
+    /// 253:353:10), for a board that measures the temperature and picks the set itself
+    /// (`unlag::compensator::TemperatureBank`); a model with a `temperature` effect,
+    /// `--format rust` or `c`, f32.
+    #[arg(long, value_name = "FROM:TO:STEP")]
+    pub temperatures: Option<String>,
     /// Where to write it (written atomically).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
@@ -83,6 +89,9 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
         }
         (NumberFormatArg::Fixed, full_scale) => NumberFormat::Fixed { full_scale },
     };
+    if let Some(range) = &args.temperatures {
+        return run_export_bank(args, range, format, name);
+    }
     let c = match args.temperature {
         Some(t) => {
             let file =
@@ -115,6 +124,50 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
             c.sample_rate_hz,
             c.delay_samples,
             c.latency_samples
+        );
+    }
+    Ok(())
+}
+
+/// `unlag export --temperatures FROM:TO:STEP`: the temperature bank.
+fn run_export_bank(
+    args: &ExportArgs,
+    range: &str,
+    format: Format,
+    name: &'static str,
+) -> Result<()> {
+    let range = export::bank::TemperatureRange::parse(range)?;
+    if args.number_format != NumberFormatArg::F32 || args.full_scale.is_some() {
+        return Err(Error::InvalidArgument {
+            what: "--temperatures",
+            message: "a temperature bank is f32 only: export fixed-point sets one at a time with --temperature K".into(),
+        });
+    }
+    let c = export::bank::export_bank(&args.model, &range, format, &args.output)?;
+    if args.json {
+        println!(
+            "{}",
+            json!({
+                "output": args.output.display().to_string(),
+                "format": name,
+                "bytes": c.bytes,
+                "sample_rate_hz": c.sample_rate_hz,
+                "temperatures_k": c.temperatures_k,
+                "delay_samples": c.delay_samples,
+                "sections": c.sections,
+                "number_format": "f32",
+            })
+        );
+    } else {
+        println!(
+            "wrote {} ({name}, {} bytes): {} sets from {} K to {} K, {} sections each, f32, fs {} Hz",
+            args.output.display(),
+            c.bytes,
+            c.temperatures_k.len(),
+            c.temperatures_k.first().copied().unwrap_or(0.0),
+            c.temperatures_k.last().copied().unwrap_or(0.0),
+            c.sections,
+            c.sample_rate_hz
         );
     }
     Ok(())

@@ -1,0 +1,587 @@
+//! Export of a temperature bank (`unlag export MODEL --temperatures FROM:TO:STEP`): one `f32`
+//! coefficient set per gas temperature, for a board that measures the temperature and picks
+//! the set itself ([`crate::compensator::TemperatureBank`]).
+//!
+//! This module owns the temperature grid ([`TemperatureRange`]), the sets (each designed by
+//! [`crate::effects::at_temperature`] and checked as [`BoardCoefficients::from_model_file`]
+//! checks one, then the whole table as the board's [`TemperatureBank::new`] checks it) and
+//! their rendering as Rust `const` tables or a C header. Every set must have the same number
+//! of sections. The binary blob of [`crate::blob`] carries one set, so a bank is not written
+//! as `bin`: a running board is sent one set at a time (`--temperature K --format bin`).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::compensator::TemperatureBank;
+use crate::error::{Error, Result};
+use crate::export::{BoardCoefficients, Format, MAX_EXPORT_SECTIONS};
+use crate::model::ModelFile;
+use crate::trace::write_atomically;
+
+/// Most sets one bank may hold.
+pub const MAX_BANK_SETS: usize = 64;
+
+/// The temperatures of a bank: `from`, `from + step`, ... up to `to` (included when it falls
+/// on the grid, within a millionth of a step).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TemperatureRange {
+    /// First temperature (K).
+    pub from_k: f64,
+    /// Last temperature (K), at least `from_k`.
+    pub to_k: f64,
+    /// Step (K), positive.
+    pub step_k: f64,
+}
+
+fn bad_range(message: String) -> Error {
+    Error::InvalidArgument {
+        what: "--temperatures",
+        message,
+    }
+}
+
+impl TemperatureRange {
+    /// Parses `FROM:TO:STEP` (kelvin), e.g. `253:353:10`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for another shape, numbers that are not positive and finite,
+    /// `TO` below `FROM`, or more than [`MAX_BANK_SETS`] temperatures.
+    pub fn parse(text: &str) -> Result<Self> {
+        let parts: Vec<&str> = text.split(':').collect();
+        let [from, to, step] = parts.as_slice() else {
+            return Err(bad_range(format!(
+                "'{text}' is not FROM:TO:STEP in kelvin (e.g. 253:353:10)"
+            )));
+        };
+        let number = |s: &str| {
+            s.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite() && *x > 0.0)
+                .ok_or_else(|| {
+                    bad_range(format!(
+                        "'{s}' in '{text}' is not a positive number of kelvin"
+                    ))
+                })
+        };
+        let r = Self {
+            from_k: number(from)?,
+            to_k: number(to)?,
+            step_k: number(step)?,
+        };
+        if r.to_k < r.from_k {
+            return Err(bad_range(format!(
+                "'{text}': TO ({} K) is below FROM ({} K)",
+                r.to_k, r.from_k
+            )));
+        }
+        let n = r.count();
+        if n > MAX_BANK_SETS {
+            return Err(bad_range(format!(
+                "'{text}' makes {n} sets; a bank holds at most {MAX_BANK_SETS}: take a larger step"
+            )));
+        }
+        Ok(r)
+    }
+
+    fn count(&self) -> usize {
+        let n = ((self.to_k - self.from_k) / self.step_k + 1e-6).floor();
+        // Finite and non-negative (checked by `parse`); saturates for an absurd range.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let n = n as usize;
+        n.saturating_add(1)
+    }
+
+    /// The temperatures (K), ascending.
+    #[must_use]
+    pub fn temperatures(&self) -> Vec<f64> {
+        (0..self.count().min(MAX_BANK_SETS))
+            .map(|i| {
+                #[allow(clippy::cast_precision_loss)]
+                let i = i as f64;
+                self.from_k + i * self.step_k
+            })
+            .collect()
+    }
+}
+
+/// A temperature bank as exported: the sets, rounded to `f32` and validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoardBank {
+    /// The gas temperatures (K), ascending.
+    pub temperatures_k: Vec<f64>,
+    /// The hysteresis the board selects with (K): half the step.
+    pub hysteresis_k: f64,
+    /// Samples a new set warms up beside the old one before it takes over: long enough for
+    /// the slowest pole of any set to decay to a millionth ([`warm_up_samples`]).
+    pub warm_up_samples: u32,
+    /// One set per temperature, each with the same number of sections.
+    pub sets: Vec<BoardCoefficients>,
+}
+
+impl BoardBank {
+    /// Designs one set per temperature of `range` from `file` (read from `path`), each with
+    /// [`crate::effects::at_temperature`], and checks the table as the board will.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] when the model has no `temperature` effect;
+    /// [`Error::UnsupportedOnBoard`] when it has nonlinear damping (a bank carries the linear
+    /// compensator only); [`Error::Model`] when the redesign changes the number of sections
+    /// between temperatures, or the board's bank refuses the table; the design's and
+    /// [`BoardCoefficients::from_model_file`]'s errors.
+    pub fn from_model_file(
+        file: &ModelFile,
+        path: &Path,
+        range: &TemperatureRange,
+    ) -> Result<Self> {
+        let Some(reference) = crate::effects::reference_k(&file.effects) else {
+            return Err(bad_range(
+                "the model file has no temperature effect, so no reference temperature to scale \
+                 from: refit with `unlag fit ... --add temperature`"
+                    .into(),
+            ));
+        };
+        if crate::effects::nonlinear_gain(&file.effects) != 0.0 {
+            return Err(Error::UnsupportedOnBoard {
+                path: path.to_path_buf(),
+                effect: "nonlinear damping",
+                arithmetic: "temperature-bank",
+                hint: "export one set per temperature with --temperature K",
+            });
+        }
+        let bad = |message: String| Error::Model {
+            path: path.to_path_buf(),
+            message,
+        };
+        let temperatures_k = range.temperatures();
+        let mut sets: Vec<BoardCoefficients> = Vec::with_capacity(temperatures_k.len());
+        for &t in &temperatures_k {
+            let scaled = crate::effects::at_temperature(file, t)?;
+            let set = BoardCoefficients::from_model_file(&scaled, path).map_err(|e| {
+                bad(format!(
+                    "at {t} K (model at {reference} K): {}",
+                    e.to_string()
+                        .trim_start_matches(&format!("{}: ", path.display()))
+                ))
+            })?;
+            if let Some(first) = sets.first() {
+                if set.sections.len() != first.sections.len() {
+                    return Err(bad(format!(
+                        "the compensator redesigned at {t} K has {} sections, at {} K {}: a bank needs the same number in every set (narrow --temperatures)",
+                        set.sections.len(),
+                        temperatures_k.first().copied().unwrap_or(t),
+                        first.sections.len()
+                    )));
+                }
+            }
+            sets.push(set);
+        }
+        let bank = Self {
+            hysteresis_k: 0.5 * range.step_k,
+            warm_up_samples: warm_up_samples(&sets),
+            temperatures_k,
+            sets,
+        };
+        bank.board_bank::<MAX_BANK_SETS>()
+            .map_err(|e| bad(format!("the board refuses the bank: {e}")))?;
+        Ok(bank)
+    }
+
+    /// Each set's input gain, widened exactly from `f32`.
+    #[must_use]
+    pub fn gains(&self) -> Vec<f64> {
+        self.sets.iter().map(|s| f64::from(s.gain)).collect()
+    }
+
+    /// Each set's sections, widened exactly from `f32`.
+    #[must_use]
+    pub fn sections(&self) -> Vec<Vec<[f64; 5]>> {
+        self.sets
+            .iter()
+            .map(|s| s.sections.iter().map(|c| c.map(f64::from)).collect())
+            .collect()
+    }
+
+    /// The board's bank built from exactly the exported numbers. `SETS` must be the number of
+    /// sets (use [`MAX_BANK_SETS`] only through this check: the lengths must match).
+    ///
+    /// # Errors
+    /// [`crate::compensator::BankError`] as the board reports it.
+    pub fn board_bank<const SETS: usize>(
+        &self,
+    ) -> std::result::Result<
+        TemperatureBank<f32, SETS, MAX_EXPORT_SECTIONS>,
+        crate::compensator::BankError,
+    > {
+        TemperatureBank::new(
+            &self.temperatures_k,
+            &self.gains(),
+            &self.sections(),
+            self.hysteresis_k,
+            self.warm_up_samples,
+        )
+    }
+
+    fn section_count(&self) -> usize {
+        self.sets.first().map_or(0, |s| s.sections.len())
+    }
+
+    /// Rust source: `const` tables for `TemperatureBank::new`.
+    #[must_use]
+    pub fn to_rust(&self, source: &str) -> String {
+        let (n, m) = (self.sets.len(), self.section_count());
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "// Generated by `unlag export --format rust --temperatures` from {source} (unlag {}). Do not edit.",
+            env!("CARGO_PKG_VERSION")
+        );
+        s.push_str(
+            "// One compensator per gas temperature: u_hat = cascade(GAINS[i] * y), sections [b0, b1, b2, a1, a2]\n\
+             // as in `unlag::compensator::CascadeCoefficients`, f32 values widened exactly to f64. Build\n\
+             // `unlag::compensator::TemperatureBank::<f32, SET_COUNT, SECTION_COUNT>::new(\n\
+             //     &TEMPERATURES_K, &GAINS, &SECTIONS, HYSTERESIS_K, WARM_UP_SAMPLES)`, run a channel with `process` and give it\n\
+             // each temperature reading with `set_temperature` (nearest set, hysteresis, bumpless handover).\n",
+        );
+        let _ = writeln!(
+            s,
+            "/// Sample rate in Hz the coefficients belong to.\npub const SAMPLE_RATE_HZ: f64 = {:?};",
+            self.sets.first().map_or(0.0, |c| c.sample_rate_hz)
+        );
+        let _ = writeln!(
+            s,
+            "/// Number of sets (temperatures).\npub const SET_COUNT: usize = {n};"
+        );
+        let _ = writeln!(
+            s,
+            "/// Second-order sections per set (the same in every set).\npub const SECTION_COUNT: usize = {m};"
+        );
+        let list = |v: Vec<String>| v.join(", ");
+        let _ = writeln!(
+            s,
+            "/// Gas temperature of each set (K), ascending.\npub const TEMPERATURES_K: [f64; SET_COUNT] = [{}];",
+            list(self.temperatures_k.iter().map(|t| format!("{t:?}")).collect())
+        );
+        let _ = writeln!(
+            s,
+            "/// Hysteresis of the selection (K): half the step.\npub const HYSTERESIS_K: f64 = {:?};",
+            self.hysteresis_k
+        );
+        let _ = writeln!(
+            s,
+            "/// Samples a new set warms up beside the old one before it takes over.\npub const WARM_UP_SAMPLES: u32 = {};",
+            self.warm_up_samples
+        );
+        let _ = writeln!(
+            s,
+            "/// The probe model's delay at each temperature (samples).\npub const DELAY_SAMPLES: [u32; SET_COUNT] = [{}];",
+            list(self.sets.iter().map(|c| c.delay_samples.to_string()).collect())
+        );
+        let _ = writeln!(
+            s,
+            "/// Latency of each set's reconstruction behind the true pressure (samples).\npub const LATENCY_SAMPLES: [f64; SET_COUNT] = [{}];",
+            list(self.sets.iter().map(|c| format!("{:?}", c.latency_samples)).collect())
+        );
+        let _ = writeln!(
+            s,
+            "/// Input gain of each set's cascade.\npub const GAINS: [f64; SET_COUNT] = [{}];",
+            list(self.gains().iter().map(|g| format!("{g:?}")).collect())
+        );
+        s.push_str("/// Each set's sections `[b0, b1, b2, a1, a2]`.\npub const SECTIONS: [[[f64; 5]; SECTION_COUNT]; SET_COUNT] = [\n");
+        for (t, set) in self.temperatures_k.iter().zip(self.sections()) {
+            let _ = writeln!(s, "    // {t} K");
+            s.push_str("    [\n");
+            for sec in set {
+                let _ = writeln!(
+                    s,
+                    "        [{}],",
+                    list(sec.iter().map(|c| format!("{c:?}")).collect())
+                );
+            }
+            s.push_str("    ],\n");
+        }
+        s.push_str("];\n");
+        s
+    }
+
+    /// A C header: `static const float` tables and a selection function with the board's rule.
+    #[must_use]
+    pub fn to_c(&self, source: &str) -> String {
+        let (n, m) = (self.sets.len(), self.section_count());
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "/* Generated by `unlag export --format c --temperatures` from {source} (unlag {}). Do not edit.",
+            env!("CARGO_PKG_VERSION")
+        );
+        for line in [
+            " * One compensator per gas temperature: u_hat = cascade(unlag_bank_gains[i] * y), each section",
+            " *   y = b0 x + b1 x[k-1] + b2 x[k-2] - a1 y[k-1] - a2 y[k-2]   (crate's sign convention;",
+            " * CMSIS-DSP's biquads want a1, a2 negated). Pick the set with unlag_bank_select() on each",
+            " * temperature reading; on a change, start the new set's states at its equilibrium for the last",
+            " * input, run it beside the old set (whose output you keep) for UNLAG_BANK_WARM_UP_SAMPLES",
+            " * samples, then switch to it: no step (see unlag::compensator::bank). */",
+        ] {
+            s.push_str(line);
+            s.push('\n');
+        }
+        s.push_str("#ifndef UNLAG_BANK_H\n#define UNLAG_BANK_H\n\n#include <stdint.h>\n\n");
+        let _ = writeln!(
+            s,
+            "#define UNLAG_BANK_SAMPLE_RATE_HZ {:?} /* Hz */",
+            self.sets.first().map_or(0.0, |c| c.sample_rate_hz)
+        );
+        let _ = writeln!(s, "#define UNLAG_BANK_SET_COUNT {n}u");
+        let _ = writeln!(s, "#define UNLAG_BANK_SECTION_COUNT {m}u");
+        let _ = writeln!(
+            s,
+            "#define UNLAG_BANK_HYSTERESIS_K {:?}f /* K: half the step */",
+            narrow(self.hysteresis_k)
+        );
+        let _ = writeln!(
+            s,
+            "#define UNLAG_BANK_WARM_UP_SAMPLES {}u\n",
+            self.warm_up_samples
+        );
+        let floats = |v: &mut dyn Iterator<Item = f32>| {
+            v.map(|x| format!("{x:?}f")).collect::<Vec<_>>().join(", ")
+        };
+        let _ = writeln!(
+            s,
+            "static const float unlag_bank_temperatures_k[UNLAG_BANK_SET_COUNT] = {{{}}};",
+            floats(&mut self.temperatures_k.iter().map(|t| narrow(*t)))
+        );
+        let _ = writeln!(
+            s,
+            "static const uint32_t unlag_bank_delay_samples[UNLAG_BANK_SET_COUNT] = {{{}}};",
+            self.sets
+                .iter()
+                .map(|c| format!("{}u", c.delay_samples))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        let _ = writeln!(
+            s,
+            "static const float unlag_bank_gains[UNLAG_BANK_SET_COUNT] = {{{}}};",
+            floats(&mut self.sets.iter().map(|c| c.gain))
+        );
+        s.push_str("/* {b0, b1, b2, a1, a2} per section, per set */\n");
+        s.push_str("static const float unlag_bank_sections[UNLAG_BANK_SET_COUNT][UNLAG_BANK_SECTION_COUNT][5] = {\n");
+        for (t, set) in self.temperatures_k.iter().zip(&self.sets) {
+            let _ = writeln!(s, "    {{ /* {t} K */");
+            for sec in &set.sections {
+                let _ = writeln!(s, "        {{{}}},", floats(&mut sec.iter().copied()));
+            }
+            s.push_str("    },\n");
+        }
+        s.push_str("};\n\n");
+        s.push_str(
+            "/* The set to use at temp_k for a channel on set current: current while temp_k stays within its\n\
+             \x20* midpoints widened by half the hysteresis, else the nearest set (the ends outside the table).\n\
+             \x20* A NaN reading keeps current. */\n\
+             static inline uint32_t unlag_bank_select(uint32_t current, float temp_k)\n\
+             {\n\
+             \x20   const float half = 0.5f * UNLAG_BANK_HYSTERESIS_K;\n\
+             \x20   uint32_t i, nearest = 0u;\n\
+             \x20   if (current >= UNLAG_BANK_SET_COUNT) current = UNLAG_BANK_SET_COUNT - 1u;\n\
+             \x20   if (temp_k != temp_k) return current;\n\
+             \x20   if ((current == 0u || temp_k >= 0.5f * (unlag_bank_temperatures_k[current - 1u] + unlag_bank_temperatures_k[current]) - half) &&\n\
+             \x20       (current + 1u >= UNLAG_BANK_SET_COUNT || temp_k <= 0.5f * (unlag_bank_temperatures_k[current] + unlag_bank_temperatures_k[current + 1u]) + half))\n\
+             \x20       return current;\n\
+             \x20   for (i = 0u; i + 1u < UNLAG_BANK_SET_COUNT; i++)\n\
+             \x20       if (temp_k > 0.5f * (unlag_bank_temperatures_k[i] + unlag_bank_temperatures_k[i + 1u])) nearest = i + 1u;\n\
+             \x20   return nearest;\n\
+             }\n\n#endif /* UNLAG_BANK_H */\n",
+        );
+        s
+    }
+
+    /// The file's bytes in `format`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for [`Format::Bin`]: the blob carries one set.
+    pub fn render(&self, format: Format, source: &str) -> Result<Vec<u8>> {
+        match format {
+            Format::Rust => Ok(self.to_rust(source).into_bytes()),
+            Format::C => Ok(self.to_c(source).into_bytes()),
+            Format::Bin => Err(bad_range(
+                "a blob carries one coefficient set, not a bank: write --format rust or c, or send \
+                 a running board one set at a time with --temperature K --format bin"
+                    .into(),
+            )),
+        }
+    }
+}
+
+/// Longest warm-up written (a pole so slow would need more is capped here).
+pub const MAX_WARM_UP_SAMPLES: u32 = 1 << 16;
+
+/// Samples for the slowest pole of any set's sections to decay to a millionth (at least 1, at
+/// most [`MAX_WARM_UP_SAMPLES`]).
+#[must_use]
+pub fn warm_up_samples(sets: &[BoardCoefficients]) -> u32 {
+    let radius = sets
+        .iter()
+        .flat_map(|s| &s.sections)
+        .map(|c| crate::compensator::section_pole_radius(f64::from(c[3]), f64::from(c[4])))
+        .fold(0.0, f64::max);
+    if radius <= 0.0 {
+        return 1;
+    }
+    if radius >= 1.0 {
+        return MAX_WARM_UP_SAMPLES;
+    }
+    let n = (1e-6f64.ln() / radius.ln()).ceil();
+    if n >= f64::from(MAX_WARM_UP_SAMPLES) {
+        MAX_WARM_UP_SAMPLES
+    } else {
+        // 0 < n < 2^16, checked above.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let n = n as u32;
+        n.max(1)
+    }
+}
+
+#[allow(clippy::cast_possible_truncation)]
+fn narrow(x: f64) -> f32 {
+    x as f32
+}
+
+/// What [`export_bank`] wrote.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BankSummary {
+    /// The temperatures (K).
+    pub temperatures_k: Vec<f64>,
+    /// Sections per set.
+    pub sections: usize,
+    /// Sample rate in Hz.
+    pub sample_rate_hz: f64,
+    /// Each set's model delay (samples).
+    pub delay_samples: Vec<u32>,
+    /// Bytes written.
+    pub bytes: usize,
+}
+
+/// Loads `model`, designs its bank over `range` and writes it in `format` to `output`
+/// atomically (nothing is written on error).
+///
+/// # Errors
+/// Loading the model file, [`BoardBank::from_model_file`], [`BoardBank::render`], writing.
+pub fn export_bank(
+    model: &Path,
+    range: &TemperatureRange,
+    format: Format,
+    output: &Path,
+) -> Result<BankSummary> {
+    if format == Format::Bin {
+        // Refused before the (slow) design of every set.
+        return Err(bad_range(
+            "a blob carries one coefficient set, not a bank: write --format rust or c, or send a \
+             running board one set at a time with --temperature K --format bin"
+                .into(),
+        ));
+    }
+    let file = ModelFile::load(model)?;
+    let bank = BoardBank::from_model_file(&file, model, range)?;
+    let source = model.file_name().map_or_else(
+        || model.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let bytes = bank.render(format, &source)?;
+    write_atomically(output, &bytes)?;
+    Ok(BankSummary {
+        temperatures_k: bank.temperatures_k.clone(),
+        sections: bank.section_count(),
+        sample_rate_hz: bank.sets.first().map_or(0.0, |c| c.sample_rate_hz),
+        delay_samples: bank.sets.iter().map(|c| c.delay_samples).collect(),
+        bytes: bytes.len(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn set(sections: Vec<[f32; 5]>) -> BoardCoefficients {
+        BoardCoefficients {
+            sample_rate_hz: 1000.0,
+            delay_samples: 1,
+            latency_samples: 1.0,
+            gain: 1.0,
+            sections,
+            nonlinear: None,
+        }
+    }
+
+    #[test]
+    fn the_warm_up_lasts_until_the_slowest_pole_has_decayed_to_a_millionth() {
+        // Poles 0.5 and 0.9 (a real pair): 0.9^132 < 1e-6 < 0.9^131.
+        let sets = [
+            set(vec![[1.0, 0.0, 0.0, -0.5, 0.0]]),
+            set(vec![[1.0, 0.0, 0.0, -1.4, 0.45]]),
+        ];
+        assert_eq!(warm_up_samples(&sets), 132);
+        // A complex pair of radius 0.5: 0.5^20 < 1e-6 < 0.5^19; no pole at all: 1.
+        assert_eq!(
+            warm_up_samples(&[set(vec![[1.0, 0.0, 0.0, 0.0, 0.25]])]),
+            20
+        );
+        assert_eq!(warm_up_samples(&[set(vec![[1.0, 0.0, 0.0, 0.0, 0.0]])]), 1);
+        assert_eq!(
+            warm_up_samples(&[set(vec![[1.0, 0.0, 0.0, -0.999_999, 0.0]])]),
+            MAX_WARM_UP_SAMPLES
+        );
+    }
+
+    #[test]
+    fn parses_ranges_and_refuses_bad_ones() {
+        let r = TemperatureRange::parse("253:353:10").unwrap();
+        let t = r.temperatures();
+        assert_eq!(t.len(), 11);
+        assert_eq!(t.first(), Some(&253.0));
+        assert!((t.last().unwrap() - 353.0).abs() < 1e-9);
+        // TO off the grid: the last temperature below it.
+        assert_eq!(
+            TemperatureRange::parse("250:275:10")
+                .unwrap()
+                .temperatures(),
+            vec![250.0, 260.0, 270.0]
+        );
+        // A fractional step that does not divide exactly in binary still reaches TO.
+        assert_eq!(
+            TemperatureRange::parse("290:291:0.1")
+                .unwrap()
+                .temperatures()
+                .len(),
+            11
+        );
+        assert_eq!(
+            TemperatureRange::parse("300:300:5").unwrap().temperatures(),
+            vec![300.0]
+        );
+        for bad in [
+            "253:353",
+            "253:353:10:1",
+            "a:353:10",
+            "253:353:0",
+            "253:353:-5",
+            "353:253:10",
+            "0:10:1",
+            "253:353:nan",
+            "1:1000:1",
+        ] {
+            let e = TemperatureRange::parse(bad).unwrap_err();
+            assert!(
+                matches!(
+                    e,
+                    Error::InvalidArgument {
+                        what: "--temperatures",
+                        ..
+                    }
+                ),
+                "{bad}: {e}"
+            );
+            assert_eq!(e.to_string().lines().count(), 1, "{bad}: {e}");
+        }
+    }
+}

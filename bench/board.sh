@@ -99,6 +99,11 @@ for b, label in (("default", "default (VMUL + VADD)"), ("vmla", "`-slowfpvmlx` (
         n = res[b][key] / 1024
         e = res[b][("empty", 0, "call", 1024)] / 1024
         lines.append(f"| {label} | 4 | unlag + nonlinear-damping correction | - | - | {n:.2f} | {n - e:.2f} |")
+    key = ("bank", 4, "call", 1024)
+    if key in res[b]:
+        n = res[b][key] / 1024
+        e = res[b][("empty", 0, "call", 1024)] / 1024
+        lines.append(f"| {label} | 4 | unlag through a temperature bank | - | - | {n:.2f} | {n - e:.2f} |")
 lines.append("")
 lines.append("Goals for m = 4 (issue 5): f32 at most 30 per single-sample call and at most 14 per")
 d4 = cols(res["default"], "unlag", 4); v4 = cols(res["vmla"], "unlag", 4)
@@ -129,6 +134,12 @@ if nl is not None:
     lines.append(f"m = 4 compensator's output: {nl / 1024:.2f} per call in all, against {d4[2]:.2f} without it (the")
     lines.append("correction is the rate term and a second cascade, its own two-section low-pass, through")
     lines.append("the same kernels).")
+bk = res["default"].get(("bank", 4, "call", 1024))
+if bk is not None:
+    lines.append("")
+    lines.append(f"Through a `TemperatureBank` (issue 7's `temperature` on the board: the coefficient set for")
+    lines.append(f"the measured gas temperature, with a warm-up handover) the m = 4 call takes {bk / 1024:.2f}, against")
+    lines.append(f"{d4[2]:.2f} for the bare cascade: the set lookup and the warm-up bookkeeping.")
 f4 = cols(res["default"], "fixed", 4)
 f2 = cols(res["default"], "fixed", 2)
 lines.append("")

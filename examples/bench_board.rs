@@ -33,7 +33,8 @@ mod board {
     use idsp::iir::{Biquad, Cascade, DirectForm};
     use panic_semihosting as _;
     use unlag::compensator::{
-        CascadeCoefficients, CascadeState, NonlinearDampingCoefficients, NonlinearDampingState,
+        BankChannel, CascadeCoefficients, CascadeState, NonlinearDampingCoefficients,
+        NonlinearDampingState, TemperatureBank,
     };
     use unlag::fixed::{FixedCascade, FixedSection, FixedState};
 
@@ -189,6 +190,85 @@ mod board {
         let pass = e < 0.05;
         hprintln!(
             "CHECK  nonlin m=4 call   max|y - f64 reference|={} Pa {}",
+            e,
+            if pass { "ok" } else { "FAIL" }
+        );
+        pass
+    }
+
+    /// The temperature bank's per-sample call (issue 7's `temperature` on the board).
+    #[inline(never)]
+    fn call_bank<const S: usize, const K: usize>(
+        bank: &TemperatureBank<f32, S, K>,
+        ch: &mut BankChannel<f32, K>,
+        x: f32,
+    ) -> f32 {
+        bank.process(ch, x)
+    }
+
+    /// A new gas temperature for the channel, between samples.
+    #[inline(never)]
+    fn bank_temperature<const S: usize, const K: usize>(
+        bank: &TemperatureBank<f32, S, K>,
+        ch: &mut BankChannel<f32, K>,
+        t: f32,
+    ) -> bool {
+        bank.set_temperature(ch, t)
+    }
+
+    /// A bank of three m = 4 sets (the design's sections; the cost does not depend on the
+    /// values), one call per sample at a steady temperature: the output must be bit-identical
+    /// to the plain cascade's. Then a swap with its warm-up, checked against the f64
+    /// reference of the same sets. Reports `bank m=4 call`.
+    fn bench_bank(x: &[f32; N], y: &mut [f32; N]) -> bool {
+        let Some(sections) = coefficients::SECTIONS.get(..2) else {
+            return false;
+        };
+        let sets = [sections, sections, sections];
+        let gains = [coefficients::GAIN; 3];
+        let (Ok(bank), Ok(c)) = (
+            TemperatureBank::<f32, 3, 2>::new(&[273.15, 293.15, 313.15], &gains, &sets, 10.0, 64),
+            CascadeCoefficients::<f32, 2>::new(coefficients::GAIN, sections),
+        ) else {
+            hprintln!("ERROR bank: coefficients refused");
+            return false;
+        };
+        let x0 = x.first().copied().unwrap_or(0.0);
+        let bank = black_box(&bank);
+        let mut ch = bank.channel(293.15, x0);
+        let t = measure(|| {
+            for (xi, yi) in x.iter().zip(y.iter_mut()) {
+                *yi = call_bank(bank, &mut ch, *xi);
+            }
+        });
+        report("bank", 4, "call", N, t);
+        let mut s = c.equilibrium(x0);
+        let same = x
+            .iter()
+            .zip(y.iter())
+            .all(|(xi, yi)| c.process(&mut s, *xi).to_bits() == yi.to_bits());
+        // A swap to the 313 K set (identical sections) half-way: its warm-up starts it in
+        // equilibrium with the last input, so it joins the reference within the warm-up.
+        let Ok(c64) = CascadeCoefficients::<f64, 2>::new(coefficients::GAIN, sections) else {
+            return false;
+        };
+        let mut ch = bank.channel(293.15, x0);
+        let mut s64 = c64.equilibrium(f64::from(x0));
+        let mut swapped = false;
+        let mut e = 0.0f64;
+        for (k, xi) in x.iter().enumerate() {
+            if k == N / 2 {
+                swapped = bank_temperature(bank, &mut ch, black_box(320.0));
+            }
+            let v = call_bank(bank, &mut ch, *xi);
+            let r = c64.process(&mut s64, f64::from(*xi));
+            e = e.max((f64::from(v) - r).abs());
+        }
+        let pass = same && swapped && ch.selected() == 2 && e < 0.05;
+        hprintln!(
+            "CHECK  bank m=4 call     same bits as the cascade: {}, swap to set {}, max|y - f64 reference|={} Pa {}",
+            same,
+            ch.selected(),
             e,
             if pass { "ok" } else { "FAIL" }
         );
@@ -441,6 +521,7 @@ mod board {
             &reference,
         );
         ok &= bench_nonlinear(x, &mut y);
+        ok &= bench_bank(x, &mut y);
         black_box(&y);
         hprintln!("DONE {}", if ok { "ok" } else { "FAIL" });
         debug::exit(if ok {

@@ -11,7 +11,9 @@
 //!    residual peaks for a sensor resonance (a line or cavity mode never shows in the
 //!    reference, so a matched sensor resonance goes before `mode`), and natural frequencies of
 //!    the tests fitted alone that all move by one common factor against the model's, with the
-//!    damping about the same, for a temperature ([`temperature_evidence`]); and across tests
+//!    damping about the same, for a temperature ([`temperature_evidence`]; both damping laws
+//!    of [`crate::effects::TemperatureDamping`] are tried and the better offered, its `change`
+//!    `--add temperature` or `--add temperature-viscous`); and across tests
 //!    ([`amplitude_signature`]), a damping that rises with the step's amplitude and a residual
 //!    that grows faster than the step, for nonlinear damping;
 //! 2. a trial: the model is refitted on the estimation test with the effect added
@@ -693,42 +695,77 @@ pub fn diagnose(
     }
 
     // temperature: every natural frequency of the per-test fits moves by one common factor
-    // against the model's, with the damping about the same: the speed of sound changed.
+    // against the model's, with the damping about the same or moving as the viscous law says:
+    // the speed of sound (and the kinematic viscosity) changed. Both damping laws are tried;
+    // the one that lowers the held-out error more is offered.
     if tests.len() >= 2 && effects::reference_k(current.effects).is_none() {
         if let Some(t) = temperature_evidence(current, tests, evidence) {
-            if let Some((after, fx)) = trial(
-                Effect::Temperature {
+            let best = [
+                effects::TemperatureDamping::Constant,
+                effects::TemperatureDamping::Viscous,
+            ]
+            .into_iter()
+            .filter_map(|damping| {
+                let added = Effect::Temperature {
                     reference_k: effects::DEFAULT_REFERENCE_K,
-                },
-                &base,
-            ) {
+                    damping,
+                };
+                trial(added, &base).map(|(after, fx)| (after, fx, damping))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some((after, fx, damping)) = best {
                 let reference_k = effects::reference_k(&fx).unwrap_or(effects::DEFAULT_REFERENCE_K);
                 let estimated: Vec<Value> = tests
                     .iter()
                     .map(|t| {
-                        let k = effects::estimate_scale(current.model, t.u, t.y);
+                        let k = effects::estimate_scale_with(
+                            current.model,
+                            damping,
+                            reference_k,
+                            t.u,
+                            t.y,
+                        );
                         json!({"test": t.name, "scale": k,
-                               "temperature_k": reference_k * k * k})
+                               "temperature_k": reference_k * k * k,
+                               "damping_factor": damping.factor(k, reference_k)})
                     })
                     .collect();
                 let (file, ratio) = t.strongest();
+                let viscous = effects::TemperatureDamping::Viscous.factor(ratio, reference_k);
+                let spelling = damping.spelling();
+                let law = match damping {
+                    effects::TemperatureDamping::Constant => "damping kept".to_string(),
+                    effects::TemperatureDamping::Viscous => format!(
+                        "damping x{viscous:.2} by the viscous law nu(T)/nu(T_ref)/k of a \
+                         tube-volume system"
+                    ),
+                };
                 offer(
                     "temperature",
                     after,
                     json!({"per_test": t.rows, "common_ratio": ratio, "test": file,
                            "temperature_ratio": ratio * ratio,
+                           "damping_ratio": t.damping_ratio,
+                           "viscous_damping_ratio": viscous,
+                           "damping": damping, "add": spelling,
                            "estimated_scale": estimated, "reference_k": reference_k}),
                     format!(
                         "every natural frequency of {file} fitted alone is {ratio:.3} times the \
                          model's (spread across modes {:.1} %, damping x{:.2}): the same probe at \
                          another gas temperature, T/T_ref = {:.3} (speed of sound goes as the root \
-                         of temperature)",
+                         of temperature); {law}",
                         100.0 * t.spread,
                         t.damping_ratio,
                         ratio * ratio
                     ),
-                    "unlag fit ... --add temperature   (model file: effects = [{ kind = \"temperature\", reference_k = 293.15 }]; the estimation test's temperature)"
-                        .into(),
+                    match damping {
+                        effects::TemperatureDamping::Constant => format!(
+                            "unlag fit ... --add {spelling}   (model file: effects = [{{ kind = \"temperature\", reference_k = 293.15 }}]; the estimation test's temperature)"
+                        ),
+                        effects::TemperatureDamping::Viscous => format!(
+                            "unlag fit ... --add {spelling}   (model file: effects = [{{ kind = \"temperature\", reference_k = 293.15, damping = \"viscous\" }}]; the estimation test's temperature)"
+                        ),
+                    },
                 );
             }
         }

@@ -15,7 +15,7 @@
 //! | `coloured-noise` | output-error fit (the noise needs no model then) | nothing |
 //! | `nonlinear-damping` | a quadratic loss `gain * \|dy/dt\| dy/dt` taken off the input the dynamics see (fitted by least squares, alternating with the linear part) | `gain * lowpass(\|dy\| dy)` added to the linear inverse ([`crate::compensator::NonlinearDampingCoefficients`]); f32 only, the fixed-point export refuses it |
 //! | `sensor-resonance` | both channels low-passed below the transducers' diaphragm resonance (Butterworth, order [`PREFILTER_ORDER`], at half the resonance, as the paper does) before fitting; the model describes the probe below it, and errors are measured on the prefiltered signals | the prefilter's sections run first, in the compensator's cascade |
-//! | `temperature` | the model belongs to `reference_k`; at a gas temperature `T` every natural frequency scales by `k = sqrt(T / reference_k)` (speed of sound) and the delay by `1 / k`, through the continuous-time model ([`scaled`]) | a coefficient set rescaled for the temperature it is given (`unlag export --temperature K`, swapped in as a blob), or a bank of sets by temperature for a board that measures it (`unlag export --temperatures FROM:TO:STEP`, [`crate::compensator::TemperatureBank`]: nearest set with hysteresis, state handed over without a step) |
+//! | `temperature` | the model belongs to `reference_k`; at a gas temperature `T` every natural frequency scales by `k = sqrt(T / reference_k)` (speed of sound) and the delay by `1 / k`, through the continuous-time model ([`scaled`]); the damping of every resonance is kept (`damping = "constant"`, `--add temperature`) or scaled by the viscous law `(nu(T) / nu(reference_k)) / k` of a tube-volume system (`damping = "viscous"`, `--add temperature-viscous`; [`TemperatureDamping`], [`scaled_with`]) | a coefficient set rescaled for the temperature it is given (`unlag export --temperature K`, swapped in as a blob), or a bank of sets by temperature for a board that measures it (`unlag export --temperatures FROM:TO:STEP`, [`crate::compensator::TemperatureBank`]: nearest set with hysteresis, state handed over without a step) |
 //!
 //! A test's temperature: `unlag simulate`, `unlag compensate` and `unlag export` take it as
 //! `--temperature K`. Where tests are judged against the model (`fit`, `compare`, `diagnose`)
@@ -44,6 +44,7 @@ use crate::continuous::Continuous;
 use crate::error::Result;
 use crate::fit::{Fitted, Method, Options, Order, Test};
 use crate::model::Model;
+use crate::poly::Complex;
 
 /// One effect added to the model, with its parameters once fitted.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -103,7 +104,76 @@ pub enum Effect {
         /// Gas temperature the model's coefficients belong to (K): the estimation test's.
         #[serde(default = "default_reference_k")]
         reference_k: f64,
+        /// How the damping of the resonances follows the temperature (`constant` when the
+        /// file does not say: model files written before the law existed load unchanged).
+        #[serde(default, skip_serializing_if = "TemperatureDamping::is_constant")]
+        damping: TemperatureDamping,
     },
+}
+
+/// How a `temperature` effect moves the damping ratio of every resonance with the gas
+/// temperature (the natural frequencies always scale by `k = sqrt(T / T_ref)`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TemperatureDamping {
+    /// The damping ratios are kept.
+    #[default]
+    Constant,
+    /// The viscous law of a tube-volume system (`zeta = (4 / c_I) nu / (R^2 w_n)`, the
+    /// physics module's lumped model): at `T` every damping ratio is multiplied by
+    /// `(nu(T) / nu(T_ref)) / k` ([`viscous_damping_factor`]), with `nu = mu / rho` of air,
+    /// `mu` by Sutherland's law and `rho = p / (R_g T)` at one fixed mean pressure.
+    Viscous,
+}
+
+impl TemperatureDamping {
+    /// Whether it is [`TemperatureDamping::Constant`] (not written to the model file then).
+    #[must_use]
+    pub fn is_constant(&self) -> bool {
+        *self == Self::Constant
+    }
+
+    /// The factor on every damping ratio at time-scale factor `k` for a model at
+    /// `reference_k` (the temperature is `reference_k k^2`): 1 for `constant`; for `viscous`
+    /// [`viscous_damping_factor`], 1 when the temperatures are not positive numbers.
+    #[must_use]
+    pub fn factor(self, k: f64, reference_k: f64) -> f64 {
+        match self {
+            Self::Constant => 1.0,
+            Self::Viscous => {
+                viscous_damping_factor(reference_k * k * k, reference_k).unwrap_or(1.0)
+            }
+        }
+    }
+
+    /// The `--add` spelling of a `temperature` effect with this law.
+    #[must_use]
+    pub fn spelling(self) -> &'static str {
+        match self {
+            Self::Constant => "temperature",
+            Self::Viscous => "temperature-viscous",
+        }
+    }
+}
+
+/// Mean pressure (Pa) at which [`viscous_damping_factor`] evaluates the air: one standard
+/// atmosphere. The factor depends on it only through the density, which is proportional to
+/// the pressure at both temperatures, so the ratio `nu(T) / nu(T_ref)` is the same at any
+/// fixed mean pressure; this is only where the two gases are built.
+pub const VISCOUS_PRESSURE_PA: f64 = crate::physics::gas::STANDARD_PRESSURE;
+
+/// The factor on a tube-volume system's damping ratio from `reference_k` to `temperature_k`:
+/// `zeta = (4 / c_I) nu / (R^2 w_n)` (see `../shared/physics/README.md`, 1.3) with `w_n`
+/// scaling as the speed of sound, so `(nu(T) / nu(T_ref)) / sqrt(T / T_ref)`, air at
+/// [`VISCOUS_PRESSURE_PA`] ([`crate::physics::Gas::air`]: Sutherland viscosity, ideal-gas
+/// density). About 1.22 from 293.15 K to 343.15 K.
+///
+/// # Errors
+/// As [`scale_for`].
+pub fn viscous_damping_factor(temperature_k: f64, reference_k: f64) -> Result<f64> {
+    let k = scale_for(temperature_k, reference_k)?;
+    let nu = |t: f64| crate::physics::Gas::air(t, VISCOUS_PRESSURE_PA).kinematic_viscosity();
+    Ok(nu(temperature_k) / nu(reference_k) / k)
 }
 
 /// Reference temperature when the user gives none (K): 20 degrees Celsius.
@@ -170,6 +240,11 @@ impl Effect {
             },
             "temperature" => Self::Temperature {
                 reference_k: DEFAULT_REFERENCE_K,
+                damping: TemperatureDamping::Constant,
+            },
+            "temperature-viscous" => Self::Temperature {
+                reference_k: DEFAULT_REFERENCE_K,
+                damping: TemperatureDamping::Viscous,
             },
             _ if kind.starts_with("sensor-resonance=") => {
                 let f: f64 = kind.strip_prefix("sensor-resonance=")?.parse().ok()?;
@@ -181,12 +256,23 @@ impl Effect {
                     prefilter_hz: 0.5 * f,
                 }
             }
-            _ if kind.starts_with("temperature=") => {
-                let t: f64 = kind.strip_prefix("temperature=")?.parse().ok()?;
+            _ if kind.starts_with("temperature") => {
+                let (damping, t) = if let Some(t) = kind.strip_prefix("temperature=") {
+                    (TemperatureDamping::Constant, t)
+                } else {
+                    (
+                        TemperatureDamping::Viscous,
+                        kind.strip_prefix("temperature-viscous=")?,
+                    )
+                };
+                let t: f64 = t.parse().ok()?;
                 if !(t.is_finite() && t > 0.0) {
                     return None;
                 }
-                Self::Temperature { reference_k: t }
+                Self::Temperature {
+                    reference_k: t,
+                    damping,
+                }
             }
             _ => {
                 let d = kind.strip_prefix("delay=")?.parse().ok()?;
@@ -406,7 +492,8 @@ pub fn predict(model: &Model, effects: &[Effect], u: &[f64], y: &[f64]) -> Vec<f
 }
 
 /// As [`predict`], with the time-scale factor `k = sqrt(T / reference_k)` given instead of
-/// estimated (`None`: estimated when the effects have a `temperature`).
+/// estimated (`None`: estimated when the effects have a `temperature`); the damping follows
+/// the `temperature`'s law ([`TemperatureDamping`]).
 #[must_use]
 pub fn predict_with(
     model: &Model,
@@ -417,13 +504,17 @@ pub fn predict_with(
 ) -> Vec<f64> {
     let fs = model.fs;
     let (u, y) = (prefiltered(effects, fs, u), prefiltered(effects, fs, y));
-    let k = match scale {
-        Some(k) => k,
-        None if reference_k(effects).is_some() => estimate_scale(model, &u, &y),
-        None => 1.0,
+    let law = temperature_law(effects);
+    let k = match (scale, law) {
+        (Some(k), _) => k,
+        (None, Some((reference, damping))) => {
+            estimate_scale_with(model, damping, reference, &u, &y)
+        }
+        (None, None) => 1.0,
     };
     let rescaled = if (k - 1.0).abs() > 1e-12 {
-        scaled(model, k).ok()
+        let factor = law.map_or(1.0, |(reference, damping)| damping.factor(k, reference));
+        scaled_with(model, k, factor).ok()
     } else {
         None
     };
@@ -602,8 +693,17 @@ pub fn prefiltered(effects: &[Effect], fs: f64, x: &[f64]) -> Vec<f64> {
 /// The reference temperature of `effects` (K), when they have a `temperature`.
 #[must_use]
 pub fn reference_k(effects: &[Effect]) -> Option<f64> {
+    temperature_law(effects).map(|(t, _)| t)
+}
+
+/// The reference temperature (K) and damping law of `effects`' `temperature`, if any.
+#[must_use]
+pub fn temperature_law(effects: &[Effect]) -> Option<(f64, TemperatureDamping)> {
     effects.iter().find_map(|e| match e {
-        Effect::Temperature { reference_k } => Some(*reference_k),
+        Effect::Temperature {
+            reference_k,
+            damping,
+        } => Some((*reference_k, *damping)),
         _ => None,
     })
 }
@@ -630,38 +730,135 @@ pub fn scale_for(temperature_k: f64, reference_k: f64) -> Result<f64> {
     Ok((temperature_k / reference_k).sqrt())
 }
 
-fn scale_continuous(ct: &Continuous, k: f64, fs: f64) -> Result<Model> {
-    let mut ct = ct.clone();
-    for r in ct.poles.iter_mut().chain(ct.residues.iter_mut()) {
-        r.re *= k;
-        r.im *= k;
-        r.magnitude *= k;
+/// Damping ratios closer to 1 than this after scaling are moved to `1 + this` (two real poles
+/// that stay apart: the modal form has no repeated poles).
+const CRITICAL_GAP: f64 = 1e-3;
+
+/// The pole `s` (of a resonance: `s = -zeta w + j w sqrt(1 - zeta^2)`) with its damping ratio
+/// times `factor` and its natural frequency `w = |s|` kept. A real pole is kept; a resonance
+/// damped past critical becomes two real poles `-w (zeta -+ sqrt(zeta^2 - 1))` (the upper pole
+/// of the pair takes the slower one).
+fn damped_pole(s: Complex, factor: f64) -> Complex {
+    let w = s.norm();
+    if s.im == 0.0 || s.im.abs() <= 1e-12 * w || factor == 1.0 {
+        return s;
     }
-    ct.delay_s /= k;
-    Ok(ct.discretise(fs)?.model)
+    let zeta = (-s.re / w) * factor;
+    if zeta < 1.0 - CRITICAL_GAP {
+        return Complex::new(-zeta * w, s.im.signum() * w * (1.0 - zeta * zeta).sqrt());
+    }
+    let zeta = zeta.max(1.0 + CRITICAL_GAP);
+    let root = (zeta * zeta - 1.0).sqrt();
+    Complex::new(-w * (zeta - s.im.signum() * root), 0.0)
+}
+
+fn scale_continuous(ct: &Continuous, k: f64, damping_factor: f64, fs: f64) -> Result<Model> {
+    let mut out = ct.clone();
+    let one = Complex::new(1.0, 0.0);
+    // Time scaled by k: H(s / k) has the poles k s_i and the residues k r_i.
+    let old: Vec<Complex> = ct
+        .poles
+        .iter()
+        .map(|r| Complex::new(k * r.re, k * r.im))
+        .collect();
+    let res: Vec<Complex> = ct
+        .residues
+        .iter()
+        .map(|r| Complex::new(k * r.re, k * r.im))
+        .collect();
+    let new: Vec<Complex> = old
+        .iter()
+        .map(|&s| damped_pole(s, damping_factor))
+        .collect();
+    // The damping moved: H'(s) = H(s / k) Q(s), Q(s) = C prod_j (s - old_j) / (s - new_j) with
+    // C = prod_j new_j / old_j (Q(0) = 1: the DC gain kept; the zeros of H(s / k) kept). Its
+    // residue at new_i, written so that it is k r_i when nothing moved.
+    let c = new.iter().zip(&old).fold(one, |acc, (n, o)| acc * *n / *o);
+    let residues: Vec<Complex> = (0..new.len())
+        .map(|i| {
+            let (ni, mut rest, mut ratio) = (new[i], Complex::new(ct.feedthrough, 0.0), one);
+            for j in (0..new.len()).filter(|&j| j != i) {
+                rest += res[j] / (ni - old[j]);
+                ratio = ratio * (ni - old[j]) / (ni - new[j]);
+            }
+            c * (rest * (ni - old[i]) + res[i]) * ratio
+        })
+        .collect();
+    if residues
+        .iter()
+        .any(|r| !(r.re.is_finite() && r.im.is_finite()))
+    {
+        return Err(crate::error::Error::Numerical {
+            context: "temperature scaling".into(),
+            message: format!(
+                "the damping scaled by {damping_factor} puts two poles together: no modal form"
+            ),
+        });
+    }
+    out.poles = new.into_iter().map(crate::analysis::Root::from).collect();
+    out.residues = residues
+        .into_iter()
+        .map(crate::analysis::Root::from)
+        .collect();
+    out.feedthrough = ct.feedthrough * c.re;
+    out.delay_s /= k;
+    Ok(out.discretise(fs)?.model)
 }
 
 /// The model with time scaled by `k`: `H_k(s) = H(s / k)`, every pole (natural frequency) times
 /// `k` and the delay over `k`, re-discretised at the model's rate (step invariant, through
-/// [`Continuous`]).
+/// [`Continuous`]). The damping ratios are kept ([`scaled_with`] moves them too).
 ///
 /// # Errors
 /// As [`Continuous::from_model`] and [`Continuous::discretise`].
 pub fn scaled(model: &Model, k: f64) -> Result<Model> {
+    scaled_with(model, k, 1.0)
+}
+
+/// As [`scaled`], and the damping ratio of every resonance (complex pole pair) multiplied by
+/// `damping_factor`, its natural frequency kept: the poles `s = -zeta w +- j w sqrt(1 - zeta^2)`
+/// move to `zeta' = damping_factor zeta` (two real poles beyond critical damping); real poles
+/// only scale by `k`. The zeros of `H(s / k)` and the DC gain are kept, the feedthrough (if
+/// any) is multiplied by the product of the new poles over the old.
+///
+/// # Errors
+/// As [`scaled`]; [`crate::error::Error::Numerical`] when two moved poles coincide.
+pub fn scaled_with(model: &Model, k: f64, damping_factor: f64) -> Result<Model> {
     let ct = Continuous::from_model(model)?;
-    scale_continuous(&ct, k, model.fs)
+    scale_continuous(&ct, k, damping_factor, model.fs)
 }
 
 /// The time-scale factor `k` in [`SCALE_RANGE`] that makes the scaled model fit the test best
 /// (least squares of the residual about its mean: a log grid, then a golden-section search
 /// between the best point's neighbours). 1 when the model has no continuous-time equivalent.
+/// The damping is kept ([`estimate_scale_with`] follows a law).
 #[must_use]
 pub fn estimate_scale(model: &Model, u: &[f64], y: &[f64]) -> f64 {
+    estimate_scale_with(
+        model,
+        TemperatureDamping::Constant,
+        DEFAULT_REFERENCE_K,
+        u,
+        y,
+    )
+}
+
+/// As [`estimate_scale`], with the damping following `damping` for a model at `reference_k`:
+/// still one parameter, the damping factor follows from `k` through `T = reference_k k^2`.
+#[must_use]
+pub fn estimate_scale_with(
+    model: &Model,
+    damping: TemperatureDamping,
+    reference_k: f64,
+    u: &[f64],
+    y: &[f64],
+) -> f64 {
     let Ok(ct) = Continuous::from_model(model) else {
         return 1.0;
     };
     let cost = |ln_k: f64| -> f64 {
-        let Ok(m) = scale_continuous(&ct, ln_k.exp(), model.fs) else {
+        let k = ln_k.exp();
+        let Ok(m) = scale_continuous(&ct, k, damping.factor(k, reference_k), model.fs) else {
             return f64::INFINITY;
         };
         let r: Vec<f64> = y.iter().zip(m.simulate(u)).map(|(a, b)| a - b).collect();
@@ -771,7 +968,7 @@ pub fn with_prefilter(
 }
 
 /// The model file at gas temperature `temperature_k`: the model scaled by
-/// `sqrt(T / reference_k)` ([`scaled`]), its compensator designed anew for it (same low-pass
+/// `sqrt(T / reference_k)`, its damping by the effect's law ([`scaled_with`]), its compensator designed anew for it (same low-pass
 /// family and order, corner scaled by the same factor, the sensor prefilter kept, the
 /// fixed-point plan redone for the same full scale), and its `temperature` effect now at `T`.
 /// This is the coefficient set a board is given for that temperature.
@@ -784,8 +981,8 @@ pub fn at_temperature(
     file: &crate::model::ModelFile,
     temperature_k: f64,
 ) -> Result<crate::model::ModelFile> {
-    let reference =
-        reference_k(&file.effects).ok_or_else(|| crate::error::Error::InvalidArgument {
+    let (reference, damping) =
+        temperature_law(&file.effects).ok_or_else(|| crate::error::Error::InvalidArgument {
             what: "--temperature",
             message:
                 "the model file has no temperature effect, so no reference temperature: refit \
@@ -794,7 +991,7 @@ pub fn at_temperature(
                     .into(),
         })?;
     let k = scale_for(temperature_k, reference)?;
-    let model = scaled(&file.model, k)?;
+    let model = scaled_with(&file.model, k, damping.factor(k, reference))?;
     let fs = model.fs;
     let inverse = match &file.inverse {
         Some(d) => {
@@ -822,8 +1019,9 @@ pub fn at_temperature(
         .effects
         .iter()
         .map(|e| match e {
-            Effect::Temperature { .. } => Effect::Temperature {
+            Effect::Temperature { damping, .. } => Effect::Temperature {
                 reference_k: temperature_k,
+                damping: *damping,
             },
             other => other.clone(),
         })
@@ -875,7 +1073,7 @@ pub fn resolve(effects: &[Effect], u: &[f64], fs: f64) -> Result<Vec<Effect>> {
                     prefilter_hz: corner,
                 })
             }
-            Effect::Temperature { reference_k } => {
+            Effect::Temperature { reference_k, .. } => {
                 scale_for(*reference_k, *reference_k)?;
                 Ok(e.clone())
             }
@@ -1166,10 +1364,191 @@ mod tests {
         assert!((k - 0.93).abs() < 0.002, "{k}");
         let e = [Effect::Temperature {
             reference_k: 293.15,
+            damping: TemperatureDamping::Constant,
         }];
         let ym = predict(&m, &e, &u, &y);
         assert!(crate::fit::nrmse_of(&y, &ym) < 0.002);
         assert!(crate::fit::nrmse_of(&y, &m.simulate(&u)) > 0.01);
+    }
+
+    #[test]
+    fn the_viscous_damping_factor_follows_the_kinematic_viscosity_of_air() {
+        use crate::physics::Gas;
+        // Independently: nu = mu / rho of the physics module's air at both temperatures, and
+        // the natural frequency's ratio from the speeds of sound.
+        let zeta_ratio = |t0: f64, t1: f64, p: f64| {
+            let (g0, g1) = (Gas::air(t0, p), Gas::air(t1, p));
+            let nu = (g1.viscosity_pa_s / g1.density()) / (g0.viscosity_pa_s / g0.density());
+            nu / (g1.speed_of_sound() / g0.speed_of_sound())
+        };
+        for (t0, t1) in [(293.15, 343.15), (293.15, 253.15), (310.0, 400.0)] {
+            let got = viscous_damping_factor(t1, t0).unwrap();
+            let want = zeta_ratio(t0, t1, 101_325.0);
+            assert!(
+                (got / want - 1.0).abs() < 1e-12,
+                "{t0} -> {t1}: {got} against {want}"
+            );
+            // The mean pressure cancels in the ratio.
+            let low = zeta_ratio(t0, t1, 20_000.0);
+            assert!((got / low - 1.0).abs() < 1e-12, "{got} against {low}");
+        }
+        // About +22 % from 20 to 70 degrees Celsius (the brief's "about +20 %"), below 1 colder.
+        let hot = viscous_damping_factor(343.15, 293.15).unwrap();
+        assert!(hot > 1.19 && hot < 1.25, "{hot}");
+        assert!(viscous_damping_factor(253.15, 293.15).unwrap() < 0.9);
+        // Through the law, from k: the temperature is reference k^2.
+        let k = (343.15f64 / 293.15).sqrt();
+        assert!((TemperatureDamping::Viscous.factor(k, 293.15) / hot - 1.0).abs() < 1e-12);
+        assert_eq!(TemperatureDamping::Constant.factor(k, 293.15), 1.0);
+        assert!(viscous_damping_factor(0.0, 293.15).is_err());
+    }
+
+    #[test]
+    fn damping_scaling_moves_every_pole_to_the_expected_place() {
+        let fs = 10_000.0;
+        let (m, s) = second_order(95.0, 0.3, fs, 17);
+        let (k, f) = (1.08, 1.2);
+        let w = s.norm();
+        // zeta 0.3 -> 0.36 at natural frequency k w.
+        let want_s = Complex::new(-0.36 * k * w, k * w * (1.0 - 0.36f64 * 0.36).sqrt());
+        let want = (want_s / fs).exp();
+        let got = scaled_with(&m, k, f).unwrap();
+        let poles = got.poles().unwrap();
+        assert!(
+            poles.iter().any(|p| (*p - want).norm() < 1e-9)
+                && poles.iter().any(|p| (*p - want.conj()).norm() < 1e-9),
+            "{poles:?} against {want:?}"
+        );
+        assert!((got.dc_gain() - 1.0).abs() < 1e-9, "{}", got.dc_gain());
+        // More damping: a smaller overshoot of the step response than the frequency-only scaling.
+        let peak = |m: &Model| {
+            crate::continuous::step_response(m, 600)
+                .into_iter()
+                .fold(f64::NEG_INFINITY, f64::max)
+        };
+        let frequency_only = scaled(&m, k).unwrap();
+        assert!(peak(&got) < peak(&frequency_only) - 0.01);
+        // A factor of 1 is the frequency-only scaling.
+        let same = scaled_with(&m, k, 1.0).unwrap();
+        assert_eq!(same, frequency_only);
+        // Past critical damping: two real poles -k w (zeta -+ sqrt(zeta^2 - 1)), zeta = 1.2.
+        let over = scaled_with(&m, k, 4.0).unwrap();
+        let mut got: Vec<f64> = over.poles().unwrap().iter().map(|p| p.re).collect();
+        got.sort_by(f64::total_cmp);
+        let root = (1.2f64 * 1.2 - 1.0).sqrt();
+        let mut want: Vec<f64> = [1.2 - root, 1.2 + root]
+            .iter()
+            .map(|z| (-k * w * z / fs).exp())
+            .collect();
+        want.sort_by(f64::total_cmp);
+        assert!(
+            got.iter().zip(&want).all(|(a, b)| (a - b).abs() < 1e-9),
+            "{got:?} against {want:?}"
+        );
+        assert!((over.dc_gain() - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_viscous_temperature_is_estimated_and_predicted_with_its_damping() {
+        let fs = 10_000.0;
+        let (m, _) = second_order(95.0, 0.3, fs, 17);
+        let u: Vec<f64> = (0..4000)
+            .map(|k| if k >= 500 { 1.0 } else { 0.0 })
+            .collect();
+        // The probe at 343.15 K: zeta x1.22 at k w (where `scaled_with` puts the poles is
+        // checked against their formula above).
+        let k_true = (343.15f64 / 293.15).sqrt();
+        let f = viscous_damping_factor(343.15, 293.15).unwrap();
+        let truth = scaled_with(&m, k_true, f).unwrap();
+        let y = truth.simulate(&u);
+        let k = estimate_scale_with(&m, TemperatureDamping::Viscous, 293.15, &u, &y);
+        assert!((k / k_true - 1.0).abs() < 0.01, "{k} against {k_true}");
+        let viscous = [Effect::parse("temperature-viscous").unwrap()];
+        let constant = [Effect::parse("temperature").unwrap()];
+        let e_viscous = crate::fit::nrmse_of(&y, &predict(&m, &viscous, &u, &y));
+        let e_constant = crate::fit::nrmse_of(&y, &predict(&m, &constant, &u, &y));
+        assert!(
+            e_viscous < 0.3 * e_constant,
+            "{e_viscous} against {e_constant}"
+        );
+    }
+
+    #[test]
+    fn a_coefficient_set_for_a_temperature_follows_the_damping_law() {
+        let fs = 10_000.0;
+        let (m, s) = second_order(95.0, 0.3, fs, 17);
+        let design =
+            crate::inverse::design(&m, 800.0, &crate::inverse::Options::default()).unwrap();
+        let file = |spelling: &str| crate::model::ModelFile {
+            format_version: crate::model::FORMAT_VERSION,
+            model: m.clone(),
+            fit: None,
+            sources: Vec::new(),
+            inverse: Some(design.clone()),
+            effects: vec![Effect::parse(spelling).unwrap()],
+            history: Vec::new(),
+            probe: None,
+        };
+        let (k, f) = (
+            (343.15f64 / 293.15).sqrt(),
+            viscous_damping_factor(343.15, 293.15).unwrap(),
+        );
+        let w = s.norm();
+        let pole_at = |zeta: f64| {
+            (Complex::new(-zeta * k * w, k * w * (1.0 - zeta * zeta).sqrt()) / fs).exp()
+        };
+        for (spelling, zeta, law) in [
+            ("temperature", 0.3, TemperatureDamping::Constant),
+            ("temperature-viscous", 0.3 * f, TemperatureDamping::Viscous),
+        ] {
+            let hot = at_temperature(&file(spelling), 343.15).unwrap();
+            let want = pole_at(zeta);
+            let poles = hot.model.poles().unwrap();
+            assert!(
+                poles.iter().any(|p| (*p - want).norm() < 1e-9),
+                "{spelling}: {poles:?} against {want:?}"
+            );
+            assert_eq!(temperature_law(&hot.effects), Some((343.15, law)));
+            assert!(hot.inverse.is_some());
+            // Back to the reference from the new file: the law composes.
+            let back = at_temperature(&hot, 293.15).unwrap();
+            let worst = crate::continuous::step_response(&m, 600)
+                .iter()
+                .zip(crate::continuous::step_response(&back.model, 600))
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 1e-6, "{spelling}: {worst}");
+        }
+    }
+
+    #[test]
+    fn the_damping_law_round_trips_and_old_files_load_constant() {
+        #[derive(Serialize, Deserialize)]
+        struct W {
+            effects: Vec<Effect>,
+        }
+        let old: W =
+            toml::from_str("effects = [{ kind = \"temperature\", reference_k = 300.0 }]").unwrap();
+        assert_eq!(
+            temperature_law(&old.effects),
+            Some((300.0, TemperatureDamping::Constant))
+        );
+        // Constant is not written (files stay as they were); viscous is.
+        let text = toml::to_string(&old).unwrap();
+        assert!(!text.contains("damping"), "{text}");
+        let w = W {
+            effects: vec![Effect::parse("temperature-viscous=310").unwrap()],
+        };
+        let text = toml::to_string(&w).unwrap();
+        assert!(text.contains("damping = \"viscous\""), "{text}");
+        let back: W = toml::from_str(&text).unwrap();
+        assert_eq!(
+            temperature_law(&back.effects),
+            Some((310.0, TemperatureDamping::Viscous))
+        );
+        assert_eq!(back.effects[0].kind(), "temperature");
+        assert!(Effect::parse("temperature-viscous=-1").is_none());
+        assert!(Effect::parse("temperature-sticky").is_none());
     }
 
     #[test]
@@ -1236,13 +1615,17 @@ mod tests {
                     prefilter_hz: 1000.0
                 },
                 Effect::Temperature {
-                    reference_k: DEFAULT_REFERENCE_K
+                    reference_k: DEFAULT_REFERENCE_K,
+                    damping: TemperatureDamping::Constant,
                 }
             ]
         );
         assert_eq!(
             Effect::parse("temperature=310"),
-            Some(Effect::Temperature { reference_k: 310.0 })
+            Some(Effect::Temperature {
+                reference_k: 310.0,
+                damping: TemperatureDamping::Constant,
+            })
         );
         assert!(Effect::parse("temperature=-3").is_none());
     }

@@ -461,7 +461,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         let e = crate::effects::Effect::parse(kind).ok_or_else(|| Error::InvalidArgument {
             what: "--add",
             message: format!(
-                "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, temperature=K",
+                "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, temperature=K, temperature-viscous[=K]",
                 crate::effects::KINDS
                     .iter()
                     .filter(|k| **k != "delay")

@@ -130,6 +130,22 @@ pub struct Analysis {
 }
 
 impl Analysis {
+    /// Each resonance (complex pole pair) as `(natural frequency in Hz, damping)`, in the
+    /// order of [`Self::modes`].
+    #[must_use]
+    pub fn resonance_pairs(&self) -> Vec<(f64, f64)> {
+        self.resonances()
+            .filter_map(|m| match m.kind {
+                ModeKind::Resonance {
+                    natural_frequency_hz,
+                    damping,
+                    ..
+                } => Some((natural_frequency_hz, damping)),
+                _ => None,
+            })
+            .collect()
+    }
+
     /// Analyses `model`.
     ///
     /// # Errors

@@ -269,19 +269,9 @@ pub fn temperature_evidence(
     tests: &[Test<'_>],
     evidence: &[TestEvidence],
 ) -> Option<TemperatureEvidence> {
-    let model_modes: Vec<(f64, f64)> = crate::analysis::Analysis::new(current.model)
+    let model_modes = crate::analysis::Analysis::new(current.model)
         .ok()?
-        .modes
-        .iter()
-        .filter_map(|m| match m.kind {
-            crate::analysis::ModeKind::Resonance {
-                natural_frequency_hz,
-                damping,
-                ..
-            } => Some((natural_frequency_hz, damping)),
-            _ => None,
-        })
-        .collect();
+        .resonance_pairs();
     if model_modes.is_empty() {
         return None;
     }
@@ -379,19 +369,7 @@ pub fn per_test(
             let mut resonances: Vec<(f64, f64)> = own
                 .as_ref()
                 .and_then(|f| crate::analysis::Analysis::new(&f.model).ok())
-                .map(|a| {
-                    a.modes
-                        .iter()
-                        .filter_map(|m| match m.kind {
-                            crate::analysis::ModeKind::Resonance {
-                                natural_frequency_hz,
-                                damping,
-                                ..
-                            } => Some((natural_frequency_hz, damping)),
-                            _ => None,
-                        })
-                        .collect()
-                })
+                .map(|a| a.resonance_pairs())
                 .unwrap_or_default();
             resonances.sort_by(|a, b| a.0.total_cmp(&b.0));
             PerTest {

@@ -15,7 +15,24 @@
 #[path = "../host-tests/common/mod.rs"]
 mod common;
 
-use common::hidden::{cases, physical_limits, run};
+use common::hidden::{cases, physical_limits, run, Case, Outcome};
+
+/// One row of a score table.
+fn row(case: &Case, o: &Outcome, verdict: &str) {
+    println!(
+        "| {} | `{}` | {} | {:.3} % | {:.3} % | {:.3} % | {verdict} |",
+        case.name,
+        case.kind,
+        o.named
+            .iter()
+            .map(|k| format!("`{k}`"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        100.0 * o.before,
+        100.0 * o.after,
+        100.0 * o.floor,
+    );
+}
 
 fn main() {
     println!("| case | hidden | named (best first) | validation error before | after adding the first | noise floor | verdict |");
@@ -32,20 +49,7 @@ fn main() {
         total += 1;
         let ok = o.passed(case.kind);
         right += usize::from(ok);
-        println!(
-            "| {} | `{}` | {} | {:.3} % | {:.3} % | {:.3} % | {} |",
-            case.name,
-            case.kind,
-            o.named
-                .iter()
-                .map(|k| format!("`{k}`"))
-                .collect::<Vec<_>>()
-                .join(", "),
-            100.0 * o.before,
-            100.0 * o.after,
-            100.0 * o.floor,
-            if ok { "right" } else { "WRONG" }
-        );
+        row(&case, &o, if ok { "right" } else { "WRONG" });
     }
     println!();
     println!("{right} of {total} cases: the hidden kind named first and the error cut 3x or to within 1.5x of the floor.");
@@ -57,23 +61,14 @@ fn main() {
     for case in physical_limits() {
         let o = run(&case, seed);
         signatures.push((case.name, o.signature.clone()));
-        println!(
-            "| {} | `{}` | {} | {:.3} % | {:.3} % | {:.3} % | {} |",
-            case.name,
-            case.kind,
-            o.named
-                .iter()
-                .map(|k| format!("`{k}`"))
-                .collect::<Vec<_>>()
-                .join(", "),
-            100.0 * o.before,
-            100.0 * o.after,
-            100.0 * o.floor,
+        row(
+            &case,
+            &o,
             if o.passed(case.kind) {
                 "right"
             } else {
                 "short"
-            }
+            },
         );
     }
     println!();

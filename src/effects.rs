@@ -1002,7 +1002,23 @@ pub fn at_temperature(
                 stabilise: !d.method.contains("direct inverse"),
             };
             let fc = options.bandwidth_hz.unwrap_or(d.lowpass_hz);
-            let mut nd = crate::inverse::design(&model, fc, &options)?;
+            // The optimum is designed anew from its noise and prior; a band-limited inverse
+            // keeps its corner, scaled with the time scale.
+            let mut nd = match (&d.noise, &d.prior) {
+                (Some(noise), Some(prior)) if d.method.starts_with("optimal") => {
+                    crate::inverse::optimal::design(
+                        &model,
+                        noise,
+                        prior,
+                        &crate::inverse::optimal::OptimalOptions {
+                            max_latency_samples: None,
+                            lowpass: d.lowpass,
+                            lowpass_order: d.lowpass_order,
+                        },
+                    )?
+                }
+                _ => crate::inverse::design(&model, fc, &options)?,
+            };
             nd.bandwidth_selection = format!(
                 "{} at the reference temperature, scaled by {k:.4} to {temperature_k} K",
                 d.bandwidth_selection

@@ -31,9 +31,15 @@ use crate::fit::Test;
 use crate::model::Model;
 use crate::poly::{self, Complex};
 
+pub mod check;
+pub mod optimal;
+
 /// Largest radius a zero of `B` may keep in the stable inverse (it becomes a pole of the
-/// compensator); zeros between this and the unit circle are pulled in to it.
-pub const ZERO_RADIUS_MAX: f64 = 0.99;
+/// compensator); zeros between this and the unit circle are pulled in to it. A zero inside it
+/// is physics (a leak or a thermal creep puts a real zero next to `z = 1`) and is inverted as
+/// it is: moving it would change the inverse's gain below its corner by the ratio of the
+/// distances to `z = 1`. The margin is ten times the board's [`MIN_POLE_MARGIN`].
+pub const ZERO_RADIUS_MAX: f64 = 1.0 - 10.0 * MIN_POLE_MARGIN;
 
 /// Low-pass family of the band limit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -93,6 +99,13 @@ pub struct Reconstruction {
     pub nrmse_raw: f64,
     /// The alignment found for `u_hat`, in samples.
     pub lag: usize,
+    /// Range of the reference (what the errors are normalised by).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range: Option<f64>,
+    /// The part of `u_hat`'s measured error that neither the predicted noise and band-limit
+    /// parts nor the reference's own noise explain (RMS / range): the model's error.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_part: Option<f64>,
 }
 
 /// A designed compensator: what the board runs, and what it does.
@@ -144,6 +157,18 @@ pub struct Design {
     /// scaling and headroom for the ADC's full scale.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fixed: Option<crate::quantise::FixedPlan>,
+    /// The noise both channels showed, as the design used it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise: Option<optimal::NoiseModel>,
+    /// The pressure's prior.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prior: Option<optimal::SignalPrior>,
+    /// The predicted error (noise and band-limit parts) of `u_hat` against the true pressure.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub budget: Option<optimal::Budget>,
+    /// The check against the raw probe on the tests, and any fall-back it forced.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub check: Option<check::Check>,
 }
 
 /// Zeros, poles and gain of a rational function in `z^-1`:
@@ -264,7 +289,7 @@ pub fn model_response(model: &Model, z: Complex) -> Complex {
     num / den * delay
 }
 
-fn unit(f: f64, fs: f64) -> Complex {
+pub(crate) fn unit(f: f64, fs: f64) -> Complex {
     let w = 2.0 * PI * f / fs;
     Complex::new(w.cos(), w.sin())
 }
@@ -344,7 +369,7 @@ pub fn cascade_response(gain: f64, sections: &[[f64; 5]], z: Complex) -> Complex
 }
 
 /// Impulse response energy of a cascade: its noise gain, `sqrt(sum h^2)`.
-fn noise_gain(gain: f64, sections: &[[f64; 5]]) -> f64 {
+pub(crate) fn noise_gain(gain: f64, sections: &[[f64; 5]]) -> f64 {
     let mut st = vec![[0.0f64; 2]; sections.len()];
     let mut energy = 0.0;
     let mut tail = 0.0;
@@ -365,7 +390,7 @@ fn noise_gain(gain: f64, sections: &[[f64; 5]]) -> f64 {
 }
 
 /// Unwrapped phase of `values` along a frequency grid.
-fn unwrap(values: &[Complex]) -> Vec<f64> {
+pub(crate) fn unwrap(values: &[Complex]) -> Vec<f64> {
     let mut out = Vec::with_capacity(values.len());
     let mut offset = 0.0;
     let mut prev: Option<f64> = None;
@@ -385,6 +410,23 @@ fn unwrap(values: &[Complex]) -> Vec<f64> {
         out.push(ph);
     }
     out
+}
+
+/// Group delay at DC, in samples, of `prod (1 - from z^-1) / (1 - to z^-1)` times `lp`: the
+/// phase slope over a small step from `omega = 0`, measured from the phase at DC (a zero
+/// reflected from the positive real axis makes the product negative there).
+fn group_delay_at_dc(moved: &[(Complex, Complex)], lp: &Zpk) -> f64 {
+    let value = |z: Complex| {
+        let zi = c(1.0) / z;
+        moved.iter().fold(lp.eval(z), |acc, (from, to)| {
+            acc * (c(1.0) - *from * zi) / (c(1.0) - *to * zi)
+        })
+    };
+    let eps: f64 = 1e-6;
+    let at_dc = value(c(1.0));
+    let near = value(Complex::new(eps.cos(), eps.sin()));
+    let turn = near / at_dc;
+    -turn.im.atan2(turn.re) / eps
 }
 
 /// Designs the compensator for `model` with the low-pass corner `fc` (Hz).
@@ -420,6 +462,9 @@ pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
     let mut inv_poles = Vec::with_capacity(zeros.len());
     let mut reflected = Vec::new();
     let mut pulled = Vec::new();
+    // Zeros moved (reflected or pulled in) as (from, to): `H C` keeps `(1 - from z^-1) /
+    // (1 - to z^-1)` of each, whose phase adds to the latency.
+    let mut moved: Vec<(Complex, Complex)> = Vec::new();
     for z in &zeros {
         let r = z.norm();
         if !options.stabilise {
@@ -433,16 +478,20 @@ pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
             inv_poles.push(*z);
         } else if r > 1.0 + 1e-9 {
             let w = c(1.0) / z.conj();
-            if w.norm() > ZERO_RADIUS_MAX {
+            let to = if w.norm() > ZERO_RADIUS_MAX {
                 pulled.push(poly::format_root(*z));
-                inv_poles.push(w * (ZERO_RADIUS_MAX / w.norm()));
+                w * (ZERO_RADIUS_MAX / w.norm())
             } else {
                 reflected.push(poly::format_root(*z));
-                inv_poles.push(w);
-            }
+                w
+            };
+            inv_poles.push(to);
+            moved.push((*z, to));
         } else if r > ZERO_RADIUS_MAX {
             pulled.push(poly::format_root(*z));
-            inv_poles.push(*z * (ZERO_RADIUS_MAX / r));
+            let to = *z * (ZERO_RADIUS_MAX / r);
+            inv_poles.push(to);
+            moved.push((*z, to));
         } else {
             inv_poles.push(*z);
         }
@@ -479,11 +528,12 @@ pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
     let lpr: Vec<Complex> = freqs.iter().map(|&f| lp.eval(unit(f, fs))).collect();
     let t: Vec<Complex> = h.iter().zip(&cc).map(|(a, b)| *a * *b).collect();
     let phase_t = unwrap(&t);
-    // Latency from the low-frequency phase slope of H C (model delay + all-pass + low-pass).
+    // Latency: `H C = z^-d (B / B_moved) LP`, so the model's delay (leading zeros of b
+    // included) plus the group delay at DC of the moved zeros' ratio and of the low-pass. The
+    // model's own slow dynamics (a leak's pole and zero next to z = 1) cancel in `H C` and
+    // never enter it.
     let f_ref = (fs * 1e-4).min(fc * 0.01);
-    let t_ref =
-        model_response(model, unit(f_ref, fs)) * cascade_response(gain, &sections, unit(f_ref, fs));
-    let latency = -t_ref.im.atan2(t_ref.re) / (2.0 * PI * f_ref / fs);
+    let latency = (model.delay + lead) as f64 + group_delay_at_dc(&moved, &lp);
     let mut bandwidth = 0.5 * fs;
     for ((f, tv), ph) in freqs.iter().zip(&t).zip(&phase_t) {
         let mag_db = 20.0 * tv.norm().log10();
@@ -535,6 +585,10 @@ pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
         candidates: Vec::new(),
         reconstruction: Vec::new(),
         fixed: None,
+        noise: None,
+        prior: None,
+        budget: None,
+        check: None,
     })
 }
 
@@ -693,11 +747,19 @@ pub fn reconstruct_with(
     let lo = nominal.saturating_sub(4);
     let (e, lag) = aligned_error(test.u, &u_hat, lo..=nominal + 4);
     let (raw, _) = aligned_error(test.u, test.y, 0..=model.delay + 4 * nominal.max(10));
+    let range = test.u.iter().fold(f64::NEG_INFINITY, |m, v| m.max(*v))
+        - test.u.iter().fold(f64::INFINITY, |m, v| m.min(*v));
+    let model_part = design.budget.map(|b| {
+        let explained = (b.total * b.total + b.reference * b.reference) / (range * range);
+        (e * e - explained).max(0.0).sqrt()
+    });
     Ok(Reconstruction {
         file: test.name.to_string(),
         nrmse_u_hat: e,
         nrmse_raw: raw,
         lag,
+        range: Some(range),
+        model_part,
     })
 }
 

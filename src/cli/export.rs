@@ -41,6 +41,9 @@ pub struct ExportArgs {
     /// `--format rust` or `c`, f32.
     #[arg(long, value_name = "FROM:TO:STEP")]
     pub temperatures: Option<String>,
+    /// Export a compensator that the check marked not better than the raw probe.
+    #[arg(long)]
+    pub force: bool,
     /// Where to write it (written atomically).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
@@ -89,16 +92,28 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
         }
         (NumberFormatArg::Fixed, full_scale) => NumberFormat::Fixed { full_scale },
     };
+    let file = crate::model::ModelFile::load(&args.model)?;
+    if let Some(check) = file.inverse.as_ref().and_then(|d| d.check.as_ref()) {
+        if check.verdict == crate::inverse::check::Verdict::NotBetter && !args.force {
+            return Err(Error::InvalidArgument {
+                what: "--force",
+                message: format!(
+                    "{}: its compensator is not better than the raw probe on the tests it was checked on (worst error ratio {:.2}); refusing to export it without --force",
+                    args.model.display(),
+                    check.worst_ratio
+                ),
+            });
+        }
+    }
     if let Some(range) = &args.temperatures {
         return run_export_bank(args, range, format, name);
     }
     let c = match args.temperature {
         Some(t) => {
-            let file =
-                crate::effects::at_temperature(&crate::model::ModelFile::load(&args.model)?, t)?;
+            let file = crate::effects::at_temperature(&file, t)?;
             export::export_file(&file, &args.model, format, number_format, &args.output)?
         }
-        None => export::export_with(&args.model, format, number_format, &args.output)?,
+        None => export::export_file(&file, &args.model, format, number_format, &args.output)?,
     };
     if args.json {
         println!(

@@ -112,10 +112,15 @@ pub enum MethodArg {
 /// How to design the compensator (shared by `fit` and `invert`).
 #[derive(Debug, Clone, Args)]
 pub struct InverseArgs {
-    /// Low-pass corner of the compensator in Hz, or `auto`: the corner that reconstructs the
-    /// references of the tests best.
-    #[arg(long, default_value = "auto", value_name = "HZ|auto")]
-    pub bandwidth: String,
+    /// Instead of the noise-aware optimum (the default), a stable inverse times a low-pass at
+    /// this corner in Hz, or `auto`: the corner that reconstructs the tests' references best.
+    #[arg(long, value_name = "HZ|auto")]
+    pub bandwidth: Option<String>,
+    /// Longest latency of `u_hat` behind the true pressure the optimum may take (the model's
+    /// delay included): `3ms`, `250us`, `0.002s` or a number of samples. Default: the
+    /// shortest within 2 % of the best error the board's 16 sections allow.
+    #[arg(long, value_name = "TIME|SAMPLES")]
+    pub max_latency: Option<String>,
     /// Low-pass family of the band limit.
     #[arg(long, value_enum, default_value_t = LowpassArg::Bessel)]
     pub lowpass: LowpassArg,
@@ -169,32 +174,78 @@ impl InverseArgs {
         Ok(())
     }
 
-    fn options(&self) -> Result<inverse::Options> {
-        let bandwidth_hz = if self.bandwidth == "auto" {
-            None
-        } else {
-            match self.bandwidth.parse::<f64>() {
-                Ok(f) if f.is_finite() && f > 0.0 => Some(f),
-                _ => {
-                    return Err(Error::InvalidArgument {
-                        what: "--bandwidth",
-                        message: format!(
-                            "expected 'auto' or a frequency in Hz, got '{}'",
-                            self.bandwidth
-                        ),
-                    })
-                }
-            }
+    /// The design asked for: the noise-aware optimum unless `--bandwidth` or `--direct` asks
+    /// for the band-limited inverse. The probe noise is measured on the `raw` tests (a sensor
+    /// resonance's prefilter would hide its level in band), the signal prior on the `designed`
+    /// ones (prefiltered where the model has a prefilter).
+    fn request(
+        &self,
+        fs: f64,
+        raw: &[Test<'_>],
+        designed: &[Test<'_>],
+    ) -> Result<inverse::check::Request> {
+        let lowpass = match self.lowpass {
+            LowpassArg::Bessel => inverse::LowpassKind::Bessel,
+            LowpassArg::Butterworth => inverse::LowpassKind::Butterworth,
         };
-        Ok(inverse::Options {
-            bandwidth_hz,
-            lowpass: match self.lowpass {
-                LowpassArg::Bessel => inverse::LowpassKind::Bessel,
-                LowpassArg::Butterworth => inverse::LowpassKind::Butterworth,
+        let band_limited = |bandwidth_hz| {
+            inverse::check::Request::BandLimited(inverse::Options {
+                bandwidth_hz,
+                lowpass,
+                lowpass_order: self.lowpass_order,
+                stabilise: !self.direct,
+            })
+        };
+        match self.bandwidth.as_deref() {
+            None if !self.direct => Ok(inverse::check::Request::Optimal {
+                options: inverse::optimal::OptimalOptions {
+                    max_latency_samples: self
+                        .max_latency
+                        .as_deref()
+                        .map(|v| parse_latency(v, fs))
+                        .transpose()?,
+                    lowpass,
+                    lowpass_order: self.lowpass_order,
+                },
+                noise: Some(inverse::optimal::estimate_noise(raw)),
+                prior: Some(inverse::optimal::estimate_prior(
+                    designed,
+                    &inverse::optimal::estimate_noise(designed),
+                )),
+            }),
+            None | Some("auto") => Ok(band_limited(None)),
+            Some(text) => match text.parse::<f64>() {
+                Ok(f) if f.is_finite() && f > 0.0 => Ok(band_limited(Some(f))),
+                _ => Err(Error::InvalidArgument {
+                    what: "--bandwidth",
+                    message: format!("expected 'auto' or a frequency in Hz, got '{text}'"),
+                }),
             },
-            lowpass_order: self.lowpass_order,
-            stabilise: !self.direct,
-        })
+        }
+    }
+}
+
+/// `3ms`, `250us`, `0.002s` or a number of samples, as samples at `fs`.
+fn parse_latency(text: &str, fs: f64) -> Result<usize> {
+    let t = text.trim();
+    let seconds = |v: &str, unit: f64| v.trim().parse::<f64>().ok().map(|x| x * unit * fs);
+    let samples = if let Some(v) = t.strip_suffix("ms") {
+        seconds(v, 1e-3)
+    } else if let Some(v) = t.strip_suffix("us") {
+        seconds(v, 1e-6)
+    } else if let Some(v) = t.strip_suffix('s') {
+        seconds(v, 1.0)
+    } else {
+        t.parse::<f64>().ok()
+    };
+    match samples {
+        Some(n) if (0.0..1e9).contains(&n) => Ok(n.floor() as usize),
+        _ => Err(Error::InvalidArgument {
+            what: "--max-latency",
+            message: format!(
+                "expected a time such as 3ms, 250us or 0.002s, or a number of samples, got '{text}'"
+            ),
+        }),
     }
 }
 
@@ -531,6 +582,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     };
     // With a sensor resonance the inverse is designed on the prefiltered tests, and the
     // prefilter runs in front of it.
+    let raw_judge = judge;
     let filtered = prefiltered_tests(judge, &effects, est.sample_rate_hz);
     let judge: Vec<Test<'_>> = filtered
         .iter()
@@ -540,10 +592,10 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     let judge = judge.as_slice();
     // The fit stands on its own: if no compensator can be designed, say why and keep the model.
     progress.step("designing the compensator");
-    let design = match inverse::design_auto_with(
+    let design = match inverse::check::design_checked(
         &fitted.model,
         judge,
-        &args.inverse.options()?,
+        &args.inverse.request(est.sample_rate_hz, raw_judge, judge)?,
         crate::effects::nonlinear_gain(&effects),
     )
     .and_then(|mut d| {
@@ -688,14 +740,66 @@ fn print_inverse(d: &inverse::Design) {
             forms.join(", ")
         );
     }
-    for r in &d.reconstruction {
+    if let Some(b) = &d.budget {
         println!(
-            "  reconstruction of {}: u_hat {} against the reference, raw probe {} ({:.1}x better)",
+            "  predicted error of u_hat (RMS, pressure units): {:.4} = noise {:.4} + band limit {:.4} (in quadrature); a noisy reference adds {:.4}",
+            b.total, b.noise, b.band_limit, b.reference
+        );
+    }
+    if let Some(n) = &d.noise {
+        println!(
+            "  noise ({:?}): probe {:.3e} white{}, reference {:.3e}",
+            n.source,
+            n.probe_white_std,
+            if n.probe_ar_std > 0.0 {
+                format!(
+                    " + {:.3e} AR(1) pole {:.4}",
+                    n.probe_ar_std, n.probe_ar_pole
+                )
+            } else {
+                String::new()
+            },
+            n.reference_std
+        );
+    }
+    println!(
+        "  realised as {} sections: about {} multiply-adds per sample",
+        d.sections.len(),
+        5 * d.sections.len() + 1
+    );
+    for r in &d.reconstruction {
+        let expected = match (&d.budget, r.range) {
+            (Some(b), Some(range)) if range > 0.0 => format!(
+                "; expected {} from noise and band limit{}",
+                pct(b.total.hypot(b.reference) / range),
+                match r.model_part {
+                    Some(m) => format!(", the rest ({}) is the model's", pct(m)),
+                    None => String::new(),
+                }
+            ),
+            _ => String::new(),
+        };
+        println!(
+            "  reconstruction of {}: u_hat {} against the reference, raw probe {} ({:.1}x better){expected}",
             r.file,
             pct(r.nrmse_u_hat),
             pct(r.nrmse_raw),
             r.nrmse_raw / r.nrmse_u_hat
         );
+    }
+    if let Some(c) = &d.check {
+        match c.verdict {
+            inverse::check::Verdict::Better | inverse::check::Verdict::Unchecked => {}
+            inverse::check::Verdict::FellBack => eprintln!(
+                "warning: fell back to {}: {}",
+                d.method.split(':').next().unwrap_or(""),
+                c.rejected.join("; ")
+            ),
+            inverse::check::Verdict::NotBetter => eprintln!(
+                "warning: no compensator is better than the raw probe on these tests ({}); stored marked not-better, `unlag export` refuses it without --force",
+                c.rejected.join("; ")
+            ),
+        }
     }
 }
 
@@ -712,16 +816,17 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
     }
     let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
     let tests = as_tests(&traces, &names)?;
-    let filtered = prefiltered_tests(&tests, &file.effects, file.model.fs);
+    let raw_tests = tests;
+    let filtered = prefiltered_tests(&raw_tests, &file.effects, file.model.fs);
     let tests: Vec<Test<'_>> = filtered
         .iter()
-        .zip(&tests)
+        .zip(&raw_tests)
         .map(|((u, y), t)| Test { name: t.name, u, y })
         .collect();
-    let mut design = inverse::design_auto_with(
+    let mut design = inverse::check::design_checked(
         &file.model,
         &tests,
-        &args.inverse.options()?,
+        &args.inverse.request(file.model.fs, &raw_tests, &tests)?,
         crate::effects::nonlinear_gain(&file.effects),
     )?;
     crate::effects::with_prefilter(&mut design, &file.effects, file.model.fs)?;
@@ -884,11 +989,7 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
                     *u += c;
                 }
             }
-            (
-                u_hat,
-                d.latency_samples,
-                "the model file's stable band-limited compensator",
-            )
+            (u_hat, d.latency_samples, "the model file's compensator")
         }
         None => {
             m.check_invertible(&name(&args.model))?;

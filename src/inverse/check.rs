@@ -1,0 +1,290 @@
+//! The guarantee: every compensator is checked on the tests against the raw probe before it is
+//! stored; one that is not better falls back (a narrower band, then the delay alone), and the
+//! record of what was tried travels with the design.
+//!
+//! "Better" means a lower error of `u_hat` against the recorded reference than the raw probe's,
+//! both at their best time alignment ([`super::reconstruct_with`]), on every test given. The
+//! caller gives the held-out tests, or the estimation test when it is alone.
+
+use serde::{Deserialize, Serialize};
+
+use super::optimal::{self, NoiseModel, OptimalOptions, SignalPrior};
+use super::{design_auto_with, reconstruct_with, Design, Options, Reconstruction};
+use crate::error::{Error, Result};
+use crate::fit::Test;
+use crate::model::Model;
+
+/// What the check found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Verdict {
+    /// The design asked for is better than the raw probe on every test.
+    Better,
+    /// The design asked for was not; a narrower one is.
+    FellBack,
+    /// Nothing was better than the raw probe, the delay alone included: `export` refuses it
+    /// without `--force`.
+    NotBetter,
+    /// No test with a reference to check on.
+    Unchecked,
+}
+
+/// The check's record.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Check {
+    /// The verdict.
+    pub verdict: Verdict,
+    /// Each design rejected before the one kept, with the numbers that rejected it.
+    #[serde(default)]
+    pub rejected: Vec<String>,
+    /// Largest ratio of `u_hat`'s error to the raw probe's over the tests (below 1 is better).
+    pub worst_ratio: f64,
+}
+
+/// Which design the user asked for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Request {
+    /// The noise-aware optimum ([`optimal::design`]); noise and prior measured on the tests
+    /// unless given.
+    Optimal {
+        /// Latency cap and reduced-order family.
+        options: OptimalOptions,
+        /// The noise, when known (else measured on the tests).
+        noise: Option<NoiseModel>,
+        /// The prior, when known (else from the tests' references).
+        prior: Option<SignalPrior>,
+    },
+    /// A stable inverse times a low-pass, its corner given or chosen on the tests.
+    BandLimited(Options),
+}
+
+/// The design that only undoes the DC gain: `u_hat` is the probe signal over the model's DC
+/// gain, `delay` samples late. The last fall-back.
+///
+/// # Errors
+/// [`Error::Numerical`] when the model's DC gain is zero or not finite.
+pub fn delay_only(model: &Model) -> Result<Design> {
+    let dc = model.dc_gain();
+    if !(dc.is_finite() && dc.abs() > 1e-12) {
+        return Err(Error::Numerical {
+            context: "delay-only compensator".into(),
+            message: format!("the model's DC gain is {dc}"),
+        });
+    }
+    let latency = model.delay as f64;
+    Ok(Design {
+        method: "delay only: the probe signal over the model's DC gain".into(),
+        lowpass: super::LowpassKind::Bessel,
+        lowpass_order: 1,
+        lowpass_hz: 0.5 * model.fs,
+        bandwidth_selection: "none".into(),
+        gain: 1.0 / dc,
+        sections: vec![[1.0, 0.0, 0.0, 0.0, 0.0]],
+        latency_samples: latency,
+        latency_s: latency / model.fs,
+        corrected_bandwidth_hz: 0.0,
+        noise_gain: 1.0 / dc.abs(),
+        in_band_magnitude_error_db: 0.0,
+        in_band_phase_error_deg: 0.0,
+        pole_margin: 1.0,
+        reflected_zeros: Vec::new(),
+        pulled_zeros: Vec::new(),
+        candidates: Vec::new(),
+        reconstruction: Vec::new(),
+        fixed: None,
+        noise: None,
+        prior: None,
+        budget: None,
+        check: None,
+    })
+}
+
+/// Reconstructions of every test, and the worst error ratio against the raw probe.
+fn judge(
+    design: &Design,
+    model: &Model,
+    tests: &[Test<'_>],
+    nonlinear_gain: f64,
+) -> Result<(Vec<Reconstruction>, f64)> {
+    let mut out = Vec::with_capacity(tests.len());
+    let mut worst = 0.0f64;
+    for t in tests {
+        let r = reconstruct_with(design, model, t, nonlinear_gain)?;
+        let ratio = r.nrmse_u_hat / r.nrmse_raw;
+        worst = worst.max(if ratio.is_nan() { f64::INFINITY } else { ratio });
+        out.push(r);
+    }
+    Ok((out, worst))
+}
+
+/// Designs the compensator asked for and checks it on `tests` against the raw probe; when it
+/// is not better on every test, tries narrower designs (the optimum with a prior ten and a
+/// hundred times quieter, or the band-limited inverse at a half and a quarter of its corner),
+/// then the delay alone. The kept design carries the [`Check`] and its reconstructions.
+///
+/// # Errors
+/// As the designs; a design that fails to build is skipped in favour of the next.
+pub fn design_checked(
+    model: &Model,
+    tests: &[Test<'_>],
+    request: &Request,
+    nonlinear_gain: f64,
+) -> Result<Design> {
+    let mut candidates: Vec<Result<Design>> = Vec::new();
+    match request {
+        Request::Optimal {
+            options,
+            noise,
+            prior,
+        } => {
+            let noise = noise.unwrap_or_else(|| optimal::estimate_noise(tests));
+            let prior = prior.unwrap_or_else(|| optimal::estimate_prior(tests, &noise));
+            for quieter in [1.0, 0.1, 0.01] {
+                let p = SignalPrior {
+                    increment_std: prior.increment_std * f64::sqrt(quieter),
+                    ..prior
+                };
+                candidates.push(optimal::design(model, &noise, &p, options));
+                // Nothing narrower is tried when the first is refused for a reason of its own
+                // (a latency cap below the delay).
+                if matches!(candidates.first(), Some(Err(Error::InvalidArgument { .. }))) {
+                    break;
+                }
+            }
+        }
+        Request::BandLimited(options) => {
+            let first = design_auto_with(model, tests, options, nonlinear_gain);
+            let corner = first.as_ref().map(|d| d.lowpass_hz).ok();
+            candidates.push(first);
+            if let Some(fc) = corner {
+                for factor in [0.5, 0.25] {
+                    let narrower = Options {
+                        bandwidth_hz: Some(fc * factor),
+                        ..*options
+                    };
+                    candidates.push(super::design(model, fc * factor, &narrower));
+                }
+            }
+        }
+    }
+    let mut rejected = Vec::new();
+    let mut first_error = None;
+    for (i, candidate) in candidates.into_iter().enumerate() {
+        let mut d = match candidate {
+            Ok(d) => d,
+            Err(e @ Error::InvalidArgument { .. }) => return Err(e),
+            Err(e) => {
+                rejected.push(format!("design {} failed: {e}", i + 1));
+                first_error.get_or_insert(e);
+                continue;
+            }
+        };
+        if tests.is_empty() {
+            d.check = Some(Check {
+                verdict: Verdict::Unchecked,
+                rejected,
+                worst_ratio: f64::NAN,
+            });
+            return Ok(d);
+        }
+        let (recon, worst) = judge(&d, model, tests, nonlinear_gain)?;
+        if worst < 1.0 {
+            d.reconstruction = recon;
+            d.check = Some(Check {
+                verdict: if i == 0 && rejected.is_empty() {
+                    Verdict::Better
+                } else {
+                    Verdict::FellBack
+                },
+                rejected,
+                worst_ratio: worst,
+            });
+            return Ok(d);
+        }
+        rejected.push(describe(&d, &recon));
+    }
+    // The delay alone: the raw probe, calibrated.
+    let mut d = delay_only(model).map_err(|e| first_error.unwrap_or(e))?;
+    let (recon, worst) = judge(&d, model, tests, 0.0)?;
+    d.reconstruction = recon;
+    d.check = Some(Check {
+        verdict: if worst < 1.0 {
+            Verdict::FellBack
+        } else {
+            Verdict::NotBetter
+        },
+        rejected,
+        worst_ratio: worst,
+    });
+    Ok(d)
+}
+
+/// One line on a rejected design: what it was and the test it lost on.
+fn describe(d: &Design, recon: &[Reconstruction]) -> String {
+    let worst = recon
+        .iter()
+        .max_by(|a, b| (a.nrmse_u_hat / a.nrmse_raw).total_cmp(&(b.nrmse_u_hat / b.nrmse_raw)));
+    match worst {
+        Some(r) => format!(
+            "{} (-3 dB band {:.1} Hz): u_hat {:.3} % against the raw probe's {:.3} % on {}",
+            d.method.split(':').next().unwrap_or(""),
+            d.lowpass_hz,
+            100.0 * r.nrmse_u_hat,
+            100.0 * r.nrmse_raw,
+            r.file
+        ),
+        None => d.method.clone(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn leaky_line() -> Model {
+        // A first-order lag (pole 0.9) behind a leak (pole 0.9995, zero 0.99995), DC gain 0.95.
+        Model {
+            fs: 10_000.0,
+            delay: 3,
+            a: vec![-(0.9 + 0.9995), 0.9 * 0.9995],
+            b: vec![0.95, -0.95 * 0.99995],
+        }
+    }
+
+    #[test]
+    fn delay_only_passes_the_probe_over_its_dc_gain() {
+        let m = leaky_line();
+        let d = delay_only(&m).unwrap();
+        let y = vec![0.5; 10];
+        let u = d.run::<f64>(&y).unwrap();
+        assert!((u[9] - 0.5 / m.dc_gain()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_compensator_worse_than_the_raw_probe_is_never_kept_silently() {
+        // A first-order probe; the tests' reference is the probe signal itself (a probe with
+        // no lag): any compensation can only lose against the raw probe.
+        let m = Model {
+            fs: 1000.0,
+            delay: 0,
+            a: vec![-0.9],
+            b: vec![0.1],
+        };
+        let u: Vec<f64> = (0..2000).map(|k| if k < 500 { 0.0 } else { 1.0 }).collect();
+        let y = u.clone();
+        let tests = [Test {
+            name: "t",
+            u: &u,
+            y: &y,
+        }];
+        let request = Request::BandLimited(Options {
+            bandwidth_hz: Some(200.0),
+            ..Options::default()
+        });
+        let d = design_checked(&m, &tests, &request, 0.0).unwrap();
+        let check = d.check.unwrap();
+        assert_ne!(check.verdict, Verdict::Better);
+        assert!(!check.rejected.is_empty());
+        assert!(d.method.starts_with("delay only"), "{}", d.method);
+    }
+}

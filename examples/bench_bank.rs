@@ -89,6 +89,8 @@ fn settings() -> Result<Settings, Box<dyn Error>> {
         )
         .into());
     }
+    // The commands run inside each case's folder: the binary's path must not be relative.
+    let unlag = unlag.canonicalize()?;
     Ok(Settings {
         seed,
         cases,

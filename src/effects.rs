@@ -1113,6 +1113,7 @@ pub fn fit_with(
     options: &Options,
     effects: &[Effect],
 ) -> Result<(Fitted, Vec<Effect>)> {
+    let (estimation_raw, validation_raw) = (estimation, validation);
     let changes = FitChanges::of(effects);
     let order = match options.order {
         Order::Fixed(m) => Order::Fixed(m + changes.extra_order),
@@ -1180,7 +1181,7 @@ pub fn fit_with(
         context: "fit".into(),
         message: "no fit".into(),
     })?;
-    let out = effects
+    let out: Vec<Effect> = effects
         .iter()
         .map(|e| match e {
             Effect::Offset { .. } => Effect::Offset {
@@ -1194,7 +1195,46 @@ pub fn fit_with(
             other => other.clone(),
         })
         .collect();
+    // A real pole slower than the record is not resolved by it: a drift makes the same
+    // creep, and a near-integrator pole-zero pair inverts it into a runaway. Unless the user
+    // asked for a leak or a drift, try the drift and keep it when it explains the estimation
+    // test as well (within 10 %) with the dynamics it leaves.
+    let asked = effects
+        .iter()
+        .any(|e| matches!(e, Effect::Leak | Effect::Drift { .. }));
+    let after_step = estimation.y.len().saturating_sub(onset) as f64;
+    let slow = fitted.model.poles().ok().and_then(|poles| {
+        poles
+            .iter()
+            .filter(|p| p.im.abs() < 1e-9 && p.re > 0.0 && p.re < 1.0)
+            .map(|p| -1.0 / p.re.ln())
+            .find(|tau| *tau > after_step)
+    });
+    if let (false, Some(tau)) = (asked, slow) {
+        let mut with_drift = out.clone();
+        with_drift.push(Effect::Drift {
+            value: 0.0,
+            rate_per_s: 0.0,
+        });
+        if let Ok((mut f, fx)) = fit_with(estimation_raw, validation_raw, fs, options, &with_drift)
+        {
+            if f.nrmse_estimation <= 1.1 * fitted.nrmse_estimation {
+                f.report.notes.push(format!(
+                    "a real pole with time constant {:.4} s, longer than the {:.4} s after the step, was read as a drift of {:.4e} per second (a drift is removed before compensation, never inverted): `--add leak` keeps it as dynamics",
+                    tau / fs,
+                    after_step / fs,
+                    additive_rate(&fx)
+                ));
+                return Ok((f, fx));
+            }
+        }
+    }
     Ok((fitted, out))
+}
+
+/// The drift rate among `effects` (0 without one).
+fn additive_rate(effects: &[Effect]) -> f64 {
+    Additive::of(effects).rate_per_s
 }
 
 #[cfg(test)]

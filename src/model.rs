@@ -205,6 +205,9 @@ pub struct FitReport {
     pub delay_candidates: Vec<DelayRow>,
     /// Step onset in the estimation reference, in samples from the start.
     pub step_onset: usize,
+    /// What the fit decided beyond the tables (a slow pole-zero pair read as a drift).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
 }
 
 /// One row of the order-selection table.

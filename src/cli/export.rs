@@ -96,9 +96,9 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
     if let Some(check) = file.inverse.as_ref().and_then(|d| d.check.as_ref()) {
         if check.verdict == crate::inverse::check::Verdict::NotBetter && !args.force {
             return Err(Error::InvalidArgument {
-                what: "--force",
+                what: "compensator",
                 message: format!(
-                    "{}: its compensator is not better than the raw probe on the tests it was checked on (worst error ratio {:.2}); refusing to export it without --force",
+                    "{}: it is not better than the raw probe on the tests it was checked on (worst error ratio {:.2}); refusing to export it without --force",
                     args.model.display(),
                     check.worst_ratio
                 ),

@@ -868,6 +868,9 @@ fn print_fit(file: &ModelFile, est: &Trace) {
         r.step_onset,
         r.step_onset as f64 / est.sample_rate_hz
     );
+    for note in &r.notes {
+        println!("note: {note}");
+    }
     if !r.delay_candidates.is_empty() {
         println!(
             "delay search, simulation nrmse per candidate delay ({}):",

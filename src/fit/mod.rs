@@ -415,6 +415,7 @@ pub fn fit(
         },
         delay_candidates: rows,
         step_onset: p.onset,
+        notes: Vec::new(),
     };
     Ok(Fitted {
         model,

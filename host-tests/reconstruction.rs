@@ -1,0 +1,287 @@
+//! The reconstruction a user takes away: a leak and a drift through the command line from fit
+//! to export, the refusal of a compensator that is not better than the raw probe, and the
+//! property that compensating the model's own response gives back its input within the band.
+//!
+//! The step tests carry noise on both channels (the reference is a sensor too) and a 16-bit
+//! ADC, and the compensator is judged on another test than the fit's.
+
+// Test code: a failed unwrap is a failed test, with its location.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use common::{arx_filter, continuous_line, step, write_csv, Rng};
+use proptest::prelude::*;
+use unlag::inverse::optimal::{self, NoiseModel, NoiseSource, PriorSource, SignalPrior};
+use unlag::model::Model;
+
+const FS: f64 = 10_000.0;
+
+fn unlag(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_unlag"))
+        .args(args)
+        .output()
+        .expect("run unlag")
+}
+
+fn json(args: &[&str]) -> serde_json::Value {
+    let o = unlag(args);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("unlag-recon-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A 16-bit ADC over `full_scale` (centred on zero).
+fn adc(x: &[f64], full_scale: f64) -> Vec<f64> {
+    let lsb = 2.0 * full_scale / 65_536.0;
+    x.iter().map(|v| (v / lsb).round() * lsb).collect()
+}
+
+/// Both channels noisy (0.2 % of the step) and quantised.
+fn measured(u: &[f64], y: &[f64], rng: &mut Rng) -> (Vec<f64>, Vec<f64>) {
+    let noisy = |x: &[f64], rng: &mut Rng| -> Vec<f64> {
+        adc(
+            &x.iter()
+                .map(|v| v + 0.002 * rng.gauss())
+                .collect::<Vec<_>>(),
+            2.5,
+        )
+    };
+    (noisy(u, rng), noisy(y, rng))
+}
+
+/// A 70 Hz line (damping 0.3, delay 12) behind a leak: a real pole and zero near z = +1 (corner
+/// 2 Hz, DC gain 0.94), as a cavity leaking to the reference pressure.
+fn leaky_probe(u: &[f64]) -> Vec<f64> {
+    let line = continuous_line(u, FS, &[(70.0, 0.3)], 12);
+    let p = (-2.0 * std::f64::consts::PI * 2.0 / FS).exp();
+    let dc = 0.94;
+    // (1 - z0 q^-1) / (1 - p q^-1) with DC gain 0.94: z0 = 1 - 0.94 (1 - p).
+    let z0 = 1.0 - dc * (1.0 - p);
+    let base = line[0];
+    let shifted: Vec<f64> = line.iter().map(|v| v - base).collect();
+    arx_filter(&[1.0, -z0], &[-p], 0, &shifted)
+        .iter()
+        .map(|v| v + dc * base)
+        .collect()
+}
+
+#[test]
+fn a_leak_is_inverted_from_fit_to_export() {
+    let d = dir("leak");
+    let mut rng = Rng::new(71);
+    let n = 6000;
+    let u1 = step(n, 600, 0.0, 1.0);
+    let u2 = step(n, 900, 0.8, 0.1);
+    let (u1m, y1m) = measured(&u1, &leaky_probe(&u1), &mut rng);
+    let (u2m, y2m) = measured(&u2, &leaky_probe(&u2), &mut rng);
+    let (est, val) = (d.join("est.csv"), d.join("val.csv"));
+    write_csv(&est, FS, &u1m, &y1m);
+    write_csv(&val, FS, &u2m, &y2m);
+    let model = d.join("m.toml");
+    let (e, v, m) = (
+        est.to_str().unwrap(),
+        val.to_str().unwrap(),
+        model.to_str().unwrap(),
+    );
+    let f = json(&["fit", e, v, "-o", m, "--json"]);
+    let inv = &f["inverse"];
+    assert_eq!(inv["check"]["verdict"], "better", "{inv}");
+    assert!(inv["latency_samples"].as_f64().unwrap() >= 12.0, "{inv}");
+    // The leak's zero is inverted where it is, not pulled in.
+    assert!(
+        inv["pulled_zeros"].as_array().is_none_or(|z| z.is_empty()),
+        "{inv}"
+    );
+    let out = d.join("out.csv");
+    let c = json(&["compensate", m, v, "-o", out.to_str().unwrap(), "--json"]);
+    let (u_hat, raw) = (
+        c["nrmse_u_hat"].as_f64().unwrap(),
+        c["nrmse_raw"].as_f64().unwrap(),
+    );
+    assert!(u_hat * 3.0 < raw, "{c}");
+    let bin = d.join("m.bin");
+    json(&[
+        "export",
+        m,
+        "--format",
+        "bin",
+        "-o",
+        bin.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(bin.exists());
+}
+
+#[test]
+fn a_drift_is_removed_not_inverted() {
+    let d = dir("drift");
+    let mut rng = Rng::new(72);
+    let n = 5000;
+    let u1 = step(n, 500, 0.0, 1.0);
+    let u2 = step(n, 800, 0.2, 0.9);
+    // The probe's zero drifts by 8 % of the step per second in one test, -5 % in the other.
+    let drifted = |u: &[f64], rate: f64| -> Vec<f64> {
+        continuous_line(u, FS, &[(90.0, 0.25)], 15)
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + rate * k as f64 / FS)
+            .collect()
+    };
+    let (u1m, y1m) = measured(&u1, &drifted(&u1, 0.08), &mut rng);
+    let (u2m, y2m) = measured(&u2, &drifted(&u2, -0.05), &mut rng);
+    let (est, val) = (d.join("est.csv"), d.join("val.csv"));
+    write_csv(&est, FS, &u1m, &y1m);
+    write_csv(&val, FS, &u2m, &y2m);
+    let model = d.join("m.toml");
+    let (e, v, m) = (
+        est.to_str().unwrap(),
+        val.to_str().unwrap(),
+        model.to_str().unwrap(),
+    );
+    json(&["fit", e, v, "-o", m, "--json"]);
+    let inspect = json(&["inspect", m, "--json"]);
+    // No pole slower than the record (0.5 s): the drift is not in the dynamics.
+    let slowest = inspect["analysis"]["poles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["magnitude"].as_f64().unwrap())
+        .fold(0.0, f64::max);
+    let tau_s = -1.0 / (FS * slowest.ln());
+    assert!(
+        tau_s < 0.5,
+        "slowest pole {slowest} (tau {tau_s} s): {inspect}"
+    );
+    let out = d.join("out.csv");
+    let c = json(&["compensate", m, v, "-o", out.to_str().unwrap(), "--json"]);
+    let (u_hat, raw) = (
+        c["nrmse_u_hat"].as_f64().unwrap(),
+        c["nrmse_raw"].as_f64().unwrap(),
+    );
+    assert!(u_hat < raw, "{c}");
+    let bin = d.join("m.bin");
+    json(&[
+        "export",
+        m,
+        "--format",
+        "bin",
+        "-o",
+        bin.to_str().unwrap(),
+        "--json",
+    ]);
+}
+
+#[test]
+fn a_compensator_not_better_than_the_raw_probe_is_marked_and_refused_by_export() {
+    let d = dir("refuse");
+    // A model of a slow first-order probe, given a test whose probe has no lag at all: no
+    // compensation can beat the raw probe there.
+    let model = d.join("wrong.toml");
+    std::fs::write(
+        &model,
+        "format_version = 1\nfs = 10000.0\ndelay = 2\na = [-0.95]\nb = [0.05, 0.0]\n",
+    )
+    .unwrap();
+    let mut rng = Rng::new(73);
+    let u = step(3000, 500, 0.0, 1.0);
+    let (um, ym) = measured(&u, &u, &mut rng);
+    let test = d.join("t.csv");
+    write_csv(&test, FS, &um, &ym);
+    let checked = d.join("checked.toml");
+    let (m, t, c) = (
+        model.to_str().unwrap(),
+        test.to_str().unwrap(),
+        checked.to_str().unwrap(),
+    );
+    let o = unlag(&["invert", m, t, "-o", c]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("no compensator is better than the raw probe"),
+        "{stderr}"
+    );
+    let bin = d.join("x.bin");
+    let b = bin.to_str().unwrap();
+    let o = unlag(&["export", c, "--format", "bin", "-o", b]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("--force"), "{stderr}");
+    assert!(!bin.exists());
+    let o = unlag(&["export", c, "--format", "bin", "-o", b, "--force"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(bin.exists());
+}
+
+/// A stable, calibrated second-order model at `fn_ratio` of the sample rate.
+fn line_model(fn_ratio: f64, zeta: f64, delay: usize) -> Model {
+    let wn = 2.0 * std::f64::consts::PI * fn_ratio;
+    let (re, im) = (-zeta * wn, wn * (1.0 - zeta * zeta).abs().sqrt());
+    let (a1, a2) = if zeta < 1.0 {
+        (-2.0 * re.exp() * im.cos(), (2.0 * re).exp())
+    } else {
+        let (p1, p2) = ((re + im).exp(), (re - im).exp());
+        (-(p1 + p2), p1 * p2)
+    };
+    let dc = 1.0 + a1 + a2;
+    Model {
+        fs: 1.0,
+        delay,
+        a: vec![a1, a2],
+        b: vec![0.0, 0.6 * dc, 0.4 * dc],
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// The optimum given the true model and a quiet probe gives back the model's input within
+    /// its band: a slow signal (a tenth of the corrected band) comes out as it went in, late
+    /// by the stated latency.
+    #[test]
+    fn compensating_the_models_own_response_recovers_its_input_in_band(
+        fn_ratio in 0.003f64..0.05,
+        zeta in 0.1f64..1.5,
+        delay in 0usize..20,
+    ) {
+        let model = line_model(fn_ratio, zeta, delay);
+        let noise = NoiseModel {
+            probe_white_std: 1e-4,
+            probe_ar_pole: 0.0,
+            probe_ar_std: 0.0,
+            reference_std: 0.0,
+            source: NoiseSource::Given,
+        };
+        let prior = SignalPrior { increment_std: 0.02, source: PriorSource::Given };
+        let d = optimal::design(&model, &noise, &prior, &optimal::OptimalOptions::default()).unwrap();
+        prop_assert!(d.latency_samples >= delay as f64);
+        let f = 0.1 * d.corrected_bandwidth_hz;
+        let n = 8000;
+        let u: Vec<f64> = (0..n)
+            .map(|k| 0.5 + 0.3 * (2.0 * std::f64::consts::PI * f * k as f64).sin())
+            .collect();
+        let y = model.simulate(&u);
+        let u_hat = d.run::<f64>(&y).unwrap();
+        let lag = d.latency_samples.round() as usize;
+        let start = n / 2;
+        let err = (start..n)
+            .map(|k| (u_hat[k] - u[k - lag]).powi(2))
+            .sum::<f64>()
+            / (n - start) as f64;
+        // 1 dB at the corrected band; a tenth of it is well inside.
+        prop_assert!(err.sqrt() < 0.01 * 0.3, "rms {} at {} cycles/sample, {}", err.sqrt(), f, d.method);
+    }
+}

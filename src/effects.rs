@@ -1150,8 +1150,14 @@ pub fn fit_with(
     let validation: Vec<Test<'_>> = tests.collect();
     let validation = validation.as_slice();
     let onset = crate::fit::step::find_step(estimation.u).map_or(0, |s| s.onset);
-    let mut additive = Additive::default();
-    let rounds = if changes.drift { 3 } else { 1 };
+    // A drift starts from the record's ends, so that the first fit does not take it into
+    // the dynamics (from which the residual could no longer separate it).
+    let mut additive = if changes.drift {
+        initial_drift(estimation.u, estimation.y, onset, fs)
+    } else {
+        Additive::default()
+    };
+    let rounds = if changes.drift { 4 } else { 1 };
     let mut gain = 0.0;
     let mut fitted = None;
     for _ in 0..rounds {
@@ -1218,7 +1224,12 @@ pub fn fit_with(
         });
         if let Ok((mut f, fx)) = fit_with(estimation_raw, validation_raw, fs, options, &with_drift)
         {
-            if f.nrmse_estimation <= 1.1 * fitted.nrmse_estimation {
+            let still_slow = f.model.poles().map_or(true, |poles| {
+                poles.iter().any(|p| {
+                    p.im.abs() < 1e-9 && p.re > 0.0 && p.re < 1.0 && -1.0 / p.re.ln() > after_step
+                })
+            });
+            if !still_slow && f.nrmse_estimation <= 1.1 * fitted.nrmse_estimation {
                 f.report.notes.push(format!(
                     "a real pole with time constant {:.4} s, longer than the {:.4} s after the step, was read as a drift of {:.4e} per second (a drift is removed before compensation, never inverted): `--add leak` keeps it as dynamics",
                     tau / fs,
@@ -1230,6 +1241,48 @@ pub fn fit_with(
         }
     }
     Ok((fitted, out))
+}
+
+/// A first drift estimate from the record's ends: the probe's slope over its last 30 % less
+/// the reference's slope there scaled by the probe's step gain, and the level before the step.
+fn initial_drift(u: &[f64], y: &[f64], onset: usize, fs: f64) -> Additive {
+    let slope = |x: &[f64]| -> (f64, f64) {
+        let n = x.len() as f64;
+        let tm = 0.5 * (n - 1.0);
+        let m = x.iter().sum::<f64>() / n.max(1.0);
+        let (mut num, mut den) = (0.0, 0.0);
+        for (k, v) in x.iter().enumerate() {
+            let t = k as f64 - tm;
+            num += t * (v - m);
+            den += t * t;
+        }
+        (m, if den > 0.0 { num / den } else { 0.0 })
+    };
+    let n = y.len().min(u.len());
+    let tail = n - (3 * n / 10).max(2).min(n);
+    let (Some(yt), Some(ut)) = (y.get(tail..n), u.get(tail..n)) else {
+        return Additive::default();
+    };
+    let (y_tail, y_slope) = slope(yt);
+    let (u_tail, u_slope) = slope(ut);
+    let pre = onset.max(1).min(n);
+    let y0 = y
+        .get(..pre)
+        .map_or(0.0, |x| x.iter().sum::<f64>() / x.len().max(1) as f64);
+    let u0 = u
+        .get(..pre)
+        .map_or(0.0, |x| x.iter().sum::<f64>() / x.len().max(1) as f64);
+    let gain = if (u_tail - u0).abs() > 0.0 {
+        (y_tail - y0) / (u_tail - u0)
+    } else {
+        1.0
+    };
+    let rate_per_sample = y_slope - gain * u_slope;
+    // The ramp passes through zero at the onset: the level before the step is the probe's.
+    Additive {
+        offset: -rate_per_sample * onset as f64,
+        rate_per_s: rate_per_sample * fs,
+    }
 }
 
 /// The drift rate among `effects` (0 without one).

@@ -121,6 +121,11 @@ pub struct InverseArgs {
     /// shortest within 2 % of the best error the board's 16 sections allow.
     #[arg(long, value_name = "TIME|SAMPLES")]
     pub max_latency: Option<String>,
+    /// The user's own recorded runs (CSV, repeatable) to learn the pressure's prior from,
+    /// instead of the step tests: their reference column where they have one, else the probe
+    /// signal.
+    #[arg(long = "signal", value_name = "RUN.csv")]
+    pub signal: Vec<PathBuf>,
     /// Low-pass family of the band limit.
     #[arg(long, value_enum, default_value_t = LowpassArg::Bessel)]
     pub lowpass: LowpassArg,
@@ -180,10 +185,36 @@ impl InverseArgs {
     /// ones (prefiltered where the model has a prefilter).
     fn request(
         &self,
-        fs: f64,
+        model: &crate::model::Model,
+        columns: &ColumnArgs,
         raw: &[Test<'_>],
         designed: &[Test<'_>],
     ) -> Result<inverse::check::Request> {
+        let fs = model.fs;
+        let noise = inverse::optimal::estimate_noise(raw);
+        let prior = if self.signal.is_empty() {
+            inverse::optimal::estimate_prior(designed, &inverse::optimal::estimate_noise(designed))
+        } else {
+            let runs = self
+                .signal
+                .iter()
+                .map(|f| Trace::read(f, &columns.columns(false)))
+                .collect::<Result<Vec<_>>>()?;
+            let pairs: Vec<(Option<&[f64]>, &[f64])> = runs
+                .iter()
+                .map(|r| (r.u.as_deref(), r.y.as_slice()))
+                .collect();
+            // The probe's response time: its delay plus the slowest mode's period, at least 8.
+            let scale = model
+                .poles()
+                .ok()
+                .and_then(|p| {
+                    p.first()
+                        .map(|p| (1.0 / (1.0 - p.norm()).max(1e-6)).min(1e5))
+                })
+                .unwrap_or(8.0) as usize;
+            inverse::optimal::prior_from_runs(&pairs, model.dc_gain(), &noise, scale.max(8))
+        };
         let lowpass = match self.lowpass {
             LowpassArg::Bessel => inverse::LowpassKind::Bessel,
             LowpassArg::Butterworth => inverse::LowpassKind::Butterworth,
@@ -207,11 +238,8 @@ impl InverseArgs {
                     lowpass,
                     lowpass_order: self.lowpass_order,
                 },
-                noise: Some(inverse::optimal::estimate_noise(raw)),
-                prior: Some(inverse::optimal::estimate_prior(
-                    designed,
-                    &inverse::optimal::estimate_noise(designed),
-                )),
+                noise: Some(noise),
+                prior: Some(prior),
             }),
             None | Some("auto") => Ok(band_limited(None)),
             Some(text) => match text.parse::<f64>() {
@@ -595,7 +623,9 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     let design = match inverse::check::design_checked(
         &fitted.model,
         judge,
-        &args.inverse.request(est.sample_rate_hz, raw_judge, judge)?,
+        &args
+            .inverse
+            .request(&fitted.model, &args.columns, raw_judge, judge)?,
         crate::effects::nonlinear_gain(&effects),
     )
     .and_then(|mut d| {
@@ -826,7 +856,9 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
     let mut design = inverse::check::design_checked(
         &file.model,
         &tests,
-        &args.inverse.request(file.model.fs, &raw_tests, &tests)?,
+        &args
+            .inverse
+            .request(&file.model, &args.columns, &raw_tests, &tests)?,
         crate::effects::nonlinear_gain(&file.effects),
     )?;
     crate::effects::with_prefilter(&mut design, &file.effects, file.model.fs)?;

@@ -264,6 +264,43 @@ pub fn estimate_prior(tests: &[Test<'_>], noise: &NoiseModel) -> SignalPrior {
     }
 }
 
+/// The random-walk prior from the user's own recorded runs: from the reference where a run has
+/// one (as [`estimate_prior`], without the step floor), else from the probe signal over the
+/// model's DC gain, its increments taken over `scale` samples (the probe's response time) so
+/// that the probe's noise and lag weigh little, less the noise's share `2 sigma_y^2`.
+#[must_use]
+pub fn prior_from_runs(
+    runs: &[(Option<&[f64]>, &[f64])],
+    dc_gain: f64,
+    noise: &NoiseModel,
+    scale: usize,
+) -> SignalPrior {
+    let m = scale.max(1);
+    let mut q = Vec::new();
+    for (u, y) in runs {
+        let (x, gain, sigma, lag): (&[f64], f64, f64, usize) = match u {
+            Some(u) => (u, 1.0, noise.reference_std, 1),
+            None => (y, dc_gain, noise.probe_std(), m),
+        };
+        if x.len() <= lag + 1 || gain == 0.0 {
+            continue;
+        }
+        let count = x.len() - lag;
+        let msi = x
+            .iter()
+            .zip(x.iter().skip(lag))
+            .map(|(a, b)| (b - a).powi(2))
+            .sum::<f64>()
+            / count as f64;
+        q.push(((msi - 2.0 * sigma * sigma) / (gain * gain * lag as f64)).max(0.0));
+    }
+    let q = q.iter().sum::<f64>() / q.len().max(1) as f64;
+    SignalPrior {
+        increment_std: q.sqrt(),
+        source: PriorSource::Runs,
+    }
+}
+
 /// The delay-free model's state space with the signal and noise states appended.
 struct Augmented {
     /// Transition.
@@ -1087,6 +1124,45 @@ mod tests {
         let dc = cascade_response(g, &sec, Complex::new(1.0, 0.0))
             * model_response(&model, Complex::new(1.0, 0.0));
         assert!((dc.re - 1.0).abs() < 1e-6 && dc.im.abs() < 1e-9, "{dc:?}");
+    }
+
+    #[test]
+    fn a_recorded_run_gives_back_its_random_walk_level() {
+        // A random walk of increment 0.01 (uniform increments of that standard deviation),
+        // seen through a noisy probe of DC gain 2 and a noisy reference.
+        let mut seed = 99u64;
+        let mut uniform = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let step = 0.01 * 12f64.sqrt();
+        let mut level = 0.0;
+        let u: Vec<f64> = (0..100_000)
+            .map(|_| {
+                level += step * uniform();
+                level
+            })
+            .collect();
+        let noisy = |x: &[f64], g: f64, s: f64, r: &mut dyn FnMut() -> f64| -> Vec<f64> {
+            x.iter().map(|v| g * v + s * 12f64.sqrt() * r()).collect()
+        };
+        let u_meas = noisy(&u, 1.0, 0.02, &mut uniform);
+        let y_meas = noisy(&u, 2.0, 0.02, &mut uniform);
+        let noise = NoiseModel {
+            probe_white_std: 0.02,
+            probe_ar_pole: 0.0,
+            probe_ar_std: 0.0,
+            reference_std: 0.02,
+            source: NoiseSource::Given,
+        };
+        let from_u = prior_from_runs(&[(Some(&u_meas), &y_meas)], 2.0, &noise, 30);
+        let from_y = prior_from_runs(&[(None, &y_meas)], 2.0, &noise, 30);
+        for p in [from_u, from_y] {
+            assert!((p.increment_std / 0.01 - 1.0).abs() < 0.1, "{p:?}");
+            assert_eq!(p.source, PriorSource::Runs);
+        }
     }
 
     #[test]

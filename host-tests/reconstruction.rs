@@ -113,6 +113,23 @@ fn a_leak_is_inverted_from_fit_to_export() {
         c["nrmse_raw"].as_f64().unwrap(),
     );
     assert!(u_hat * 3.0 < raw, "{c}");
+    // The non-causal optimum on the recorded run: no latency, and no more error than the
+    // board's compensator (it is the bound the causal design approaches).
+    let o = json(&[
+        "compensate",
+        m,
+        v,
+        "-o",
+        out.to_str().unwrap(),
+        "--offline",
+        "--json",
+    ]);
+    assert_eq!(o["latency_samples"].as_f64().unwrap(), 0.0, "{o}");
+    assert_eq!(o["nrmse_raw"], c["nrmse_raw"], "{o}");
+    assert!(
+        o["nrmse_u_hat"].as_f64().unwrap() <= 1.02 * u_hat,
+        "{o} against {c}"
+    );
     let bin = d.join("m.bin");
     json(&[
         "export",

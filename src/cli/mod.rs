@@ -375,6 +375,11 @@ pub struct CompensateArgs {
     /// Use the paper's direct inverse (eq. 7) even when the model file has a compensator.
     #[arg(long)]
     pub direct: bool,
+    /// Host only: the non-causal optimum on the whole recorded run (no latency, the least
+    /// error a linear filter can reach), from the model and the noise and prior stored with
+    /// its optimal compensator. A board cannot run it.
+    #[arg(long, conflicts_with_all = ["direct", "arithmetic"])]
+    pub offline: bool,
     /// Gas temperature of the recording (K): the model (with a `temperature` effect) is scaled
     /// to it and its compensator designed anew, as a board given that temperature runs it.
     #[arg(long, value_name = "K")]
@@ -997,7 +1002,33 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
     };
     // Quadratic losses: the board adds gain * lowpass(|dy| dy) to the linear inverse.
     let nonlinear = crate::effects::nonlinear_gain(&file.effects);
+    if args.offline && design.is_none() {
+        return Err(Error::InvalidArgument {
+            what: "--offline",
+            message: format!(
+                "{} has no compensator design to take the noise and prior from: run `unlag invert`",
+                args.model.display()
+            ),
+        });
+    }
     let (mut u_hat, latency, what) = match design {
+        Some(d) if args.offline => {
+            let (Some(noise), Some(prior)) = (&d.noise, &d.prior) else {
+                return Err(Error::InvalidArgument {
+                    what: "--offline",
+                    message: format!(
+                        "{} has no stored noise and prior: design its compensator with `unlag invert` (without --bandwidth)",
+                        args.model.display()
+                    ),
+                });
+            };
+            let y_in = crate::effects::prefiltered(&file.effects, m.fs, &y_probe);
+            (
+                inverse::optimal::offline(m, noise, prior, &y_in)?,
+                crate::effects::prefilter_delay(&file.effects, m.fs),
+                "the non-causal optimum (offline, host only)",
+            )
+        }
         Some(d) => {
             d.check_exportable()?;
             let mut u_hat = match args.arithmetic {
@@ -1073,12 +1104,19 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         };
         let nominal = (latency - prefilter).round().max(0.0) as usize;
         let (e, lag) = inverse::aligned_error(u, &u_hat, nominal.saturating_sub(4)..=nominal + 4);
-        let (raw, _) = inverse::aligned_error(u, &trace.y, 0..=m.delay + 4 * nominal.max(10));
+        // The raw probe is searched over the same lags whatever the compensator's latency
+        // (the offline optimum has none), so that its error does not depend on it.
+        let causal = design
+            .map_or(latency, |d| d.latency_samples)
+            .round()
+            .max(0.0) as usize;
+        let (raw, _) = inverse::aligned_error(u, &trace.y, 0..=m.delay + 4 * causal.max(10));
         (e, raw, lag)
     });
     let bytes = trace.to_csv_with(&[("u_hat", &u_hat)])?;
     crate::trace::write_atomically(&args.output, &bytes)?;
     let arith = match args.arithmetic {
+        _ if args.offline => "f64",
         Arithmetic::F32 => "f32",
         Arithmetic::F64 => "f64",
         Arithmetic::Fixed => "32-bit fixed point",

@@ -694,6 +694,64 @@ impl Smoother {
     }
 }
 
+/// The non-causal optimum on a recorded run (host only, `unlag compensate --offline`):
+/// `F = conj(G) S_u / (|G|^2 S_u + S_ny)` applied by FFT, the model's delay included in `G`, so
+/// `u_hat` has no latency at all and the least error any linear filter can reach: the oracle a
+/// causal compensator is measured against. The record is extended at both ends by its edge
+/// values (a quarter of its length, at least 4096 samples) before the circular transform, so
+/// that neither end wraps into the other.
+///
+/// # Errors
+/// [`Error::Numerical`] when the record is too long for a power-of-two transform.
+pub fn offline(
+    model: &Model,
+    noise: &NoiseModel,
+    prior: &SignalPrior,
+    y: &[f64],
+) -> Result<Vec<f64>> {
+    let n = y.len();
+    let (Some(&first), Some(&last)) = (y.first(), y.last()) else {
+        return Ok(Vec::new());
+    };
+    let pad = (n / 4).max(4096);
+    let size = (n + 2 * pad)
+        .checked_next_power_of_two()
+        .ok_or_else(|| Error::Numerical {
+            context: "offline reconstruction".into(),
+            message: format!("a record of {n} samples is too long"),
+        })?;
+    let head = size - n - pad;
+    let mut buf: Vec<Complex> = Vec::with_capacity(size);
+    buf.extend(std::iter::repeat_n(Complex::new(first, 0.0), head));
+    buf.extend(y.iter().map(|v| Complex::new(*v, 0.0)));
+    buf.extend(std::iter::repeat_n(Complex::new(last, 0.0), pad));
+    let mut planner = rustfft::FftPlanner::<f64>::new();
+    let forward = planner.plan_fft_forward(size);
+    let inverse = planner.plan_fft_inverse(size);
+    // faer's c64 and rustfft's Complex64 are both num-complex: the buffer goes through as is.
+    forward.process(&mut buf);
+    let dc = model_response(model, Complex::new(1.0, 0.0));
+    for (k, v) in buf.iter_mut().enumerate() {
+        let w = 2.0 * PI * k as f64 / size as f64;
+        let f = if k == 0 {
+            Complex::new(1.0, 0.0) / dc
+        } else {
+            let g = model_response(model, Complex::new(w.cos(), w.sin()));
+            let su = prior.psd(w);
+            g.conj() * su / (g.norm_sqr() * su + noise.probe_psd(w))
+        };
+        *v *= f;
+    }
+    inverse.process(&mut buf);
+    let scale = 1.0 / size as f64;
+    Ok(buf
+        .iter()
+        .skip(head)
+        .take(n)
+        .map(|v| v.re * scale)
+        .collect())
+}
+
 /// Frequency grid on `(0, pi]`, dense near DC where the prior's spectrum rises: `pi (i/n)^2`,
 /// with trapezoid weights.
 fn grid(n: usize) -> Vec<(f64, f64)> {

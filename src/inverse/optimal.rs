@@ -406,8 +406,10 @@ fn riccati(sys: &Augmented) -> Result<Mat<f64>> {
     riccati_recursion(sys)
 }
 
-/// Spectral radius of `Phi - Phi P h' h / s`.
-fn closed_loop_radius(sys: &Augmented, p: &Mat<f64>) -> f64 {
+/// The steady-state filter of `sys` for the a-priori covariance `p`: the innovation variance
+/// `s = h P h' + r`, the predictor gain `Kp = Phi P h' / s` and the closed loop
+/// `A_cl = Phi - Kp h`.
+fn filter_of(sys: &Augmented, p: &Mat<f64>) -> (f64, Vec<f64>, Mat<f64>) {
     let n = sys.h.len();
     let ph: Vec<f64> = (0..n)
         .map(|i| (0..n).map(|j| p[(i, j)] * sys.h[j]).sum())
@@ -417,9 +419,17 @@ fn closed_loop_radius(sys: &Augmented, p: &Mat<f64>) -> f64 {
         .map(|i| (0..n).map(|j| sys.phi[(i, j)] * ph[j]).sum::<f64>() / s)
         .collect();
     let a_cl = Mat::<f64>::from_fn(n, n, |i, j| sys.phi[(i, j)] - kp[i] * sys.h[j]);
-    a_cl.eigenvalues().map_or(f64::INFINITY, |e| {
-        e.iter().map(|v| v.norm()).fold(0.0, f64::max)
-    })
+    (s, kp, a_cl)
+}
+
+/// Spectral radius of the filter's closed loop for the covariance `p`.
+fn closed_loop_radius(sys: &Augmented, p: &Mat<f64>) -> f64 {
+    filter_of(sys, p)
+        .2
+        .eigenvalues()
+        .map_or(f64::INFINITY, |e| {
+            e.iter().map(|v| v.norm()).fold(0.0, f64::max)
+        })
 }
 
 /// The Riccati recursion `P <- Phi (P - P h' h P / s) Phi' + Q` from `P = Q + I * scale`,
@@ -525,14 +535,7 @@ impl Smoother {
         let sys = augmented(model, noise, prior)?;
         let p = riccati(&sys)?;
         let n = sys.h.len();
-        let ph: Vec<f64> = (0..n)
-            .map(|i| (0..n).map(|j| p[(i, j)] * sys.h[j]).sum())
-            .collect();
-        let s = sys.h.iter().zip(&ph).map(|(a, b)| a * b).sum::<f64>() + sys.r;
-        let kp: Vec<f64> = (0..n)
-            .map(|i| (0..n).map(|j| sys.phi[(i, j)] * ph[j]).sum::<f64>() / s)
-            .collect();
-        let a_cl = Mat::<f64>::from_fn(n, n, |i, j| sys.phi[(i, j)] - kp[i] * sys.h[j]);
+        let (s, kp, a_cl) = filter_of(&sys, &p);
         Ok(Self {
             a_cl,
             kp,

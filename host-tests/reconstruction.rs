@@ -302,3 +302,38 @@ proptest! {
         prop_assert!(err.sqrt() < 0.01 * 0.3, "rms {} at {} cycles/sample, {}", err.sqrt(), f, d.method);
     }
 }
+
+#[test]
+fn the_optimum_without_a_test_reuses_the_stored_noise_or_says_what_it_needs() {
+    let d = dir("no-test");
+    let bare = d.join("bare.toml");
+    std::fs::write(
+        &bare,
+        "format_version = 1\nfs = 10000.0\ndelay = 2\na = [-0.95]\nb = [0.05, 0.0]\n",
+    )
+    .unwrap();
+    let out = d.join("out.toml");
+    let (b, o) = (bare.to_str().unwrap(), out.to_str().unwrap());
+    let r = unlag(&["invert", b, "-o", o]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("--bandwidth"), "{stderr}");
+    assert!(!out.exists());
+    // Designed once on a test, the model file carries its noise and prior: a latency cap
+    // alone redesigns it, and a cap below the delay is refused.
+    let mut rng = Rng::new(74);
+    let u = step(3000, 500, 0.0, 1.0);
+    let y = continuous_line(&u, FS, &[(80.0, 0.3)], 10);
+    let (um, ym) = measured(&u, &y, &mut rng);
+    let test = d.join("t.csv");
+    write_csv(&test, FS, &um, &ym);
+    let model = d.join("m.toml");
+    let m = model.to_str().unwrap();
+    json(&["fit", test.to_str().unwrap(), "-o", m, "--json"]);
+    let v = json(&["invert", m, "-o", o, "--max-latency", "3ms", "--json"]);
+    assert!(v["latency_samples"].as_f64().unwrap() <= 30.0, "{v}");
+    assert!(v["noise"]["probe_white_std"].as_f64().unwrap() > 0.0, "{v}");
+    let r = unlag(&["invert", m, "-o", o, "--max-latency", "2"]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("delay"));
+}

@@ -189,11 +189,32 @@ impl InverseArgs {
         columns: &ColumnArgs,
         raw: &[Test<'_>],
         designed: &[Test<'_>],
+        stored: Option<&inverse::Design>,
     ) -> Result<inverse::check::Request> {
         let fs = model.fs;
-        let noise = inverse::optimal::estimate_noise(raw);
+        // Without a test, the noise and prior stored with the model's last design.
+        let stored = stored.and_then(|d| d.noise.zip(d.prior));
+        let noise = match (raw.is_empty(), stored) {
+            (true, Some((noise, _))) => noise,
+            (true, None) if self.bandwidth.is_none() && !self.direct => {
+                return Err(Error::InvalidArgument {
+                    what: "FILE",
+                    message: "the optimal compensator needs a step test to measure the noise on \
+                              (or a model file designed from one): give one, or ask for a \
+                              band-limited inverse with --bandwidth HZ"
+                        .into(),
+                })
+            }
+            _ => inverse::optimal::estimate_noise(raw),
+        };
         let prior = if self.signal.is_empty() {
-            inverse::optimal::estimate_prior(designed, &inverse::optimal::estimate_noise(designed))
+            match (designed.is_empty(), stored) {
+                (true, Some((_, prior))) => prior,
+                _ => inverse::optimal::estimate_prior(
+                    designed,
+                    &inverse::optimal::estimate_noise(designed),
+                ),
+            }
         } else {
             let runs = self
                 .signal
@@ -630,7 +651,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         judge,
         &args
             .inverse
-            .request(&fitted.model, &args.columns, raw_judge, judge)?,
+            .request(&fitted.model, &args.columns, raw_judge, judge, None)?,
         crate::effects::nonlinear_gain(&effects),
     )
     .and_then(|mut d| {
@@ -861,9 +882,13 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
     let mut design = inverse::check::design_checked(
         &file.model,
         &tests,
-        &args
-            .inverse
-            .request(&file.model, &args.columns, &raw_tests, &tests)?,
+        &args.inverse.request(
+            &file.model,
+            &args.columns,
+            &raw_tests,
+            &tests,
+            file.inverse.as_ref(),
+        )?,
         crate::effects::nonlinear_gain(&file.effects),
     )?;
     crate::effects::with_prefilter(&mut design, &file.effects, file.model.fs)?;

@@ -134,7 +134,9 @@ pub struct Design {
     pub corrected_bandwidth_hz: f64,
     /// RMS output noise for unit white input noise (`sqrt(sum h^2)` of the compensator).
     pub noise_gain: f64,
-    /// Worst magnitude error of `H C` against the target low-pass up to the corner, in dB.
+    /// Worst magnitude error of `H C` against the target low-pass up to the corner, in dB
+    /// (for the optimal smoother, which has no low-pass: against a pure delay up to half its
+    /// -3 dB band).
     pub in_band_magnitude_error_db: f64,
     /// Worst phase error of `H C` against the target low-pass and latency up to the corner, in
     /// degrees.
@@ -593,6 +595,22 @@ pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
 }
 
 impl Design {
+    /// Whether this is the fixed-lag Kalman smoother (which has no low-pass of its own).
+    #[must_use]
+    pub fn is_smoother(&self) -> bool {
+        self.method.starts_with("optimal: fixed-lag")
+    }
+
+    /// Its band in words: `Bessel low-pass at 300 Hz`, or the smoother's -3 dB band.
+    #[must_use]
+    pub fn band_text(&self) -> String {
+        if self.is_smoother() {
+            format!("optimal smoother, -3 dB band {:.0} Hz", self.lowpass_hz)
+        } else {
+            format!("{:?} low-pass at {:.0} Hz", self.lowpass, self.lowpass_hz)
+        }
+    }
+
     /// Runs the compensator on `y` in arithmetic `T` with the board's code, starting in
     /// equilibrium with `y[0]`.
     ///

@@ -769,20 +769,37 @@ fn print_inverse(d: &inverse::Design) {
             println!("   {}", cells.join(" "));
         }
     }
-    println!(
-        "  {:?} low-pass, order {}, corner {:.1} Hz; {} sections",
-        d.lowpass,
-        d.lowpass_order,
-        d.lowpass_hz,
-        d.sections.len()
-    );
+    // The smoother has no low-pass of its own: its band is where H C falls by 3 dB.
+    let smoother = d.is_smoother();
+    if smoother {
+        println!(
+            "  -3 dB band of the corrected probe {:.1} Hz; {} sections",
+            d.lowpass_hz,
+            d.sections.len()
+        );
+    } else {
+        println!(
+            "  {:?} low-pass, order {}, corner {:.1} Hz; {} sections",
+            d.lowpass,
+            d.lowpass_order,
+            d.lowpass_hz,
+            d.sections.len()
+        );
+    }
     println!(
         "  corrected bandwidth {:.1} Hz (+/-1 dB, +/-5 deg); noise gain {:.3}; latency {:.2} samples ({:.6} s)",
         d.corrected_bandwidth_hz, d.noise_gain, d.latency_samples, d.latency_s
     );
     println!(
-        "  in band (to the corner): worst magnitude error {:.3} dB, worst phase error {:.2} deg; pole margin {:.4}",
-        d.in_band_magnitude_error_db, d.in_band_phase_error_deg, d.pole_margin
+        "  in band ({}): worst magnitude error {:.3} dB, worst phase error {:.2} deg; pole margin {:.4}",
+        if smoother {
+            "to half the -3 dB band, against a pure delay"
+        } else {
+            "to the corner"
+        },
+        d.in_band_magnitude_error_db,
+        d.in_band_phase_error_deg,
+        d.pole_margin
     );
     if let Some(p) = &d.fixed {
         let forms: Vec<&str> = p.sections.iter().map(|s| s.form.as_str()).collect();

@@ -899,7 +899,7 @@ fn best_band_limited(
 
 /// Corrected bandwidth (where `H C` leaves +/-1 dB or +/-5 degrees of the pure delay
 /// `latency`), the -3 dB band of `H C`, and the worst magnitude (dB) and phase (degrees)
-/// errors below that band.
+/// errors below half that band.
 fn response_numbers(
     model: &Model,
     gain: f64,
@@ -940,7 +940,7 @@ fn response_numbers(
         .map_or(0.5 * fs, |(f, _)| *f);
     let (mut worst_db, mut worst_deg) = (0.0f64, 0.0f64);
     for (f, (db, deg)) in freqs.iter().zip(&errors) {
-        if *f > band {
+        if *f > 0.5 * band {
             break;
         }
         worst_db = worst_db.max(db.abs());

@@ -460,11 +460,10 @@ fn compensate(inputs: &Inputs<'_>, test: &Test<'_>) -> Option<(Vec<f64>, usize, 
             .find(|r| same_file(&r.file, test.name))
             .map_or(d.latency_samples.round().max(0.0) as usize, |r| r.lag);
         let how = format!(
-            "the board's compensator in f32 ({} sections, {:?} low-pass at {:.0} Hz, corrected \
+            "the board's compensator in f32 ({} sections, {}, corrected \
              bandwidth {:.0} Hz, noise gain {:.2}), advanced by its latency of {lag} samples",
             d.sections.len(),
-            d.lowpass,
-            d.lowpass_hz,
+            d.band_text(),
             d.corrected_bandwidth_hz,
             d.noise_gain
         );
@@ -846,10 +845,9 @@ fn bode(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
         ));
         let _ = write!(
             caption,
-            ", the compensator C ({:?} low-pass at {:.0} Hz) and the corrected response H C: flat \
+            ", the compensator C ({}) and the corrected response H C: flat \
              to {:.0} Hz within &plusmn;1 dB and &plusmn;5&deg;, latency {:.2} samples ({:.3} ms)",
-            d.lowpass,
-            d.lowpass_hz,
+            d.band_text(),
             d.corrected_bandwidth_hz,
             d.latency_samples,
             1e3 * d.latency_s

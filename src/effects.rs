@@ -1012,6 +1012,7 @@ pub fn at_temperature(
                         prior,
                         &crate::inverse::optimal::OptimalOptions {
                             max_latency_samples: None,
+                            max_band_hz: None,
                             lowpass: d.lowpass,
                             lowpass_order: d.lowpass_order,
                         },

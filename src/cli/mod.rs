@@ -121,6 +121,9 @@ pub struct InverseArgs {
     /// shortest within 2 % of the best error the board's 16 sections allow.
     #[arg(long, value_name = "TIME|SAMPLES")]
     pub max_latency: Option<String>,
+    /// Largest -3 dB band in Hz the optimum may take (a quieter prior narrows it to this).
+    #[arg(long, value_name = "HZ")]
+    pub max_band: Option<f64>,
     /// The user's own recorded runs (CSV, repeatable) to learn the pressure's prior from,
     /// instead of the step tests: their reference column where they have one, else the probe
     /// signal.
@@ -251,6 +254,15 @@ impl InverseArgs {
         match self.bandwidth.as_deref() {
             None if !self.direct => Ok(inverse::check::Request::Optimal {
                 options: inverse::optimal::OptimalOptions {
+                    max_band_hz: match self.max_band {
+                        Some(f) if !(f.is_finite() && f > 0.0) => {
+                            return Err(Error::InvalidArgument {
+                                what: "--max-band",
+                                message: format!("expected a frequency in Hz, got {f}"),
+                            })
+                        }
+                        other => other,
+                    },
                     max_latency_samples: self
                         .max_latency
                         .as_deref()

@@ -818,6 +818,8 @@ pub const LAG_TOLERANCE: f64 = 1.02;
 pub struct OptimalOptions {
     /// Largest latency the user accepts, in samples (the model's delay included).
     pub max_latency_samples: Option<usize>,
+    /// Largest -3 dB band of the corrected probe the user accepts, in Hz.
+    pub max_band_hz: Option<f64>,
     /// The reduced-order family's low-pass (a stable inverse times this low-pass, its corner
     /// chosen by the predicted error).
     pub lowpass: super::LowpassKind,
@@ -829,6 +831,7 @@ impl Default for OptimalOptions {
     fn default() -> Self {
         Self {
             max_latency_samples: None,
+            max_band_hz: None,
             lowpass: super::LowpassKind::Bessel,
             lowpass_order: 4,
         }
@@ -959,6 +962,61 @@ fn response_numbers(
 /// [`Error::InvalidArgument`] when the latency cap is below the model's delay;
 /// [`Error::Numerical`] as [`Smoother::new`] and [`Smoother::realise`].
 pub fn design(
+    model: &Model,
+    noise: &NoiseModel,
+    prior: &SignalPrior,
+    options: &OptimalOptions,
+) -> Result<super::Design> {
+    let first = design_for(model, noise, prior, options)?;
+    let Some(cap) = options.max_band_hz else {
+        return Ok(first);
+    };
+    if first.lowpass_hz <= cap {
+        return Ok(first);
+    }
+    // A band cap: the quietest prior whose design stays within it, by bisection on the
+    // logarithm of the prior's level (the band falls as the prior quietens).
+    let scaled = |factor: f64| SignalPrior {
+        increment_std: prior.increment_std * factor,
+        ..*prior
+    };
+    let (mut lo, mut hi) = (-12.0f64, 0.0f64);
+    let mut best = None;
+    for _ in 0..20 {
+        let mid = 0.5 * (lo + hi);
+        match design_for(model, noise, &scaled(10f64.powf(mid)), options) {
+            Ok(d) if d.lowpass_hz <= cap => {
+                lo = mid;
+                best = Some((10f64.powf(mid), d));
+            }
+            Ok(_) => hi = mid,
+            // Too quiet a prior puts the smoother's poles on the unit circle: louder.
+            Err(_) => lo = mid,
+        }
+    }
+    let (factor, mut d) = best.ok_or_else(|| Error::InvalidArgument {
+        what: "band",
+        message: format!("no optimal compensator has a band below {cap} Hz"),
+    })?;
+    d.bandwidth_selection = format!(
+        "{}; capped at {cap} Hz by a prior {factor:.3e} times the measured level",
+        d.bandwidth_selection
+    );
+    // The error to expect is the measured prior's (the quieter one only placed the band); the
+    // stored prior stays the quieter one, so that a redesign keeps the cap.
+    d.budget = Some(budget(
+        model,
+        d.gain,
+        &d.sections,
+        d.latency_samples,
+        noise,
+        prior,
+    ));
+    Ok(d)
+}
+
+/// [`design`] without the band cap.
+fn design_for(
     model: &Model,
     noise: &NoiseModel,
     prior: &SignalPrior,
@@ -1185,6 +1243,34 @@ mod tests {
         let dc = cascade_response(g, &sec, Complex::new(1.0, 0.0))
             * model_response(&model, Complex::new(1.0, 0.0));
         assert!((dc.re - 1.0).abs() < 1e-6 && dc.im.abs() < 1e-9, "{dc:?}");
+    }
+
+    #[test]
+    fn a_band_cap_narrows_the_optimum_to_just_below_it() {
+        let model = line();
+        let (noise, prior) = levels();
+        let free = design(&model, &noise, &prior, &OptimalOptions::default()).unwrap();
+        let cap = 0.5 * free.lowpass_hz;
+        let capped = design(
+            &model,
+            &noise,
+            &prior,
+            &OptimalOptions {
+                max_band_hz: Some(cap),
+                ..OptimalOptions::default()
+            },
+        )
+        .unwrap();
+        assert!(capped.lowpass_hz <= cap, "{} > {cap}", capped.lowpass_hz);
+        assert!(
+            capped.lowpass_hz > 0.8 * cap,
+            "{} far below {cap}",
+            capped.lowpass_hz
+        );
+        let (b_free, b_capped) = (free.budget.unwrap(), capped.budget.unwrap());
+        // Less noise, more band-limit error, more in all: the free optimum is the optimum.
+        assert!(b_capped.noise < b_free.noise, "{b_capped:?} {b_free:?}");
+        assert!(b_capped.total > b_free.total, "{b_capped:?} {b_free:?}");
     }
 
     #[test]

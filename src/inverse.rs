@@ -431,6 +431,26 @@ fn group_delay_at_dc(moved: &[(Complex, Complex)], lp: &Zpk) -> f64 {
     -turn.im.atan2(turn.re) / eps
 }
 
+/// The model's numerator after its leading zero coefficients, which are delay: `(count, b)`.
+///
+/// # Errors
+/// [`Error::Numerical`] naming `context` when `b` is zero.
+pub(crate) fn numerator_after_delay<'m>(
+    model: &'m Model,
+    context: &str,
+) -> Result<(usize, &'m [f64])> {
+    let scale = model.b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let lead = model
+        .b
+        .iter()
+        .position(|v| v.abs() > 1e-12 * scale)
+        .ok_or_else(|| Error::Numerical {
+            context: context.into(),
+            message: "the model's numerator b is zero".into(),
+        })?;
+    Ok((lead, model.b.get(lead..).unwrap_or(&[])))
+}
+
 /// Designs the compensator for `model` with the low-pass corner `fc` (Hz).
 ///
 /// # Errors
@@ -439,17 +459,8 @@ fn group_delay_at_dc(moved: &[(Complex, Complex)], lp: &Zpk) -> f64 {
 /// probe does not pass DC) or root finding fails.
 pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
     let fs = model.fs;
-    // Leading zeros of b are delay.
-    let scale = model.b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let lead = model
-        .b
-        .iter()
-        .position(|v| v.abs() > 1e-12 * scale)
-        .ok_or_else(|| Error::Numerical {
-            context: "inverse".into(),
-            message: "the model's numerator b is zero".into(),
-        })?;
-    let b = model.b.get(lead..).unwrap_or(&[]);
+    let (lead, b) = numerator_after_delay(model, "inverse")?;
+    let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let b0 = b.first().copied().unwrap_or(1.0);
     let b_at_1: f64 = b.iter().sum();
     if b_at_1.abs() < 1e-14 * scale {

@@ -194,12 +194,47 @@ impl InverseArgs {
         designed: &[Test<'_>],
         stored: Option<&inverse::Design>,
     ) -> Result<inverse::check::Request> {
-        let fs = model.fs;
-        // Without a test, the noise and prior stored with the model's last design.
+        let lowpass = self.lowpass_kind();
+        let band_limited = |bandwidth_hz| {
+            inverse::check::Request::BandLimited(inverse::Options {
+                bandwidth_hz,
+                lowpass,
+                lowpass_order: self.lowpass_order,
+                stabilise: !self.direct,
+            })
+        };
+        match self.bandwidth.as_deref() {
+            None if !self.direct => {
+                let (noise, prior) = self.noise_and_prior(model, columns, raw, designed, stored)?;
+                self.optimal(model.fs, noise, prior)
+            }
+            None | Some("auto") => Ok(band_limited(None)),
+            Some(text) => match text.parse::<f64>() {
+                Ok(f) if f.is_finite() && f > 0.0 => Ok(band_limited(Some(f))),
+                _ => Err(Error::InvalidArgument {
+                    what: "--bandwidth",
+                    message: format!("expected 'auto' or a frequency in Hz, got '{text}'"),
+                }),
+            },
+        }
+    }
+
+    /// The probe noise, measured on the `raw` tests (a sensor resonance's prefilter would hide
+    /// its level in band), and the signal prior, from `--signal` runs or the `designed` tests
+    /// (prefiltered where the model has a prefilter); without tests, those `stored` with the
+    /// model's last design.
+    fn noise_and_prior(
+        &self,
+        model: &crate::model::Model,
+        columns: &ColumnArgs,
+        raw: &[Test<'_>],
+        designed: &[Test<'_>],
+        stored: Option<&inverse::Design>,
+    ) -> Result<(inverse::optimal::NoiseModel, inverse::optimal::SignalPrior)> {
         let stored = stored.and_then(|d| d.noise.zip(d.prior));
         let noise = match (raw.is_empty(), stored) {
             (true, Some((noise, _))) => noise,
-            (true, None) if self.bandwidth.is_none() && !self.direct => {
+            (true, None) => {
                 return Err(Error::InvalidArgument {
                     what: "FILE",
                     message: "the optimal compensator needs a step test to measure the noise on \
@@ -228,7 +263,7 @@ impl InverseArgs {
                 .iter()
                 .map(|r| (r.u.as_deref(), r.y.as_slice()))
                 .collect();
-            // The probe's response time: its delay plus the slowest mode's period, at least 8.
+            // The probe's response time: the slowest pole's time constant, at least 8 samples.
             let scale = model
                 .poles()
                 .ok()
@@ -239,49 +274,46 @@ impl InverseArgs {
                 .unwrap_or(8.0) as usize;
             inverse::optimal::prior_from_runs(&pairs, model.dc_gain(), &noise, scale.max(8))
         };
-        let lowpass = match self.lowpass {
-            LowpassArg::Bessel => inverse::LowpassKind::Bessel,
-            LowpassArg::Butterworth => inverse::LowpassKind::Butterworth,
-        };
-        let band_limited = |bandwidth_hz| {
-            inverse::check::Request::BandLimited(inverse::Options {
-                bandwidth_hz,
+        Ok((noise, prior))
+    }
+
+    /// The optimum's request with the user's latency and band caps.
+    fn optimal(
+        &self,
+        fs: f64,
+        noise: inverse::optimal::NoiseModel,
+        prior: inverse::optimal::SignalPrior,
+    ) -> Result<inverse::check::Request> {
+        let lowpass = self.lowpass_kind();
+        Ok(inverse::check::Request::Optimal {
+            options: inverse::optimal::OptimalOptions {
+                max_band_hz: match self.max_band {
+                    Some(f) if !(f.is_finite() && f > 0.0) => {
+                        return Err(Error::InvalidArgument {
+                            what: "--max-band",
+                            message: format!("expected a frequency in Hz, got {f}"),
+                        })
+                    }
+                    other => other,
+                },
+                max_latency_samples: self
+                    .max_latency
+                    .as_deref()
+                    .map(|v| parse_latency(v, fs))
+                    .transpose()?,
                 lowpass,
                 lowpass_order: self.lowpass_order,
-                stabilise: !self.direct,
-            })
-        };
-        match self.bandwidth.as_deref() {
-            None if !self.direct => Ok(inverse::check::Request::Optimal {
-                options: inverse::optimal::OptimalOptions {
-                    max_band_hz: match self.max_band {
-                        Some(f) if !(f.is_finite() && f > 0.0) => {
-                            return Err(Error::InvalidArgument {
-                                what: "--max-band",
-                                message: format!("expected a frequency in Hz, got {f}"),
-                            })
-                        }
-                        other => other,
-                    },
-                    max_latency_samples: self
-                        .max_latency
-                        .as_deref()
-                        .map(|v| parse_latency(v, fs))
-                        .transpose()?,
-                    lowpass,
-                    lowpass_order: self.lowpass_order,
-                },
-                noise: Some(noise),
-                prior: Some(prior),
-            }),
-            None | Some("auto") => Ok(band_limited(None)),
-            Some(text) => match text.parse::<f64>() {
-                Ok(f) if f.is_finite() && f > 0.0 => Ok(band_limited(Some(f))),
-                _ => Err(Error::InvalidArgument {
-                    what: "--bandwidth",
-                    message: format!("expected 'auto' or a frequency in Hz, got '{text}'"),
-                }),
             },
+            noise: Some(noise),
+            prior: Some(prior),
+        })
+    }
+
+    /// The low-pass family asked for.
+    fn lowpass_kind(&self) -> inverse::LowpassKind {
+        match self.lowpass {
+            LowpassArg::Bessel => inverse::LowpassKind::Bessel,
+            LowpassArg::Butterworth => inverse::LowpassKind::Butterworth,
         }
     }
 }

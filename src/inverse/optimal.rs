@@ -318,16 +318,7 @@ struct Augmented {
 }
 
 fn augmented(model: &Model, noise: &NoiseModel, prior: &SignalPrior) -> Result<Augmented> {
-    let scale = model.b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let lead = model
-        .b
-        .iter()
-        .position(|v| v.abs() > 1e-12 * scale)
-        .ok_or_else(|| Error::Numerical {
-            context: "optimal compensator".into(),
-            message: "the model's numerator b is zero".into(),
-        })?;
-    let b = model.b.get(lead..).unwrap_or(&[]);
+    let (lead, b) = super::numerator_after_delay(model, "optimal compensator")?;
     // The model as a cascade of second-order sections (poles nearest the circle first, each
     // with its nearest zeros), each section in transposed direct form II: far better
     // conditioned than one companion form when poles crowd towards z = 1.
@@ -458,12 +449,17 @@ fn riccati_recursion(sys: &Augmented) -> Result<Mat<f64>> {
             return Ok(p);
         }
     }
-    Err(Error::Numerical {
+    Err(not_converged())
+}
+
+/// The error of a Riccati solution that did not converge.
+fn not_converged() -> Error {
+    Error::Numerical {
         context: "optimal compensator".into(),
         message: "the Kalman filter's Riccati equation did not converge (is the model stable and \
                   its DC gain non-zero?)"
             .into(),
-    })
+    }
 }
 
 /// The structure-preserving doubling algorithm on the dual control Riccati equation
@@ -495,12 +491,7 @@ fn riccati_doubling(sys: &Augmented) -> Result<Mat<f64>> {
             return Ok(x);
         }
     }
-    Err(Error::Numerical {
-        context: "optimal compensator".into(),
-        message: "the Kalman filter's Riccati equation did not converge (is the model stable and \
-                  its DC gain non-zero?)"
-            .into(),
-    })
+    Err(not_converged())
 }
 
 /// The steady-state fixed-lag smoother of a model under a noise model and a signal prior.

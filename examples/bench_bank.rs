@@ -30,6 +30,8 @@
 
 #[path = "bench_bank/draw.rs"]
 mod draw;
+#[path = "bench_bank/modelling_loop.rs"]
+mod modelling_loop;
 #[path = "bench_bank/simulate.rs"]
 mod simulate;
 
@@ -50,6 +52,8 @@ struct Settings {
     threads: usize,
     unlag: PathBuf,
     out: PathBuf,
+    /// The modelling loop instead of the reconstruction.
+    modelling_loop: bool,
 }
 
 fn settings() -> Result<Settings, Box<dyn Error>> {
@@ -58,6 +62,7 @@ fn settings() -> Result<Settings, Box<dyn Error>> {
     let mut threads = 2;
     let mut unlag = None;
     let mut out = PathBuf::from("target/bank");
+    let mut modelling_loop = false;
     let mut args = std::env::args().skip(1);
     while let Some(flag) = args.next() {
         let mut value = || args.next().ok_or_else(|| format!("{flag} needs a value"));
@@ -67,8 +72,9 @@ fn settings() -> Result<Settings, Box<dyn Error>> {
             "--threads" => threads = value()?.parse::<usize>()?.clamp(1, 2),
             "--unlag" => unlag = Some(PathBuf::from(value()?)),
             "--out" => out = PathBuf::from(value()?),
+            "--loop" => modelling_loop = true,
             "-h" | "--help" => {
-                println!("cargo run --release --example bench_bank -- [--seed N] [--cases N] [--threads 1|2] [--unlag PATH] [--out DIR]");
+                println!("cargo run --release --example bench_bank -- [--seed N] [--cases N] [--threads 1|2] [--unlag PATH] [--out DIR] [--loop]");
                 std::process::exit(0);
             }
             other => return Err(format!("unknown argument {other} (try --help)").into()),
@@ -97,6 +103,7 @@ fn settings() -> Result<Settings, Box<dyn Error>> {
         threads,
         unlag,
         out,
+        modelling_loop,
     })
 }
 
@@ -109,6 +116,11 @@ struct Outcome {
     comp: Option<f64>,
     /// ... of the oracle (the same design on the true model).
     oracle: Option<f64>,
+    /// `unlag compensate` said the compensated signal is worse (its `verdict`, with a warning).
+    said_worse: bool,
+    /// The user's remedy: the compensator redesigned with `--signal` from another run of the
+    /// validation's kind (`run.csv`, never the validation test itself), on the validation test.
+    remedy: Option<f64>,
     /// The failed step of the user's pipeline and its first stderr line.
     failure: Option<String>,
     /// The failed step of the oracle's pipeline.
@@ -154,6 +166,11 @@ fn unlag(unlag: &Path, dir: &Path, args: &[&str], log: &str) -> Result<String, S
 
 /// `(nrmse_u_hat, nrmse_raw)` of `unlag compensate ... --json`.
 fn errors(json: &str) -> Result<(f64, f64), String> {
+    verdict(json).map(|(e, r, _)| (e, r))
+}
+
+/// `(nrmse_u_hat, nrmse_raw, verdict is "worse")` of `unlag compensate ... --json`.
+fn verdict(json: &str) -> Result<(f64, f64, bool), String> {
     let v: serde_json::Value = serde_json::from_str(json.trim())
         .map_err(|e| format!("compensate: unreadable JSON ({e})"))?;
     let get = |k: &str| {
@@ -161,7 +178,8 @@ fn errors(json: &str) -> Result<(f64, f64), String> {
             .and_then(serde_json::Value::as_f64)
             .ok_or_else(|| format!("compensate: no {k} in the JSON"))
     };
-    Ok((get("nrmse_u_hat")?, get("nrmse_raw")?))
+    let worse = v.get("verdict").and_then(serde_json::Value::as_str) == Some("worse");
+    Ok((get("nrmse_u_hat")?, get("nrmse_raw")?, worse))
 }
 
 /// Order and delay of a model file (read as TOML text, enough for the report).
@@ -230,13 +248,48 @@ fn run_case(case: &Case, s: &Settings) -> Outcome {
             "compensate.log",
         )
     })
-    .and_then(|json| errors(&json));
+    .and_then(|json| verdict(&json));
     match user {
-        Ok((comp, raw)) => {
+        Ok((comp, raw, worse)) => {
             o.comp = Some(comp);
             o.raw = Some(raw);
+            o.said_worse = worse;
         }
         Err(e) => o.failure = Some(e),
+    }
+    if o.failure.is_none() {
+        // The remedy a user is told about: the signal learnt from a run of the same kind.
+        let remedy = unlag(
+            &s.unlag,
+            &dir,
+            &[
+                "invert",
+                "model.toml",
+                "est.csv",
+                "--signal",
+                "run.csv",
+                "-o",
+                "remedy.toml",
+            ],
+            "remedy.log",
+        )
+        .and_then(|_| {
+            unlag(
+                &s.unlag,
+                &dir,
+                &[
+                    "compensate",
+                    "remedy.toml",
+                    "val.csv",
+                    "-o",
+                    "r.csv",
+                    "--json",
+                ],
+                "remedy-compensate.log",
+            )
+        })
+        .and_then(|json| errors(&json));
+        o.remedy = remedy.ok().map(|(e, _)| e);
     }
     o.fitted = order_delay(&dir.join("model.toml"));
     if dir.join("truth.toml").is_file() {
@@ -289,9 +342,20 @@ fn make_files(case: &Case, dir: &Path, bin: &Path, o: &mut Outcome) -> Result<()
     let (mut um, mut ym) = simulate::measured(case, &u, &y, &mut rng);
     let (uv, yv) = simulate::clean(case, &case.val, val_k)?;
     let (mut uvm, mut yvm) = simulate::measured(case, &uv, &yv, &mut rng);
-    o.adc_steps = simulate::digitise(case, &mut [&mut um, &mut ym, &mut uvm, &mut yvm]);
+    let adc = simulate::adc_for(case, &[&um, &ym, &uvm, &yvm]);
+    o.adc_steps = (adc.max_pa - adc.min_pa) / case.step_pa;
+    // Another run of the validation's kind (its own draw, on the same ADC), from which the
+    // remedy learns the signal: drawn after the bank's tests so that they stay as they were.
+    let mut sibling_rng = Rng::new(case.seed ^ 0x5eed_0f5e_ed0f_5eed);
+    let sibling = draw::sibling(&case.val, &mut sibling_rng);
+    let (us, ys) = simulate::clean(case, &sibling, val_k)?;
+    let (mut usm, mut ysm) = simulate::measured(case, &us, &ys, &mut sibling_rng);
+    for c in [&mut um, &mut ym, &mut uvm, &mut yvm, &mut usm, &mut ysm] {
+        c.iter_mut().for_each(|v| *v = adc.quantise(*v));
+    }
     simulate::write_csv(&dir.join("est.csv"), case.fs, &um, &ym)?;
     simulate::write_csv(&dir.join("val.csv"), case.fs, &uvm, &yvm)?;
+    simulate::write_csv(&dir.join("run.csv"), case.fs, &usm, &ysm)?;
     let truth = dir.join("truth.toml");
     let _ = std::fs::remove_file(&truth);
     match case.generator {
@@ -355,6 +419,18 @@ fn summary_row(name: &str, rows: &[&(Case, Outcome)]) -> String {
         .filter(|(_, o)| o.failure.is_none() && o.oracle.is_none())
         .count();
     let worse = gain.iter().filter(|g| **g < 1.0).count();
+    let silent = rows
+        .iter()
+        .filter(|(_, o)| matches!((o.raw, o.comp), (Some(r), Some(e)) if e > r) && !o.said_worse)
+        .count();
+    let remedy: Vec<f64> = rows
+        .iter()
+        .filter_map(|(_, o)| Some(o.raw? / o.remedy?))
+        .collect();
+    let remedy_worse = remedy.iter().filter(|g| **g < 1.0).count();
+    let (rm, rw) = stats(remedy).map_or(("-".into(), "-".into()), |(m, lo, _)| {
+        (format!("{m:.2}"), format!("{lo:.2}"))
+    });
     let (gm, gw) = stats(gain).map_or(("-".into(), "-".into()), |(m, lo, _)| {
         (format!("{m:.2}"), format!("{lo:.2}"))
     });
@@ -362,7 +438,7 @@ fn summary_row(name: &str, rows: &[&(Case, Outcome)]) -> String {
         (format!("{m:.2}"), format!("{hi:.2}"))
     });
     format!(
-        "| {name} | {} | {failed} | {no_oracle} | {gm} | {gw} | {worse} | {om} | {ow} |",
+        "| {name} | {} | {failed} | {no_oracle} | {gm} | {gw} | {worse} | {silent} | {om} | {ow} | {rm} | {rw} | {remedy_worse} |",
         rows.len()
     )
 }
@@ -383,7 +459,7 @@ fn opt(v: Option<f64>) -> String {
 fn write_results(path: &Path, rows: &[(Case, Outcome)]) -> Result<(), Box<dyn Error>> {
     let mut s = String::from(
         "id,family,generator,kind,effect,probe,f_hz,zeta,delay,fs,n_est,n_val,step_pa,noise_u,noise_y,adc_steps,est,val_kind,val,\
-         nrmse_raw,nrmse_comp,nrmse_oracle,raw_over_comp,comp_over_oracle,fitted_order,fitted_delay,truth_check,truth_fit_nrmse,seconds,failure,oracle_failure\n",
+         nrmse_raw,nrmse_comp,nrmse_oracle,nrmse_remedy,said_worse,raw_over_comp,comp_over_oracle,fitted_order,fitted_delay,truth_check,truth_fit_nrmse,seconds,failure,oracle_failure\n",
     );
     for (c, o) in rows {
         let delay = match c.generator {
@@ -413,6 +489,8 @@ fn write_results(path: &Path, rows: &[(Case, Outcome)]) -> Result<(), Box<dyn Er
             opt(o.raw),
             opt(o.comp),
             opt(o.oracle),
+            opt(o.remedy),
+            o.said_worse.to_string(),
             opt(o.raw.zip(o.comp).map(|(r, e)| r / e)),
             opt(o.comp.zip(o.oracle).map(|(e, q)| e / q)),
             o.fitted.map_or(String::new(), |f| f.0.to_string()),
@@ -445,8 +523,9 @@ fn report(rows: &[(Case, Outcome)], s: &Settings, seconds: f64) -> String {
     );
     let _ = writeln!(r, "Errors are the CLI's `nrmse` on the validation test (RMS / range of the reference, best alignment). raw/comp above 1: the compensated signal is better than the raw probe; worst is the smallest. comp/oracle: the user's pipeline against the same design on the true model; worst is the largest.\n");
     let _ = writeln!(r, "Targets: never worse than raw anywhere (raw/comp >= 1 in every case); median raw/comp >= 3; median comp/oracle <= 1.5.\n");
-    let _ = writeln!(r, "| group | cases | failed | no oracle | raw/comp median | raw/comp worst | worse than raw | comp/oracle median | comp/oracle worst |");
-    let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(r, "The last three columns are the remedy `compensate` names when it finds a run worse: the compensator redesigned with `unlag invert model.toml est.csv --signal run.csv`, where `run.csv` is another run of the validation test's kind (its own draw), then run on the validation test. *silent* counts runs worse than raw that `compensate` did not flag.\n");
+    let _ = writeln!(r, "| group | cases | failed | no oracle | raw/comp median | raw/comp worst | worse than raw | silent | comp/oracle median | comp/oracle worst | --signal raw/comp median | --signal worst | --signal worse |");
+    let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for f in FAMILIES {
         let g: Vec<&(Case, Outcome)> = rows.iter().filter(|(c, _)| c.family == f).collect();
         let _ = writeln!(r, "{}", summary_row(&format!("family {}", f.name()), &g));
@@ -565,6 +644,9 @@ fn main() -> Result<(), Box<dyn Error>> {
     std::fs::create_dir_all(&s.out)
         .map_err(|e| format!("cannot create {}: {e}", s.out.display()))?;
     let cases = draw::draw(s.seed, s.cases);
+    if s.modelling_loop {
+        return run_loop(&cases, &s);
+    }
     let start = Instant::now();
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
@@ -610,6 +692,53 @@ fn main() -> Result<(), Box<dyn Error>> {
         "\nWrote {} and the cases in {}.",
         path.display(),
         s.out.display()
+    );
+    Ok(())
+}
+
+/// `--loop`: the modelling loop on every case, two at a time.
+fn run_loop(cases: &[Case], s: &Settings) -> Result<(), Box<dyn Error>> {
+    let start = Instant::now();
+    let next = AtomicUsize::new(0);
+    let rows: Mutex<Vec<(Case, modelling_loop::LoopOutcome)>> = Mutex::new(Vec::new());
+    std::thread::scope(|scope| {
+        for _ in 0..s.threads {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::SeqCst);
+                let Some(case) = cases.get(i) else { break };
+                let dir = s.out.join(format!("case-{:03}", case.id));
+                let mut ignored = Outcome::default();
+                let o = match make_files(case, &dir, &s.unlag, &mut ignored) {
+                    Ok(()) => modelling_loop::run(&s.unlag, &dir),
+                    Err(e) => modelling_loop::LoopOutcome {
+                        failure: Some(format!("simulation: {e}")),
+                        ..Default::default()
+                    },
+                };
+                eprintln!(
+                    "case-{:03} {} {}: named {} ({})",
+                    case.id,
+                    case.family.name(),
+                    case.kind.name(),
+                    o.named.join(", "),
+                    if o.right(case.kind) { "right" } else { "wrong" }
+                );
+                if let Ok(mut r) = rows.lock() {
+                    r.push((case.clone(), o));
+                }
+            });
+        }
+    });
+    let mut rows = rows.into_inner().map_err(|_| "poisoned lock")?;
+    rows.sort_by_key(|(c, _)| c.id);
+    print!("{}", modelling_loop::report(&rows));
+    println!(
+        "\n{} cases in {:.0} s on {} threads, seed {}, {}.",
+        rows.len(),
+        start.elapsed().as_secs_f64(),
+        s.threads,
+        s.seed,
+        s.unlag.display()
     );
     Ok(())
 }

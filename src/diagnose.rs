@@ -396,10 +396,12 @@ pub fn evidence(current: &Current<'_>, tests: &[Test<'_>]) -> Vec<TestEvidence> 
             TestEvidence::measure(
                 t.name,
                 if i == 0 { "estimation" } else { "validation" },
-                &effects::observed(current.effects, fs, t.u),
-                &effects::observed(current.effects, fs, t.y),
+                current.model,
+                (
+                    &effects::observed(current.effects, fs, t.u),
+                    &effects::observed(current.effects, fs, t.y),
+                ),
                 &ym,
-                fs,
             )
         })
         .collect()

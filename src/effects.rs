@@ -430,12 +430,12 @@ pub fn quadratic_rate(y: &[f64], fs: f64) -> Vec<f64> {
 }
 
 /// The model's output with quadratic damping `gain` (see the module docs), started in
-/// equilibrium with `u[0]`: `A y = B (q^-d u - gain N(y))`. The term of `b0`, which needs
+/// equilibrium with its resting level ([`crate::model::resting_level`]): `A y = B (q^-d u - gain N(y))`. The term of `b0`, which needs
 /// `N[k]` of the sample being computed, is solved exactly (a quadratic in the step
 /// `y[k] - y[k-1]`); with `gain = 0` this is [`Model::simulate`].
 #[must_use]
 pub fn simulate_nonlinear(model: &Model, gain: f64, u: &[f64]) -> Vec<f64> {
-    let u0 = u.first().copied().unwrap_or(0.0);
+    let u0 = crate::model::resting_level(u);
     let y0 = model.dc_gain() * u0;
     let fs2 = model.fs * model.fs;
     let n = u.len();
@@ -673,13 +673,13 @@ pub fn prefilter_sections(corner_hz: f64, fs: f64) -> Result<(f64, Vec<[f64; 5]>
     Ok(crate::inverse::to_sections(&zpk))
 }
 
-/// `x` through the prefilter of `effects`, started in equilibrium with `x[0]`; `x` unchanged
-/// when there is none.
+/// `x` through the prefilter of `effects`, started in equilibrium with its resting level
+/// ([`crate::model::resting_level`]); `x` unchanged when there is none.
 #[must_use]
 pub fn prefiltered(effects: &[Effect], fs: f64, x: &[f64]) -> Vec<f64> {
     match prefilter_hz(effects).and_then(|fc| prefilter_sections(fc, fs).ok()) {
         Some((gain, sections)) => {
-            let x0 = x.first().copied().unwrap_or(0.0);
+            let x0 = crate::model::resting_level(x);
             let mut v: Vec<f64> = x.iter().map(|a| a - x0).collect();
             for s in &sections {
                 v = crate::model::filter(&s[..3], &s[3..], 0, &v);

@@ -5,12 +5,20 @@
 //! cross-correlation with the input's increments, its spectrum with the significant peaks, and
 //! its level and trend before the step and at the end of the record. It measures; naming the
 //! missing effect from these numbers is [`crate::diagnose`]'s job.
+//!
+//! Both channels are sensors: a correct model leaves the residual `n_y - G n_u`, the probe's
+//! noise plus the reference's noise through the model, whose spectrum
+//! `sigma_y^2 + |G|^2 sigma_u^2` is coloured below the probe's corner ([`ExpectedResidual`]).
+//! The noise floor, the whiteness test and the bands are judged against that, not against
+//! white noise.
 
 use rustfft::num_complex::Complex64;
 use rustfft::FftPlanner;
 use serde::Serialize;
 
 use crate::fit::step;
+use crate::inverse::optimal::NoiseSource;
+use crate::model::Model;
 
 /// Lags of the residual autocorrelation examined (and degrees of freedom of Ljung-Box).
 pub const ACF_LAGS: usize = 30;
@@ -21,19 +29,151 @@ pub const Z99: f64 = 2.575_829_303_548_901;
 /// A spectral peak counts when it stands this far above the floor (dB).
 pub const PEAK_DB: f64 = 10.0;
 
-/// The residual's autocorrelation.
+/// The residual's autocorrelation, against the one a correct model leaves.
 #[derive(Debug, Clone, Serialize)]
 pub struct Autocorrelation {
     /// `rho(k)` for `k = 1..=ACF_LAGS`.
     pub values: Vec<f64>,
-    /// 99 % band for white noise, `Z99 / sqrt(N)`.
+    /// What a correct model leaves, `rho_0(k)` ([`ExpectedResidual::acf`]; zeros for white).
+    pub expected: Vec<f64>,
+    /// 99 % half-width of `rho(k) - rho_0(k)`: `Z99 sqrt(c / N)`, `c` the expected residual's
+    /// Bartlett factor (1 for white noise).
     pub band: f64,
-    /// How many lags fall outside the band.
+    /// How many lags fall outside the band around the expected values.
     pub outside: usize,
-    /// Ljung-Box `Q = N (N + 2) sum rho(k)^2 / (N - k)`.
+    /// Ljung-Box on the departures, `Q = N (N + 2) sum (rho(k) - rho_0(k))^2 / (N - k) / c`.
     pub ljung_box: f64,
-    /// Its p-value under white residuals (chi-square with `ACF_LAGS` degrees of freedom).
+    /// Its p-value when the residual is the expected noise (chi-square with `ACF_LAGS`
+    /// degrees of freedom).
     pub p_value: f64,
+}
+
+/// The residual a correct model leaves on a test: `n_y - G n_u`, white probe noise plus the
+/// reference's white noise through the model.
+#[derive(Debug, Clone, Serialize)]
+pub struct ExpectedResidual {
+    /// The probe's noise (standard deviation).
+    pub probe_std: f64,
+    /// The reference's noise.
+    pub reference_std: f64,
+    /// Where both were measured: the quiet segment before the step, or the record's highest
+    /// frequencies when it has none (a wake traverse).
+    pub source: NoiseSource,
+    /// RMS of `n_y - G n_u`: `sqrt(sigma_y^2 + sigma_u^2 sum g_k^2)`.
+    pub std: f64,
+    /// Its autocorrelation at lags `1..=ACF_LAGS`.
+    pub acf: Vec<f64>,
+    /// Bartlett's factor `sum_k rho_0(k)^2` over all lags: how much wider the scatter of a
+    /// sample autocorrelation of this noise is than of white noise's.
+    pub bartlett: f64,
+    /// `1 + 2 sum_k rho_0(k)`: a mean of `m` samples of this noise scatters like one of
+    /// `m / factor` white samples (at least 1).
+    pub mean_factor: f64,
+}
+
+impl ExpectedResidual {
+    /// Standard error of a mean of `samples` consecutive residual samples of this noise.
+    #[must_use]
+    pub fn mean_se(&self, samples: usize) -> f64 {
+        self.std * (self.mean_factor / samples.max(1) as f64).min(1.0).sqrt()
+    }
+}
+
+/// Noise of one channel and where it was measured: the quiet segment before `onset` (at least
+/// 64 samples, detrended) when it is quiet, that is no louder than 1.5x what its highest
+/// frequencies say; otherwise the whole record's third differences (a smooth signal's barely
+/// reach them: 150 Hz at 10 kHz keeps 8e-4 of its amplitude), by their median absolute value.
+#[must_use]
+pub fn channel_noise(x: &[f64], onset: usize) -> (f64, NoiseSource) {
+    let high = high_frequency_std(x);
+    if let Some(pre) = x.get(..onset).filter(|p| p.len() >= 64) {
+        let quiet = detrended_std(pre);
+        if quiet <= 1.5 * high_frequency_std(pre) {
+            return (quiet, NoiseSource::PreStep);
+        }
+    }
+    (high, NoiseSource::HighFrequency)
+}
+
+/// White-noise standard deviation from third differences: `d3 = x[k+3] - 3x[k+2] + 3x[k+1]
+/// - x[k]` has variance `20 sigma^2`, and the median of `|d3|` is `0.6745 sqrt(20) sigma`.
+fn high_frequency_std(x: &[f64]) -> f64 {
+    let mut d: Vec<f64> = x
+        .windows(4)
+        .map(|w| (w[3] - 3.0 * w[2] + 3.0 * w[1] - w[0]).abs())
+        .collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    let mid = d.len() / 2;
+    d.select_nth_unstable_by(mid, f64::total_cmp);
+    d[mid] / (0.674_489_75 * 20f64.sqrt())
+}
+
+/// Standard deviation of `x` about its least-squares line.
+fn detrended_std(x: &[f64]) -> f64 {
+    let s = slope(x);
+    let tm = (x.len() as f64 - 1.0) / 2.0;
+    let m = mean(x);
+    let v = x
+        .iter()
+        .enumerate()
+        .map(|(k, v)| (v - m - s * (k as f64 - tm)).powi(2))
+        .sum::<f64>()
+        / x.len().max(1) as f64;
+    v.sqrt()
+}
+
+/// The residual `model` leaves on `(u, y)` when it is right: both channels' noise measured
+/// ([`channel_noise`]), the reference's passed through the model's impulse response.
+#[must_use]
+pub fn expected_residual(model: &Model, u: &[f64], y: &[f64], onset: usize) -> ExpectedResidual {
+    let (probe_std, ps) = channel_noise(y, onset);
+    let (reference_std, rs) = channel_noise(u, onset);
+    let source = if ps == NoiseSource::PreStep && rs == NoiseSource::PreStep {
+        NoiseSource::PreStep
+    } else {
+        NoiseSource::HighFrequency
+    };
+    // The model's impulse response (the delay does not change an autocorrelation).
+    let len = u.len().clamp(64, 1 << 16);
+    let mut impulse = vec![0.0; len];
+    impulse[1] = 1.0;
+    let g = model.simulate(&impulse);
+    // sum_j g_j g_(j+k) for every k, by FFT.
+    let nfft = (2 * g.len()).next_power_of_two();
+    let mut buf: Vec<Complex64> = g.iter().map(|v| Complex64::new(*v, 0.0)).collect();
+    buf.resize(nfft, Complex64::new(0.0, 0.0));
+    let mut planner = FftPlanner::new();
+    planner.plan_fft_forward(nfft).process(&mut buf);
+    buf.iter_mut()
+        .for_each(|c| *c = Complex64::new(c.norm_sqr(), 0.0));
+    planner.plan_fft_inverse(nfft).process(&mut buf);
+    let (su2, sy2) = (reference_std * reference_std, probe_std * probe_std);
+    let cov: Vec<f64> = buf[..g.len()]
+        .iter()
+        .enumerate()
+        .map(|(k, c)| su2 * c.re / nfft as f64 + if k == 0 { sy2 } else { 0.0 })
+        .collect();
+    let c0 = cov.first().copied().unwrap_or(0.0);
+    let rho: Vec<f64> = if c0 > 0.0 {
+        cov.iter().map(|c| c / c0).collect()
+    } else {
+        vec![1.0]
+    };
+    let bartlett = 1.0 + 2.0 * rho.iter().skip(1).map(|r| r * r).sum::<f64>();
+    let mean_factor = (1.0 + 2.0 * rho.iter().skip(1).sum::<f64>()).max(1.0);
+    ExpectedResidual {
+        probe_std,
+        reference_std,
+        source,
+        std: c0.max(0.0).sqrt(),
+        acf: (1..=ACF_LAGS)
+            .map(|k| rho.get(k).copied().unwrap_or(0.0))
+            .collect(),
+        bartlett,
+        mean_factor,
+    }
 }
 
 /// The residual's cross-correlation with the input increments `u[k] - u[k-1]`.
@@ -67,8 +207,11 @@ pub struct Spectrum {
     pub resolution_hz: f64,
     /// Power spectral density (dB, arbitrary reference), bins `0..`.
     pub psd_db: Vec<f64>,
-    /// The floor: median of the density (dB).
+    /// The floor: median of the density (dB), against the expected shape.
     pub floor_db: f64,
+    /// What the noise a correct model leaves would give, bins `0..` (dB, the floor's level):
+    /// flat for white noise, raised below the probe's corner by the reference's noise.
+    pub expected_db: Vec<f64>,
     /// Significant peaks, highest first.
     pub peaks: Vec<Peak>,
 }
@@ -201,14 +344,17 @@ pub struct TestEvidence {
     pub fit_percent: f64,
     /// `RMS(y - y_model) / range(y)`.
     pub nrmse: f64,
-    /// Noise RMS / range(y).
+    /// What a correct model leaves, RMS / range(y): both channels' noise
+    /// ([`ExpectedResidual::std`]).
     pub noise_floor: f64,
     /// Step onset (sample).
     pub step_onset: usize,
     /// Signed step size of the reference.
     pub step_size: f64,
-    /// Probe noise standard deviation (before the step).
+    /// Probe noise standard deviation ([`ExpectedResidual::probe_std`]).
     pub noise_std: f64,
+    /// The residual a correct model leaves, both channels' noise.
+    pub expected: ExpectedResidual,
     /// Residual RMS over the record.
     pub residual_rms: f64,
     /// Residual autocorrelation.
@@ -277,9 +423,17 @@ fn slope(x: &[f64]) -> f64 {
     num / den
 }
 
-/// Autocorrelation of `r` at lags `1..=lags`.
+/// Autocorrelation of `r` at lags `1..=lags`, judged against white noise.
 #[must_use]
 pub fn autocorrelation(r: &[f64], lags: usize) -> Autocorrelation {
+    autocorrelation_against(r, &vec![0.0; lags], 1.0)
+}
+
+/// Autocorrelation of `r` at lags `1..=expected.len()`, judged against the expected
+/// autocorrelation `expected` of a noise whose Bartlett factor is `bartlett`.
+#[must_use]
+pub fn autocorrelation_against(r: &[f64], expected: &[f64], bartlett: f64) -> Autocorrelation {
+    let lags = expected.len();
     let n = r.len();
     let m = mean(r);
     let c0: f64 = r.iter().map(|v| (v - m) * (v - m)).sum();
@@ -296,18 +450,26 @@ pub fn autocorrelation(r: &[f64], lags: usize) -> Autocorrelation {
         })
         .collect();
     let nf = n as f64;
-    let band = Z99 / nf.sqrt();
+    let c = bartlett.max(1.0);
+    let band = Z99 * (c / nf).sqrt();
     let ljung_box = nf
         * (nf + 2.0)
         * values
             .iter()
+            .zip(expected)
             .enumerate()
-            .map(|(i, rho)| rho * rho / (nf - (i + 1) as f64).max(1.0))
-            .sum::<f64>();
+            .map(|(i, (rho, e))| (rho - e).powi(2) / (nf - (i + 1) as f64).max(1.0))
+            .sum::<f64>()
+        / c;
     Autocorrelation {
-        outside: values.iter().filter(|v| v.abs() > band).count(),
+        outside: values
+            .iter()
+            .zip(expected)
+            .filter(|(v, e)| (*v - *e).abs() > band)
+            .count(),
         p_value: chi2_survival(ljung_box, lags),
         values,
+        expected: expected.to_vec(),
         band,
         ljung_box,
     }
@@ -359,6 +521,14 @@ pub fn cross_correlation(u: &[f64], r: &[f64], lags: usize) -> CrossCorrelation 
 /// [`PEAK_DB`] above it.
 #[must_use]
 pub fn spectrum(x: &[f64], fs: f64) -> Spectrum {
+    spectrum_against(x, fs, |_| 1.0)
+}
+
+/// As [`spectrum`], judged against the expected noise density `shape(omega)` (any scale,
+/// `omega` in rad/sample): the floor is the median of the density over the shape, and a peak
+/// stands [`PEAK_DB`] above the shape at the floor's level.
+#[must_use]
+pub fn spectrum_against(x: &[f64], fs: f64, shape: impl Fn(f64) -> f64) -> Spectrum {
     let n = x.len().max(2);
     let nfft = (2 * n).next_power_of_two();
     let m = mean(x);
@@ -382,15 +552,23 @@ pub fn spectrum(x: &[f64], fs: f64) -> Spectrum {
         })
         .collect();
     let psd_db: Vec<f64> = psd.iter().map(|p| 10.0 * p.log10()).collect();
-    let mut sorted = psd_db.clone();
+    let shape_db: Vec<f64> = (0..psd_db.len())
+        .map(|i| {
+            10.0 * shape(2.0 * std::f64::consts::PI * i as f64 / nfft as f64)
+                .max(1e-300)
+                .log10()
+        })
+        .collect();
+    let relative: Vec<f64> = psd_db.iter().zip(&shape_db).map(|(p, e)| p - e).collect();
+    let mut sorted = relative.clone();
     sorted.sort_by(f64::total_cmp);
     let floor_db = sorted[sorted.len() / 2];
     let resolution_hz = fs / nfft as f64;
     // Zero padding by 2 makes neighbouring bins correlated: a peak must beat 3 bins each side.
     let mut peaks: Vec<Peak> = (4..psd_db.len().saturating_sub(4))
         .filter(|&i| {
-            let v = psd_db[i];
-            v - floor_db > PEAK_DB && (i - 3..=i + 3).all(|j| j == i || psd_db[j] < v)
+            let v = relative[i];
+            v - floor_db > PEAK_DB && (i - 3..=i + 3).all(|j| j == i || relative[j] < v)
         })
         .map(|i| {
             let half_power = psd[i] / 2.0;
@@ -402,25 +580,38 @@ pub fn spectrum(x: &[f64], fs: f64) -> Spectrum {
             let f = i as f64 * resolution_hz;
             Peak {
                 frequency_hz: f,
-                above_floor_db: psd_db[i] - floor_db,
+                above_floor_db: relative[i] - floor_db,
                 q: f / width,
             }
         })
         .collect();
     peaks.sort_by(|a, b| b.above_floor_db.total_cmp(&a.above_floor_db));
     peaks.truncate(8);
+    // The floor drawn where the shape puts it: its level at the median.
+    let mut shape_sorted = shape_db.clone();
+    shape_sorted.sort_by(f64::total_cmp);
+    let level = floor_db + shape_sorted[shape_sorted.len() / 2];
     Spectrum {
         resolution_hz,
+        expected_db: shape_db.iter().map(|e| e + floor_db).collect(),
         psd_db,
-        floor_db,
+        floor_db: level,
         peaks,
     }
 }
 
 impl TestEvidence {
-    /// Measures the residual of the prediction `y_model` against a test.
+    /// Measures the residual of `model`'s prediction `y_model` (its effects included) against
+    /// a test.
     #[must_use]
-    pub fn measure(file: &str, role: &str, u: &[f64], y: &[f64], y_model: &[f64], fs: f64) -> Self {
+    pub fn measure(
+        file: &str,
+        role: &str,
+        model: &Model,
+        (u, y): (&[f64], &[f64]),
+        y_model: &[f64],
+    ) -> Self {
+        let fs = model.fs;
         let n = y.len().min(y_model.len()).min(u.len());
         let r: Vec<f64> = y[..n]
             .iter()
@@ -434,11 +625,14 @@ impl TestEvidence {
         let ym = mean(&y[..n]);
         let dev = y[..n].iter().map(|v| (v - ym).powi(2)).sum::<f64>().sqrt();
         let res = r.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let noise_std = if onset >= 20 {
-            step::mean_std(&y[..onset]).1
-        } else {
-            step::noise_std(&y[n - n / 5..n])
-        };
+        let expected = expected_residual(model, &u[..n], &y[..n], onset);
+        let noise_std = expected.probe_std;
+        let (lo, hi) = y[..n]
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(*v), h.max(*v))
+            });
+        let range = (hi - lo).max(f64::MIN_POSITIVE);
         let late = &r[n - (3 * n / 10).max(1)..];
         let pre = &r[..onset];
         Self {
@@ -447,14 +641,20 @@ impl TestEvidence {
             samples: n,
             fit_percent: 100.0 * (1.0 - res / dev),
             nrmse: crate::fit::nrmse_of(&y[..n], &y_model[..n]),
-            noise_floor: crate::fit::noise_floor(&y[..n], onset),
+            noise_floor: expected.std / range,
             step_onset: onset,
             step_size,
             noise_std,
             residual_rms: res / (n as f64).sqrt(),
-            autocorrelation: autocorrelation(&r, ACF_LAGS),
+            autocorrelation: autocorrelation_against(&r, &expected.acf, expected.bartlett),
             cross_correlation: cross_correlation(&u[..n], &r, (n / 4).min(2000)),
-            spectrum: spectrum(&r[onset.min(n)..], fs),
+            spectrum: spectrum_against(&r[onset.min(n)..], fs, |w| {
+                let g = crate::inverse::model_response(
+                    model,
+                    crate::poly::Complex::new(w.cos(), w.sin()),
+                );
+                expected.probe_std.powi(2) + expected.reference_std.powi(2) * g.norm_sqr()
+            }),
             model_error: model_error(&y[..n], &y_model[..n], noise_std, fs),
             trend: Trend {
                 pre_mean: mean(pre),
@@ -462,10 +662,11 @@ impl TestEvidence {
                 late_mean: mean(late),
                 late_slope_per_s: slope(late) * fs,
                 slope_per_s: slope(&r) * fs,
-                pre_mean_se: noise_std / (pre.len().max(1) as f64).sqrt(),
-                late_mean_se: noise_std / (late.len().max(1) as f64).sqrt(),
+                pre_mean_se: expected.mean_se(pre.len()),
+                late_mean_se: expected.mean_se(late.len()),
             },
             reference_ringing: reference_ringing(&u[..n], fs),
+            expected,
         }
     }
 
@@ -509,6 +710,89 @@ mod tests {
         }
         let a = autocorrelation(&c, ACF_LAGS);
         assert!(a.p_value < 1e-6 && (a.values[0] - 0.8).abs() < 0.05);
+    }
+
+    /// A slow first-order probe, `y = 0.05 u[k-1] + 0.95 y[k-1]` at 1 kHz.
+    fn slow_probe() -> Model {
+        Model {
+            fs: 1000.0,
+            delay: 0,
+            a: vec![-0.95],
+            b: vec![0.0, 0.05],
+        }
+    }
+
+    /// A step test with white noise on both channels: `(u, y, noise-free y)`.
+    fn noisy_step(n: usize, su: f64, sy: f64) -> (Vec<f64>, Vec<f64>) {
+        let m = slow_probe();
+        let clean: Vec<f64> = (0..n).map(|k| if k < n / 4 { 0.0 } else { 1.0 }).collect();
+        let (wu, wy) = (noise(n, 11), noise(n, 12));
+        let u: Vec<f64> = clean.iter().zip(&wu).map(|(c, w)| c + su * w).collect();
+        // The probe sees the true pressure; the reference records it with its own noise.
+        let y: Vec<f64> = m
+            .simulate_from(&clean, 0.0)
+            .iter()
+            .zip(&wy)
+            .map(|(c, w)| c + sy * w)
+            .collect();
+        (u, y)
+    }
+
+    #[test]
+    fn reference_noise_through_the_model_is_expected_not_flagged() {
+        // The reference's noise 4x the probe's: y - G u is coloured below the probe's corner.
+        let m = slow_probe();
+        let (u, y) = noisy_step(8000, 0.02, 0.005);
+        let ym = m.simulate(&u);
+        let e = TestEvidence::measure("t", "estimation", &m, (&u, &y), &ym);
+        let r: Vec<f64> = y.iter().zip(&ym).map(|(a, b)| a - b).collect();
+        // Judged against white noise the correct model fails...
+        assert!(autocorrelation(&r, ACF_LAGS).p_value < 1e-6);
+        // ...against what both channels' noise leaves it passes, and the floor includes it.
+        assert!(e.autocorrelation.p_value > 0.01, "{:?}", e.autocorrelation);
+        let expected_rho1 = e.expected.acf[0];
+        assert!((e.autocorrelation.values[0] - expected_rho1).abs() < 0.05);
+        // sigma^2 = sy^2 + su^2 sum g^2, sum g^2 = 0.05^2 / (1 - 0.95^2).
+        let predicted = (0.005f64.powi(2) + 0.02f64.powi(2) * 0.0025 / (1.0 - 0.9025)).sqrt();
+        assert!(
+            (e.expected.std / predicted - 1.0).abs() < 0.1,
+            "{} vs {predicted}",
+            e.expected.std
+        );
+        assert!(e.at_noise_floor());
+        assert_eq!(e.expected.source, NoiseSource::PreStep);
+    }
+
+    #[test]
+    fn a_wrong_model_still_fails_against_the_expected_noise() {
+        let m = slow_probe();
+        let wrong = Model {
+            a: vec![-0.9],
+            b: vec![0.0, 0.1],
+            ..m.clone()
+        };
+        let (u, y) = noisy_step(8000, 0.02, 0.005);
+        let ym = wrong.simulate(&u);
+        let e = TestEvidence::measure("t", "estimation", &wrong, (&u, &y), &ym);
+        assert!(e.autocorrelation.p_value < 1e-6, "{:?}", e.autocorrelation);
+        assert!(!e.at_noise_floor());
+    }
+
+    #[test]
+    fn a_record_without_a_quiet_segment_takes_its_noise_from_the_highest_frequencies() {
+        // A slow traverse from the first sample: the "pre-step" part is signal, not noise.
+        let w = noise(6000, 5);
+        let x: Vec<f64> = (0..6000)
+            .map(|k| (2.0 * std::f64::consts::PI * k as f64 / 700.0).sin() + 0.01 * w[k])
+            .collect();
+        let (sigma, source) = channel_noise(&x, 1500);
+        assert_eq!(source, NoiseSource::HighFrequency);
+        assert!((sigma / 0.01 - 1.0).abs() < 0.1, "{sigma}");
+        // With a quiet segment it is measured there.
+        let quiet: Vec<f64> = w.iter().map(|v| 0.01 * v).collect();
+        let (sigma, source) = channel_noise(&quiet, 1500);
+        assert_eq!(source, NoiseSource::PreStep);
+        assert!((sigma / 0.01 - 1.0).abs() < 0.1, "{sigma}");
     }
 
     #[test]

@@ -104,11 +104,18 @@ impl Model {
         Ok(())
     }
 
-    /// The model's output for the input `u`, starting in equilibrium with `u[0]` (as a step
-    /// test starts from a steady state).
+    /// The model's output for the input `u`, starting in equilibrium with its resting level
+    /// ([`resting_level`]: a step test starts from a steady state).
     #[must_use]
     pub fn simulate(&self, u: &[f64]) -> Vec<f64> {
-        let u0 = u.first().copied().unwrap_or(0.0);
+        self.simulate_from(u, resting_level(u))
+    }
+
+    /// The model's output for the input `u`, starting in equilibrium with the input level
+    /// `u0` (`u[0]` makes it the exact inverse of [`Model::compensate`], which starts in
+    /// equilibrium with `y[0]`).
+    #[must_use]
+    pub fn simulate_from(&self, u: &[f64], u0: f64) -> Vec<f64> {
         let y0 = self.dc_gain() * u0;
         let dev: Vec<f64> = u.iter().map(|v| v - u0).collect();
         let mut y = filter(&self.b, &self.a, self.delay, &dev);
@@ -403,6 +410,36 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
     (line, col)
 }
 
+/// The level a record starts from: the mean of its leading samples up to the first that
+/// leaves the start's scatter (at most 64), not the first sample alone, whose noise a slow
+/// model would carry as a transient through the record. The start is the median of the first
+/// 9 samples, the scatter 5x the noise its first differences show.
+#[must_use]
+pub fn resting_level(x: &[f64]) -> f64 {
+    let head = x.get(..x.len().min(64)).unwrap_or(x);
+    let Some(&first) = head.first() else {
+        return 0.0;
+    };
+    let mut start: Vec<f64> = head.iter().take(9).copied().collect();
+    start.sort_by(f64::total_cmp);
+    let median = start.get(start.len() / 2).copied().unwrap_or(first);
+    let mut d: Vec<f64> = head.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    d.sort_by(f64::total_cmp);
+    // Median |difference| of white noise is 0.954 sigma.
+    let sigma = d.get(d.len() / 2).copied().unwrap_or(0.0) / 0.954;
+    let limit = 5.0 * sigma;
+    let quiet: Vec<f64> = head
+        .iter()
+        .copied()
+        .take_while(|v| (v - median).abs() <= limit)
+        .collect();
+    if quiet.is_empty() {
+        first
+    } else {
+        quiet.iter().sum::<f64>() / quiet.len() as f64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -414,6 +451,33 @@ mod tests {
             a: vec![-1.5, 0.7],
             b: vec![0.1, 0.08, 0.02],
         }
+    }
+
+    #[test]
+    fn the_resting_level_is_the_quiet_start_not_its_first_sample() {
+        // Noise of std 0.05 about 2 (uniform, scaled), its first sample 3 levels off, then a
+        // step to 5 after 40 samples.
+        let mut state = 7u64;
+        let mut noise = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.05 * 12f64.sqrt()
+        };
+        let mut x: Vec<f64> = (0..80)
+            .map(|k| if k < 40 { 2.0 } else { 5.0 } + noise())
+            .collect();
+        x[0] = 2.15;
+        let level = resting_level(&x);
+        let quiet = x[..40].iter().sum::<f64>() / 40.0;
+        assert!((level - quiet).abs() < 1e-12, "{level} vs {quiet}");
+        assert!((level - 2.0).abs() < 0.03, "{level}");
+        // A step at the very start leaves the first sample.
+        assert_eq!(
+            resting_level(&[1.0, 5.0, 5.0, 5.0, 5.0, 5.0, 5.0, 5.0, 5.0]),
+            1.0
+        );
+        assert_eq!(resting_level(&[]), 0.0);
     }
 
     #[test]

@@ -746,3 +746,57 @@ pub fn draw(seed: u64, count: usize) -> Vec<Case> {
         })
         .collect()
 }
+
+/// Another run of `test`'s kind, as a user records several: the same facility, its sizes
+/// and frequencies drawn again within +-20 % (levels only smaller, so that the run stays in
+/// the ADC range the bank's tests set), and its own event time.
+pub fn sibling(test: &Test, rng: &mut Rng) -> Test {
+    use unlag::physics::Excitation as E;
+    let size = rng.range(0.8, 1.0);
+    let mut spread = || rng.range(0.8, 1.2);
+    let excitation = match test.excitation {
+        E::ShockTube {
+            amplitude_pa,
+            rise_s,
+        } => E::ShockTube {
+            amplitude_pa: amplitude_pa * size,
+            rise_s,
+        },
+        E::Balloon {
+            amplitude_pa,
+            fall_s,
+        } => E::Balloon {
+            amplitude_pa: amplitude_pa * size,
+            fall_s: fall_s * spread(),
+        },
+        E::Valve {
+            amplitude_pa,
+            opening_s,
+            chamber_hz,
+            chamber_fraction,
+        } => E::Valve {
+            amplitude_pa: amplitude_pa * size,
+            opening_s: opening_s * spread(),
+            chamber_hz: chamber_hz * spread(),
+            chamber_fraction: chamber_fraction * spread(),
+        },
+        E::CascadeWake {
+            wake_depth_pa,
+            wake_hz,
+            wake_width,
+            tunnel_amplitude_pa,
+            tunnel_hz,
+        } => E::CascadeWake {
+            wake_depth_pa: wake_depth_pa * size,
+            wake_hz: wake_hz * spread(),
+            wake_width: wake_width * spread(),
+            tunnel_amplitude_pa: tunnel_amplitude_pa * size,
+            tunnel_hz: tunnel_hz * spread(),
+        },
+    };
+    Test {
+        excitation,
+        event_s: test.event_s * rng.range(0.8, 1.2),
+        ..*test
+    }
+}

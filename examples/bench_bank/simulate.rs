@@ -417,9 +417,8 @@ pub fn measured(case: &Case, u: &[f64], y: &[f64], rng: &mut Rng) -> (Vec<f64>, 
     (u, y)
 }
 
-/// Both tests' channels through the case's 16-bit ADC, its range set from all of them;
-/// returns the full scale in steps.
-pub fn digitise(case: &Case, channels: &mut [&mut Vec<f64>]) -> f64 {
+/// The case's 16-bit ADC, its range set from all of `channels`.
+pub fn adc_for(case: &Case, channels: &[&Vec<f64>]) -> unlag::physics::simulate::Adc {
     let lo = channels
         .iter()
         .flat_map(|c| c.iter())
@@ -430,11 +429,7 @@ pub fn digitise(case: &Case, channels: &mut [&mut Vec<f64>]) -> f64 {
         .flat_map(|c| c.iter())
         .copied()
         .fold(f64::NEG_INFINITY, f64::max);
-    let adc = case.adc(lo, hi);
-    for c in channels.iter_mut() {
-        c.iter_mut().for_each(|v| *v = adc.quantise(*v));
-    }
-    (adc.max_pa - adc.min_pa) / case.step_pa
+    case.adc(lo, hi)
 }
 
 /// Writes a `t,u,y` CSV.

@@ -1218,8 +1218,10 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
             "nrmse_u_hat": error.map(|e| e.0),
             "nrmse_raw": error.map(|e| e.1),
             "alignment_samples": error.map(|e| e.2),
+            "verdict": error.map(|(e, raw, _)| if e < raw { "better" } else { "worse" }),
         });
         println!("{v}");
+        warn_if_worse(args, error);
         return Ok(());
     }
     println!(
@@ -1237,7 +1239,27 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         );
     }
     println!("wrote {}", args.output.display());
+    warn_if_worse(args, error);
     Ok(())
+}
+
+/// A compensated run further from its recorded reference than the raw probe is never passed
+/// over in silence: one line on stderr with both errors and the remedy.
+fn warn_if_worse(args: &CompensateArgs, error: Option<(f64, f64, usize)>) {
+    let Some((e, raw, _)) = error else { return };
+    if e < raw {
+        return;
+    }
+    eprintln!(
+        "warning: on {} u_hat is further from the recorded reference than the raw probe ({} against {}): \
+         the compensator makes this run worse. Its design assumed signals like its tests'; \
+         for runs like this one, learn the signal from them: `unlag invert {} TEST.csv --signal {} -o ...`",
+        args.file.display(),
+        pct(e),
+        pct(raw),
+        args.model.display(),
+        args.file.display()
+    );
 }
 
 /// The fixed-point compensator on the trace, refusing to hide a saturation.

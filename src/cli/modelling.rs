@@ -91,11 +91,27 @@ fn print_evidence(evidence: &[TestEvidence]) {
     }
     for e in evidence {
         println!("{}:", e.file);
+        let x = &e.expected;
         println!(
-            "  residual autocorrelation: {} of {} lags outside the 99 % band +-{:.3}; Ljung-Box Q = {:.1}",
+            "  a correct model leaves {:.4e} RMS (floor {}): probe noise {:.3e} and the reference's {:.3e} through the model, measured {}",
+            x.std,
+            pct(e.noise_floor),
+            x.probe_std,
+            x.reference_std,
+            match x.source {
+                crate::inverse::optimal::NoiseSource::PreStep => "before the step",
+                crate::inverse::optimal::NoiseSource::HighFrequency =>
+                    "from the record's highest frequencies (no quiet segment)",
+                crate::inverse::optimal::NoiseSource::Given => "as given",
+            }
+        );
+        println!(
+            "  residual autocorrelation: {} of {} lags outside the 99 % band +-{:.3} around what that noise leaves (lag 1: {:.3}, expected {:.3}); Ljung-Box Q = {:.1}",
             e.autocorrelation.outside,
             e.autocorrelation.values.len(),
             e.autocorrelation.band,
+            e.autocorrelation.values.first().copied().unwrap_or(0.0),
+            e.autocorrelation.expected.first().copied().unwrap_or(0.0),
             e.autocorrelation.ljung_box
         );
         println!(

@@ -104,7 +104,7 @@ pub struct Fitted {
 }
 
 /// Normalised simulation error of `model` on a test: `RMS(y - y_model) / range(y)`, with the
-/// model started in equilibrium with the first reference sample.
+/// model started in equilibrium with the reference's resting level.
 #[must_use]
 pub fn nrmse(model: &Model, u: &[f64], y: &[f64]) -> f64 {
     let ym = model.simulate(u);

@@ -236,6 +236,11 @@ fn verdict(h: &mut String, inputs: &Inputs<'_>) {
 
 fn summary_table(h: &mut String, inputs: &Inputs<'_>) {
     h.push_str(
+        "<p>The noise floor is what a correct model leaves: the probe's noise and the \
+         reference's own noise through the model (both channels are sensors). Ljung-Box tests \
+         the residual's correlation against that noise's, not against white noise.</p>\n",
+    );
+    h.push_str(
         "<table class=\"summary\"><tr><th>test</th><th>role</th><th>samples</th><th>fit %</th>\
          <th>error (nrmse)</th><th>noise floor</th><th>error / floor</th><th>Ljung-Box p</th>\
          <th>reconstruction u&#770; / raw probe</th></tr>\n",
@@ -330,7 +335,8 @@ fn per_test(
         pct(ev.noise_floor)
     );
     // Probe against model, residual beneath on the same time axis.
-    let band = 2.0 * ev.noise_std;
+    // The band a correct model's residual stays in: both channels' noise through it.
+    let band = 2.0 * ev.expected.std;
     let traces = |range: std::ops::Range<usize>, what: &str| -> [Panel; 2] {
         let top = Panel::new(
             &format!("{what}: measured probe against the model"),
@@ -566,6 +572,15 @@ fn spectrum(h: &mut String, inputs: &Inputs<'_>, number: usize, ev: &TestEvidenc
         .skip(1)
         .map(|(i, v)| (i as f64 * s.resolution_hz, *v))
         .collect();
+    let along = |shift: f64| -> Vec<(f64, f64)> {
+        s.expected_db
+            .iter()
+            .enumerate()
+            .skip(1)
+            .map(|(i, v)| (i as f64 * s.resolution_hz, v + shift))
+            .collect()
+    };
+    let (expected, significance) = (along(0.0), along(crate::evidence::PEAK_DB));
     let effect = top_effect(inputs).map_or("not diagnosed", |c| c.kind.as_str());
     let label_of = |f: f64| {
         if effect == "none" {
@@ -578,15 +593,22 @@ fn spectrum(h: &mut String, inputs: &Inputs<'_>, number: usize, ev: &TestEvidenc
         "residual spectrum after the step",
         "frequency (Hz)",
         "power density (dB)",
-        vec![Series::line("residual", &pts, colour::RESIDUAL, 1)],
-    )
-    .guides(vec![
-        (s.floor_db, "floor (median)".into()),
-        (
-            s.floor_db + crate::evidence::PEAK_DB,
-            format!("significance: floor + {} dB", crate::evidence::PEAK_DB),
-        ),
-    ]);
+        vec![
+            Series::line("residual", &pts, colour::RESIDUAL, 1),
+            Series::line(
+                "what the noise leaves (probe's, and the reference's through the model)",
+                &expected,
+                colour::MODEL,
+                1,
+            ),
+            Series::line(
+                &format!("significance: {} dB above it", crate::evidence::PEAK_DB),
+                &significance,
+                colour::GUIDE,
+                1,
+            ),
+        ],
+    );
     // Peaks highest first; a label only where it does not run into one already placed.
     let span = p.x.end - p.x.start;
     let mut labelled: Vec<f64> = Vec::new();
@@ -1301,10 +1323,9 @@ mod tests {
         let ev = [TestEvidence::measure(
             "long.csv",
             "estimation",
-            &u,
-            &y,
+            &m,
+            (&u, &y),
             &ym,
-            m.fs,
         )];
         let html = render(&Inputs {
             model_name: "m.toml",
@@ -1337,10 +1358,9 @@ mod tests {
         let ev = [TestEvidence::measure(
             "a<b>.csv",
             "estimation",
-            &u,
-            &y,
+            &m,
+            (&u, &y),
             &ym,
-            m.fs,
         )];
         let c = Candidate {
             kind: "leak".into(),
@@ -1383,7 +1403,7 @@ mod tests {
         let m = model();
         let (u, y) = step_test(5_000, &m);
         let ym = m.simulate(&u);
-        let ev = TestEvidence::measure("t", "estimation", &u, &y, &ym, m.fs);
+        let ev = TestEvidence::measure("t", "estimation", &m, (&u, &y), &ym);
         let w = step_window(&ev, &ym);
         assert!(
             w.start < ev.step_onset && w.end > ev.step_onset + 40,

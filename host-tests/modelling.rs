@@ -160,7 +160,8 @@ fn the_diagnosis_offers_the_damping_law_the_physics_has() {
                 .as_f64()
                 .unwrap_or(f64::NAN)
         );
-        assert_eq!(c.kind, "temperature", "{name}: {c:?}");
+        // The kind is exactly what `--add` takes, the damping law with it.
+        assert_eq!(c.kind, add, "{name}: {c:?}");
         assert_eq!(c.evidence["add"], add, "{name}: {c:?}");
         assert!(c.change.contains(&format!("--add {add} ")), "{}", c.change);
         assert!(c.nrmse_before / c.nrmse_after >= 3.0, "{name}: {c:?}");

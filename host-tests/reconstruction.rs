@@ -282,7 +282,7 @@ proptest! {
             reference_std: 0.0,
             source: NoiseSource::Given,
         };
-        let prior = SignalPrior { increment_std: 0.02, source: PriorSource::Given };
+        let prior = SignalPrior { increment_std: 0.02, increment_pole: 0.0, source: PriorSource::Given };
         let d = optimal::design(&model, &noise, &prior, &optimal::OptimalOptions::default()).unwrap();
         prop_assert!(d.latency_samples >= delay as f64);
         let f = 0.1 * d.corrected_bandwidth_hz;

@@ -46,7 +46,11 @@ pub fn parameters(kind: &str) -> usize {
     match kind {
         "mode" => 4,
         "leak" | "drift" => 2,
-        "offset" | "nonlinear-damping" | "temperature" | "sensor-resonance" => 1,
+        "offset"
+        | "nonlinear-damping"
+        | "temperature"
+        | "temperature-viscous"
+        | "sensor-resonance" => 1,
         _ => 0,
     }
 }
@@ -54,8 +58,9 @@ pub fn parameters(kind: &str) -> usize {
 /// One ranked candidate.
 #[derive(Debug, Clone, Serialize)]
 pub struct Candidate {
-    /// Machine-readable kind (`mode`, `leak`, `offset`, `drift`, `delay`, `coloured-noise`,
-    /// `nonlinear-damping`, `sensor-resonance`, `temperature`, or `none`).
+    /// Machine-readable kind, exactly what `unlag fit --add` takes (`mode`, `leak`, `offset`,
+    /// `drift`, `delay`, `coloured-noise`, `nonlinear-damping`, `sensor-resonance`,
+    /// `temperature`, `temperature-viscous`), or `none`.
     pub kind: String,
     /// `ln(error before / error after)` of the trial, less [`PARAMETER_PENALTY`] per parameter
     /// the effect adds; larger is stronger.
@@ -70,6 +75,37 @@ pub struct Candidate {
     pub nrmse_before: f64,
     /// Held-out error after the trial.
     pub nrmse_after: f64,
+    /// How far ahead of the next candidate it is (score difference; the last one's score).
+    pub margin: f64,
+    /// When the next candidate is within [`CLOSE_MARGIN`]: the test that would tell the two
+    /// apart.
+    pub separated_by: Option<String>,
+}
+
+/// Two candidates closer than this in score are close: the diagnosis names the test that
+/// would separate them.
+pub const CLOSE_MARGIN: f64 = 0.3;
+
+/// The test that tells effect `a` from effect `b`, by what each one's signature depends on.
+#[must_use]
+pub fn separating_test(a: &str, b: &str) -> String {
+    let pair = |x: &str, y: &str| (a == x && b == y) || (a == y && b == x);
+    let temperature = |k: &str| k.starts_with("temperature");
+    if pair("drift", "offset") || pair("leak", "drift") {
+        "a longer record after the step (a drift keeps growing, an offset stays, a leak settles)"
+            .into()
+    } else if pair("coloured-noise", "drift") || pair("coloured-noise", "offset") {
+        "a record with no step, the pressure steady (the noise alone: it wanders both ways, a drift one way)".into()
+    } else if temperature(a) || temperature(b) {
+        "a test at another gas temperature, or the same temperature as the estimation test (a temperature moves every natural frequency by one factor)".into()
+    } else if a == "nonlinear-damping" || b == "nonlinear-damping" {
+        "steps of other sizes (amplitude-dependent losses change with the step, a linear effect does not)".into()
+    } else if pair("mode", "sensor-resonance") {
+        "the reference transducer alone on a step (a diaphragm rings in it, a line mode does not)"
+            .into()
+    } else {
+        "another step test of another size and direction, held out".into()
+    }
 }
 
 /// The current state of a model file that a diagnosis starts from.
@@ -456,6 +492,8 @@ pub fn diagnose(
                 change,
                 nrmse_before: before,
                 nrmse_after: after,
+                margin: 0.0,
+                separated_by: None,
             });
         }
     };
@@ -720,8 +758,9 @@ pub fn diagnose(
                          tube-volume system"
                     ),
                 };
+                // The kind is what `--add` takes: the damping law is part of it.
                 offer(
-                    "temperature",
+                    spelling,
                     after,
                     json!({"per_test": t.rows, "common_ratio": ratio, "test": file,
                            "temperature_ratio": ratio * ratio,
@@ -870,8 +909,39 @@ pub fn diagnose(
             }
         }
     }
-    // Nothing is missing when the residual is white noise at the floor, or no trial helps.
-    if (at_floor && white) || out.is_empty() {
+    // Nothing is missing when the residual is what both channels' noise leaves (at the floor,
+    // correlated only as that noise is), or at the floor with no effect's trial lowering it.
+    // A residual above the floor that no effect's trial lowers is not "none": something
+    // outside the catalogue is missing, and the diagnosis says so.
+    if !at_floor && out.is_empty() {
+        let worst = evidence
+            .iter()
+            .map(|e| e.nrmse / e.noise_floor.max(f64::MIN_POSITIVE))
+            .fold(0.0f64, f64::max);
+        out.push(Candidate {
+            kind: "unexplained".into(),
+            score: 0.0,
+            evidence: json!({"nrmse": before, "noise_floor": floor, "white": white,
+                             "worst_over_floor": worst}),
+            reading: format!(
+                "the residual is up to {worst:.1}x what both channels' noise leaves{}, but no \
+                 effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x: something \
+                 outside the catalogue is missing (a higher order, or physics the effects do not \
+                 describe); the model is not at its noise floor",
+                if white {
+                    ""
+                } else {
+                    " and correlated beyond that noise"
+                }
+            ),
+            change: "unlag fit ... --order auto   (or a higher --order N)".into(),
+            nrmse_before: before,
+            nrmse_after: before,
+            margin: 0.0,
+            separated_by: None,
+        });
+    }
+    if at_floor && (white || out.is_empty()) {
         let none = Candidate {
             kind: "none".into(),
             score: 0.0,
@@ -886,12 +956,18 @@ pub fn diagnose(
             change: "none".into(),
             nrmse_before: before,
             nrmse_after: before,
+            margin: 0.0,
+            separated_by: None,
         };
-        if at_floor && white {
-            out.insert(0, none);
-        } else {
-            out.push(none);
-        }
+        out.insert(0, none);
+    }
+    let scores: Vec<(f64, String)> = out.iter().map(|c| (c.score, c.kind.clone())).collect();
+    for (i, c) in out.iter_mut().enumerate() {
+        let next = scores.get(i + 1);
+        c.margin = c.score - next.map_or(0.0, |n| n.0);
+        c.separated_by = next
+            .filter(|_| c.margin < CLOSE_MARGIN)
+            .map(|n| separating_test(&c.kind, &n.1));
     }
     Ok(out)
 }

@@ -17,7 +17,7 @@ use rustfft::FftPlanner;
 use serde::Serialize;
 
 use crate::fit::step;
-use crate::inverse::optimal::NoiseSource;
+use crate::fit::step::NoiseSource;
 use crate::model::Model;
 
 /// Lags of the residual autocorrelation examined (and degrees of freedom of Ljung-Box).
@@ -79,57 +79,13 @@ impl ExpectedResidual {
     }
 }
 
-/// Noise of one channel and where it was measured: the quiet segment before `onset` (at least
-/// 64 samples, detrended) when it is quiet, that is no louder than 1.5x what its highest
-/// frequencies say; otherwise the whole record's third differences (a smooth signal's barely
-/// reach them: 150 Hz at 10 kHz keeps 8e-4 of its amplitude), by their median absolute value.
-#[must_use]
-pub fn channel_noise(x: &[f64], onset: usize) -> (f64, NoiseSource) {
-    let high = high_frequency_std(x);
-    if let Some(pre) = x.get(..onset).filter(|p| p.len() >= 64) {
-        let quiet = detrended_std(pre);
-        if quiet <= 1.5 * high_frequency_std(pre) {
-            return (quiet, NoiseSource::PreStep);
-        }
-    }
-    (high, NoiseSource::HighFrequency)
-}
-
-/// White-noise standard deviation from third differences: `d3 = x[k+3] - 3x[k+2] + 3x[k+1]
-/// - x[k]` has variance `20 sigma^2`, and the median of `|d3|` is `0.6745 sqrt(20) sigma`.
-fn high_frequency_std(x: &[f64]) -> f64 {
-    let mut d: Vec<f64> = x
-        .windows(4)
-        .map(|w| (w[3] - 3.0 * w[2] + 3.0 * w[1] - w[0]).abs())
-        .collect();
-    if d.is_empty() {
-        return 0.0;
-    }
-    let mid = d.len() / 2;
-    d.select_nth_unstable_by(mid, f64::total_cmp);
-    d[mid] / (0.674_489_75 * 20f64.sqrt())
-}
-
-/// Standard deviation of `x` about its least-squares line.
-fn detrended_std(x: &[f64]) -> f64 {
-    let s = slope(x);
-    let tm = (x.len() as f64 - 1.0) / 2.0;
-    let m = mean(x);
-    let v = x
-        .iter()
-        .enumerate()
-        .map(|(k, v)| (v - m - s * (k as f64 - tm)).powi(2))
-        .sum::<f64>()
-        / x.len().max(1) as f64;
-    v.sqrt()
-}
-
 /// The residual `model` leaves on `(u, y)` when it is right: both channels' noise measured
-/// ([`channel_noise`]), the reference's passed through the model's impulse response.
+/// ([`step::channel_noise`], the quiet segment ending at `quiet`), the reference's passed
+/// through the model's impulse response.
 #[must_use]
-pub fn expected_residual(model: &Model, u: &[f64], y: &[f64], onset: usize) -> ExpectedResidual {
-    let (probe_std, ps) = channel_noise(y, onset);
-    let (reference_std, rs) = channel_noise(u, onset);
+pub fn expected_residual(model: &Model, u: &[f64], y: &[f64], quiet: usize) -> ExpectedResidual {
+    let (probe_std, ps) = step::channel_noise(y, quiet);
+    let (reference_std, rs) = step::channel_noise(u, quiet);
     let source = if ps == NoiseSource::PreStep && rs == NoiseSource::PreStep {
         NoiseSource::PreStep
     } else {
@@ -374,10 +330,12 @@ pub struct TestEvidence {
 /// The reference channel's own ringing: the highest narrow peak (Q at least 2) of the spectrum
 /// of its increments from the step on. A clean step's increments are an impulse with a flat
 /// spectrum; a transducer's diaphragm ringing in the reference makes a peak at its natural
-/// frequency. A line or cavity mode of the probe never shows here.
+/// frequency. A line or cavity mode of the probe never shows here. `None` for a record that
+/// is not a step test ([`step::Step::is_clean`]).
 #[must_use]
 pub fn reference_ringing(u: &[f64], fs: f64) -> Option<Peak> {
-    let onset = step::find_step(u).map_or(0, |s| s.onset);
+    // Only after a step: the periodic content of a traverse is the flow's, not a diaphragm's.
+    let onset = step::find_step(u).ok().filter(step::Step::is_clean)?.onset;
     let du: Vec<f64> = u
         .get(onset.saturating_sub(2)..)?
         .windows(2)
@@ -625,7 +583,7 @@ impl TestEvidence {
         let ym = mean(&y[..n]);
         let dev = y[..n].iter().map(|v| (v - ym).powi(2)).sum::<f64>().sqrt();
         let res = r.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let expected = expected_residual(model, &u[..n], &y[..n], onset);
+        let expected = expected_residual(model, &u[..n], &y[..n], step::quiet_until(&u[..n]));
         let noise_std = expected.probe_std;
         let (lo, hi) = y[..n]
             .iter()
@@ -785,12 +743,19 @@ mod tests {
         let x: Vec<f64> = (0..6000)
             .map(|k| (2.0 * std::f64::consts::PI * k as f64 / 700.0).sin() + 0.01 * w[k])
             .collect();
-        let (sigma, source) = channel_noise(&x, 1500);
+        assert_eq!(step::quiet_until(&x), 0);
+        let (sigma, source) = step::channel_noise(&x, step::quiet_until(&x));
         assert_eq!(source, NoiseSource::HighFrequency);
         assert!((sigma / 0.01 - 1.0).abs() < 0.1, "{sigma}");
-        // With a quiet segment it is measured there.
-        let quiet: Vec<f64> = w.iter().map(|v| 0.01 * v).collect();
-        let (sigma, source) = channel_noise(&quiet, 1500);
+        // A step test's segment before the step is quiet: measured there.
+        let stepped: Vec<f64> = w
+            .iter()
+            .enumerate()
+            .map(|(k, v)| if k < 1500 { 0.0 } else { 1.0 } + 0.01 * v)
+            .collect();
+        let quiet = step::quiet_until(&stepped);
+        assert!((1495..=1500).contains(&quiet), "{quiet}");
+        let (sigma, source) = step::channel_noise(&stepped, quiet);
         assert_eq!(source, NoiseSource::PreStep);
         assert!((sigma / 0.01 - 1.0).abs() < 0.1, "{sigma}");
     }

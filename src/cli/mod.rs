@@ -125,8 +125,8 @@ pub struct InverseArgs {
     #[arg(long, value_name = "HZ")]
     pub max_band: Option<f64>,
     /// The user's own recorded runs (CSV, repeatable) to learn the pressure's prior from,
-    /// instead of the step tests: their reference column where they have one, else the probe
-    /// signal.
+    /// instead of the step tests: from their reference column the increments' level and
+    /// correlation (steps and ramps), else a random walk's level from the probe signal.
     #[arg(long = "signal", value_name = "RUN.csv")]
     pub signal: Vec<PathBuf>,
     /// Low-pass family of the band limit.
@@ -642,7 +642,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     // Errors with the effects included (an offset or a drift is estimated on each test).
     let mut sources = Vec::new();
     for (i, (t, test)) in traces.iter().zip(&tests).enumerate() {
-        let onset = fit::step::find_step(test.u).map_or(0, |s| s.onset);
+        let quiet = fit::step::quiet_until(test.u);
         let ym = crate::effects::predict(&fitted.model, &effects, test.u, test.y);
         let observed = crate::effects::observed(&effects, est.sample_rate_hz, test.y);
         sources.push(Source {
@@ -650,7 +650,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
             sha256: t.sha256.clone(),
             role: if i == 0 { "estimation" } else { "validation" }.into(),
             nrmse: fit::nrmse_of(&observed, &ym),
-            noise_floor: fit::noise_floor(&t.y, onset),
+            noise_floor: fit::noise_floor(&t.y, quiet),
         });
     }
     // The probe's geometry describes the hardware, not the fit: kept even with --fresh.
@@ -745,7 +745,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     }
     print_fit(&file, est);
     if let Some(d) = &file.inverse {
-        print_inverse(d);
+        print_inverse(d, file.model.fs);
     }
     println!("wrote {}", args.output.display());
     if let (Some(path), Some(bytes)) = (&args.report, report_bytes) {
@@ -776,7 +776,7 @@ fn prefiltered_tests(
         .collect()
 }
 
-fn print_inverse(d: &inverse::Design) {
+fn print_inverse(d: &inverse::Design, fs: f64) {
     println!("compensator: {}", d.method);
     if !d.reflected_zeros.is_empty() {
         println!(
@@ -879,6 +879,26 @@ fn print_inverse(d: &inverse::Design) {
             n.reference_std
         );
     }
+    if let Some(p) = &d.prior {
+        let from = match p.source {
+            inverse::optimal::PriorSource::StepTests => "the step tests' references",
+            inverse::optimal::PriorSource::Runs => "the --signal runs",
+            inverse::optimal::PriorSource::Given => "given",
+        };
+        if p.increment_pole > 0.0 {
+            // The increments' pole as a corner: rho = exp(-2 pi f / fs).
+            let corner = -p.increment_pole.ln() * fs / (2.0 * std::f64::consts::PI);
+            println!(
+                "  signal prior (from {from}): steps and ramps, increments correlated {:.4} (its spectrum falls as 1/f^4 above {corner:.1} Hz), innovation {:.3e}",
+                p.increment_pole, p.increment_std
+            );
+        } else {
+            println!(
+                "  signal prior (from {from}): steps, a random walk of increment {:.3e} per sample (its spectrum falls as 1/f^2)",
+                p.increment_std
+            );
+        }
+    }
     println!(
         "  realised as {} sections: about {} multiply-adds per sample",
         d.sections.len(),
@@ -967,7 +987,7 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
         return Ok(());
     }
     if let Some(d) = &out.inverse {
-        print_inverse(d);
+        print_inverse(d, out.model.fs);
     }
     println!("wrote {}", args.output.display());
     Ok(())

@@ -339,6 +339,12 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
         );
         println!("    {}", c.reading);
         println!("    change: {}", c.change);
+        if let Some(test) = &c.separated_by {
+            println!(
+                "    close to the next ({:.2} in score): to tell them apart, {test}",
+                c.margin
+            );
+        }
     }
     if let Some(path) = &args.report {
         println!("wrote the report {}: open it in a browser", path.display());

@@ -133,20 +133,19 @@ pub fn nrmse_of(y: &[f64], ym: &[f64]) -> f64 {
     rms / (hi - lo)
 }
 
-/// Noise floor of the probe channel: noise RMS / range(y). The noise is measured before the
-/// step when there are at least 20 samples there, else from first differences of the tail.
+/// Noise floor of the probe channel: noise RMS / range(y), the noise as
+/// [`step::channel_noise`] measures it (the quiet segment ending at `quiet`, from
+/// [`step::quiet_until`] of the reference, else the highest frequencies).
 #[must_use]
-pub fn noise_floor(y: &[f64], onset: usize) -> f64 {
+pub fn noise_floor(y: &[f64], quiet: usize) -> f64 {
     let (lo, hi) = y
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
             (l.min(*v), h.max(*v))
         });
-    let sigma = if onset >= 20 {
-        step::mean_std(&y[..onset]).1
-    } else {
-        step::noise_std(&y[y.len() - y.len() / 5..])
-    };
+    // Before the step when that segment is quiet, else from the highest frequencies (a
+    // traverse has no quiet segment: its "pre-step" part is signal).
+    let (sigma, _) = step::channel_noise(y, quiet);
     sigma / (hi - lo)
 }
 

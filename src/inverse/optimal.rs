@@ -42,21 +42,12 @@ use serde::{Deserialize, Serialize};
 
 use super::{cascade_response, model_response, to_sections, Zpk};
 use crate::error::{Error, Result};
-use crate::fit::{step, Test};
+use crate::fit::step::{self, detrend};
+use crate::fit::Test;
 use crate::model::Model;
 use crate::poly::{self, Complex};
 
-/// Where a noise level was measured.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum NoiseSource {
-    /// The quiet segment before the step.
-    PreStep,
-    /// First differences of the whole record (no quiet segment long enough).
-    HighFrequency,
-    /// Given by the caller (an oracle, a test).
-    Given,
-}
+pub use crate::fit::step::NoiseSource;
 
 /// The noise of both channels, as the design sees it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -95,11 +86,17 @@ impl NoiseModel {
     }
 }
 
-/// The prior for the pressure: a random walk, spectrum `q / |1 - z^-1|^2`.
+/// The prior for the pressure: steps and ramps, a random walk whose increments may be
+/// correlated, spectrum `q / (|1 - z^-1|^2 |1 - rho z^-1|^2)`. With `rho = 0` (steps, the
+/// default from step tests) it falls like `1/f^2`; with `rho` near 1 (smooth runs: ramps,
+/// balloons, wakes) like `1/f^4` above the corner `rho` sets.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SignalPrior {
-    /// Standard deviation of the per-sample increment, `sqrt(q)`, in pressure units.
+    /// Standard deviation of the increments' innovation, `sqrt(q)`, in pressure units.
     pub increment_std: f64,
+    /// Correlation `rho` of successive increments (0: a plain random walk).
+    #[serde(default)]
+    pub increment_pole: f64,
     /// Where it came from.
     pub source: PriorSource,
 }
@@ -121,7 +118,9 @@ impl SignalPrior {
     #[must_use]
     pub fn psd(&self, omega: f64) -> f64 {
         let s = 2.0 * (0.5 * omega).sin();
-        self.increment_std * self.increment_std / (s * s).max(1e-300)
+        let rho = self.increment_pole;
+        let ramp = 1.0 - 2.0 * rho * omega.cos() + rho * rho;
+        self.increment_std * self.increment_std / (s * s * ramp).max(1e-300)
     }
 }
 
@@ -194,27 +193,6 @@ pub fn estimate_noise(tests: &[Test<'_>]) -> NoiseModel {
     }
 }
 
-/// `x` less its least-squares line.
-fn detrend(x: &[f64]) -> Vec<f64> {
-    let n = x.len() as f64;
-    if x.len() < 3 {
-        return x.to_vec();
-    }
-    let tm = 0.5 * (n - 1.0);
-    let xm = x.iter().sum::<f64>() / n;
-    let (mut sxy, mut sxx) = (0.0, 0.0);
-    for (k, v) in x.iter().enumerate() {
-        let t = k as f64 - tm;
-        sxy += t * (v - xm);
-        sxx += t * t;
-    }
-    let slope = sxy / sxx;
-    x.iter()
-        .enumerate()
-        .map(|(k, v)| v - xm - slope * (k as f64 - tm))
-        .collect()
-}
-
 /// White variance and `(pole, variance)` of an AR(1) part of a quiet segment, from its
 /// autocovariances at lags 0, 1, 2: `c1 = phi s^2`, `c2 = phi^2 s^2`, `c0 = w + s^2`. The AR
 /// part is kept only when the lag-1 correlation is significant (three standard errors) and the
@@ -260,14 +238,17 @@ pub fn estimate_prior(tests: &[Test<'_>], noise: &NoiseModel) -> SignalPrior {
     let q = q.iter().sum::<f64>() / q.len().max(1) as f64;
     SignalPrior {
         increment_std: q.sqrt(),
+        increment_pole: 0.0,
         source: PriorSource::StepTests,
     }
 }
 
-/// The random-walk prior from the user's own recorded runs: from the reference where a run has
-/// one (as [`estimate_prior`], without the step floor), else from the probe signal over the
-/// model's DC gain, its increments taken over `scale` samples (the probe's response time) so
-/// that the probe's noise and lag weigh little, less the noise's share `2 sigma_y^2`.
+/// The prior from the user's own recorded runs. From the reference where a run has one: the
+/// increments' variance and lag-1 correlation, less what the reference's white noise adds to
+/// them (`2 sigma_u^2` and `-sigma_u^2`), give `q` and `rho` (steps give `rho` near 0, smooth
+/// runs near 1). Else from the probe signal over the model's DC gain, its increments taken
+/// over `scale` samples (the probe's response time) so that the probe's noise and lag weigh
+/// little, less the noise's share `2 sigma_y^2`, as a plain random walk.
 #[must_use]
 pub fn prior_from_runs(
     runs: &[(Option<&[f64]>, &[f64])],
@@ -277,7 +258,14 @@ pub fn prior_from_runs(
 ) -> SignalPrior {
     let m = scale.max(1);
     let mut q = Vec::new();
+    let mut shaped = Vec::new();
     for (u, y) in runs {
+        if let Some(u) = u {
+            if let Some(qr) = increments_of(u, noise.reference_std) {
+                shaped.push(qr);
+                continue;
+            }
+        }
         let (x, gain, sigma, lag): (&[f64], f64, f64, usize) = match u {
             Some(u) => (u, 1.0, noise.reference_std, 1),
             None => (y, dc_gain, noise.probe_std(), m),
@@ -294,11 +282,57 @@ pub fn prior_from_runs(
             / count as f64;
         q.push(((msi - 2.0 * sigma * sigma) / (gain * gain * lag as f64)).max(0.0));
     }
+    if !shaped.is_empty() && q.is_empty() {
+        // Pooled over the runs: mean increment variance and mean correlation per sample.
+        let count = shaped.len() as f64;
+        let var = shaped.iter().map(|s| s.0).sum::<f64>() / count;
+        let rho = (shaped.iter().map(|s| s.1).sum::<f64>() / count).clamp(0.0, MAX_INCREMENT_POLE);
+        return SignalPrior {
+            increment_std: (var * (1.0 - rho * rho)).max(0.0).sqrt(),
+            increment_pole: rho,
+            source: PriorSource::Runs,
+        };
+    }
+    // Probe-only runs (or a mixture): a plain random walk, each run's increment variance.
+    q.extend(shaped.iter().map(|s| s.0));
     let q = q.iter().sum::<f64>() / q.len().max(1) as f64;
     SignalPrior {
         increment_std: q.sqrt(),
+        increment_pole: 0.0,
         source: PriorSource::Runs,
     }
+}
+
+/// Largest increment correlation a learnt prior takes (a corner at `fs / 2000`).
+pub const MAX_INCREMENT_POLE: f64 = 0.997;
+
+/// Variance of the pressure's increments in a recorded reference `u`, less its white noise's
+/// share `2 sigma^2`, and their lag-1 correlation, the noise's `-sigma^2` added back (0 when
+/// not significant: within three standard errors, noise included); `None` for a record too
+/// short.
+fn increments_of(u: &[f64], sigma: f64) -> Option<(f64, f64)> {
+    let d: Vec<f64> = u.windows(2).map(|w| w[1] - w[0]).collect();
+    if d.len() < 4 {
+        return None;
+    }
+    let mean = d.iter().sum::<f64>() / d.len() as f64;
+    let c0 = d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / d.len() as f64;
+    let c1 = d
+        .iter()
+        .zip(d.iter().skip(1))
+        .map(|(a, b)| (a - mean) * (b - mean))
+        .sum::<f64>()
+        / (d.len() - 1) as f64;
+    let s2 = sigma * sigma;
+    let var = (c0 - 2.0 * s2).max(0.0);
+    let significant = 3.0 * c0 / (d.len() as f64).sqrt();
+    let cov = c1 + s2;
+    let rho = if var > 0.0 && cov > significant {
+        (cov / var).min(1.0)
+    } else {
+        0.0
+    };
+    Some((var, rho))
 }
 
 /// The delay-free model's state space with the signal and noise states appended.
@@ -330,7 +364,8 @@ fn augmented(model: &Model, noise: &NoiseModel, prior: &SignalPrior) -> Result<A
     let (cascade_gain, model_sections) = to_sections(&zpk);
     let nx = 2 * model_sections.len();
     let ar = noise.probe_ar_std > 0.0;
-    let n = nx + 1 + usize::from(ar);
+    let ramp = prior.increment_pole > 0.0;
+    let n = nx + 1 + usize::from(ramp) + usize::from(ar);
     let iu = nx;
     let mut phi = Mat::<f64>::zeros(n, n);
     let mut h = vec![0.0; n];
@@ -354,9 +389,18 @@ fn augmented(model: &Model, noise: &NoiseModel, prior: &SignalPrior) -> Result<A
         h[k] = *v;
     }
     phi[(iu, iu)] = 1.0;
-    q[iu] = prior.increment_std * prior.increment_std;
+    if ramp {
+        // u[k] = u[k-1] + v[k-1], v[k] = rho v[k-1] + w[k]: the same spectrum, with the
+        // innovation on the increment alone (a diagonal process noise).
+        let iv = iu + 1;
+        phi[(iu, iv)] = 1.0;
+        phi[(iv, iv)] = prior.increment_pole;
+        q[iv] = prior.increment_std * prior.increment_std;
+    } else {
+        q[iu] = prior.increment_std * prior.increment_std;
+    }
     if ar {
-        let ic = iu + 1;
+        let ic = iu + 1 + usize::from(ramp);
         let p = noise.probe_ar_pole;
         phi[(ic, ic)] = p;
         h[ic] = 1.0;
@@ -365,7 +409,7 @@ fn augmented(model: &Model, noise: &NoiseModel, prior: &SignalPrior) -> Result<A
     // A measurement without white noise makes the Riccati equation singular: keep a floor.
     let total = noise.probe_std().powi(2).max(1e-300);
     let r = (noise.probe_white_std * noise.probe_white_std).max(1e-6 * total);
-    if !(q[iu] > 0.0 && r > 0.0 && q.iter().all(|v| v.is_finite())) {
+    if !(prior.increment_std > 0.0 && r > 0.0 && q.iter().all(|v| v.is_finite())) {
         return Err(Error::Numerical {
             context: "optimal compensator".into(),
             message: format!(
@@ -1094,7 +1138,8 @@ fn design_for(
     }
     Ok(super::Design {
         method: format!(
-            "optimal: fixed-lag Kalman smoother, lag {lag} samples (random-walk prior, measured probe noise{})",
+            "optimal: fixed-lag Kalman smoother, lag {lag} samples ({} prior, measured probe noise{})",
+            if prior.increment_pole > 0.0 { "steps-and-ramps" } else { "random-walk" },
             if noise.probe_ar_std > 0.0 { " with its AR(1) part" } else { "" }
         ),
         lowpass: options.lowpass,
@@ -1168,6 +1213,7 @@ mod tests {
             },
             SignalPrior {
                 increment_std: (1.0f64 / 4000.0).sqrt(),
+                increment_pole: 0.0,
                 source: PriorSource::Given,
             },
         )
@@ -1202,6 +1248,76 @@ mod tests {
                 e[lag]
             );
         }
+    }
+
+    #[test]
+    fn a_ramp_prior_is_the_state_space_its_spectrum_says_and_boosts_less() {
+        // The augmented state (increment with pole rho) against the frequency budget of
+        // the prior's spectrum q / (|1 - z^-1|^2 |1 - rho z^-1|^2).
+        let model = line();
+        let (noise, steps) = levels();
+        let ramps = SignalPrior {
+            increment_pole: 0.95,
+            increment_std: steps.increment_std * 0.05,
+            ..steps
+        };
+        let mut s = Smoother::new(&model, &noise, &ramps).unwrap();
+        let e = s.error_std(30);
+        for lag in [0, 10, 30] {
+            let (g, sec) = s.realise(lag).unwrap();
+            let b = budget(&model, g, &sec, (s.delay() + lag) as f64, &noise, &ramps);
+            assert!(
+                (b.total - e[lag]).abs() / e[lag] < 1e-3,
+                "lag {lag}: budget {} against Riccati {}",
+                b.total,
+                e[lag]
+            );
+        }
+        // A smooth signal has little above the corner: the smoother amplifies the noise less.
+        let step_design = design(&model, &noise, &steps, &OptimalOptions::default()).unwrap();
+        let ramp_design = design(&model, &noise, &ramps, &OptimalOptions::default()).unwrap();
+        assert!(
+            ramp_design.noise_gain < step_design.noise_gain,
+            "{} against {}",
+            ramp_design.noise_gain,
+            step_design.noise_gain
+        );
+    }
+
+    #[test]
+    fn a_smooth_run_gives_back_its_increments_correlation() {
+        // Increments AR(1) with pole 0.9 and innovation 0.01, through a noisy reference.
+        let mut seed = 5u64;
+        let mut uniform = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let (mut level, mut v) = (0.0, 0.0);
+        let u: Vec<f64> = (0..200_000)
+            .map(|_| {
+                v = 0.9 * v + 0.01 * 12f64.sqrt() * uniform();
+                level += v;
+                level + 0.003 * 12f64.sqrt() * uniform()
+            })
+            .collect();
+        let noise = NoiseModel {
+            probe_white_std: 0.003,
+            probe_ar_pole: 0.0,
+            probe_ar_std: 0.0,
+            reference_std: 0.003,
+            source: NoiseSource::Given,
+        };
+        let p = prior_from_runs(&[(Some(&u), &u)], 1.0, &noise, 1);
+        assert!((p.increment_pole - 0.9).abs() < 0.01, "{p:?}");
+        assert!((p.increment_std / 0.01 - 1.0).abs() < 0.05, "{p:?}");
+        // A step test's reference (one jump) stays a plain random walk.
+        let step: Vec<f64> = (0..4000)
+            .map(|k| if k < 1000 { 0.0 } else { 1.0 } + 0.003 * 12f64.sqrt() * uniform())
+            .collect();
+        let p = prior_from_runs(&[(Some(&step), &step)], 1.0, &noise, 1);
+        assert!(p.increment_pole < 0.05, "{p:?}");
     }
 
     #[test]

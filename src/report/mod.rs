@@ -1370,6 +1370,8 @@ mod tests {
             change: "unlag fit ... --add leak".into(),
             nrmse_before: 0.0123,
             nrmse_after: 0.00456,
+            margin: 0.5,
+            separated_by: None,
         };
         let html = render(&Inputs {
             model_name: "m.toml",

@@ -1617,3 +1617,30 @@ fn probe_channel_gain_error_hum_and_drift() {
     )
     .is_err());
 }
+
+/// Three lines in series ending in a small volume: real poles near -11 and -68 rad/s (a 90 ms
+/// creep) outlast the longest FFT at 32x oversampling (issue 14: `simulate-test` refused this
+/// case as "an undamped mode?"). The simulation lowers the oversampling, says so in the rate
+/// it reports, and creeps to the DC gain.
+#[test]
+fn a_slow_real_pole_is_simulated_at_a_lower_oversampling() {
+    let gas = Gas::air(288.15, 101_325.0);
+    let line = Line::new()
+        .tube(0.1, 0.25e-3)
+        .tube(1.0, 1.5e-3)
+        .tube(0.3, 0.5e-3)
+        .volume(3e-7);
+    let probe = Probe::new(line, gas);
+    let mut acq = Acquisition::new(100_000.0, 0.8);
+    acq.event_time_s = 0.08;
+    let test = simulate(&probe, &Excitation::shock_tube(1000.0), &acq).unwrap();
+    assert!(
+        test.impulse.rate_hz < 100_000.0 * acq.oversample as f64,
+        "{}",
+        test.impulse.rate_hz
+    );
+    let at = |t: f64| test.probe[(t * 100_000.0) as usize];
+    // 20 ms after the event the creep has a fifth of the step, 0.7 s later all of it.
+    assert!(at(0.1) > 100.0 && at(0.1) < 400.0, "{}", at(0.1));
+    assert!((at(0.79) - 1000.0).abs() < 1.0, "{}", at(0.79));
+}

@@ -424,6 +424,16 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         drift_pa_per_s: args.drift,
     };
     let mut test = simulate(&probe, &excitation, &acquisition)?;
+    let asked = args.fs * args.oversample as f64;
+    if test.impulse.rate_hz < asked {
+        eprintln!(
+            "note: the response outlasts the longest FFT at {}x oversampling (a slow real pole); simulated at {:.0}x ({:.0} Hz), content above {:.0} Hz tapered off",
+            args.oversample,
+            test.impulse.rate_hz / args.fs,
+            test.impulse.rate_hz,
+            test.impulse.taper_start_hz
+        );
+    }
     if let Some(d) = &sys.diaphragm {
         if d.natural_frequency_hz > test.impulse.taper_start_hz {
             eprintln!(

@@ -12,7 +12,9 @@
 //!    `0.8 f_int/2` is lost: raise the oversampling if the diaphragm resonance is above it);
 //! 2. the inverse FFT gives the periodised impulse response; `N` doubles until the energy in
 //!    `[N/2, 7N/8)` is below [`TAIL_ENERGY`] of the total, i.e. until the response has decayed,
-//!    so the periodisation (wrap-around) error is below that level. The taps `[0, N/2)` are kept;
+//!    so the periodisation (wrap-around) error is below that level (a slow real pole that
+//!    outlasts [`MAX_FFT_LENGTH`] at the asked rate halves the oversampling, down to
+//!    [`MIN_OVERSAMPLE`]; the rate used is reported). The taps `[0, N/2)` are kept;
 //!    the taper's small non-causal part sits in `[7N/8, N)` and is dropped (its energy is
 //!    reported as [`ImpulseResponse::noncausal_energy`]);
 //! 3. the excitation, evaluated analytically on the internal grid and starting with a pre-roll
@@ -41,6 +43,10 @@ use super::gas::Gas;
 use super::line::Line;
 use super::sensor::{Butterworth, Diaphragm};
 use crate::error::{Error, Result};
+
+/// Lowest oversampling [`simulate`] falls back to when the response outlasts the longest FFT
+/// at the asked one.
+pub const MIN_OVERSAMPLE: usize = 4;
 
 /// Relative energy of the impulse response allowed in `[N/2, 7N/8)` of the FFT buffer.
 pub const TAIL_ENERGY: f64 = 1e-14;
@@ -765,10 +771,24 @@ pub fn simulate(
     excitation.validate()?;
     acquisition.validate()?;
     let fs = acquisition.sample_rate_hz;
-    let over = acquisition.oversample;
-    let rate = fs * over as f64;
     let n_rec = (acquisition.duration_s * fs).round().max(2.0) as usize;
-    let ir = impulse_response(&|s| probe.response(s), rate, 0)?;
+    // A slow real pole (series lines, a leak) can outlast the longest FFT at the asked
+    // internal rate: the oversampling is halved (to at least MIN_OVERSAMPLE) until the
+    // response decays within it. The rate used is in the result's `impulse.rate_hz`.
+    let mut over = acquisition.oversample;
+    let mut min_taps = 0;
+    let ir = loop {
+        match impulse_response(&|s| probe.response(s), fs * over as f64, min_taps) {
+            Ok(ir) => break ir,
+            Err(_) if over / 2 >= MIN_OVERSAMPLE => {
+                over /= 2;
+                // The shorter lengths failed already at the higher rate: start near the top.
+                min_taps = MAX_FFT_LENGTH / 4;
+            }
+            Err(e) => return Err(e),
+        }
+    };
+    let rate = fs * over as f64;
     let dc = probe.response(Complex64::new(0.0, 0.0)).re;
     // The reference channel: the excitation through the reference sensor and the same
     // anti-alias filter.

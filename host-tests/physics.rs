@@ -1644,3 +1644,31 @@ fn a_slow_real_pole_is_simulated_at_a_lower_oversampling() {
     assert!(at(0.1) > 100.0 && at(0.1) < 400.0, "{}", at(0.1));
     assert!((at(0.79) - 1000.0).abs() < 1.0, "{}", at(0.79));
 }
+
+/// `predict` lists the slow real pole of lines in series (issue 14: it printed only the
+/// complex modes, while the real pole at -11.05 rad/s shapes the step response most), and
+/// says how far the real axis was searched.
+#[test]
+fn predict_lists_the_slow_real_pole_of_series_lines() {
+    let gas = Gas::air(288.15, 101_325.0);
+    let line = Line::new()
+        .tube(0.1, 0.25e-3)
+        .tube(1.0, 1.5e-3)
+        .tube(0.3, 0.5e-3)
+        .volume(3e-7);
+    let p = unlag::physics::compare::predict(&line, &gas, 3).unwrap();
+    // -11.05 rad/s by two independent Bergh-Tijdeman implementations (the issue's figure).
+    assert!(
+        p.real_poles_rad_s.iter().any(|s| (s + 11.05).abs() < 0.05),
+        "{:?}",
+        p.real_poles_rad_s
+    );
+    assert!(
+        p.real_search_limit_rad_s < -11.05,
+        "{}",
+        p.real_search_limit_rad_s
+    );
+    // Its time constant (90 ms) is what the simulated step's creep shows.
+    let tau = -1.0 / p.real_poles_rad_s[0];
+    assert!((tau - 0.0905).abs() < 0.001, "{tau}");
+}

@@ -547,6 +547,8 @@ fn prediction_json(sys: &System, p: &Prediction) -> Value {
             "damped_frequency_hz": m.damped_frequency_hz(),
             "overdamped": m.overdamped,
         })).collect::<Vec<_>>(),
+        "real_poles_rad_s": p.real_poles_rad_s,
+        "real_poles_searched_to_rad_s": p.real_search_limit_rad_s,
         "delay_s": p.delay_s,
         "lumped": p.lumped.map(|l| json!({
             "natural_frequency_hz": l.natural_frequency_hz,
@@ -628,6 +630,18 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
             }
         );
     }
+    if !p.real_poles_rad_s.is_empty() {
+        let text: Vec<String> = p
+            .real_poles_rad_s
+            .iter()
+            .map(|s| format!("{s:.2} rad/s (time constant {:.1} ms)", -1e3 / s))
+            .collect();
+        println!("real poles (slow creeps): {}", text.join(", "));
+    }
+    println!(
+        "  (real poles searched from 0 to {:.1} rad/s; one beyond is not found)",
+        p.real_search_limit_rad_s
+    );
     println!("front delay sum(L)/a: {:.6} s", p.delay_s);
     match &p.lumped {
         Some(l) => println!(

@@ -42,6 +42,12 @@ impl From<&Mode> for ModeSummary {
 pub struct Prediction {
     /// Exact modes (poles of the Bergh-Tijdeman response), slowest first.
     pub modes: Vec<Mode>,
+    /// Real poles found, `−σ` [rad/s], slowest first: slow creeps (lines in series, a leak)
+    /// that shape the step response as much as the modes.
+    pub real_poles_rad_s: Vec<f64>,
+    /// How far along the negative real axis they were searched [rad/s]
+    /// ([`super::modes::ModeAnalysis::real_search_limit_rad_s`]).
+    pub real_search_limit_rad_s: f64,
     /// Front delay `ΣL/a` [s].
     pub delay_s: f64,
     /// The lumped second-order approximation, if the line has one.
@@ -68,6 +74,8 @@ pub fn predict(line: &Line, gas: &Gas, count: usize) -> Result<Prediction> {
     let analysis = find_modes(line, gas, count)?;
     Ok(Prediction {
         modes: analysis.modes,
+        real_poles_rad_s: analysis.real_poles_rad_s,
+        real_search_limit_rad_s: analysis.real_search_limit_rad_s,
         delay_s: analysis.delay_s,
         lumped: lumped(line, gas, POISEUILLE_INERTANCE).ok(),
         dc_gain: line.dc_gain(gas),

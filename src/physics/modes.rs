@@ -63,6 +63,10 @@ pub struct ModeAnalysis {
     pub modes: Vec<Mode>,
     /// Real poles found, `−σ` [rad/s], slowest first.
     pub real_poles_rad_s: Vec<f64>,
+    /// The real axis is searched from `0` to `−σ_max` [rad/s]: `σ_max` is four times the
+    /// highest mode searched, and stops short of the widest tube's thermal accumulation point,
+    /// where spurious zeros crowd (a real pole beyond it is not found).
+    pub real_search_limit_rad_s: f64,
     /// Front delay `ΣL/a` [s].
     pub delay_s: f64,
 }
@@ -267,6 +271,7 @@ pub fn find_modes(line: &Line, gas: &Gas, count: usize) -> Result<ModeAnalysis> 
     Ok(ModeAnalysis {
         modes,
         real_poles_rad_s: reals.iter().map(|s| -s).collect(),
+        real_search_limit_rad_s: -sigma_max,
         delay_s: line.front_delay_s(gas),
     })
 }

@@ -1618,18 +1618,23 @@ fn probe_channel_gain_error_hum_and_drift() {
     .is_err());
 }
 
+/// The issue's three lines in series (diameters 0.5, 3 and 1 mm) ending in 300 mm3, at 288 K.
+fn three_lines_in_series() -> (Line, Gas) {
+    let line = Line::new()
+        .tube(0.1, 0.25e-3)
+        .tube(1.0, 1.5e-3)
+        .tube(0.3, 0.5e-3)
+        .volume(3e-7);
+    (line, Gas::air(288.15, 101_325.0))
+}
+
 /// Three lines in series ending in a small volume: real poles near -11 and -68 rad/s (a 90 ms
 /// creep) outlast the longest FFT at 32x oversampling (issue 14: `simulate-test` refused this
 /// case as "an undamped mode?"). The simulation lowers the oversampling, says so in the rate
 /// it reports, and creeps to the DC gain.
 #[test]
 fn a_slow_real_pole_is_simulated_at_a_lower_oversampling() {
-    let gas = Gas::air(288.15, 101_325.0);
-    let line = Line::new()
-        .tube(0.1, 0.25e-3)
-        .tube(1.0, 1.5e-3)
-        .tube(0.3, 0.5e-3)
-        .volume(3e-7);
+    let (line, gas) = three_lines_in_series();
     let probe = Probe::new(line, gas);
     let mut acq = Acquisition::new(100_000.0, 0.8);
     acq.event_time_s = 0.08;
@@ -1650,12 +1655,7 @@ fn a_slow_real_pole_is_simulated_at_a_lower_oversampling() {
 /// says how far the real axis was searched.
 #[test]
 fn predict_lists_the_slow_real_pole_of_series_lines() {
-    let gas = Gas::air(288.15, 101_325.0);
-    let line = Line::new()
-        .tube(0.1, 0.25e-3)
-        .tube(1.0, 1.5e-3)
-        .tube(0.3, 0.5e-3)
-        .volume(3e-7);
+    let (line, gas) = three_lines_in_series();
     let p = unlag::physics::compare::predict(&line, &gas, 3).unwrap();
     // -11.05 rad/s by two independent Bergh-Tijdeman implementations (the issue's figure).
     assert!(

@@ -202,17 +202,17 @@ fn a_drift_is_removed_not_inverted() {
     ]);
 }
 
+/// A model file of a slow first-order probe at 10 kHz, without a design.
+const SLOW_PROBE_MODEL: &str =
+    "format_version = 1\nfs = 10000.0\ndelay = 2\na = [-0.95]\nb = [0.05, 0.0]\n";
+
 #[test]
 fn a_compensator_not_better_than_the_raw_probe_is_marked_and_refused_by_export() {
     let d = dir("refuse");
     // A model of a slow first-order probe, given a test whose probe has no lag at all: no
     // compensation can beat the raw probe there.
     let model = d.join("wrong.toml");
-    std::fs::write(
-        &model,
-        "format_version = 1\nfs = 10000.0\ndelay = 2\na = [-0.95]\nb = [0.05, 0.0]\n",
-    )
-    .unwrap();
+    std::fs::write(&model, SLOW_PROBE_MODEL).unwrap();
     let mut rng = Rng::new(73);
     let u = step(3000, 500, 0.0, 1.0);
     let (um, ym) = measured(&u, &u, &mut rng);
@@ -307,11 +307,7 @@ proptest! {
 fn the_optimum_without_a_test_reuses_the_stored_noise_or_says_what_it_needs() {
     let d = dir("no-test");
     let bare = d.join("bare.toml");
-    std::fs::write(
-        &bare,
-        "format_version = 1\nfs = 10000.0\ndelay = 2\na = [-0.95]\nb = [0.05, 0.0]\n",
-    )
-    .unwrap();
+    std::fs::write(&bare, SLOW_PROBE_MODEL).unwrap();
     let out = d.join("out.toml");
     let (b, o) = (bare.to_str().unwrap(), out.to_str().unwrap());
     let r = unlag(&["invert", b, "-o", o]);

@@ -95,7 +95,7 @@ pub fn expected_residual(model: &Model, u: &[f64], y: &[f64], quiet: usize) -> E
     let len = u.len().clamp(64, 1 << 16);
     let mut impulse = vec![0.0; len];
     impulse[1] = 1.0;
-    let g = model.simulate(&impulse);
+    let g = model.simulate_from(&impulse, 0.0);
     // sum_j g_j g_(j+k) for every k, by FFT.
     let nfft = (2 * g.len()).next_power_of_two();
     let mut buf: Vec<Complex64> = g.iter().map(|v| Complex64::new(*v, 0.0)).collect();
@@ -334,8 +334,13 @@ pub struct TestEvidence {
 /// is not a step test ([`step::Step::is_clean`]).
 #[must_use]
 pub fn reference_ringing(u: &[f64], fs: f64) -> Option<Peak> {
+    ringing_after(u, step::find_step(u).ok().as_ref(), fs)
+}
+
+/// [`reference_ringing`] with the reference's step already found.
+fn ringing_after(u: &[f64], found: Option<&step::Step>, fs: f64) -> Option<Peak> {
     // Only after a step: the periodic content of a traverse is the flow's, not a diaphragm's.
-    let onset = step::find_step(u).ok().filter(step::Step::is_clean)?.onset;
+    let onset = found.filter(|s| s.is_clean())?.onset;
     let du: Vec<f64> = u
         .get(onset.saturating_sub(2)..)?
         .windows(2)
@@ -576,14 +581,15 @@ impl TestEvidence {
             .zip(&y_model[..n])
             .map(|(a, b)| a - b)
             .collect();
-        let (onset, step_size) = match step::find_step(&u[..n]) {
-            Ok(s) => (s.onset, s.size()),
-            Err(_) => (0, 0.0),
-        };
+        // The reference's step, found once: its onset, its size, where the quiet segment ends
+        // (only a clean step has one) and whether the reference's ringing can be read.
+        let found = step::find_step(&u[..n]).ok();
+        let (onset, step_size) = found.map_or((0, 0.0), |s| (s.onset, s.size()));
+        let quiet = step::quiet_end(found);
         let ym = mean(&y[..n]);
         let dev = y[..n].iter().map(|v| (v - ym).powi(2)).sum::<f64>().sqrt();
         let res = r.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let expected = expected_residual(model, &u[..n], &y[..n], step::quiet_until(&u[..n]));
+        let expected = expected_residual(model, &u[..n], &y[..n], quiet);
         let noise_std = expected.probe_std;
         let (lo, hi) = y[..n]
             .iter()
@@ -623,7 +629,7 @@ impl TestEvidence {
                 pre_mean_se: expected.mean_se(pre.len()),
                 late_mean_se: expected.mean_se(late.len()),
             },
-            reference_ringing: reference_ringing(&u[..n], fs),
+            reference_ringing: ringing_after(&u[..n], found.as_ref(), fs),
             expected,
         }
     }

@@ -1238,7 +1238,7 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
             "nrmse_u_hat": error.map(|e| e.0),
             "nrmse_raw": error.map(|e| e.1),
             "alignment_samples": error.map(|e| e.2),
-            "verdict": error.map(|(e, raw, _)| if e < raw { "better" } else { "worse" }),
+            "verdict": error.map(|(e, raw, _)| if worse(e, raw) { "worse" } else { "better" }),
         });
         println!("{v}");
         warn_if_worse(args, error);
@@ -1263,11 +1263,17 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
     Ok(())
 }
 
+/// The compensated signal's error `e` is not below the raw probe's `raw` (a NaN counts as
+/// worse: it never passes silently).
+fn worse(e: f64, raw: f64) -> bool {
+    e.partial_cmp(&raw) != Some(std::cmp::Ordering::Less)
+}
+
 /// A compensated run further from its recorded reference than the raw probe is never passed
 /// over in silence: one line on stderr with both errors and the remedy.
 fn warn_if_worse(args: &CompensateArgs, error: Option<(f64, f64, usize)>) {
     let Some((e, raw, _)) = error else { return };
-    if e < raw {
+    if !worse(e, raw) {
         return;
     }
     eprintln!(

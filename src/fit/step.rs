@@ -75,10 +75,13 @@ pub fn channel_noise(x: &[f64], quiet: usize) -> (f64, NoiseSource) {
 /// ([`Step::is_clean`]), else 0 (a traverse has none: its first samples are signal).
 #[must_use]
 pub fn quiet_until(u: &[f64]) -> usize {
-    find_step(u)
-        .ok()
-        .filter(Step::is_clean)
-        .map_or(0, |s| s.onset)
+    quiet_end(find_step(u).ok())
+}
+
+/// [`quiet_until`] of a reference whose step is already found (`None`: no step).
+#[must_use]
+pub fn quiet_end(found: Option<Step>) -> usize {
+    found.filter(Step::is_clean).map_or(0, |s| s.onset)
 }
 
 /// White-noise standard deviation from third differences: `d3 = x[k+3] - 3x[k+2] + 3x[k+1]

@@ -50,6 +50,10 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     }
+    if let Err(e) = unlag::cli::console::finish() {
+        eprintln!("error: cannot write to standard output: {e}");
+        return ExitCode::FAILURE;
+    }
     println!("\nthe report: open {root}/{report} in a browser");
     ExitCode::SUCCESS
 }

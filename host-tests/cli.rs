@@ -5,19 +5,11 @@
 // Test code: a failed unwrap is a failed test, with its location.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+use common::{data, unlag};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn unlag(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_unlag"))
-        .args(args)
-        .output()
-        .expect("run unlag")
-}
-
-fn data(name: &str) -> String {
-    format!("{}/host-tests/data/{name}", env!("CARGO_MANIFEST_DIR"))
-}
+use std::process::Output;
 
 fn tmp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("unlag-cli-{}", std::process::id()));
@@ -168,12 +160,23 @@ fn mismatched_sample_rates() {
     // Estimation at 10 kHz, "validation" at 1 kHz.
     let out = tmp("mismatch.toml");
     let a = data("line_est.csv");
-    let b = data("bad/jitter.csv").replace("jitter", "no_step");
-    let o = unlag(&["fit", &a, &b, "-o", out.to_str().unwrap()]);
+    let b = tmp("one_khz.csv");
+    let rows: String = (0..400)
+        .map(|k| {
+            let (u, y) = if k < 100 {
+                (0.0, 0.0)
+            } else {
+                (1.0, 1.0 - (-(k as f64 - 100.0) / 5.0).exp())
+            };
+            format!("{},{u},{y}\n", k as f64 * 1e-3)
+        })
+        .collect();
+    std::fs::write(&b, format!("t,u,y\n{rows}")).unwrap();
+    let o = unlag(&["fit", &a, b.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     let (_, stderr) = text(&o);
     assert_eq!(o.status.code(), Some(1));
     assert!(
-        stderr.contains("no_step.csv") && stderr.contains("resample"),
+        stderr.contains("one_khz.csv") && stderr.contains("resample"),
         "{stderr}"
     );
     assert!(!out.exists());
@@ -236,7 +239,7 @@ fn unstable_and_non_invertible_models_are_refused() {
     let (_, stderr) = text(&o);
     assert_eq!(o.status.code(), Some(1), "{stderr}");
     assert!(
-        stderr.contains("unstable.toml: 4:") || stderr.contains("unstable.toml: 5:"),
+        stderr.contains("unstable.toml:4:") || stderr.contains("unstable.toml:5:"),
         "{stderr}"
     );
 }

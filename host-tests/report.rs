@@ -11,17 +11,13 @@
 // Test code: a failed unwrap is a failed test, with its location.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+use common::unlag;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use serde_json::Value;
-
-fn unlag(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_unlag"))
-        .args(args)
-        .output()
-        .expect("run unlag")
-}
 
 fn ok(args: &[&str]) -> String {
     let o = unlag(args);

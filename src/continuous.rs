@@ -68,6 +68,7 @@ pub enum DelayFound {
 /// The continuous-time equivalent `H(s) = (D + sum_i r_i / (s - s_i)) e^{-s tau}` of a model
 /// (see the module documentation).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Continuous {
     /// The delay `tau` in seconds (fractional: not a multiple of the sample period).
     pub delay_s: f64,
@@ -90,6 +91,7 @@ pub struct Continuous {
 
 /// A re-discretised model and what happened to the delay.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Discretised {
     /// The model at the new rate.
     pub model: Model,
@@ -107,6 +109,7 @@ pub struct Discretised {
 
 /// How well two models' step responses agree.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Agreement {
     /// Number of instants compared.
     pub instants: usize,

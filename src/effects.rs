@@ -48,6 +48,7 @@ use crate::poly::Complex;
 
 /// One effect added to the model, with its parameters once fitted.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum Effect {
     /// An unmodelled resonance: a higher acoustic mode of the line, a cavity's Helmholtz

@@ -182,6 +182,37 @@ pub enum Error {
         /// What is wrong (for TOML syntax errors, with line and column).
         message: String,
     },
+    /// A model file's field at a line and column is wrong (syntax, type, unknown name or a
+    /// value out of its limits).
+    #[error("{path}:{line}:{column}: {message}")]
+    ModelAt {
+        /// The model file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column (characters).
+        column: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A coefficient blob the board's parser refuses.
+    #[error("{path}: not a valid coefficient blob (the board's parser says: {error})")]
+    Blob {
+        /// The blob file.
+        path: PathBuf,
+        /// The board parser's error.
+        error: crate::blob::BlobError,
+    },
+    /// An output would replace one of the command's inputs.
+    #[error("{output}: refused: this output is the input {input} ({what}); writing it would destroy the input, so give another output path")]
+    Overwrite {
+        /// The output asked for.
+        output: PathBuf,
+        /// The input it names.
+        input: PathBuf,
+        /// What the input is.
+        what: &'static str,
+    },
     /// A fitted or loaded model is unstable (a pole on or outside the unit circle).
     #[error("{context}: the model is unstable: pole {pole} has |z| = {radius:.6} >= 1")]
     UnstableModel {
@@ -236,6 +267,76 @@ pub enum Error {
 }
 
 impl Error {
+    /// The kind of problem, one stable kebab-case word per variant (for `--json`).
+    #[must_use]
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::Io { .. } => "io",
+            Self::Empty { .. } => "empty",
+            Self::MissingColumn { .. } => "missing-column",
+            Self::NotANumber { .. } => "not-a-number",
+            Self::NonFinite { .. } => "non-finite",
+            Self::Malformed { .. } => "malformed",
+            Self::TimeNotIncreasing { .. } => "time-not-increasing",
+            Self::NonUniformTime { .. } => "non-uniform-time",
+            Self::TooShort { .. } => "too-short",
+            Self::Clipped { .. } => "clipped",
+            Self::NoStep { .. } => "no-step",
+            Self::Mismatch { .. } => "mismatch",
+            Self::InvalidArgument { .. } => "invalid-argument",
+            Self::Model { .. } | Self::ModelAt { .. } => "model",
+            Self::UnstableModel { .. } => "unstable-model",
+            Self::UnstableInverse { .. } => "unstable-inverse",
+            Self::Numerical { .. } => "numerical",
+            Self::UnsupportedOnBoard { .. } => "unsupported-on-board",
+            Self::Plot { .. } => "plot",
+            Self::Overwrite { .. } => "overwrite",
+            Self::Blob { .. } => "blob",
+        }
+    }
+
+    /// The file, line and column the problem is at, as far as they are known.
+    #[must_use]
+    pub fn location(&self) -> (Option<&std::path::Path>, Option<u64>, Option<u64>) {
+        match self {
+            Self::NotANumber {
+                path, line, column, ..
+            }
+            | Self::NonFinite {
+                path, line, column, ..
+            }
+            | Self::TimeNotIncreasing {
+                path, line, column, ..
+            }
+            | Self::NonUniformTime {
+                path, line, column, ..
+            }
+            | Self::Clipped {
+                path, line, column, ..
+            } => (Some(path), Some(*line), Some(*column as u64)),
+            Self::ModelAt {
+                path, line, column, ..
+            } => (Some(path), Some(*line as u64), Some(*column as u64)),
+            Self::Empty { path, line, .. } | Self::Malformed { path, line, .. } => {
+                (Some(path), Some(*line), None)
+            }
+            Self::MissingColumn { path, .. } => (Some(path), Some(1), None),
+            Self::Io { path, .. }
+            | Self::TooShort { path, .. }
+            | Self::NoStep { path, .. }
+            | Self::Mismatch { path, .. }
+            | Self::Model { path, .. }
+            | Self::UnsupportedOnBoard { path, .. }
+            | Self::Blob { path, .. }
+            | Self::Overwrite { output: path, .. } => (Some(path), None, None),
+            Self::InvalidArgument { .. }
+            | Self::UnstableModel { .. }
+            | Self::UnstableInverse { .. }
+            | Self::Numerical { .. }
+            | Self::Plot { .. } => (None, None, None),
+        }
+    }
+
     /// A plot of the HTML report could not be drawn.
     pub(crate) fn plot(plot: &str, e: impl std::fmt::Display) -> Self {
         Self::Plot {

@@ -23,6 +23,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 pub mod bank;
+pub mod verify;
 
 use crate::blob;
 use crate::compensator::{CascadeCoefficients, NonlinearDampingCoefficients};

@@ -79,6 +79,7 @@ impl Default for Options {
 
 /// One candidate corner of the automatic bandwidth choice.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct BandwidthRow {
     /// Low-pass corner in Hz.
     pub lowpass_hz: f64,
@@ -90,6 +91,7 @@ pub struct BandwidthRow {
 
 /// Reconstruction of one test's reference by the compensator.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Reconstruction {
     /// The test.
     pub file: String,
@@ -110,6 +112,7 @@ pub struct Reconstruction {
 
 /// A designed compensator: what the board runs, and what it does.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Design {
     /// How it was built.
     pub method: String,

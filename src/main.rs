@@ -5,11 +5,38 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
-    let cli = unlag::cli::Cli::parse();
-    match unlag::cli::run(cli) {
-        Ok(()) => ExitCode::SUCCESS,
+    let json = std::env::args_os().any(|a| a == "--json");
+    let cli = match unlag::cli::Cli::try_parse() {
+        Ok(cli) => cli,
         Err(e) => {
+            use clap::error::ErrorKind;
+            if json && !matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+                let text = e.to_string();
+                let first = text.lines().next().unwrap_or("");
+                let message = first.strip_prefix("error: ").unwrap_or(first);
+                unlag::cli::print_json_error("usage", message, None, None, None);
+                eprint!("{text}");
+                return ExitCode::from(2);
+            }
+            e.exit();
+        }
+    };
+    let result = unlag::cli::run(cli);
+    let written = unlag::cli::console::finish();
+    match (result, written) {
+        (Ok(()), Ok(())) => ExitCode::SUCCESS,
+        (Err(e), _) => {
+            if json {
+                let (path, line, column) = e.location();
+                unlag::cli::print_json_error(e.kind(), &e.to_string(), path, line, column);
+            }
             eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+        (Ok(()), Err(e)) => {
+            if e.kind() != std::io::ErrorKind::BrokenPipe {
+                eprintln!("error: cannot write to standard output: {e}");
+            }
             ExitCode::FAILURE
         }
     }

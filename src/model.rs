@@ -22,6 +22,7 @@ pub const MAX_ORDER: usize = 16;
 /// A discrete probe model:
 /// `y[k] = sum_{i=0..m} b[i] u[k-i-d] - sum_{i=1..m} a[i] y[k-i]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Model {
     /// Sample rate in Hz the coefficients belong to.
     pub fs: f64,
@@ -181,6 +182,7 @@ pub fn filter(b: &[f64], a: &[f64], delay: usize, x: &[f64]) -> Vec<f64> {
 
 /// Where a model came from: one trace file and its role.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Source {
     /// File name as given on the command line.
     pub file: String,
@@ -196,6 +198,7 @@ pub struct Source {
 
 /// How the model was fitted, and how well.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct FitReport {
     /// `oe` (output error, the default), `sm` (Steiglitz-McBride) or `arx` (the paper's
     /// direct least squares).
@@ -219,6 +222,7 @@ pub struct FitReport {
 
 /// One row of the order-selection table.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct OrderRow {
     /// Order.
     pub order: usize,
@@ -234,6 +238,7 @@ pub struct OrderRow {
 
 /// One candidate delay and its loss.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct DelayRow {
     /// Delay in samples.
     pub delay: usize,
@@ -243,6 +248,7 @@ pub struct DelayRow {
 
 /// The model file: the model, how it was fitted and from what.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(from = "RawModelFile")]
 pub struct ModelFile {
     /// Format version ([`FORMAT_VERSION`]).
     pub format_version: u32,
@@ -270,6 +276,50 @@ pub struct ModelFile {
     pub probe: Option<ProbeGeometry>,
 }
 
+/// [`ModelFile`] as the file spells it, the model's fields at the top: read field by field
+/// (no flattening), so that every error keeps its line and column and an unknown field is
+/// refused where it stands.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawModelFile {
+    format_version: u32,
+    fs: f64,
+    delay: usize,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    fit: Option<FitReport>,
+    #[serde(default)]
+    sources: Vec<Source>,
+    #[serde(default)]
+    inverse: Option<crate::inverse::Design>,
+    #[serde(default)]
+    effects: Vec<crate::effects::Effect>,
+    #[serde(default)]
+    history: Vec<HistoryRow>,
+    #[serde(default)]
+    probe: Option<ProbeGeometry>,
+}
+
+impl From<RawModelFile> for ModelFile {
+    fn from(r: RawModelFile) -> Self {
+        Self {
+            format_version: r.format_version,
+            model: Model {
+                fs: r.fs,
+                delay: r.delay,
+                a: r.a,
+                b: r.b,
+            },
+            fit: r.fit,
+            sources: r.sources,
+            inverse: r.inverse,
+            effects: r.effects,
+            history: r.history,
+            probe: r.probe,
+        }
+    }
+}
+
 /// A probe's geometry in a model file: tubes in series from the measuring point on, then the
 /// transducer volume (the `unlag predict --line L,D --volume V` description).
 ///
@@ -279,6 +329,7 @@ pub struct ModelFile {
 /// volume_m3 = 20e-9
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ProbeGeometry {
     /// Tubes as `[length_m, diameter_m]`, from the measuring point on.
     pub lines: Vec<[f64; 2]>,
@@ -302,6 +353,7 @@ fn default_pressure_pa() -> f64 {
 
 /// One fit in a model file's history.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct HistoryRow {
     /// The effects the fit had (kinds), in the order added.
     pub effects: Vec<String>,
@@ -315,6 +367,7 @@ pub struct HistoryRow {
 
 /// One test's error in a history row.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct HistoryTest {
     /// File name.
     pub file: String,
@@ -351,56 +404,210 @@ impl ModelFile {
         crate::trace::write_atomically(path, self.to_toml()?.as_bytes())
     }
 
-    /// Reads and checks a model file: version, finite coefficients, positive sample rate,
-    /// stable poles.
+    /// Reads and checks a model file: its syntax, every field's type and name (an unknown or
+    /// misspelt field is refused with the nearest known name), and the limits of what the
+    /// numbers may be: version, sample rate, delay, order, finite coefficients, a stable
+    /// model, and a stable, finite stored compensator. Every error names the line and column
+    /// of the field.
     ///
     /// # Errors
-    /// [`Error::Model`] with the TOML line and column for syntax errors, or naming the field.
+    /// [`Error::ModelAt`] (or [`Error::Io`] when the file cannot be read).
     pub fn load(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
             path: path.to_path_buf(),
             action: "cannot read",
             source,
         })?;
-        let bad = |message: String| Error::Model {
-            path: path.to_path_buf(),
-            message,
+        Self::parse(path, &text)
+    }
+
+    /// [`ModelFile::load`] on text already read (`path` names it in messages).
+    ///
+    /// # Errors
+    /// As [`ModelFile::load`].
+    pub fn parse(path: &Path, text: &str) -> Result<Self> {
+        let at = |offset: usize, message: String| {
+            let (line, column) = line_col(text, offset);
+            Error::ModelAt {
+                path: path.to_path_buf(),
+                line,
+                column,
+                message,
+            }
         };
-        let file: Self = toml::from_str(&text).map_err(|e| {
-            let (line, col) = e.span().map(|s| line_col(&text, s.start)).unwrap_or((0, 0));
-            bad(format!(
-                "{line}:{col}: {}",
-                e.message().lines().next().unwrap_or("invalid TOML")
-            ))
+        let file: Self = toml::from_str(text).map_err(|e| {
+            let first = e.message().lines().next().unwrap_or("invalid TOML");
+            at(
+                e.span().map_or(0, |s| s.start),
+                format!("{first}{}", nearest_field_hint(first)),
+            )
         })?;
+        let field = |keys: &[&str], message: String| at(offset_of(text, keys), message);
         if file.format_version != FORMAT_VERSION {
-            return Err(bad(format!(
-                "format_version {} is not supported (this unlag reads version {FORMAT_VERSION})",
-                file.format_version
-            )));
+            return Err(field(
+                &["format_version"],
+                format!(
+                    "format_version {} is not supported (this unlag reads version {FORMAT_VERSION})",
+                    file.format_version
+                ),
+            ));
         }
         let m = &file.model;
-        if !(m.fs.is_finite() && m.fs > 0.0) {
-            return Err(bad(format!(
-                "fs must be a positive number of Hz, not {}",
-                m.fs
-            )));
+        if !(m.fs.is_finite() && m.fs > 0.0 && m.fs <= MAX_SAMPLE_RATE_HZ) {
+            return Err(field(
+                &["fs"],
+                format!(
+                    "fs must be a sample rate in Hz above 0 and at most {MAX_SAMPLE_RATE_HZ:e}, not {}",
+                    m.fs
+                ),
+            ));
+        }
+        if m.delay > MAX_DELAY {
+            return Err(field(
+                &["delay"],
+                format!(
+                    "delay {} samples ({:.3} s at fs = {} Hz) exceeds the largest supported delay, {MAX_DELAY} samples",
+                    m.delay,
+                    m.delay as f64 / m.fs,
+                    m.fs
+                ),
+            ));
         }
         if m.b.is_empty() {
-            return Err(bad("b is empty".into()));
+            return Err(field(
+                &["b"],
+                "b is empty: a model needs b0 at least".into(),
+            ));
         }
-        if m.a.iter().chain(&m.b).any(|c| !c.is_finite()) {
-            return Err(bad("a coefficient in a or b is not finite".into()));
+        for (key, coefficients) in [("a", &m.a), ("b", &m.b)] {
+            if let Some(i) = coefficients.iter().position(|c| !c.is_finite()) {
+                return Err(field(&[key], format!("{key}[{i}] is not a finite number")));
+            }
+        }
+        if m.b.iter().all(|c| *c == 0.0) {
+            return Err(field(
+                &["b"],
+                "b is all zeros: the model passes nothing".into(),
+            ));
         }
         if m.order() > MAX_ORDER {
-            return Err(bad(format!(
-                "order {} exceeds the largest supported order {MAX_ORDER}",
-                m.order()
-            )));
+            return Err(field(
+                &["a"],
+                format!(
+                    "order {} exceeds the largest supported order {MAX_ORDER}",
+                    m.order()
+                ),
+            ));
         }
-        m.check_stable(&path.display().to_string())?;
+        if let Some(p) = m.poles()?.first() {
+            if p.norm() >= 1.0 {
+                return Err(field(
+                    &["a"],
+                    format!(
+                        "the model is unstable: pole {p:.6} has |z| = {:.6} >= 1",
+                        p.norm()
+                    ),
+                ));
+            }
+        }
+        if let Some(d) = &file.inverse {
+            for (key, value) in [
+                ("gain", d.gain),
+                ("latency_samples", d.latency_samples),
+                ("latency_s", d.latency_s),
+                ("lowpass_hz", d.lowpass_hz),
+            ] {
+                if !value.is_finite() {
+                    return Err(field(
+                        &["inverse", key],
+                        format!("inverse.{key} = {value} is not a finite number"),
+                    ));
+                }
+            }
+            if let Err(e) = crate::compensator::CascadeCoefficients::<
+                f64,
+                { crate::compensator::MAX_TEST_ORDER },
+            >::new(d.gain, &d.sections)
+            {
+                return Err(field(
+                    &["inverse", "sections"],
+                    format!("the stored compensator cannot run: {e}"),
+                ));
+            }
+        }
+        if let Some(g) = &file.probe {
+            let lines_ok =
+                !g.lines.is_empty() && g.lines.iter().flatten().all(|x| x.is_finite() && *x > 0.0);
+            if !lines_ok {
+                return Err(field(
+                    &["probe", "lines"],
+                    "probe.lines must be [length_m, diameter_m] pairs, all above 0".into(),
+                ));
+            }
+            for (key, value) in [
+                ("volume_m3", g.volume_m3),
+                ("temperature_k", g.temperature_k),
+                ("pressure_pa", g.pressure_pa),
+            ] {
+                if !(value.is_finite() && (value > 0.0 || key == "volume_m3" && value == 0.0)) {
+                    return Err(field(
+                        &["probe", key],
+                        format!("probe.{key} = {value} must be a positive number"),
+                    ));
+                }
+            }
+        }
         Ok(file)
     }
+}
+
+/// Highest sample rate a model file may carry (1 GHz).
+pub const MAX_SAMPLE_RATE_HZ: f64 = 1e9;
+
+/// Longest delay a model file may carry, in samples (0.2 s at 5 MHz; a 68 m line at 340 m/s).
+pub const MAX_DELAY: usize = 1 << 20;
+
+/// Byte offset of the value (or key) at `keys` in a TOML text, as deep as the path goes;
+/// 0 when the text does not parse.
+fn offset_of(text: &str, keys: &[&str]) -> usize {
+    let Ok(doc) = toml_edit::ImDocument::parse(text) else {
+        return 0;
+    };
+    let mut table: &dyn toml_edit::TableLike = doc.as_table();
+    let mut offset = 0;
+    for key in keys {
+        let Some((k, item)) = table.get_key_value(key) else {
+            break;
+        };
+        if let Some(span) = item.span().or_else(|| k.span()) {
+            offset = span.start;
+        }
+        match item.as_table_like() {
+            Some(t) => table = t,
+            None => break,
+        }
+    }
+    offset
+}
+
+/// `; did you mean `x`?` for serde's "unknown field `y`, expected one of ..." message.
+fn nearest_field_hint(message: &str) -> String {
+    let Some(rest) = message.strip_prefix("unknown field `") else {
+        return String::new();
+    };
+    let Some((unknown, expected)) = rest.split_once('`') else {
+        return String::new();
+    };
+    expected
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .map(|known| (strsim::damerau_levenshtein(unknown, known), known))
+        .filter(|(d, known)| *d <= 2.max(known.len() / 3))
+        .min()
+        .map_or_else(String::new, |(_, known)| {
+            format!("; did you mean `{known}`?")
+        })
 }
 
 fn line_col(text: &str, offset: usize) -> (usize, usize) {

@@ -34,6 +34,7 @@ pub const MAX_IMPULSE: usize = 20_000_000;
 
 /// One section of a plan: the board's integers and the bounds behind them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct PlanSection {
     /// `[a11, a12, a21, a22]`, Q2.30.
     pub a: [i32; 4],
@@ -69,6 +70,7 @@ impl PlanSection {
 
 /// The fixed-point compensator for one design and one ADC full scale.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct FixedPlan {
     /// The ADC's full scale in the probe's units: `y = full_scale` is the code `2^31`.
     pub full_scale: f64,

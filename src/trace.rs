@@ -360,6 +360,31 @@ fn check_time(path: &Path, t: &[f64], lines: &[u64], column: usize, name: &str) 
 /// Shortest flat run at an extreme that counts as clipping.
 pub const CLIP_MIN_RUN: usize = 5;
 
+/// Shortest flat run at an extreme, lasting to the end of the record, that counts as clipping
+/// when the rest of the record is noisy.
+pub const CLIP_MIN_RUN_AT_END: usize = 20;
+
+/// Fraction of the samples outside `start..end` that repeat their predecessor exactly.
+fn repeat_fraction_outside(x: &[f64], start: usize, end: usize) -> f64 {
+    let (mut repeats, mut pairs) = (0usize, 0usize);
+    for (i, w) in x.windows(2).enumerate() {
+        if (start.saturating_sub(1)..end).contains(&i) {
+            continue;
+        }
+        pairs += 1;
+        if let [a, b] = *w {
+            if a == b {
+                repeats += 1;
+            }
+        }
+    }
+    if pairs == 0 {
+        1.0
+    } else {
+        repeats as f64 / pairs as f64
+    }
+}
+
 /// Detects a saturated ADC: the signal sits flat at its largest (or smallest) value for at
 /// least [`CLIP_MIN_RUN`] samples, and enters that run with a jump of more than 5 times the
 /// typical sample-to-sample change. A settled, quantised signal also repeats its final value,
@@ -396,7 +421,15 @@ fn check_clipping(path: &Path, x: &[f64], lines: &[u64], column: usize, name: &s
                     .checked_sub(1)
                     .and_then(|i| x.get(i))
                     .map_or(0.0, |prev| (level - prev).abs());
-                if run >= CLIP_MIN_RUN && k < x.len() && entry_jump > 5.0 * typical {
+                // A run that lasts to the end of the record may be a noise-free step's
+                // settled value; it is clipping when the rest of the record is noisy (its
+                // samples rarely repeat) and the run is long.
+                let clipped = if k < x.len() {
+                    run >= CLIP_MIN_RUN
+                } else {
+                    run >= CLIP_MIN_RUN_AT_END && repeat_fraction_outside(x, start, k) < 0.2
+                };
+                if clipped && entry_jump > 5.0 * typical {
                     return Err(Error::Clipped {
                         path: path.to_path_buf(),
                         line: lines.get(start).copied().unwrap_or(0),
@@ -424,26 +457,122 @@ fn hex(bytes: &[u8]) -> String {
     s
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same directory, renamed at the end:
-/// readers never see a half-written file, and a failure leaves any old file untouched.
+/// Writes `bytes` to `path` so that nothing is lost or half-written:
+///
+/// - a regular file (new or existing) is written to a temporary file in its directory and
+///   renamed over it at the end: readers never see a half-written file, and a failure leaves
+///   any old file untouched. A new file takes the mode the umask gives (`0666 & !umask`), an
+///   existing one keeps its own;
+/// - a symbolic link is followed: the file it points to is replaced, the link stays;
+/// - a character device or a pipe (`/dev/null`, `/dev/stdout`, a FIFO) is written in place
+///   (it cannot be renamed over), and a full device is an error;
+/// - `-` is standard output;
+/// - a directory or a block device is refused.
+///
+/// Errors name `path`, never the temporary file.
 ///
 /// # Errors
-/// [`Error::Io`] when the directory cannot be written.
+/// [`Error::Io`] when the target cannot be written.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let io = |source| Error::Io {
+    let io = |action: &'static str, source: std::io::Error| Error::Io {
         path: path.to_path_buf(),
-        action: "cannot write",
+        action,
         source,
     };
-    let dir = match path.parent() {
+    if path == Path::new("-") {
+        let mut out = std::io::stdout().lock();
+        return match out.write_all(bytes).and_then(|()| out.flush()) {
+            // The reader stopped (`| head`): what it wanted, it has.
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+            r => r.map_err(|e| io("cannot write to standard output", e)),
+        };
+    }
+    // Follow a symbolic link to the file it names, so that the link survives.
+    let target = match std::fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_symlink() => std::fs::canonicalize(path)
+            .map_err(|e| io("is a symbolic link to nowhere that can be written", e))?,
+        _ => path.to_path_buf(),
+    };
+    let existing = match std::fs::metadata(&target) {
+        Ok(m) => Some(m),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+        Err(e) => return Err(io("cannot write", bare(&e))),
+    };
+    if let Some(m) = &existing {
+        if m.is_dir() {
+            return Err(io(
+                "cannot write",
+                std::io::Error::other("it is a directory; give a file name"),
+            ));
+        }
+        if !m.is_file() {
+            #[cfg(unix)]
+            {
+                use std::os::unix::fs::FileTypeExt as _;
+                if m.file_type().is_block_device() {
+                    return Err(io(
+                        "refused",
+                        std::io::Error::other(
+                            "it is a block device (a disk); unlag writes files, not disks",
+                        ),
+                    ));
+                }
+            }
+            let mut f = std::fs::OpenOptions::new()
+                .write(true)
+                .open(&target)
+                .map_err(|e| io("cannot write", bare(&e)))?;
+            return f
+                .write_all(bytes)
+                .and_then(|()| f.flush())
+                .map_err(|e| io("cannot write", bare(&e)));
+        }
+    }
+    let dir = match target.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let mut tmp = tempfile::NamedTempFile::new_in(&dir).map_err(io)?;
-    tmp.write_all(bytes).map_err(io)?;
-    tmp.as_file().sync_all().map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
+    if !dir.is_dir() {
+        return Err(io(
+            "cannot write",
+            std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                format!("directory '{}' does not exist", dir.display()),
+            ),
+        ));
+    }
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".unlag-").suffix(".partial");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt as _;
+        // Passed to open(2): the umask applies, as for any new file.
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let mut tmp = builder
+        .tempfile_in(&dir)
+        .map_err(|e| io("cannot write", bare(&e)))?;
+    if let Some(m) = &existing {
+        tmp.as_file()
+            .set_permissions(m.permissions())
+            .map_err(|e| io("cannot keep the mode of", bare(&e)))?;
+    }
+    tmp.write_all(bytes)
+        .map_err(|e| io("cannot write", bare(&e)))?;
+    tmp.as_file()
+        .sync_all()
+        .map_err(|e| io("cannot write", bare(&e)))?;
+    tmp.persist(&target)
+        .map_err(|e| io("cannot write", bare(&e.error)))?;
     Ok(())
+}
+
+/// The OS error without the temporary file's name that `tempfile` adds to its messages.
+fn bare(e: &std::io::Error) -> std::io::Error {
+    e.raw_os_error().map_or_else(
+        || std::io::Error::new(e.kind(), e.kind().to_string()),
+        std::io::Error::from_raw_os_error,
+    )
 }
 
 #[cfg(test)]
@@ -511,6 +640,46 @@ mod tests {
             let t = k as f64 * 1e-3;
             let y = ((1.0 - (-(k as f64) / 5.0).exp()) * 256.0).round() / 256.0;
             s.push_str(&format!("{t},1,{y}\n"));
+        }
+        assert!(parse(&s).is_ok());
+    }
+
+    #[test]
+    fn a_reference_clipped_to_the_end_is_found_but_an_ideal_step_is_not() {
+        // A noisy reference whose step saturates the ADC at 0.9 and stays there.
+        let mut state = 3u64;
+        let mut noise = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.01
+        };
+        let mut s = String::from("t,u,y\n");
+        for k in 0..200 {
+            let u = if k < 50 {
+                noise()
+            } else {
+                (1.0 + noise()).min(0.9)
+            };
+            let y = if k < 50 {
+                0.0
+            } else {
+                1.0 - (-(k as f64 - 50.0) / 8.0).exp()
+            } + noise();
+            s.push_str(&format!("{},{u},{y}\n", k as f64 * 1e-3));
+        }
+        let e = parse(&s).unwrap_err().to_string();
+        assert!(e.contains("column 'u' looks clipped"), "{e}");
+        // A noise-free step: flat before and after, not clipping.
+        let mut s = String::from("t,u,y\n");
+        for k in 0..200 {
+            let u = if k < 50 { 0.0 } else { 1.0 };
+            let y = if k < 50 {
+                0.0
+            } else {
+                1.0 - (-(k as f64 - 50.0) / 8.0).exp()
+            };
+            s.push_str(&format!("{},{u},{y}\n", k as f64 * 1e-3));
         }
         assert!(parse(&s).is_ok());
     }

@@ -3,6 +3,19 @@
 //! the input held between samples), so that the tests do not check the crate with its own code.
 #![allow(dead_code)]
 
+/// Runs the built `unlag` binary with `args` and collects its output.
+pub fn unlag(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(option_env!("CARGO_BIN_EXE_unlag").unwrap_or("unlag"))
+        .args(args)
+        .output()
+        .expect("run unlag")
+}
+
+/// The path of a shipped test file under `host-tests/data/`.
+pub fn data(name: &str) -> String {
+    format!("{}/host-tests/data/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
 /// Deterministic PRNG (SplitMix64) with Gaussian samples (Box-Muller).
 pub struct Rng(u64);
 

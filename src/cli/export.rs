@@ -116,7 +116,7 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
         None => export::export_file(&file, &args.model, format, number_format, &args.output)?,
     };
     if args.json {
-        println!(
+        crate::outln!(
             "{}",
             json!({
                 "output": args.output.display().to_string(),
@@ -130,7 +130,7 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
             })
         );
     } else {
-        println!(
+        crate::outln!(
             "wrote {} ({name}, {} bytes): {} sections, {}, fs {} Hz, delay {} samples, latency {:.2} samples",
             args.output.display(),
             c.bytes,
@@ -160,7 +160,7 @@ fn run_export_bank(
     }
     let c = export::bank::export_bank(&args.model, &range, format, &args.output)?;
     if args.json {
-        println!(
+        crate::outln!(
             "{}",
             json!({
                 "output": args.output.display().to_string(),
@@ -174,7 +174,7 @@ fn run_export_bank(
             })
         );
     } else {
-        println!(
+        crate::outln!(
             "wrote {} ({name}, {} bytes): {} sets from {} K to {} K, {} sections each, f32, fs {} Hz",
             args.output.display(),
             c.bytes,

@@ -18,8 +18,9 @@ use crate::poly::{self, Complex};
 /// Arguments of `unlag inspect`.
 #[derive(Debug, Args)]
 pub struct InspectArgs {
-    /// The model file.
-    #[arg(value_name = "MODEL.toml")]
+    /// The model file, or a coefficient blob from `unlag export --format bin` (read as the
+    /// board reads it, to check it before flashing).
+    #[arg(value_name = "MODEL.toml|BLOB.bin")]
     pub model: PathBuf,
     /// Print one JSON object instead of tables.
     #[arg(long)]
@@ -136,6 +137,9 @@ fn response_rows(model: &Model, freqs: &[f64]) -> Vec<serde_json::Value> {
 /// The model file's errors (including an unstable model, named by its pole), an invalid
 /// `--grid` or `--freqs`, or a numerical failure.
 pub fn run_inspect(args: &InspectArgs) -> Result<()> {
+    if let Some(bytes) = blob_bytes(&args.model)? {
+        return inspect_blob(args, &bytes);
+    }
     let file = ModelFile::load(&args.model)?;
     let m = &file.model;
     let analysis = Analysis::new(m)?;
@@ -153,22 +157,25 @@ pub fn run_inspect(args: &InspectArgs) -> Result<()> {
             "continuous_error": why,
             "frequency_response": response_rows(m, &freqs),
         });
-        println!("{v}");
+        crate::outln!("{v}");
         // The analysis shows which pole is outside; the exit status says the model is unusable.
         return m.check_stable(&args.model.display().to_string());
     }
     print_analysis(&args.model.display().to_string(), &analysis);
     print_continuous(&ct, m.fs);
-    println!("frequency response (the paper's eq. 6, delay included):");
-    println!(
+    crate::outln!("frequency response (the paper's eq. 6, delay included):");
+    crate::outln!(
         "  {:>12} {:>12} {:>10} {:>12}",
-        "f [Hz]", "magnitude", "dB", "phase [deg]"
+        "f [Hz]",
+        "magnitude",
+        "dB",
+        "phase [deg]"
     );
     for ((mag, phase), f) in analysis::frequency_response(m, &freqs)
         .into_iter()
         .zip(&freqs)
     {
-        println!(
+        crate::outln!(
             "  {f:>12.3} {mag:>12.6} {:>10.3} {:>12.3}",
             20.0 * mag.log10(),
             phase.to_degrees()
@@ -179,12 +186,12 @@ pub fn run_inspect(args: &InspectArgs) -> Result<()> {
 
 fn print_roots(what: &str, roots: &[analysis::Root]) {
     if roots.is_empty() {
-        println!("{what}: none");
+        crate::outln!("{what}: none");
         return;
     }
-    println!("{what} (largest |z| first):");
+    crate::outln!("{what} (largest |z| first):");
     for r in roots {
-        println!(
+        crate::outln!(
             "  {:<32} |z| = {:.6}",
             poly::format_root(Complex::new(r.re, r.im)),
             r.magnitude
@@ -193,18 +200,21 @@ fn print_roots(what: &str, roots: &[analysis::Root]) {
 }
 
 fn print_analysis(name: &str, a: &Analysis) {
-    println!(
+    crate::outln!(
         "model {name}: order {}, fs {} Hz, delay {} samples ({:.9} s)",
-        a.order, a.sample_rate_hz, a.delay_samples, a.delay_s
+        a.order,
+        a.sample_rate_hz,
+        a.delay_samples,
+        a.delay_s
     );
     print_roots("poles", &a.poles);
     print_roots("zeros of B", &a.zeros);
-    println!(
+    crate::outln!(
         "stable: {}, margin {:.6} (1 - max |pole|)",
         if a.stable { "yes" } else { "NO" },
         a.stability_margin
     );
-    println!(
+    crate::outln!(
         "minimum phase: {}, margin {:.6} (1 - max |zero|){}",
         if a.minimum_phase { "yes" } else { "no" },
         a.minimum_phase_margin,
@@ -214,26 +224,26 @@ fn print_analysis(name: &str, a: &Analysis) {
             ": the paper's direct inverse A/B is unstable; use the stable inverse design"
         }
     );
-    println!(
+    crate::outln!(
         "DC gain {:.6} ({:+.4} % from 1, the gain of a calibrated transducer)",
         a.dc_gain,
         100.0 * a.dc_gain_deviation
     );
-    println!("modes (each real pole and complex pole pair):");
+    crate::outln!("modes (each real pole and complex pole pair):");
     for mode in &a.modes {
-        println!("  {}", mode.description);
+        crate::outln!("  {}", mode.description);
     }
     if a.resonances().next().is_none() {
-        println!("  no resonance (no complex pole pair)");
+        crate::outln!("  no resonance (no complex pole pair)");
     }
 }
 
 fn print_continuous(ct: &Result<Continuous>, fs: f64) {
     match ct {
-        Err(e) => println!("continuous-time equivalent: none ({e})"),
+        Err(e) => crate::outln!("continuous-time equivalent: none ({e})"),
         Ok(c) => {
-            println!("continuous-time equivalent (step invariant, H(s) = (D + sum r/(s - s_i)) e^(-s tau)):");
-            println!(
+            crate::outln!("continuous-time equivalent (step invariant, H(s) = (D + sum r/(s - s_i)) e^(-s tau)):");
+            crate::outln!(
                 "  delay tau = {:.9} s = {:.6} samples ({}), feedthrough D = {:.6e}",
                 c.delay_s,
                 c.delay_s * fs,
@@ -250,7 +260,7 @@ fn print_continuous(ct: &Result<Continuous>, fs: f64) {
                     s.magnitude / (2.0 * std::f64::consts::PI),
                     -s.re / s.magnitude,
                 );
-                println!(
+                crate::outln!(
                     "  pole s = {:<36} fn {fn_hz:>12.4} Hz, damping {zeta:>9.6}, residue {}",
                     poly::format_root(Complex::new(s.re, s.im)),
                     poly::format_root(Complex::new(r.re, r.im))
@@ -322,16 +332,16 @@ pub fn run_resample(args: &ResampleArgs) -> Result<()> {
             "warnings": new.warnings,
             "dropped_inverse": dropped_inverse,
         });
-        println!("{v}");
+        crate::outln!("{v}");
         return Ok(());
     }
-    println!(
+    crate::outln!(
         "resampled {} from {} Hz to {} Hz (step invariant, through the continuous-time equivalent)",
         args.model.display(),
         old.fs,
         args.fs
     );
-    println!(
+    crate::outln!(
         "  delay: {} samples ({:.9} s) at {} Hz -> {} samples ({:.9} s) at {} Hz",
         old.delay,
         old.delay as f64 / old.fs,
@@ -340,32 +350,126 @@ pub fn run_resample(args: &ResampleArgs) -> Result<()> {
         new.delay_samples as f64 / args.fs,
         args.fs
     );
-    println!(
+    crate::outln!(
         "  fractional delay tau = {:.9} s ({:.6} samples at the new rate)",
-        new.delay_s, new.delay_in_samples
+        new.delay_s,
+        new.delay_in_samples
     );
-    println!("  {}", new.delay_note);
+    crate::outln!("  {}", new.delay_note);
     if agreement.instants > 1 {
-        println!(
+        crate::outln!(
             "  step response, old against new at {} common sample instants: max error {:.3e}, RMS {:.3e} (fractions of the step)",
             agreement.instants, agreement.max_error, agreement.rms_error
         );
     } else {
-        println!("  the two rates share no sample instants after t = 0: compared with the continuous step response only");
+        crate::outln!("  the two rates share no sample instants after t = 0: compared with the continuous step response only");
     }
-    println!(
+    crate::outln!(
         "  step response of the new model against the continuous one: max error {vs_continuous:.3e} of the step"
     );
     for w in &new.warnings {
-        println!("  warning: {w}");
+        crate::outln!("  warning: {w}");
     }
     if dropped_inverse {
-        println!(
+        crate::outln!(
             "  the compensator designed at {} Hz was not carried over: run `unlag invert` on the new file",
             old.fs
         );
     }
-    println!("wrote {}", args.output.display());
+    crate::outln!("wrote {}", args.output.display());
+    Ok(())
+}
+
+/// The file's bytes when it is a coefficient blob (it starts with the blob's magic, or is
+/// named `.bin`), else `None`.
+fn blob_bytes(path: &std::path::Path) -> Result<Option<Vec<u8>>> {
+    use std::io::Read as _;
+    let io = |source| Error::Io {
+        path: path.to_path_buf(),
+        action: "cannot read",
+        source,
+    };
+    let mut f = std::fs::File::open(path).map_err(io)?;
+    let mut head = [0u8; 4];
+    let n = f.read(&mut head).map_err(io)?;
+    let named_bin = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("bin"));
+    if head.get(..n) != Some(&crate::blob::MAGIC[..]) && !named_bin {
+        return Ok(None);
+    }
+    // A blob is small: read at most a little more than the largest one.
+    let limit = crate::blob::encoded_len_fixed(crate::blob::MAX_SECTIONS) as u64 + 1;
+    let mut bytes = head.get(..n).unwrap_or_default().to_vec();
+    f.take(limit).read_to_end(&mut bytes).map_err(io)?;
+    Ok(Some(bytes))
+}
+
+/// `unlag inspect BLOB.bin`: the board parser's verdict and what the blob holds.
+fn inspect_blob(args: &InspectArgs, bytes: &[u8]) -> Result<()> {
+    let s = crate::export::verify::read(bytes).map_err(|error| Error::Blob {
+        path: args.model.clone(),
+        error,
+    })?;
+    if args.json {
+        let v = json!({
+            "blob": args.model.display().to_string(),
+            "valid": true,
+            "contents": serde_json::to_value(&s).map_err(json_err)?,
+        });
+        crate::outln!("{v}");
+        return Ok(());
+    }
+    crate::outln!(
+        "{}: a valid coefficient blob (the board's parser accepts it; CRC-32 {:08x} matches)",
+        args.model.display(),
+        s.crc32
+    );
+    crate::outln!(
+        "  format version {}, {} bytes, number format {}{}",
+        s.format_version,
+        s.bytes,
+        s.number_format,
+        if s.nonlinear {
+            ", with the nonlinear-damping correction"
+        } else {
+            ""
+        }
+    );
+    crate::outln!(
+        "  sample rate {} Hz, model delay {} samples ({:.6} s), {} sections ({} multiply-adds per sample)",
+        s.sample_rate_hz,
+        s.delay_samples,
+        f64::from(s.delay_samples) / s.sample_rate_hz,
+        s.sections,
+        5 * s.sections + 1
+    );
+    if let (Some(full_scale), Some(exp)) = (s.full_scale, s.output_exponent) {
+        crate::outln!("  ADC full scale {full_scale}, output Q1.31 of full scale x 2^{exp}");
+    }
+    if let (Some(gain), Some(dc)) = (s.gain, s.dc_gain) {
+        crate::outln!("  input gain {gain:.7}, steady-state gain of the cascade {dc:.6}");
+        crate::outln!(
+            "  {:>3} {:>13} {:>13} {:>13} {:>13} {:>13} {:>8}",
+            "#",
+            "b0",
+            "b1",
+            "b2",
+            "a1",
+            "a2",
+            "|pole|"
+        );
+        for (i, (c, r)) in s.coefficients.iter().zip(&s.pole_radius).enumerate() {
+            crate::outln!(
+                "  {i:>3} {:>13.6e} {:>13.6e} {:>13.6e} {:>13.6e} {:>13.6e} {r:>8.5}",
+                c[0],
+                c[1],
+                c[2],
+                c[3],
+                c[4]
+            );
+        }
+    }
     Ok(())
 }
 

@@ -15,6 +15,7 @@ use crate::inverse;
 use crate::model::{ModelFile, Source, FORMAT_VERSION};
 use crate::trace::{Columns, Trace};
 
+pub mod console;
 pub mod export;
 pub mod inspect;
 pub mod modelling;
@@ -486,6 +487,7 @@ pub struct SimulateArgs {
 /// # Errors
 /// Any [`Error`]; the caller prints it and exits non-zero.
 pub fn run(cli: Cli) -> Result<()> {
+    cli.command.guard_files()?;
     match cli.command {
         Command::Fit(a) => run_fit(&a),
         Command::Compensate(a) => run_compensate(&a),
@@ -520,12 +522,57 @@ pub(crate) fn as_tests<'a>(traces: &'a [Trace], names: &'a [String]) -> Result<V
         .collect()
 }
 
+/// Reads a test the model is fitted or judged on: a trace whose reference moves above its
+/// noise (a step, or another change). A record with no excitation tells nothing about the
+/// probe and would only mislead the order and band choices, so it is refused.
+///
+/// # Errors
+/// The trace's errors, and [`Error::NoStep`] for a reference without excitation.
+pub(crate) fn read_test(path: &Path, columns: &Columns) -> Result<Trace> {
+    let t = Trace::read(path, columns)?;
+    if let Ok(u) = t.input() {
+        let e = fit::step::excitation(u);
+        if e < fit::step::MIN_EXCITATION {
+            return Err(Error::NoStep {
+                path: t.path.clone(),
+                column: t.u_column.unwrap_or(0),
+                name: columns.input.clone(),
+                reason: format!(
+                    "the reference does not move above its noise (its spread is {e:.2} times \
+                     the noise; at least {} is needed): a test without a step or other change \
+                     tells nothing about the probe",
+                    fit::step::MIN_EXCITATION
+                ),
+            });
+        }
+    }
+    Ok(t)
+}
+
+/// A number for a table: one decimal, or a power of ten when it would not fit.
+pub(crate) fn number(x: f64) -> String {
+    if x.is_finite() && x.abs() < 1e7 {
+        format!("{x:.1}")
+    } else {
+        format!("{x:.3e}")
+    }
+}
+
 pub(crate) fn name(p: &Path) -> String {
     p.display().to_string()
 }
 
+/// A fraction as a percentage a table can hold: three decimals in the ordinary range,
+/// powers of ten for a diverged candidate or a noise-free fit, `n/a` for no number.
 pub(crate) fn pct(x: f64) -> String {
-    format!("{:.3} %", 100.0 * x)
+    let p = 100.0 * x;
+    if !p.is_finite() {
+        "n/a".into()
+    } else if p.abs() >= 1e4 || (p != 0.0 && p.abs() < 1e-3) {
+        format!("{p:.1e} %")
+    } else {
+        format!("{p:.3} %")
+    }
 }
 
 fn run_fit(args: &FitArgs) -> Result<()> {
@@ -563,7 +610,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     let traces = args
         .files
         .iter()
-        .map(|f| Trace::read(f, &columns))
+        .map(|f| read_test(f, &columns))
         .collect::<Result<Vec<_>>>()?;
     let Some((est, val)) = traces.split_first() else {
         return Err(Error::InvalidArgument {
@@ -597,15 +644,56 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         delay: args.delay,
     };
     // The modelling loop: the output file's effects and history carry over.
-    let previous = if args.fresh || !args.output.exists() {
+    // A file in the way that is not a model is never replaced silently.
+    let previous = if args.fresh || args.output == Path::new("-") || !args.output.exists() {
         None
     } else {
-        ModelFile::load(&args.output).ok()
+        Some(
+            ModelFile::load(&args.output).map_err(|e| Error::InvalidArgument {
+                what: "output",
+                message: format!(
+                    "{} exists and is not a model this fit can continue ({e}); give another path, \
+                 or --fresh to replace it",
+                    args.output.display()
+                ),
+            })?,
+        )
     };
     let mut effects: Vec<crate::effects::Effect> = previous
         .as_ref()
         .map(|p| p.effects.clone())
         .unwrap_or_default();
+    if let Some(p) = &previous {
+        // An explicit order is the order asked for: a carried-over mode (two more poles)
+        // would silently override it.
+        let explicit_order = matches!(order, Order::Fixed(_));
+        let dropped = if explicit_order {
+            let before = effects.len();
+            effects.retain(|e| e.kind() != "mode");
+            before - effects.len()
+        } else {
+            0
+        };
+        if !p.effects.is_empty() || !p.history.is_empty() {
+            let kept: Vec<&str> = effects.iter().map(crate::effects::Effect::kind).collect();
+            let msg = format!(
+                "continuing {}: keeping its effects [{}] and {} history row(s){} (--fresh starts over)",
+                args.output.display(),
+                kept.join(", "),
+                p.history.len(),
+                if dropped > 0 {
+                    format!("; {dropped} mode effect(s) dropped because --order is given")
+                } else {
+                    String::new()
+                }
+            );
+            if args.json {
+                eprintln!("{msg}");
+            } else {
+                crate::outln!("{msg}");
+            }
+        }
+    }
     for kind in &args.add {
         let e = crate::effects::Effect::parse(kind).ok_or_else(|| Error::InvalidArgument {
             what: "--add",
@@ -740,16 +828,16 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         if let Some(path) = &args.report {
             v["report"] = json!(name(path));
         }
-        println!("{v}");
+        crate::outln!("{v}");
         return Ok(());
     }
     print_fit(&file, est);
     if let Some(d) = &file.inverse {
         print_inverse(d, file.model.fs);
     }
-    println!("wrote {}", args.output.display());
+    crate::outln!("wrote {}", args.output.display());
     if let (Some(path), Some(bytes)) = (&args.report, report_bytes) {
-        println!(
+        crate::outln!(
             "wrote the report {} ({:.0} kB): open it in a browser",
             path.display(),
             bytes as f64 / 1e3
@@ -777,22 +865,22 @@ fn prefiltered_tests(
 }
 
 fn print_inverse(d: &inverse::Design, fs: f64) {
-    println!("compensator: {}", d.method);
+    crate::outln!("compensator: {}", d.method);
     if !d.reflected_zeros.is_empty() {
-        println!(
+        crate::outln!(
             "  zeros of B reflected into the unit circle: {}",
             d.reflected_zeros.join(", ")
         );
     }
     if !d.pulled_zeros.is_empty() {
-        println!(
+        crate::outln!(
             "  zeros of B pulled in to |z| = {}: {}",
             inverse::ZERO_RADIUS_MAX,
             d.pulled_zeros.join(", ")
         );
     }
     if !d.candidates.is_empty() {
-        println!("  bandwidth search ({}):", d.bandwidth_selection);
+        crate::outln!("  bandwidth search ({}):", d.bandwidth_selection);
         for row in d.candidates.chunks(3) {
             let cells: Vec<String> = row
                 .iter()
@@ -810,19 +898,19 @@ fn print_inverse(d: &inverse::Design, fs: f64) {
                     )
                 })
                 .collect();
-            println!("   {}", cells.join(" "));
+            crate::outln!("   {}", cells.join(" "));
         }
     }
     // The smoother has no low-pass of its own: its band is where H C falls by 3 dB.
     let smoother = d.is_smoother();
     if smoother {
-        println!(
+        crate::outln!(
             "  -3 dB band of the corrected probe {:.1} Hz; {} sections",
             d.lowpass_hz,
             d.sections.len()
         );
     } else {
-        println!(
+        crate::outln!(
             "  {:?} low-pass, order {}, corner {:.1} Hz; {} sections",
             d.lowpass,
             d.lowpass_order,
@@ -830,11 +918,11 @@ fn print_inverse(d: &inverse::Design, fs: f64) {
             d.sections.len()
         );
     }
-    println!(
+    crate::outln!(
         "  corrected bandwidth {:.1} Hz (+/-1 dB, +/-5 deg); noise gain {:.3}; latency {:.2} samples ({:.6} s)",
         d.corrected_bandwidth_hz, d.noise_gain, d.latency_samples, d.latency_s
     );
-    println!(
+    crate::outln!(
         "  in band ({}): worst magnitude error {:.3} dB, worst phase error {:.2} deg; pole margin {:.4}",
         if smoother {
             "to half the -3 dB band, against a pure delay"
@@ -847,7 +935,7 @@ fn print_inverse(d: &inverse::Design, fs: f64) {
     );
     if let Some(p) = &d.fixed {
         let forms: Vec<&str> = p.sections.iter().map(|s| s.form.as_str()).collect();
-        println!(
+        crate::outln!(
             "  fixed point: inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {:.3}; headroom {:.2} bits by the L1 bound (no overflow possible); sections {}",
             p.full_scale,
             p.full_scale,
@@ -858,13 +946,13 @@ fn print_inverse(d: &inverse::Design, fs: f64) {
         );
     }
     if let Some(b) = &d.budget {
-        println!(
+        crate::outln!(
             "  predicted error of u_hat (RMS, pressure units): {:.4} = noise {:.4} + band limit {:.4} (in quadrature); a noisy reference adds {:.4}",
             b.total, b.noise, b.band_limit, b.reference
         );
     }
     if let Some(n) = &d.noise {
-        println!(
+        crate::outln!(
             "  noise ({:?}): probe {:.3e} white{}, reference {:.3e}",
             n.source,
             n.probe_white_std,
@@ -888,18 +976,18 @@ fn print_inverse(d: &inverse::Design, fs: f64) {
         if p.increment_pole > 0.0 {
             // The increments' pole as a corner: rho = exp(-2 pi f / fs).
             let corner = -p.increment_pole.ln() * fs / (2.0 * std::f64::consts::PI);
-            println!(
+            crate::outln!(
                 "  signal prior (from {from}): steps and ramps, increments correlated {:.4} (its spectrum falls as 1/f^4 above {corner:.1} Hz), innovation {:.3e}",
                 p.increment_pole, p.increment_std
             );
         } else {
-            println!(
+            crate::outln!(
                 "  signal prior (from {from}): steps, a random walk of increment {:.3e} per sample (its spectrum falls as 1/f^2)",
                 p.increment_std
             );
         }
     }
-    println!(
+    crate::outln!(
         "  realised as {} sections: about {} multiply-adds per sample",
         d.sections.len(),
         5 * d.sections.len() + 1
@@ -916,7 +1004,7 @@ fn print_inverse(d: &inverse::Design, fs: f64) {
             ),
             _ => String::new(),
         };
-        println!(
+        crate::outln!(
             "  reconstruction of {}: u_hat {} against the reference, raw probe {} ({:.1}x better){expected}",
             r.file,
             pct(r.nrmse_u_hat),
@@ -946,7 +1034,7 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
     let traces = args
         .files
         .iter()
-        .map(|f| Trace::read(f, &columns))
+        .map(|f| read_test(f, &columns))
         .collect::<Result<Vec<_>>>()?;
     for t in &traces {
         check_rate(&file, t)?;
@@ -983,13 +1071,13 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
     if args.json {
         let mut v = serde_json::to_value(&out.inverse).map_err(json_err)?;
         v["output"] = json!(name(&args.output));
-        println!("{v}");
+        crate::outln!("{v}");
         return Ok(());
     }
     if let Some(d) = &out.inverse {
         print_inverse(d, out.model.fs);
     }
-    println!("wrote {}", args.output.display());
+    crate::outln!("wrote {}", args.output.display());
     Ok(())
 }
 
@@ -1003,7 +1091,7 @@ pub(crate) fn json_err(e: serde_json::Error) -> Error {
 fn print_fit(file: &ModelFile, est: &Trace) {
     let m = &file.model;
     let Some(r) = &file.fit else { return };
-    println!(
+    crate::outln!(
         "estimation test {}: {} samples at {} Hz, step onset at sample {} (t = {:.6} s)",
         est.path.display(),
         est.len(),
@@ -1012,10 +1100,10 @@ fn print_fit(file: &ModelFile, est: &Trace) {
         r.step_onset as f64 / est.sample_rate_hz
     );
     for note in &r.notes {
-        println!("note: {note}");
+        crate::outln!("note: {note}");
     }
     if !r.delay_candidates.is_empty() {
-        println!(
+        crate::outln!(
             "delay search, simulation nrmse per candidate delay ({}):",
             r.delay_selection
         );
@@ -1027,26 +1115,30 @@ fn print_fit(file: &ModelFile, est: &Trace) {
                     format!("{mark}{:>4} {:>8}", c.delay, pct(c.nrmse))
                 })
                 .collect();
-            println!("  {}", cells.join("  "));
+            crate::outln!("  {}", cells.join("  "));
         }
     }
-    println!("order selection ({}):", r.order_selection);
-    println!(
+    crate::outln!("order selection ({}):", r.order_selection);
+    crate::outln!(
         "  {:>5} {:>6} {:>14} {:>14} {:>7}",
-        "order", "delay", "nrmse (est)", "criterion", "stable"
+        "order",
+        "delay",
+        "nrmse (est)",
+        "criterion",
+        "stable"
     );
     for o in &r.orders {
         let crit = if r.order_selection.contains("held-out") {
             pct(o.criterion)
         } else {
-            format!("{:.1}", o.criterion)
+            number(o.criterion)
         };
         let mark = if o.order == m.order() {
             "  <- chosen"
         } else {
             ""
         };
-        println!(
+        crate::outln!(
             "  {:>5} {:>6} {:>14} {:>14} {:>7}{mark}",
             o.order,
             o.delay,
@@ -1055,20 +1147,20 @@ fn print_fit(file: &ModelFile, est: &Trace) {
             if o.stable { "yes" } else { "no" }
         );
     }
-    println!(
+    crate::outln!(
         "model: order {}, delay {} samples ({:.6} s), method {}",
         m.order(),
         m.delay,
         m.delay as f64 / m.fs,
         r.method
     );
-    println!("  a = {:?}", m.a);
-    println!("  b = {:?}", m.b);
-    println!("  DC gain {:.6} (1 for a calibrated probe)", m.dc_gain());
+    crate::outln!("  a = {:?}", m.a);
+    crate::outln!("  b = {:?}", m.b);
+    crate::outln!("  DC gain {:.6} (1 for a calibrated probe)", m.dc_gain());
     if let Ok(z) = m.zeros() {
         if let Some(z) = z.first() {
             if z.norm() >= 1.0 {
-                println!(
+                crate::outln!(
                     "  note: zero {} of B is outside the unit circle (|z| = {:.4}); the direct inverse is unstable",
                     crate::poly::format_root(*z),
                     z.norm()
@@ -1076,9 +1168,9 @@ fn print_fit(file: &ModelFile, est: &Trace) {
             }
         }
     }
-    println!("errors (simulation, RMS / range of y):");
+    crate::outln!("errors (simulation, RMS / range of y):");
     for s in &file.sources {
-        println!(
+        crate::outln!(
             "  {:<11} {:<40} nrmse {:>10}   noise floor {:>10}",
             s.role,
             s.file,
@@ -1240,11 +1332,11 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
             "alignment_samples": error.map(|e| e.2),
             "verdict": error.map(|(e, raw, _)| if worse(e, raw) { "worse" } else { "better" }),
         });
-        println!("{v}");
+        crate::outln!("{v}");
         warn_if_worse(args, error);
         return Ok(());
     }
-    println!(
+    crate::outln!(
         "compensated {} samples of {} with {what} ({arith}); u_hat lags the true pressure by {:.2} samples ({:.6} s)",
         trace.len(),
         trace.path.display(),
@@ -1252,13 +1344,13 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         latency / m.fs
     );
     if let Some((e, raw, lag)) = error {
-        println!(
+        crate::outln!(
             "error against the recorded reference (RMS / range, best alignment): u_hat {} (at {lag} samples), raw probe {}",
             pct(e),
             pct(raw)
         );
     }
-    println!("wrote {}", args.output.display());
+    crate::outln!("wrote {}", args.output.display());
     warn_if_worse(args, error);
     Ok(())
 }
@@ -1356,15 +1448,145 @@ fn run_simulate(args: &SimulateArgs) -> Result<()> {
             "samples": trace.len(),
             "nrmse": error,
         });
-        println!("{v}");
+        crate::outln!("{v}");
         return Ok(());
     }
-    println!(
+    crate::outln!(
         "simulated {} samples of {}: model against measurement nrmse {}",
         trace.len(),
         trace.path.display(),
         pct(error)
     );
-    println!("wrote {}", args.output.display());
+    crate::outln!("wrote {}", args.output.display());
     Ok(())
+}
+
+/// Prints a failed command's error as one JSON object on standard output (`--json`):
+/// `{"error": {"kind", "message", "path", "line", "column"}}`, the location fields only where
+/// known.
+pub fn print_json_error(
+    kind: &str,
+    message: &str,
+    path: Option<&Path>,
+    line: Option<u64>,
+    column: Option<u64>,
+) {
+    use std::io::Write as _;
+    let mut e = serde_json::Map::new();
+    e.insert("kind".into(), json!(kind));
+    e.insert("message".into(), json!(message.trim_end()));
+    if let Some(p) = path {
+        e.insert("path".into(), json!(p.display().to_string()));
+    }
+    if let Some(l) = line {
+        e.insert("line".into(), json!(l));
+    }
+    if let Some(c) = column {
+        e.insert("column".into(), json!(c));
+    }
+    let _ = writeln!(std::io::stdout().lock(), "{}", json!({ "error": e }));
+}
+
+/// What an input file is to a command, for the message that refuses to overwrite it.
+const DATA: &str = "a recorded test";
+const MODEL: &str = "the model file";
+
+impl Command {
+    /// Whether the command prints one JSON object (`--json`).
+    #[must_use]
+    pub fn json(&self) -> bool {
+        match self {
+            Self::Fit(a) => a.json,
+            Self::Compensate(a) => a.json,
+            Self::Simulate(a) => a.json,
+            Self::Invert(a) => a.json,
+            Self::Inspect(a) => a.json,
+            Self::Resample(a) => a.json,
+            Self::Export(a) => a.json,
+            Self::Compare(a) | Self::Diagnose(a) => a.json,
+            Self::SimulateTest(a) => a.json,
+            Self::Predict(a) => a.json,
+            Self::Report(a) => a.json,
+        }
+    }
+
+    /// The files the command writes, and those it reads with what each is. A model that the
+    /// command exists to update (`invert -o MODEL.toml`, `fit -o` onto the model it refits)
+    /// is not listed as an input: rewriting it is the point.
+    fn files(&self) -> (Vec<&Path>, Vec<(&Path, &'static str)>) {
+        fn data(v: &[PathBuf]) -> Vec<(&Path, &'static str)> {
+            v.iter().map(|p| (p.as_path(), DATA)).collect()
+        }
+        match self {
+            Self::Fit(a) => {
+                let mut inputs = data(&a.files);
+                inputs.extend(data(&a.inverse.signal));
+                let mut outputs = vec![a.output.as_path()];
+                if let Some(r) = &a.report {
+                    // The report must not replace the model just written either.
+                    inputs.push((a.output.as_path(), "the model file this fit writes"));
+                    outputs.push(r.as_path());
+                }
+                (outputs, inputs)
+            }
+            Self::Invert(a) => {
+                let mut inputs = data(&a.files);
+                inputs.extend(data(&a.inverse.signal));
+                (vec![a.output.as_path()], inputs)
+            }
+            Self::Compensate(a) => (
+                vec![a.output.as_path()],
+                vec![(a.model.as_path(), MODEL), (a.file.as_path(), DATA)],
+            ),
+            Self::Simulate(a) => (
+                vec![a.output.as_path()],
+                vec![(a.model.as_path(), MODEL), (a.file.as_path(), DATA)],
+            ),
+            Self::Resample(a) => (vec![a.output.as_path()], vec![(a.model.as_path(), MODEL)]),
+            Self::Export(a) => (vec![a.output.as_path()], vec![(a.model.as_path(), MODEL)]),
+            Self::Report(a) => {
+                let mut inputs = data(&a.files);
+                inputs.push((a.model.as_path(), MODEL));
+                (vec![a.output.as_path()], inputs)
+            }
+            Self::Compare(a) | Self::Diagnose(a) => {
+                let mut inputs = data(&a.files);
+                inputs.push((a.model.as_path(), MODEL));
+                (a.report.iter().map(PathBuf::as_path).collect(), inputs)
+            }
+            Self::SimulateTest(a) => (vec![a.output.as_path()], Vec::new()),
+            Self::Inspect(_) | Self::Predict(_) => (Vec::new(), Vec::new()),
+        }
+    }
+
+    /// Before any work: refuses an output that is one of the inputs (by the file it names,
+    /// through links), and routes the command's text to standard error when an output is
+    /// `-` (standard output), which `--json` cannot share.
+    fn guard_files(&self) -> Result<()> {
+        let (outputs, inputs) = self.files();
+        for out in &outputs {
+            if *out == Path::new("-") {
+                if self.json() {
+                    return Err(Error::InvalidArgument {
+                        what: "output",
+                        message: "`-o -` writes the data to standard output, where --json \
+                                  writes its object too: give a file, or drop --json"
+                            .into(),
+                    });
+                }
+                console::data_on_stdout();
+                continue;
+            }
+            for (input, what) in &inputs {
+                if same_file::is_same_file(out, input).unwrap_or(false) {
+                    return Err(Error::Overwrite {
+                        output: out.to_path_buf(),
+                        input: input.to_path_buf(),
+                        what,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
 }

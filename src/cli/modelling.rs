@@ -46,7 +46,7 @@ fn load(args: &LoopArgs) -> Result<Loaded> {
     let traces = args
         .files
         .iter()
-        .map(|f| Trace::read(f, &columns))
+        .map(|f| super::read_test(f, &columns))
         .collect::<Result<Vec<_>>>()?;
     for t in &traces {
         super::check_rate(&file, t)?;
@@ -72,12 +72,19 @@ pub(crate) fn method_of(file: &ModelFile) -> Method {
 }
 
 fn print_evidence(evidence: &[TestEvidence]) {
-    println!(
+    crate::outln!(
         "{:<28} {:<10} {:>8} {:>9} {:>9} {:>10} {:>12} {:>10}",
-        "test", "role", "fit %", "nrmse", "floor", "x floor", "Ljung-Box p", "xcorr lag"
+        "test",
+        "role",
+        "fit %",
+        "nrmse",
+        "floor",
+        "x floor",
+        "Ljung-Box p",
+        "xcorr lag"
     );
     for e in evidence {
-        println!(
+        crate::outln!(
             "{:<28} {:<10} {:>8.2} {:>9} {:>9} {:>10.2} {:>12.2e} {:>10}",
             e.file,
             e.role,
@@ -90,9 +97,9 @@ fn print_evidence(evidence: &[TestEvidence]) {
         );
     }
     for e in evidence {
-        println!("{}:", e.file);
+        crate::outln!("{}:", e.file);
         let x = &e.expected;
-        println!(
+        crate::outln!(
             "  a correct model leaves {:.4e} RMS (floor {}): probe noise {:.3e} and the reference's {:.3e} through the model, measured {}",
             x.std,
             pct(e.noise_floor),
@@ -105,7 +112,7 @@ fn print_evidence(evidence: &[TestEvidence]) {
                 crate::inverse::optimal::NoiseSource::Given => "as given",
             }
         );
-        println!(
+        crate::outln!(
             "  residual autocorrelation: {} of {} lags outside the 99 % band +-{:.3} around what that noise leaves (lag 1: {:.3}, expected {:.3}); Ljung-Box Q = {:.1}",
             e.autocorrelation.outside,
             e.autocorrelation.values.len(),
@@ -114,12 +121,14 @@ fn print_evidence(evidence: &[TestEvidence]) {
             e.autocorrelation.expected.first().copied().unwrap_or(0.0),
             e.autocorrelation.ljung_box
         );
-        println!(
+        crate::outln!(
             "  against the input increments: peak {:+.3} at lag {} (band +-{:.3})",
-            e.cross_correlation.peak, e.cross_correlation.peak_lag, e.cross_correlation.band
+            e.cross_correlation.peak,
+            e.cross_correlation.peak_lag,
+            e.cross_correlation.band
         );
         if e.spectrum.peaks.is_empty() {
-            println!(
+            crate::outln!(
                 "  residual spectrum after the step: no peak {} dB above the floor",
                 crate::evidence::PEAK_DB
             );
@@ -136,15 +145,17 @@ fn print_evidence(evidence: &[TestEvidence]) {
                     )
                 })
                 .collect();
-            println!("  residual spectrum peaks: {}", peaks.join(", "));
+            crate::outln!("  residual spectrum peaks: {}", peaks.join(", "));
         }
         if let Some(p) = e.reference_ringing {
-            println!(
+            crate::outln!(
                 "  the reference itself rings: {:.0} Hz (+{:.0} dB, Q {:.0}) in its increments",
-                p.frequency_hz, p.above_floor_db, p.q
+                p.frequency_hz,
+                p.above_floor_db,
+                p.q
             );
         }
-        println!(
+        crate::outln!(
             "  level: {:+.3e} before the step (+-{:.1e}), {:+.3e} at the end (+-{:.1e}); slope {:+.3e}/s; step {:+.4}",
             e.trend.pre_mean,
             e.trend.pre_mean_se,
@@ -160,7 +171,7 @@ fn print_across(across: &[diagnose::PerTest]) {
     if across.len() < 2 {
         return;
     }
-    println!("across tests (the same structure fitted to each test alone):");
+    crate::outln!("across tests (the same structure fitted to each test alone):");
     let reference = across.first().and_then(|p| p.resonances.first().copied());
     for p in across {
         let modes: Vec<String> = p
@@ -178,7 +189,7 @@ fn print_across(across: &[diagnose::PerTest]) {
             }
             _ => String::new(),
         };
-        println!(
+        crate::outln!(
             "  {:<28} step {:>+10.4}  residual/|step| {:.2e} (own fit {:.2e})  {}{}",
             p.file,
             p.step_size,
@@ -193,7 +204,7 @@ fn print_across(across: &[diagnose::PerTest]) {
         );
     }
     if let Some(s) = diagnose::amplitude_signature(across) {
-        println!(
+        crate::outln!(
             "  residual against amplitude: damping {:+.3} per unit step ({:+.0} % from the smallest \
              step to the largest), own-fit residual ~ |step|^{:.2} (linear probe: 1){}",
             s.damping_slope,
@@ -212,10 +223,10 @@ fn print_history(file: &ModelFile) {
     if file.history.is_empty() {
         return;
     }
-    println!("error history of this model file (mean nrmse over its tests):");
+    crate::outln!("error history of this model file (mean nrmse over its tests):");
     for (i, h) in file.history.iter().enumerate() {
         let mean = h.tests.iter().map(|t| t.nrmse).sum::<f64>() / h.tests.len().max(1) as f64;
-        println!(
+        crate::outln!(
             "  {:>2}. order {:>2}, delay {:>3}, effects [{}]: {}",
             i + 1,
             h.order,
@@ -260,15 +271,15 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
         if let Some(path) = &args.report {
             v["report"] = json!(name(path));
         }
-        println!("{v}");
+        crate::outln!("{v}");
         return Ok(());
     }
     print_evidence(&evidence);
     print_across(&across);
     print_history(&l.file);
-    println!("run `unlag diagnose` with the same arguments to rank the missing effects");
+    crate::outln!("run `unlag diagnose` with the same arguments to rank the missing effects");
     if let Some(path) = &args.report {
-        println!("wrote the report {}: open it in a browser", path.display());
+        crate::outln!("wrote the report {}: open it in a browser", path.display());
     }
     Ok(())
 }
@@ -311,15 +322,18 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
             "tests": tests_json(&evidence)?,
             "candidates": candidates,
         });
-        println!("{v}");
+        crate::outln!("{v}");
         return Ok(());
     }
-    println!(
+    crate::outln!(
         "{:<28} {:>8} {:>9} {:>9}",
-        "test", "fit %", "nrmse", "floor"
+        "test",
+        "fit %",
+        "nrmse",
+        "floor"
     );
     for e in &evidence {
-        println!(
+        crate::outln!(
             "{:<28} {:>8.2} {:>9} {:>9}",
             e.file,
             e.fit_percent,
@@ -327,9 +341,11 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
             pct(e.noise_floor)
         );
     }
-    println!("candidates, best first (score = ln of the held-out error's fall in a trial refit):");
+    crate::outln!(
+        "candidates, best first (score = ln of the held-out error's fall in a trial refit):"
+    );
     for (i, c) in candidates.iter().enumerate() {
-        println!(
+        crate::outln!(
             "{:>2}. {:<15} score {:.2}: held-out error {} -> {}",
             i + 1,
             c.kind,
@@ -337,17 +353,17 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
             pct(c.nrmse_before),
             pct(c.nrmse_after)
         );
-        println!("    {}", c.reading);
-        println!("    change: {}", c.change);
+        crate::outln!("    {}", c.reading);
+        crate::outln!("    change: {}", c.change);
         if let Some(test) = &c.separated_by {
-            println!(
+            crate::outln!(
                 "    close to the next ({:.2} in score): to tell them apart, {test}",
                 c.margin
             );
         }
     }
     if let Some(path) = &args.report {
-        println!("wrote the report {}: open it in a browser", path.display());
+        crate::outln!("wrote the report {}: open it in a browser", path.display());
     }
     Ok(())
 }

@@ -500,10 +500,10 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
                 "taper_start_hz": ir.taper_start_hz,
             },
         });
-        println!("{v}");
+        crate::outln!("{v}");
         return Ok(());
     }
-    println!(
+    crate::outln!(
         "simulated {} samples at {} Hz ({:?}); front delay {:.6} s, DC gain {:.6}",
         test.t.len(),
         args.fs,
@@ -512,12 +512,12 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         sys.line.dc_gain(&sys.gas)
     );
     if let Some(r) = sys.minor_loss_resistance {
-        println!(
+        crate::outln!(
             "  minor losses linearised for {} Pa: R_eq = {r:.4e} Pa s/m^3",
             args.system.amplitude
         );
     }
-    println!(
+    crate::outln!(
         "  method: impulse response by tapered inverse FFT at {:.0} Hz, length {} ({:.4} s), tail energy {:.1e} (wrap-around bound), non-causal taper energy {:.1e}, taper from {:.0} Hz",
         ir.rate_hz,
         ir.fft_length,
@@ -527,7 +527,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         ir.taper_start_hz
     );
     if let Some(a) = adc {
-        println!(
+        crate::outln!(
             "  ADC {} bits over [{}, {}] Pa, LSB {:.4e} Pa",
             a.bits,
             a.min_pa,
@@ -535,7 +535,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             a.lsb_pa()
         );
     }
-    println!("wrote {}", args.output.display());
+    crate::outln!("wrote {}", args.output.display());
     Ok(())
 }
 
@@ -605,20 +605,20 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
                 message: e.to_string(),
             })?;
         }
-        println!("{v}");
+        crate::outln!("{v}");
         return Ok(());
     }
     let g = &sys.gas;
-    println!(
+    crate::outln!(
         "air at {:.2} K, {:.0} Pa: speed of sound {:.2} m/s, kinematic viscosity {:.4e} m^2/s",
         g.temperature_k,
         g.pressure_pa,
         g.speed_of_sound(),
         g.kinematic_viscosity()
     );
-    println!("exact modes (Bergh-Tijdeman poles):");
+    crate::outln!("exact modes (Bergh-Tijdeman poles):");
     for (i, m) in p.modes.iter().enumerate() {
-        println!(
+        crate::outln!(
             "  {}: natural frequency {:10.3} Hz, damping {:.4}{}",
             i + 1,
             m.natural_frequency_hz,
@@ -636,15 +636,15 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
             .iter()
             .map(|s| format!("{s:.2} rad/s (time constant {:.1} ms)", -1e3 / s))
             .collect();
-        println!("real poles (slow creeps): {}", text.join(", "));
+        crate::outln!("real poles (slow creeps): {}", text.join(", "));
     }
-    println!(
+    crate::outln!(
         "  (real poles searched from 0 to {:.1} rad/s; one beyond is not found)",
         p.real_search_limit_rad_s
     );
-    println!("front delay sum(L)/a: {:.6} s", p.delay_s);
+    crate::outln!("front delay sum(L)/a: {:.6} s", p.delay_s);
     match &p.lumped {
-        Some(l) => println!(
+        Some(l) => crate::outln!(
             "lumped approximation: natural frequency {:.3} Hz, damping {:.4}, Womersley {:.2} ({})",
             l.natural_frequency_hz,
             l.damping,
@@ -655,11 +655,11 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
                 "outside its validity, Wo >= 2: it under-predicts damping"
             }
         ),
-        None => println!("lumped approximation: none (no second-order dynamics)"),
+        None => crate::outln!("lumped approximation: none (no second-order dynamics)"),
     }
-    println!("DC gain {:.6}", p.dc_gain);
+    crate::outln!("DC gain {:.6}", p.dc_gain);
     if let Some(h) = &sys.hole {
-        println!(
+        crate::outln!(
             "hole-cavity closed form: Helmholtz {:.1} Hz, Poiseuille damping {:.4}, L_eff {:.4e} m, neck/cavity volume {:.2}{}",
             h.helmholtz_frequency_hz(g),
             h.poiseuille_damping(g),
@@ -673,19 +673,20 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
         );
     }
     if let Some(d) = &sys.diaphragm {
-        println!(
+        crate::outln!(
             "diaphragm: natural frequency {:.1} Hz, damping {:.4}",
-            d.natural_frequency_hz, d.damping
+            d.natural_frequency_hz,
+            d.damping
         );
     }
     if let Some(r) = sys.minor_loss_resistance {
-        println!(
+        crate::outln!(
             "minor losses linearised for {} Pa: R_eq = {r:.4e} Pa s/m^3 (included above)",
             args.system.amplitude
         );
     }
     if let Some(c) = &comparison {
-        println!(
+        crate::outln!(
             "fitted model against the prediction: natural frequency ratio {:.4} ({:.3} / {:.3} Hz), damping ratio {:.4} ({:.4} / {:.4}), delay difference {:+.6} s ({:.6} - {:.6} s), DC gain ratio {:.5}",
             c.natural_frequency_ratio,
             c.fitted.natural_frequency_hz,
@@ -699,10 +700,10 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
             c.dc_gain_ratio
         );
         if c.findings.is_empty() {
-            println!("  agrees within 5 % in frequency, 15 % in damping, one sample in delay");
+            crate::outln!("  agrees within 5 % in frequency, 15 % in damping, one sample in delay");
         }
         for f in &c.findings {
-            println!("  {f}");
+            crate::outln!("  {f}");
         }
     }
     Ok(())

@@ -145,7 +145,7 @@ pub fn run_report(args: &ReportArgs) -> Result<()> {
     let traces = args
         .files
         .iter()
-        .map(|f| crate::trace::Trace::read(f, &columns))
+        .map(|f| super::read_test(f, &columns))
         .collect::<Result<Vec<_>>>()?;
     for t in &traces {
         super::check_rate(&file, t)?;
@@ -156,12 +156,12 @@ pub fn run_report(args: &ReportArgs) -> Result<()> {
     let bytes = write_report(&args.output, &name(&args.model), &file, &tests, &progress)?;
     progress.finish();
     if args.json {
-        println!(
+        crate::outln!(
             "{}",
             json!({"output": name(&args.output), "bytes": bytes, "tests": names})
         );
     } else {
-        println!(
+        crate::outln!(
             "wrote the report {} ({:.0} kB): open it in a browser",
             args.output.display(),
             bytes as f64 / 1e3

@@ -164,17 +164,14 @@ impl BoardBank {
                         .trim_start_matches(&format!("{}: ", path.display()))
                 ))
             })?;
-            if let Some(first) = sets.first() {
-                if set.sections.len() != first.sections.len() {
-                    return Err(bad(format!(
-                        "the compensator redesigned at {t} K has {} sections, at {} K {}: a bank needs the same number in every set (narrow --temperatures)",
-                        set.sections.len(),
-                        temperatures_k.first().copied().unwrap_or(t),
-                        first.sections.len()
-                    )));
-                }
-            }
             sets.push(set);
+        }
+        // The board's bank holds one section count: a set designed with fewer sections is
+        // padded with identity sections ([1, 0, 0, 0, 0], exact in f32), which pass the
+        // signal unchanged.
+        let widest = sets.iter().map(|s| s.sections.len()).max().unwrap_or(0);
+        for set in &mut sets {
+            set.sections.resize(widest, [1.0, 0.0, 0.0, 0.0, 0.0]);
         }
         let bank = Self {
             hysteresis_k: 0.5 * range.step_k,

@@ -84,6 +84,31 @@ pub fn quiet_end(found: Option<Step>) -> usize {
     found.filter(Step::is_clean).map_or(0, |s| s.onset)
 }
 
+/// How far a channel moves beyond its own noise: its standard deviation over the white noise
+/// its third differences show. About 1 for noise alone; a step test gives tens to thousands,
+/// a traverse with wakes tens.
+#[must_use]
+pub fn excitation(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let std = (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+    let noise = high_frequency_std(x);
+    if noise > 0.0 {
+        std / noise
+    } else if std > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    }
+}
+
+/// Least [`excitation`] of a test's reference: below it the test carries no step or other
+/// change above its noise and tells nothing about the probe.
+pub const MIN_EXCITATION: f64 = 3.0;
+
 /// White-noise standard deviation from third differences: `d3 = x[k+3] - 3x[k+2] + 3x[k+1]
 /// - x[k]` has variance `20 sigma^2`, and the median of `|d3|` is `0.6745 sqrt(20) sigma`.
 fn high_frequency_std(x: &[f64]) -> f64 {

@@ -31,6 +31,7 @@ pub enum Verdict {
 
 /// The check's record.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Check {
     /// The verdict.
     pub verdict: Verdict,

@@ -51,6 +51,7 @@ pub use crate::fit::step::NoiseSource;
 
 /// The noise of both channels, as the design sees it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct NoiseModel {
     /// White part of the probe noise, standard deviation in probe units.
     pub probe_white_std: f64,
@@ -91,6 +92,7 @@ impl NoiseModel {
 /// default from step tests) it falls like `1/f^2`; with `rho` near 1 (smooth runs: ramps,
 /// balloons, wakes) like `1/f^4` above the corner `rho` sets.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SignalPrior {
     /// Standard deviation of the increments' innovation, `sqrt(q)`, in pressure units.
     pub increment_std: f64,
@@ -126,6 +128,7 @@ impl SignalPrior {
 
 /// Predicted error of a compensator, as standard deviations in pressure units.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Budget {
     /// The probe noise through the compensator.
     pub noise: f64,

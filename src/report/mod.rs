@@ -163,17 +163,22 @@ pub fn render(inputs: &Inputs<'_>) -> Result<String> {
         escape(&title)
     );
     let effects: Vec<&str> = file.effects.iter().map(effects::Effect::kind).collect();
+    let effects = if effects.is_empty() {
+        "no effects added".to_string()
+    } else {
+        format!("effects: {}", effects.join(", "))
+    };
     let _ = write!(
         h,
         "<h1>{}</h1>\n<p class=\"sub\">order {}, delay {} samples ({:.4} ms), fs {} Hz, DC gain {:.4}; \
-         effects [{}]; {} test(s)</p>\n",
+         {}; {} test(s)</p>\n",
         escape(&title),
         model.order(),
         model.delay,
         1e3 * model.delay as f64 / model.fs,
         model.fs,
         model.dc_gain(),
-        escape(&effects.join(", ")),
+        escape(&effects),
         inputs.tests.len()
     );
     verdict(&mut h, inputs);
@@ -349,18 +354,23 @@ fn per_test(
                     colour::REFERENCE,
                     1,
                 ),
+                // The measured probe wide beneath, the model dashed on top: where they
+                // agree both stay visible.
                 Series::line(
                     "probe y (measured)",
                     &points(test.y, range.clone(), fs, scale),
                     colour::PROBE,
-                    2,
+                    4,
                 ),
-                Series::line(
-                    "model",
-                    &points(&y_model, range.clone(), fs, scale),
-                    colour::MODEL,
-                    2,
-                ),
+                Series {
+                    style: Style::Dashed,
+                    ..Series::line(
+                        "model (dashed)",
+                        &points(&y_model, range.clone(), fs, scale),
+                        colour::MODEL,
+                        2,
+                    )
+                },
             ],
         );
         let mut top = top;
@@ -1237,6 +1247,45 @@ fn rounded(v: &serde_json::Value) -> serde_json::Value {
     }
 }
 
+/// A candidate's evidence as a reader reads it: `name value` pairs, nested names joined by
+/// dots, long lists cut to their first values.
+fn evidence_text(v: &serde_json::Value) -> String {
+    use serde_json::Value;
+    fn scalar(v: &Value) -> String {
+        match v {
+            Value::String(s) => s.clone(),
+            Value::Array(a) => {
+                let mut items: Vec<String> = a.iter().take(6).map(scalar).collect();
+                if a.len() > 6 {
+                    items.push(format!("... {} in all", a.len()));
+                }
+                items.join(", ")
+            }
+            Value::Null => "none".into(),
+            other => other.to_string(),
+        }
+    }
+    fn walk(prefix: &str, v: &Value, out: &mut Vec<String>) {
+        match v {
+            Value::Object(o) => {
+                for (k, x) in o {
+                    let name = if prefix.is_empty() {
+                        k.replace('_', " ")
+                    } else {
+                        format!("{prefix} {}", k.replace('_', " "))
+                    };
+                    walk(&name, x, out);
+                }
+            }
+            other if prefix.is_empty() => out.push(scalar(other)),
+            other => out.push(format!("{prefix}: {}", scalar(other))),
+        }
+    }
+    let mut out = Vec::new();
+    walk("", v, &mut out);
+    out.join("; ")
+}
+
 fn candidates(h: &mut String, inputs: &Inputs<'_>) {
     h.push_str(
         "<h3>Candidates for the missing effect, best first</h3>\n\
@@ -1244,7 +1293,7 @@ fn candidates(h: &mut String, inputs: &Inputs<'_>) {
          <th>held-out error</th><th>reading and evidence</th><th>change</th></tr>\n",
     );
     for (i, c) in inputs.candidates.iter().enumerate() {
-        let evidence = serde_json::to_string(&rounded(&c.evidence)).unwrap_or_default();
+        let evidence = evidence_text(&rounded(&c.evidence));
         let _ = writeln!(
             h,
             "<tr><td class=\"num\">{}</td><td><b>{}</b></td><td class=\"num\">{:.2}</td>\
@@ -1386,6 +1435,20 @@ mod tests {
         assert!(html.contains(&pct(ev[0].nrmse)));
         assert!(html.contains("a slow creep &amp; more"));
         assert!(html.contains("a&lt;b&gt;.csv") && !html.contains("a<b>.csv"));
+        // The subtitle says what is there in words; the candidates' evidence is not JSON.
+        assert!(html.contains("no effects added") && !html.contains("effects []"));
+        assert!(html.contains("<code>x: 1</code>"), "evidence as text");
+    }
+
+    #[test]
+    fn evidence_reads_as_names_and_values_not_json() {
+        let v = serde_json::json!({"peak_hz": 120.5, "band": {"low_db": -3.0}, "tests": [1, 2], "why": "a mode"});
+        let t = evidence_text(&v);
+        assert!(!t.contains('{') && !t.contains('"'), "{t}");
+        assert!(t.contains("peak hz: 120.5"), "{t}");
+        assert!(t.contains("band low db: -3.0"), "{t}");
+        assert!(t.contains("tests: 1, 2"), "{t}");
+        assert!(t.contains("why: a mode"), "{t}");
     }
 
     #[test]

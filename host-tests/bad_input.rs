@@ -1,0 +1,439 @@
+//! The bad-input matrix: every command that reads a file, given every kind of bad file, and
+//! every writer given an output that would lose something. Each case must end with exit 1 (2
+//! for a usage error), one `error:` line on stderr (and, with `--json`, one JSON object on
+//! stdout), no panic or abort, no output written, and every input byte for byte as it was.
+
+// Test code: a failed unwrap is a failed test, with its location.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+use common::{data, unlag};
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+fn dir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("unlag-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn tmp(name: &str) -> String {
+    dir().join(name).to_str().unwrap().to_string()
+}
+
+/// A good model of the shipped line test, fitted once.
+fn good_model() -> &'static str {
+    static MODEL: OnceLock<String> = OnceLock::new();
+    MODEL.get_or_init(|| {
+        let path = tmp("good.toml");
+        let o = unlag(&["fit", &data("line_est.csv"), "--order", "2", "-o", &path]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        path
+    })
+}
+
+fn digest(path: &str) -> Option<Vec<u8>> {
+    std::fs::read(path).ok()
+}
+
+/// Runs `args` and checks the refusal: exit `code`, one `error:` line naming `expect`, no
+/// panic, `output` not created, inputs unchanged; then again with `--json` and checks that
+/// stdout is one JSON object with the error's kind.
+fn refuses(args: &[&str], output: Option<&str>, expect: &str) {
+    let inputs: Vec<(String, Option<Vec<u8>>)> = args
+        .iter()
+        .filter(|a| Path::new(a).is_file())
+        .map(|a| (a.to_string(), digest(a)))
+        .collect();
+    for json in [false, true] {
+        let mut argv = args.to_vec();
+        if json {
+            argv.push("--json");
+        }
+        let o = unlag(&argv);
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        let what = format!("unlag {}: {stdout}{stderr}", argv.join(" "));
+        assert_eq!(o.status.code(), Some(1), "{what}");
+        assert!(!stderr.contains("panicked"), "{what}");
+        assert_eq!(stderr.lines().count(), 1, "one line expected: {what}");
+        assert!(stderr.starts_with("error: "), "{what}");
+        assert!(stderr.contains(expect), "expected '{expect}': {what}");
+        assert!(
+            !stderr.contains(".tmp") && !stderr.contains(".partial"),
+            "{what}"
+        );
+        if json {
+            let v: serde_json::Value = serde_json::from_str(stdout.trim())
+                .unwrap_or_else(|e| panic!("--json error is not JSON ({e}): {what}"));
+            assert!(v["error"]["kind"].is_string(), "{what}");
+            assert!(
+                v["error"]["message"].as_str().unwrap().contains(expect),
+                "{what}"
+            );
+        }
+        if let Some(out) = output {
+            let existed = inputs.iter().any(|(p, _)| p == out);
+            assert!(
+                existed || !Path::new(out).exists(),
+                "output written: {what}"
+            );
+        }
+        for (p, before) in &inputs {
+            assert_eq!(&digest(p), before, "input {p} changed: {what}");
+        }
+    }
+}
+
+/// Every command that reads a CSV, with `csv` in the place of its test file.
+fn csv_readers(csv: &str, expect: &str) {
+    let m = good_model();
+    let out = tmp("out.csv");
+    let html = tmp("out.html");
+    let toml = tmp("out.toml");
+    refuses(&["fit", csv, "-o", &toml], Some(&toml), expect);
+    refuses(&["compensate", m, csv, "-o", &out], Some(&out), expect);
+    refuses(&["simulate", m, csv, "-o", &out], Some(&out), expect);
+    refuses(&["invert", m, csv, "-o", &toml], Some(&toml), expect);
+    refuses(&["compare", m, csv], None, expect);
+    refuses(&["diagnose", m, csv], None, expect);
+    refuses(&["report", m, csv, "-o", &html], Some(&html), expect);
+}
+
+#[test]
+fn every_csv_reader_refuses_every_bad_trace() {
+    // (file, what the message must say): the shipped bad traces.
+    let cases = [
+        ("empty.csv", "the file is empty"),
+        ("header_only.csv", "the file is empty"),
+        ("missing_column.csv", "missing column"),
+        ("not_a_number.csv", "is not a number"),
+        ("not_finite.csv", "is not finite"),
+        ("backwards.csv", "does not increase"),
+        ("jitter.csv", "jitter"),
+        ("ragged.csv", "bad/ragged.csv:"),
+        ("clipped.csv", "looks clipped"),
+    ];
+    for (file, expect) in cases {
+        csv_readers(&data(&format!("bad/{file}")), expect);
+    }
+    // Not there at all.
+    csv_readers(&tmp("nothere.csv"), "nothere.csv: cannot read");
+}
+
+#[test]
+fn a_test_whose_reference_does_not_move_is_refused_where_tests_judge_the_model() {
+    // Noise alone on the reference: no step, no change.
+    let mut s = String::from("t,u,y\n");
+    let mut state = 11u64;
+    for k in 0..2000 {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        let n = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        s.push_str(&format!(
+            "{},{},{}\n",
+            k as f64 * 1e-4,
+            1.0 + 1e-3 * n,
+            1.0 - 1e-3 * n
+        ));
+    }
+    let flat = tmp("flat.csv");
+    std::fs::write(&flat, s).unwrap();
+    let m = good_model();
+    let toml = tmp("flat-out.toml");
+    let html = tmp("flat-out.html");
+    let expect = "does not move above its noise";
+    refuses(
+        &["fit", &data("line_est.csv"), &flat, "-o", &toml],
+        Some(&toml),
+        expect,
+    );
+    refuses(&["invert", m, &flat, "-o", &toml], Some(&toml), expect);
+    refuses(&["compare", m, &flat], None, expect);
+    refuses(&["report", m, &flat, "-o", &html], Some(&html), expect);
+}
+
+/// Every command that reads a model file, with `model` in its place.
+fn model_readers(model: &str, expect: &str) {
+    let csv = data("line_val.csv");
+    let out = tmp("m-out.csv");
+    let toml = tmp("m-out.toml");
+    let html = tmp("m-out.html");
+    let code = tmp("m-out.h");
+    refuses(&["inspect", model], None, expect);
+    refuses(
+        &["resample", model, "--fs", "20000", "-o", &toml],
+        Some(&toml),
+        expect,
+    );
+    refuses(
+        &["export", model, "--format", "c", "-o", &code],
+        Some(&code),
+        expect,
+    );
+    refuses(&["compensate", model, &csv, "-o", &out], Some(&out), expect);
+    refuses(&["simulate", model, &csv, "-o", &out], Some(&out), expect);
+    refuses(&["invert", model, &csv, "-o", &toml], Some(&toml), expect);
+    refuses(&["compare", model, &csv], None, expect);
+    refuses(&["diagnose", model, &csv], None, expect);
+    refuses(&["report", model, &csv, "-o", &html], Some(&html), expect);
+    refuses(
+        &[
+            "predict", "--line", "0.5,1e-3", "--volume", "1e-8", "--model", model,
+        ],
+        None,
+        expect,
+    );
+}
+
+/// A copy of the good model with the line starting `prefix` replaced by `line`; the path and
+/// the line's number.
+fn model_line(name: &str, prefix: &str, line: &str) -> (String, usize) {
+    let text = std::fs::read_to_string(good_model()).unwrap();
+    let at = text.lines().position(|l| l.starts_with(prefix)).unwrap();
+    let lines: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| if i == at { line } else { l })
+        .collect();
+    let path = tmp(name);
+    std::fs::write(&path, lines.join("\n")).unwrap();
+    (path, at + 1)
+}
+
+#[test]
+fn every_model_reader_refuses_every_bad_model_naming_line_and_column() {
+    // A value out of its limits, named with its own line and column.
+    for (name, prefix, line, column, expect) in [
+        (
+            "delay.toml",
+            "delay = ",
+            "delay = 4000000000",
+            9,
+            "delay 4000000000 samples",
+        ),
+        (
+            "fs.toml",
+            "fs = ",
+            "fs = -1.0",
+            6,
+            "fs must be a sample rate",
+        ),
+        (
+            "gain.toml",
+            "gain = ",
+            "gain = nan",
+            8,
+            "inverse.gain = NaN is not a finite number",
+        ),
+        (
+            "version.toml",
+            "format_version = ",
+            "format_version = 7",
+            18,
+            "format_version 7",
+        ),
+        ("type.toml", "fs = ", "fs = \"ten\"", 6, "invalid type"),
+    ] {
+        let (path, n) = model_line(name, prefix, line);
+        model_readers(&path, &format!("{name}:{n}:{column}: {expect}"));
+    }
+    // A misspelt field, refused with the nearest known name, at its line.
+    let (path, n) = model_line("dlay.toml", "delay = ", "dlay = 3");
+    model_readers(&path, &format!("dlay.toml:{n}:1: unknown field `dlay`"));
+    model_readers(&path, "did you mean `delay`?");
+    let (path, _) = model_line("lowpas.toml", "lowpass_hz = ", "lowpas_hz = 100.0");
+    model_readers(&path, "did you mean `lowpass_hz`?");
+    let (path, _) = model_line("syntax.toml", "a = [", "a = [[,");
+    model_readers(&path, "syntax.toml:");
+    // An unstable stored compensator.
+    let (unstable, n) = model_line(
+        "unstable.toml",
+        "sections = ",
+        "sections = [[1.0, 0.0, 0.0, -2.5, 1.5]]",
+    );
+    model_readers(
+        &unstable,
+        &format!("unstable.toml:{n}:12: the stored compensator cannot run"),
+    );
+    // Not a model at all: a CSV, random bytes, nothing there.
+    model_readers(&data("line_est.csv"), "line_est.csv:1:");
+    let garbage = tmp("garbage.toml");
+    std::fs::write(&garbage, [0xff, 0xfe, 0x00, 0x12, 0x80]).unwrap();
+    model_readers(&garbage, "garbage.toml");
+    model_readers(&tmp("nothere.toml"), "nothere.toml: cannot read");
+}
+
+#[test]
+fn a_corrupted_blob_gets_the_board_parsers_error() {
+    let blob = tmp("good.bin");
+    let o = unlag(&["export", good_model(), "--format", "bin", "-o", &blob]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = unlag(&["inspect", &blob]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success() && stdout.contains("a valid coefficient blob"),
+        "{stdout}"
+    );
+    let good = std::fs::read(&blob).unwrap();
+    let mut flipped = good.clone();
+    flipped[30] ^= 0x01;
+    let bad = tmp("flipped.bin");
+    std::fs::write(&bad, &flipped).unwrap();
+    refuses(&["inspect", &bad], None, "CRC-32");
+    let cut = tmp("cut.bin");
+    std::fs::write(&cut, &good[..good.len() - 3]).unwrap();
+    refuses(&["inspect", &cut], None, "truncated");
+}
+
+#[test]
+fn no_output_may_destroy_an_input() {
+    let m = good_model();
+    let csv = tmp("keep.csv");
+    std::fs::copy(data("line_val.csv"), &csv).unwrap();
+    let msg = "this output is the input";
+    refuses(&["fit", &csv, "-o", &csv], None, msg);
+    refuses(&["compensate", m, &csv, "-o", &csv], None, msg);
+    refuses(&["simulate", m, &csv, "-o", &csv], None, msg);
+    refuses(&["compensate", m, &csv, "-o", m], None, msg);
+    refuses(&["report", m, &csv, "-o", m], None, msg);
+    refuses(&["export", m, "--format", "c", "-o", m], None, msg);
+    refuses(&["resample", m, "--fs", "20000", "-o", m], None, msg);
+    refuses(&["diagnose", m, &csv, "--report", &csv], None, msg);
+    // Through a symbolic link too.
+    #[cfg(unix)]
+    {
+        let link = tmp("link-to-keep.csv");
+        let _ = std::fs::remove_file(&link);
+        std::os::unix::fs::symlink(&csv, &link).unwrap();
+        refuses(&["simulate", m, &csv, "-o", &link], None, msg);
+    }
+    // A file in the way of `fit -o` that is not a model is not replaced.
+    let other = tmp("other.csv");
+    std::fs::copy(data("line_est.csv"), &other).unwrap();
+    refuses(
+        &["fit", &csv, "--order", "2", "-o", &other],
+        None,
+        "is not a model this fit can continue",
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn outputs_follow_the_umask_keep_a_files_mode_and_a_links_target() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let m = good_model();
+    let csv = data("line_val.csv");
+    let bin = env!("CARGO_BIN_EXE_unlag");
+    let mode = |p: &str| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    // A new file: 0666 less the umask.
+    let new = tmp("umask.csv");
+    let _ = std::fs::remove_file(&new);
+    let o = Command::new("sh")
+        .args([
+            "-c",
+            &format!("umask 027 && exec '{bin}' simulate '{m}' '{csv}' -o '{new}'"),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(mode(&new), 0o640);
+    // An existing file keeps its mode.
+    std::fs::set_permissions(&new, std::fs::Permissions::from_mode(0o664)).unwrap();
+    let o = unlag(&["simulate", m, &csv, "-o", &new]);
+    assert!(o.status.success());
+    assert_eq!(mode(&new), 0o664);
+    // A link stays a link; the file it names is written.
+    let target = tmp("target.csv");
+    let link = tmp("link.csv");
+    let _ = std::fs::remove_file(&link);
+    std::fs::write(&target, "old").unwrap();
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    let o = unlag(&["simulate", m, &csv, "-o", &link]);
+    assert!(o.status.success());
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert!(std::fs::read_to_string(&target)
+        .unwrap()
+        .starts_with("t,u,y,y_model"));
+    // A device is written in place, never replaced: /dev/null stays a device.
+    let o = unlag(&["simulate", m, &csv, "-o", "/dev/null"]);
+    assert!(o.status.success());
+    assert!(!std::fs::metadata("/dev/null").unwrap().is_file());
+}
+
+#[test]
+fn dash_is_standard_output_and_a_full_device_is_an_error() {
+    let m = good_model();
+    let csv = data("line_val.csv");
+    let o = unlag(&["compensate", m, &csv, "-o", "-"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.starts_with("t,u,y,u_hat\n"),
+        "{}",
+        &stdout[..stdout.len().min(200)]
+    );
+    // The command's own text went to stderr, out of the data's way.
+    assert!(String::from_utf8_lossy(&o.stderr).contains("wrote"));
+    assert!(!Path::new("-").exists());
+    // `--json` wants standard output too: refused, as JSON.
+    let o = unlag(&["compensate", m, &csv, "-o", "-", "--json"]);
+    assert_eq!(o.status.code(), Some(1));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["error"]["kind"], "invalid-argument");
+    if Path::new("/dev/full").exists() {
+        // Output and standard output on a full device: an error, never a panic.
+        refuses(
+            &["simulate", m, &csv, "-o", "/dev/full"],
+            None,
+            "No space left",
+        );
+        let o = Command::new(env!("CARGO_BIN_EXE_unlag"))
+            .args(["inspect", m])
+            .stdout(std::fs::File::create("/dev/full").unwrap())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains("cannot write to standard output"),
+            "{stderr}"
+        );
+    }
+    // A directory that is not there is named, not a temporary file.
+    let out = dir().join("no/such/dir/x.csv");
+    refuses(
+        &["simulate", m, &csv, "-o", out.to_str().unwrap()],
+        None,
+        "does not exist",
+    );
+}
+
+#[test]
+fn refitting_into_a_model_says_what_it_keeps_and_the_order_given_wins() {
+    let model = tmp("loop.toml");
+    let _ = std::fs::remove_file(&model);
+    let est = data("line_est.csv");
+    let o = unlag(&["fit", &est, "--order", "2", "--add", "mode", "-o", &model]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = unlag(&["fit", &est, "--order", "2", "-o", &model]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        stdout.contains("continuing") && stdout.contains("dropped because --order is given"),
+        "{stdout}"
+    );
+    let text = std::fs::read_to_string(&model).unwrap();
+    let a_line = text.lines().find(|l| l.starts_with("a = ")).unwrap();
+    assert_eq!(
+        a_line.matches(',').count() + 1,
+        2,
+        "order 2 asked: {a_line}"
+    );
+}

@@ -1,0 +1,60 @@
+//! The command's own text on the terminal: tables and summaries go to standard output, or to
+//! standard error when standard output carries the data (`-o -`). A write that fails (a full
+//! disk, a closed pipe) is kept, the rest of the text dropped, and the error reported once at
+//! exit with a non-zero status: printing never panics.
+
+use std::io::Write as _;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Mutex, PoisonError};
+
+static DATA_ON_STDOUT: AtomicBool = AtomicBool::new(false);
+static FAILED: Mutex<Option<std::io::Error>> = Mutex::new(None);
+
+/// Prints `args` as the command's text (see the module).
+pub fn print(args: std::fmt::Arguments<'_>) {
+    if DATA_ON_STDOUT.load(Ordering::Relaxed) {
+        let _ = std::io::stderr().lock().write_fmt(args);
+        return;
+    }
+    let mut failed = FAILED.lock().unwrap_or_else(PoisonError::into_inner);
+    if failed.is_none() {
+        if let Err(e) = std::io::stdout().lock().write_fmt(args) {
+            *failed = Some(e);
+        }
+    }
+}
+
+/// From now on the command's text goes to standard error: standard output is the data.
+pub fn data_on_stdout() {
+    DATA_ON_STDOUT.store(true, Ordering::Relaxed);
+}
+
+/// Whether standard output carries the data (`-o -`).
+#[must_use]
+pub fn stdout_is_data() -> bool {
+    DATA_ON_STDOUT.load(Ordering::Relaxed)
+}
+
+/// Flushes standard output and returns the first error writing to it, if any.
+///
+/// # Errors
+/// The first write error.
+pub fn finish() -> std::io::Result<()> {
+    let mut failed = FAILED.lock().unwrap_or_else(PoisonError::into_inner);
+    if let Some(e) = failed.take() {
+        return Err(e);
+    }
+    std::io::stdout().lock().flush()
+}
+
+/// `println!` for the command's text (see [`crate::cli::console`]).
+#[macro_export]
+#[doc(hidden)]
+macro_rules! outln {
+    () => {
+        $crate::cli::console::print(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        $crate::cli::console::print(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}

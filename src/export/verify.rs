@@ -1,0 +1,158 @@
+//! Reading a coefficient blob back on the PC, as the board will, before it is flashed or sent:
+//! the board's own parser ([`crate::blob::parse`], [`crate::blob::parse_fixed`]) decides
+//! whether it is valid, and a valid blob is described field by field.
+
+use crate::blob::{self, BlobError, NumberFormat};
+use crate::compensator::section_pole_radius;
+
+/// Sections a board built with [`crate::compensator::MAX_TEST_ORDER`] room reads.
+const CAPACITY: usize = crate::compensator::MAX_TEST_ORDER;
+
+/// What a valid blob holds.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct BlobSummary {
+    /// Total length in bytes.
+    pub bytes: usize,
+    /// Format version (1 linear, 2 with the nonlinear-damping correction).
+    pub format_version: u16,
+    /// `f32` or `fixed`.
+    pub number_format: &'static str,
+    /// Sample rate in Hz.
+    pub sample_rate_hz: f64,
+    /// The model's delay in samples.
+    pub delay_samples: u32,
+    /// Second-order sections of the compensator.
+    pub sections: usize,
+    /// Input gain (`f32` blobs).
+    pub gain: Option<f64>,
+    /// Each section as `[b0, b1, b2, a1, a2]` (`f32` blobs).
+    pub coefficients: Vec<[f64; 5]>,
+    /// Largest pole radius of each section (`f32` blobs): all below 1.
+    pub pole_radius: Vec<f64>,
+    /// Steady-state gain of the cascade (`f32` blobs): about 1 over the probe's DC gain.
+    pub dc_gain: Option<f64>,
+    /// Whether the nonlinear-damping correction is present.
+    pub nonlinear: bool,
+    /// ADC full scale (fixed-point blobs).
+    pub full_scale: Option<f64>,
+    /// Output scale exponent (fixed-point blobs).
+    pub output_exponent: Option<i32>,
+    /// The stored CRC-32 (checked by the parser).
+    pub crc32: u32,
+}
+
+/// Parses `bytes` with the board's parser for its number format (a board with room for
+/// [`crate::compensator::MAX_TEST_ORDER`] sections) and describes it.
+///
+/// # Errors
+/// The board parser's [`BlobError`].
+pub fn read(bytes: &[u8]) -> Result<BlobSummary, BlobError> {
+    let format_code = bytes.get(6).copied().unwrap_or(0);
+    let crc = |b: &[u8]| {
+        b.get(b.len().saturating_sub(4)..)
+            .and_then(|t| <[u8; 4]>::try_from(t).ok())
+            .map_or(0, u32::from_le_bytes)
+    };
+    let version = bytes
+        .get(4..6)
+        .and_then(|t| <[u8; 2]>::try_from(t).ok())
+        .map_or(0, u16::from_le_bytes);
+    // Not f32: the fixed-point parser reads it, or refuses an unknown code with its error.
+    if format_code != NumberFormat::F32.code() {
+        let set = blob::parse_fixed::<CAPACITY>(bytes)?;
+        return Ok(BlobSummary {
+            bytes: bytes.len(),
+            format_version: version,
+            number_format: "fixed",
+            sample_rate_hz: set.sample_rate_hz,
+            delay_samples: set.delay_samples,
+            sections: set.sections,
+            gain: None,
+            coefficients: Vec::new(),
+            pole_radius: Vec::new(),
+            dc_gain: None,
+            nonlinear: false,
+            full_scale: Some(set.full_scale),
+            output_exponent: Some(set.output_exponent),
+            crc32: crc(bytes),
+        });
+    }
+    let set = blob::parse::<CAPACITY>(bytes)?;
+    // Valid, so the fields are where the layout says: gain at 24, sections from 28.
+    let f32_at = |offset: usize| {
+        bytes
+            .get(offset..offset + 4)
+            .and_then(|t| <[u8; 4]>::try_from(t).ok())
+            .map_or(f64::NAN, |b| f64::from(f32::from_le_bytes(b)))
+    };
+    let gain = f32_at(24);
+    let coefficients: Vec<[f64; 5]> = (0..set.sections)
+        .map(|i| {
+            let base = blob::HEADER_LEN + i * blob::SECTION_LEN;
+            [0, 1, 2, 3, 4].map(|j| f32_at(base + 4 * j))
+        })
+        .collect();
+    let pole_radius = coefficients
+        .iter()
+        .map(|&[_, _, _, a1, a2]| section_pole_radius(a1, a2))
+        .collect();
+    let dc_gain = coefficients.iter().fold(gain, |g, &[b0, b1, b2, a1, a2]| {
+        g * (b0 + b1 + b2) / (1.0 + a1 + a2)
+    });
+    Ok(BlobSummary {
+        bytes: bytes.len(),
+        format_version: version,
+        number_format: "f32",
+        sample_rate_hz: set.sample_rate_hz,
+        delay_samples: set.delay_samples,
+        sections: set.sections,
+        gain: Some(gain),
+        coefficients,
+        pole_radius,
+        dc_gain: Some(dc_gain),
+        nonlinear: set.nonlinear.is_some(),
+        full_scale: None,
+        output_exponent: None,
+        crc32: crc(bytes),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn blob_of(gain: f32, sections: &[[f32; 5]]) -> Vec<u8> {
+        let mut buf = vec![0u8; blob::encoded_len(sections.len())];
+        let n = blob::encode(&mut buf, 10_000.0, 3, gain, sections).unwrap();
+        buf.truncate(n);
+        buf
+    }
+
+    #[test]
+    fn a_blob_reads_back_as_written() {
+        let s = [[1.0, -0.5, 0.0, -0.8, 0.0], [1.0, 0.2, 0.1, -1.2, 0.5]];
+        let b = blob_of(2.0, &s);
+        let r = read(&b).unwrap();
+        assert_eq!(r.sections, 2);
+        assert_eq!(r.delay_samples, 3);
+        assert_eq!(r.sample_rate_hz, 10_000.0);
+        assert_eq!(r.number_format, "f32");
+        assert_eq!(
+            r.coefficients[1],
+            [1.0, 0.2f32 as f64, 0.1f32 as f64, -1.2f32 as f64, 0.5]
+        );
+        // DC: 2 * (0.5 / 0.2) * (1.3 / 0.3).
+        let dc = 2.0 * (0.5 / 0.2) * (1.3f32 as f64 / (1.0 - 1.2f32 as f64 + 0.5));
+        assert!((r.dc_gain.unwrap() - dc).abs() < 1e-5, "{:?}", r.dc_gain);
+        assert!(r.pole_radius.iter().all(|p| *p < 1.0));
+    }
+
+    #[test]
+    fn a_flipped_bit_gets_the_board_parsers_error() {
+        let mut b = blob_of(1.0, &[[1.0, 0.0, 0.0, -0.5, 0.0]]);
+        b[30] ^= 0x10;
+        assert!(matches!(read(&b), Err(BlobError::CrcMismatch { .. })));
+        assert!(matches!(read(b"nope"), Err(BlobError::BadMagic)));
+        assert!(matches!(read(b"UN"), Err(BlobError::Truncated { .. })));
+    }
+}

@@ -437,3 +437,78 @@ fn refitting_into_a_model_says_what_it_keeps_and_the_order_given_wins() {
         "order 2 asked: {a_line}"
     );
 }
+
+#[test]
+fn numbers_out_of_range_on_the_command_line_are_refused_quickly() {
+    let m = good_model();
+    let est = data("line_est.csv");
+    let toml = tmp("range.toml");
+    let csv = tmp("range.csv");
+    refuses(
+        &["resample", m, "--fs", "1e300", "-o", &toml],
+        Some(&toml),
+        "--fs",
+    );
+    refuses(
+        &["fit", &est, "--fs", "1e300", "-o", &toml],
+        Some(&toml),
+        "--fs",
+    );
+    refuses(
+        &["inspect", m, "--grid", "1:100:100000000"],
+        None,
+        "N may be at most",
+    );
+    refuses(
+        &[
+            "fit",
+            &est,
+            "--order",
+            "2",
+            "--delay",
+            "4000000000",
+            "-o",
+            &toml,
+        ],
+        Some(&toml),
+        "too short",
+    );
+    refuses(
+        &[
+            "simulate-test",
+            "--line",
+            "1e6,1e-3",
+            "--volume",
+            "1e-8",
+            "--excitation",
+            "valve",
+            "--fs",
+            "10000",
+            "--duration",
+            "0.05",
+            "-o",
+            &csv,
+        ],
+        Some(&csv),
+        "the lines add up to",
+    );
+    refuses(
+        &[
+            "simulate-test",
+            "--line",
+            "0.5,1e-3",
+            "--volume",
+            "1e-8",
+            "--excitation",
+            "valve",
+            "--fs",
+            "1e9",
+            "--duration",
+            "1",
+            "-o",
+            &csv,
+        ],
+        Some(&csv),
+        "need 2 to 10 million",
+    );
+}

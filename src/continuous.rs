@@ -403,7 +403,9 @@ pub fn step_agreement(old: &Model, new: &Model) -> Agreement {
     let n_old =
         ((old.delay + old.order() + 16) as f64 + settle).min(MAX_AGREEMENT_SAMPLES as f64) as usize;
     let ratio = new.fs / old.fs;
-    let n_new = ((n_old as f64 * ratio).ceil() as usize + 1).min(MAX_AGREEMENT_SAMPLES);
+    let n_new = ((n_old as f64 * ratio).ceil() as usize)
+        .saturating_add(1)
+        .min(MAX_AGREEMENT_SAMPLES);
     let s_old = step_response(old, n_old);
     let s_new = step_response(new, n_new);
     let scale = {

@@ -396,12 +396,19 @@ impl ModelFile {
         Ok(format!("{HEADER}{body}"))
     }
 
-    /// Writes the file atomically.
+    /// Writes the file atomically, after reading the text back as [`ModelFile::load`] will:
+    /// a file the loader would refuse is never written.
     ///
     /// # Errors
-    /// [`Error::Io`] when it cannot be written.
+    /// [`Error::Model`] for a model out of the file's limits, [`Error::Io`] when it cannot
+    /// be written.
     pub fn save(&self, path: &Path) -> Result<()> {
-        crate::trace::write_atomically(path, self.to_toml()?.as_bytes())
+        let text = self.to_toml()?;
+        Self::parse(path, &text).map_err(|e| Error::Model {
+            path: path.to_path_buf(),
+            message: format!("not written: the model would not load again ({e})"),
+        })?;
+        crate::trace::write_atomically(path, text.as_bytes())
     }
 
     /// Reads and checks a model file: its syntax, every field's type and name (an unknown or

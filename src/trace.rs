@@ -91,10 +91,13 @@ impl Trace {
     pub fn parse(path: &Path, bytes: &[u8], columns: &Columns) -> Result<Self> {
         let p = || path.to_path_buf();
         if let Some(fs) = columns.sample_rate_hz {
-            if !(fs.is_finite() && fs > 0.0) {
+            if !(fs.is_finite() && fs > 0.0 && fs <= crate::model::MAX_SAMPLE_RATE_HZ) {
                 return Err(Error::InvalidArgument {
                     what: "--fs",
-                    message: format!("the sample rate must be a positive number of Hz, not {fs}"),
+                    message: format!(
+                        "the sample rate must be a positive number of Hz up to {:e}, not {fs:?}",
+                        crate::model::MAX_SAMPLE_RATE_HZ
+                    ),
                 });
             }
         }
@@ -193,6 +196,17 @@ impl Trace {
             (None, Some(ti)) => check_time(path, &t, &lines, ti + 1, &columns.time)?,
             (None, None) => unreachable_fs(path)?,
         };
+        if sample_rate_hz.is_nan() || sample_rate_hz > crate::model::MAX_SAMPLE_RATE_HZ {
+            return Err(Error::Malformed {
+                path: p(),
+                line: 3,
+                message: format!(
+                    "the time column's step gives a sample rate of {sample_rate_hz:e} Hz, above \
+                     the {:e} Hz a model may carry: is the time in seconds?",
+                    crate::model::MAX_SAMPLE_RATE_HZ
+                ),
+            });
+        }
         check_clipping(path, &y, &lines, y_idx + 1, &columns.output)?;
         if let Some(ui) = u_idx {
             check_clipping(path, &u, &lines, ui + 1, &columns.input)?;

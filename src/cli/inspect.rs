@@ -59,6 +59,9 @@ fn json_err(e: serde_json::Error) -> Error {
 }
 
 /// Parses `START:STOP:N` into `N` evenly spaced frequencies.
+/// Most frequencies a `--grid` may ask for.
+const MAX_GRID: usize = 100_000;
+
 fn parse_grid(text: &str) -> Result<Vec<f64>> {
     let bad = |why: &str| {
         Error::InvalidArgument {
@@ -87,6 +90,7 @@ fn parse_grid(text: &str) -> Result<Vec<f64>> {
     }
     match n {
         0 => Err(bad("N must be at least 1")),
+        n if n > MAX_GRID => Err(bad(&format!("N may be at most {MAX_GRID}"))),
         1 => Ok(vec![start]),
         _ => Ok((0..n)
             .map(|k| start + (stop - start) * k as f64 / (n - 1) as f64)
@@ -281,10 +285,14 @@ fn print_continuous(ct: &Result<Continuous>, fs: f64) {
 /// The model file's errors, an invalid `--fs`, a model without a continuous-time equivalent
 /// (named by its pole), or the output file's.
 pub fn run_resample(args: &ResampleArgs) -> Result<()> {
-    if !(args.fs.is_finite() && args.fs > 0.0) {
+    if !(args.fs.is_finite() && args.fs > 0.0 && args.fs <= crate::model::MAX_SAMPLE_RATE_HZ) {
         return Err(Error::InvalidArgument {
             what: "--fs",
-            message: format!("must be a positive number of Hz, not {}", args.fs),
+            message: format!(
+                "must be a sample rate in Hz above 0 and at most {:e}, not {:?}",
+                crate::model::MAX_SAMPLE_RATE_HZ,
+                args.fs
+            ),
         });
     }
     let file = ModelFile::load(&args.model)?;

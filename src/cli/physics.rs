@@ -92,6 +92,9 @@ fn pair(text: &str, what: &'static str, form: &str) -> Result<(f64, f64)> {
     }
 }
 
+/// Longest tubing, all lines together, that `simulate-test` and `predict` take.
+const MAX_LINE_LENGTH_M: f64 = 50.0;
+
 fn positive(value: f64, what: &'static str) -> Result<f64> {
     if value.is_finite() && value > 0.0 {
         Ok(value)
@@ -158,11 +161,22 @@ impl SystemArgs {
             );
             hole = Some(hc);
         }
+        let mut total = 0.0;
         for text in &self.lines {
             let (l, d) = pair(text, "--line", "LENGTH,DIAMETER in m")?;
             positive(l, "--line length")?;
             positive(d, "--line diameter")?;
+            total += l;
             line.elements.push(Element::Tube(Tube::with_diameter(l, d)));
+        }
+        if total > MAX_LINE_LENGTH_M {
+            return Err(Error::InvalidArgument {
+                what: "--line",
+                message: format!(
+                    "the lines add up to {total} m; the simulator takes up to {MAX_LINE_LENGTH_M} m \
+                     of tubing (a longer line rings for minutes of simulated time)"
+                ),
+            });
         }
         let thermal = match self.cavity_radius {
             Some(r) => CavityThermal::Relaxing {

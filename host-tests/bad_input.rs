@@ -154,6 +154,16 @@ fn a_test_whose_reference_does_not_move_is_refused_where_tests_judge_the_model()
     refuses(&["invert", m, &flat, "-o", &toml], Some(&toml), expect);
     refuses(&["compare", m, &flat], None, expect);
     refuses(&["report", m, &flat, "-o", &html], Some(&html), expect);
+    // Compensating such a run is ordinary work; only the verdict against its reference is
+    // withheld.
+    let out = tmp("flat-out.csv");
+    let o = unlag(&["compensate", m, &flat, "-o", &out]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}");
+    assert!(
+        stdout.contains(expect) && !stdout.contains("raw probe"),
+        "{stdout}"
+    );
 }
 
 /// Every command that reads a model file, with `model` in its place.
@@ -405,6 +415,13 @@ fn dash_is_standard_output_and_a_full_device_is_an_error() {
             stderr.contains("cannot write to standard output"),
             "{stderr}"
         );
+        // A full standard error: the error has nowhere to go, but the exit status says it.
+        let o = Command::new(env!("CARGO_BIN_EXE_unlag"))
+            .args(["inspect", "nothere.toml"])
+            .stderr(std::fs::File::create("/dev/full").unwrap())
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1));
     }
     // A directory that is not there is named, not a temporary file.
     let out = dir().join("no/such/dir/x.csv");

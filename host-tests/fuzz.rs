@@ -160,12 +160,14 @@ proptest! {
             bytes[n..].copy_from_slice(&crc.to_le_bytes());
         }
         if let Ok(set) = blob::parse::<16>(&bytes) {
-            // What parses runs: finite output for a finite input.
+            // What parses runs, and its sections are stable. (Its output for an input of 1
+            // may still overflow f32 when a mutated exponent makes a coefficient ~1e38: the
+            // parser guarantees finite, stable coefficients, not a bounded gain.)
             let mut state = Default::default();
-            let y = set.cascade.process(&mut state, 1.0f32);
-            prop_assert!(y.is_finite());
+            let _ = set.cascade.process(&mut state, 1.0f32);
+            let ok = unlag::export::verify::read(&bytes);
+            prop_assert!(ok.is_ok_and(|s| s.pole_radius.iter().all(|r| *r < 1.0)));
         }
         let _ = blob::parse_fixed::<16>(&bytes);
-        let _ = unlag::export::verify::read(&bytes);
     }
 }

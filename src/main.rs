@@ -15,7 +15,7 @@ fn main() -> ExitCode {
                 let first = text.lines().next().unwrap_or("");
                 let message = first.strip_prefix("error: ").unwrap_or(first);
                 unlag::cli::print_json_error("usage", message, None, None, None);
-                eprint!("{text}");
+                unlag::cli::console::warn(format_args!("{text}"));
                 return ExitCode::from(2);
             }
             e.exit();
@@ -30,12 +30,12 @@ fn main() -> ExitCode {
                 let (path, line, column) = e.location();
                 unlag::cli::print_json_error(e.kind(), &e.to_string(), path, line, column);
             }
-            eprintln!("error: {e}");
+            unlag::errln!("error: {e}");
             ExitCode::FAILURE
         }
         (Ok(()), Err(e)) => {
             if e.kind() != std::io::ErrorKind::BrokenPipe {
-                eprintln!("error: cannot write to standard output: {e}");
+                unlag::errln!("error: cannot write to standard output: {e}");
             }
             ExitCode::FAILURE
         }

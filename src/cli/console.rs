@@ -58,3 +58,18 @@ macro_rules! outln {
         $crate::cli::console::print(format_args!("{}\n", format_args!($($arg)*)))
     };
 }
+
+/// Writes `args` to standard error; a failure there (a full or closed stderr) has nowhere to
+/// be reported and is dropped, never a panic.
+pub fn warn(args: std::fmt::Arguments<'_>) {
+    let _ = std::io::stderr().lock().write_fmt(args);
+}
+
+/// `eprintln!` that never panics (see [`warn`]).
+#[macro_export]
+#[doc(hidden)]
+macro_rules! errln {
+    ($($arg:tt)*) => {
+        $crate::cli::console::warn(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}

@@ -178,7 +178,7 @@ impl InverseArgs {
             Ok(plan) => design.fixed = Some(plan),
             // A full scale the user gave that makes no sense is their error.
             Err(e @ Error::InvalidArgument { .. }) => return Err(e),
-            Err(e) => eprintln!("warning: no fixed-point compensator: {e}"),
+            Err(e) => crate::errln!("warning: no fixed-point compensator: {e}"),
         }
         Ok(())
     }
@@ -688,7 +688,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
                 }
             );
             if args.json {
-                eprintln!("{msg}");
+                crate::errln!("{msg}");
             } else {
                 crate::outln!("{msg}");
             }
@@ -795,7 +795,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
             Some(d)
         }
         Err(e) => {
-            eprintln!("warning: no compensator designed: {e}");
+            crate::errln!("warning: no compensator designed: {e}");
             None
         }
     };
@@ -1015,12 +1015,12 @@ fn print_inverse(d: &inverse::Design, fs: f64) {
     if let Some(c) = &d.check {
         match c.verdict {
             inverse::check::Verdict::Better | inverse::check::Verdict::Unchecked => {}
-            inverse::check::Verdict::FellBack => eprintln!(
+            inverse::check::Verdict::FellBack => crate::errln!(
                 "warning: fell back to {}: {}",
                 d.method.split(':').next().unwrap_or(""),
                 c.rejected.join("; ")
             ),
-            inverse::check::Verdict::NotBetter => eprintln!(
+            inverse::check::Verdict::NotBetter => crate::errln!(
                 "warning: no compensator is better than the raw probe on these tests ({}); stored marked not-better, `unlag export` refuses it without --force",
                 c.rejected.join("; ")
             ),
@@ -1293,7 +1293,25 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
     // Error against the recorded reference, at the best alignment near the latency.
     // With a sensor resonance the reference is judged below it (the compensator does not
     // and should not reproduce the reference transducer's own ringing).
-    let error = trace.u.as_ref().map(|u| {
+    // A reference that does not move above its noise says nothing about u_hat: no error, no
+    // verdict (a run without a step is compensated all the same).
+    let still = trace
+        .u
+        .as_ref()
+        .filter(|u| fit::step::excitation(u) < fit::step::MIN_EXCITATION)
+        .is_some();
+    if still {
+        let msg = format!(
+            "note: the reference of {} does not move above its noise: no error against it is reported",
+            name(&args.file)
+        );
+        if args.json {
+            crate::errln!("{msg}");
+        } else {
+            crate::outln!("{msg}");
+        }
+    }
+    let error = trace.u.as_ref().filter(|_| !still).map(|u| {
         let u = &crate::effects::observed(&file.effects, m.fs, u);
         let prefilter = if design.is_some() {
             crate::effects::prefilter_delay(&file.effects, m.fs)
@@ -1368,7 +1386,7 @@ fn warn_if_worse(args: &CompensateArgs, error: Option<(f64, f64, usize)>) {
     if !worse(e, raw) {
         return;
     }
-    eprintln!(
+    crate::errln!(
         "warning: on {} u_hat is further from the recorded reference than the raw probe ({} against {}): \
          the compensator makes this run worse. Its design assumed signals like its tests'; \
          for runs like this one, learn the signal from them: `unlag invert {} TEST.csv --signal {} -o ...`",
@@ -1392,7 +1410,7 @@ fn run_fixed(d: &inverse::Design, model: &Path, trace: &Trace, y: &[f64]) -> Res
     })?;
     let run = plan.run(y)?;
     if run.clipped_inputs > 0 {
-        eprintln!(
+        crate::errln!(
             "warning: {} samples of {} lie outside the fixed-point full scale +-{} and were clamped",
             run.clipped_inputs,
             trace.path.display(),
@@ -1400,7 +1418,7 @@ fn run_fixed(d: &inverse::Design, model: &Path, trace: &Trace, y: &[f64]) -> Res
         );
     }
     if run.overflowed {
-        eprintln!("warning: the fixed-point compensator saturated (overflow flag set)");
+        crate::errln!("warning: the fixed-point compensator saturated (overflow flag set)");
     }
     Ok(run.u_hat)
 }

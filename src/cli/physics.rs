@@ -440,7 +440,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
     let mut test = simulate(&probe, &excitation, &acquisition)?;
     let asked = args.fs * args.oversample as f64;
     if test.impulse.rate_hz < asked {
-        eprintln!(
+        crate::errln!(
             "note: the response outlasts the longest FFT at {}x oversampling (a slow real pole); simulated at {:.0}x ({:.0} Hz), content above {:.0} Hz tapered off",
             args.oversample,
             test.impulse.rate_hz / args.fs,
@@ -450,7 +450,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
     }
     if let Some(d) = &sys.diaphragm {
         if d.natural_frequency_hz > test.impulse.taper_start_hz {
-            eprintln!(
+            crate::errln!(
                 "warning: the diaphragm resonance at {} Hz is above the simulated band (taper from {:.0} Hz) and is filtered out: raise --oversample to see it",
                 d.natural_frequency_hz, test.impulse.taper_start_hz
             );

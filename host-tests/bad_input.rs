@@ -325,6 +325,11 @@ fn no_output_may_destroy_an_input() {
     let other = tmp("other.csv");
     std::fs::copy(data("line_est.csv"), &other).unwrap();
     refuses(
+        &["fit", &csv, "--order", "2", "--fresh", "-o", &other],
+        None,
+        "is not a model file (not TOML)",
+    );
+    refuses(
         &["fit", &csv, "--order", "2", "-o", &other],
         None,
         "is not a model this fit can continue",

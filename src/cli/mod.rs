@@ -644,7 +644,24 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         delay: args.delay,
     };
     // The modelling loop: the output file's effects and history carry over.
-    // A file in the way that is not a model is never replaced silently.
+    // A file in the way that is not a model is never replaced silently; --fresh replaces a
+    // model (even a broken one), never a file that is not TOML at all (a recorded test).
+    if args.fresh && args.output.is_file() {
+        let text = std::fs::read(&args.output).unwrap_or_default();
+        let is_toml = std::str::from_utf8(&text)
+            .ok()
+            .is_some_and(|t| t.parse::<toml::Table>().is_ok());
+        if !is_toml {
+            return Err(Error::InvalidArgument {
+                what: "output",
+                message: format!(
+                    "{} exists and is not a model file (not TOML): refusing to replace it; \
+                     give another path",
+                    args.output.display()
+                ),
+            });
+        }
+    }
     let previous = if args.fresh || args.output == Path::new("-") || !args.output.exists() {
         None
     } else {

@@ -132,10 +132,11 @@ fn mean(x: impl Iterator<Item = f64>) -> f64 {
 /// estimation test's when there are none.
 fn held_out(model: &Model, effects: &[Effect], tests: &[Test<'_>]) -> f64 {
     let judged = if tests.len() > 1 { &tests[1..] } else { tests };
-    mean(judged.iter().map(|t| {
-        let ym = effects::predict(model, effects, t.u, t.y);
-        crate::fit::nrmse_of(&effects::observed(effects, model.fs, t.y), &ym)
-    }))
+    mean(
+        judged
+            .iter()
+            .map(|t| effects::judged_nrmse(model, effects, t.u, t.y)),
+    )
 }
 
 /// One test seen on its own: the same model structure fitted to it alone, and how big its
@@ -869,15 +870,17 @@ pub fn diagnose(
     // correlates with: noise biases least squares; with output error already, the signature
     // must be clean (no cause in the input).
     if p < 1e-3 && (current.method != Method::Oe || !input_explains) {
-        let (after, how) = if current.method == Method::Oe {
-            // An output-error fit is not biased by coloured noise: nothing to refit.
-            (before / MIN_IMPROVEMENT, "already output error")
-        } else {
-            (
-                trial(Effect::ColouredNoise, &base).map_or(f64::NAN, |t| t.0),
-                "refit by output error",
+        let (after, how) = (
+            trial(
+                Effect::ColouredNoise {
+                    ar: Vec::new(),
+                    innovation_std: 0.0,
+                },
+                &base,
             )
-        };
+            .map_or(f64::NAN, |t| t.0),
+            "output error and an AR noise model; the error is the one-step-ahead prediction error",
+        );
         let rho1 = evidence
             .first()
             .and_then(|e| e.autocorrelation.values.first().copied())
@@ -887,9 +890,11 @@ pub fn diagnose(
             after,
             json!({"ljung_box_p": p, "lag1_autocorrelation": rho1, "fit": how}),
             format!(
-                "the residual is correlated in time (Ljung-Box p = {p:.1e}, lag-1 correlation \
-                 {rho1:.2}): coloured measurement noise, which biases least squares; an \
-                 output-error fit is unbiased by it ({how})"
+                "the residual is correlated in time beyond what both channels' noise through \
+                 the model explains (Ljung-Box p = {p:.1e}, lag-1 correlation {rho1:.2}): \
+                 coloured measurement noise. The remedy is a noise model beside the dynamics \
+                 ({how}: what a predictor of the probe one sample ahead cannot remove, against \
+                 the simulation error before)"
             ),
             "unlag fit ... --add coloured-noise   (model file: effects = [{ kind = \"coloured-noise\" }])"
                 .into(),

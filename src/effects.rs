@@ -80,8 +80,18 @@ pub enum Effect {
         /// Delay in samples.
         samples: usize,
     },
-    /// Residuals correlated in time but not explained by the input: fit by output error.
-    ColouredNoise,
+    /// Residuals correlated in time but not explained by the input: the dynamics by output
+    /// error, and beside them a noise model, AR(p) on what they leave
+    /// ([`crate::fit::noise`]); the error reported is then the one-step-ahead prediction
+    /// error `D(q) (y - G u)`.
+    ColouredNoise {
+        /// `[d1..dp]` of `D(q) = 1 + d1 q^-1 + ...` (fitted; empty until fitted).
+        #[serde(default)]
+        ar: Vec<f64>,
+        /// Standard deviation of the white innovation, probe units (fitted).
+        #[serde(default)]
+        innovation_std: f64,
+    },
     /// Amplitude-dependent (quadratic, orifice or turbulent) losses: the input the linear
     /// dynamics see is lowered by `gain * |dy/dt| dy/dt` (see the module docs).
     NonlinearDamping {
@@ -215,7 +225,7 @@ impl Effect {
             Self::Offset { .. } => "offset",
             Self::Drift { .. } => "drift",
             Self::Delay { .. } => "delay",
-            Self::ColouredNoise => "coloured-noise",
+            Self::ColouredNoise { .. } => "coloured-noise",
             Self::NonlinearDamping { .. } => "nonlinear-damping",
             Self::SensorResonance { .. } => "sensor-resonance",
             Self::Temperature { .. } => "temperature",
@@ -233,7 +243,10 @@ impl Effect {
                 value: 0.0,
                 rate_per_s: 0.0,
             },
-            "coloured-noise" => Self::ColouredNoise,
+            "coloured-noise" => Self::ColouredNoise {
+                ar: Vec::new(),
+                innovation_std: 0.0,
+            },
             "nonlinear-damping" => Self::NonlinearDamping { gain: 0.0 },
             "sensor-resonance" => Self::SensorResonance {
                 natural_frequency_hz: 0.0,
@@ -312,7 +325,7 @@ impl FitChanges {
                 Effect::Offset { .. } => c.offset = true,
                 Effect::Drift { .. } => c.drift = true,
                 Effect::Delay { samples } => c.delay = Some(*samples),
-                Effect::ColouredNoise => c.method = Some(Method::Oe),
+                Effect::ColouredNoise { .. } => c.method = Some(Method::Oe),
                 Effect::NonlinearDamping { .. } => c.nonlinear = true,
                 Effect::SensorResonance { .. } | Effect::Temperature { .. } => {}
             }
@@ -1203,6 +1216,7 @@ pub fn fit_with(
             other => other.clone(),
         })
         .collect();
+    let out = with_noise_model(&fitted.model, out, estimation_raw, fs);
     // A real pole slower than the record is not resolved by it: a drift makes the same
     // creep, and a near-integrator pole-zero pair inverts it into a runaway. Unless the user
     // asked for a leak or a drift, try the drift and keep it when it explains the estimation
@@ -1243,6 +1257,97 @@ pub fn fit_with(
         }
     }
     Ok((fitted, out))
+}
+
+/// Fits the `coloured-noise` effect's AR model, if `effects` has one, to what the model and
+/// the other effects leave on the estimation test.
+fn with_noise_model(
+    model: &Model,
+    effects: Vec<Effect>,
+    estimation: &Test<'_>,
+    fs: f64,
+) -> Vec<Effect> {
+    if !effects
+        .iter()
+        .any(|e| matches!(e, Effect::ColouredNoise { .. }))
+    {
+        return effects;
+    }
+    let ym = predict(model, &effects, estimation.u, estimation.y);
+    let v: Vec<f64> = observed(&effects, fs, estimation.y)
+        .iter()
+        .zip(&ym)
+        .map(|(a, b)| a - b)
+        .collect();
+    let noise = crate::fit::noise::fit(&v, crate::fit::noise::MAX_NOISE_ORDER);
+    effects
+        .into_iter()
+        .map(|e| match e {
+            Effect::ColouredNoise { .. } => Effect::ColouredNoise {
+                ar: noise.ar.clone(),
+                innovation_std: noise.innovation_std,
+            },
+            other => other,
+        })
+        .collect()
+}
+
+/// What a model with effects cannot predict of a test one step ahead: `y - G u` (effects
+/// included) whitened by the `coloured-noise` effect's noise model; without one it is the
+/// simulation error `y - G u` itself.
+#[must_use]
+pub fn prediction_error(model: &Model, effects: &[Effect], u: &[f64], y: &[f64]) -> Vec<f64> {
+    let ym = predict(model, effects, u, y);
+    let v: Vec<f64> = observed(effects, model.fs, y)
+        .iter()
+        .zip(&ym)
+        .map(|(a, b)| a - b)
+        .collect();
+    match noise_model(effects) {
+        Some(ar) => crate::fit::noise::whiten(ar, &v),
+        None => v,
+    }
+}
+
+/// The fitted AR noise model of a `coloured-noise` effect, if any.
+#[must_use]
+pub fn noise_model(effects: &[Effect]) -> Option<&[f64]> {
+    effects.iter().find_map(|e| match e {
+        Effect::ColouredNoise { ar, .. } if !ar.is_empty() => Some(ar.as_slice()),
+        _ => None,
+    })
+}
+
+/// The innovation standard deviation of a `coloured-noise` effect's noise model (0 without).
+#[must_use]
+pub fn innovation_std(effects: &[Effect]) -> f64 {
+    effects
+        .iter()
+        .find_map(|e| match e {
+            Effect::ColouredNoise { innovation_std, .. } => Some(*innovation_std),
+            _ => None,
+        })
+        .unwrap_or(0.0)
+}
+
+/// The normalised RMS error a model with effects is judged by on a test: the one-step-ahead
+/// prediction error when it has a noise model, else the simulation error (the same thing for
+/// white residuals); over the range of the observed probe signal.
+#[must_use]
+pub fn judged_nrmse(model: &Model, effects: &[Effect], u: &[f64], y: &[f64]) -> f64 {
+    let observed = observed(effects, model.fs, y);
+    let e = prediction_error(model, effects, u, y);
+    let rms = (e.iter().map(|v| v * v).sum::<f64>() / e.len().max(1) as f64).sqrt();
+    let (lo, hi) = observed
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(*v), hi.max(*v))
+        });
+    if hi > lo {
+        rms / (hi - lo)
+    } else {
+        f64::NAN
+    }
 }
 
 /// A first drift estimate from the record's ends: the probe's slope over its last 30 % less
@@ -1313,7 +1418,10 @@ mod tests {
                     rate_per_s: -0.5,
                 },
                 Effect::Delay { samples: 17 },
-                Effect::ColouredNoise,
+                Effect::ColouredNoise {
+                    ar: vec![-0.9],
+                    innovation_std: 0.01,
+                },
                 Effect::NonlinearDamping { gain: 1.25e-6 },
             ],
         };

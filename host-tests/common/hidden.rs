@@ -54,6 +54,10 @@ pub enum Hidden {
     /// AR(1) measurement noise with this lag-1 correlation; the user fits by direct least
     /// squares.
     ColouredNoise(f64),
+    /// AR(1) measurement noise with this lag-1 correlation and `ratio` times the white
+    /// noise's level, on top of it; the user fits by output error (unbiased by it: only a
+    /// noise model lowers the error).
+    ColouredNoiseOe { rho: f64, ratio: f64 },
     /// Orifice (quadratic) losses on the line's mode:
     /// `y'' + (2 zeta w + k |y'|) y' + w^2 y = w^2 u(t - delay)`, with this `k` (per probe
     /// unit), simulated by fine-step RK4.
@@ -335,6 +339,14 @@ impl Case {
                             *v += e;
                         }
                     }
+                    Hidden::ColouredNoiseOe { rho, ratio } => {
+                        let mut e = 0.0;
+                        let scale = (1.0 - rho * rho).sqrt();
+                        for v in &mut y {
+                            e = rho * e + scale * ratio * sigma * rng.gauss();
+                            *v += e + sigma * rng.gauss();
+                        }
+                    }
                     _ => y.iter_mut().for_each(|v| *v += sigma * rng.gauss()),
                 }
                 let u: Vec<f64> = u_true
@@ -492,6 +504,17 @@ pub fn cases() -> Vec<Case> {
             20_000.0,
             30,
             Hidden::ColouredNoise(0.97),
+            2,
+        ),
+        line(
+            "coloured noise: AR(1) 0.97, 10x white, output-error fit",
+            "coloured-noise",
+            10_000.0,
+            17,
+            Hidden::ColouredNoiseOe {
+                rho: 0.97,
+                ratio: 10.0,
+            },
             2,
         ),
         line(
@@ -868,10 +891,10 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
                 Effect::parse(add).expect("a known kind")
             };
             match effects::fit_with(&tests[0], &tests[1..], case.fs, &options, &[effect]) {
-                Ok((f, fx)) => {
-                    let ym = effects::predict(&f.model, &fx, uv, yv);
-                    unlag::fit::nrmse_of(&effects::observed(&fx, case.fs, yv), &ym)
-                }
+                // The error the remedy is judged by: the one-step-ahead prediction error
+                // with a noise model, the simulation error without (the same for white
+                // residuals).
+                Ok((f, fx)) => effects::judged_nrmse(&f.model, &fx, uv, yv),
                 Err(_) => f64::NAN,
             }
         }

@@ -190,6 +190,7 @@ impl InverseArgs {
     fn request(
         &self,
         model: &crate::model::Model,
+        effects: &[crate::effects::Effect],
         columns: &ColumnArgs,
         raw: &[Test<'_>],
         designed: &[Test<'_>],
@@ -206,7 +207,15 @@ impl InverseArgs {
         };
         match self.bandwidth.as_deref() {
             None if !self.direct => {
-                let (noise, prior) = self.noise_and_prior(model, columns, raw, designed, stored)?;
+                let (mut noise, prior) =
+                    self.noise_and_prior(model, columns, raw, designed, stored)?;
+                // A record with no quiet segment shows no coloured probe noise by itself: the
+                // noise model fitted beside the dynamics (`coloured-noise`) supplies it.
+                if noise.probe_ar_std == 0.0 {
+                    if let Some(ar) = crate::effects::noise_model(effects) {
+                        noise.take_ar_part(ar, crate::effects::innovation_std(effects));
+                    }
+                }
                 self.optimal(model.fs, noise, prior)
             }
             None | Some("auto") => Ok(band_limited(None)),
@@ -748,13 +757,12 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     let mut sources = Vec::new();
     for (i, (t, test)) in traces.iter().zip(&tests).enumerate() {
         let quiet = fit::step::quiet_until(test.u);
-        let ym = crate::effects::predict(&fitted.model, &effects, test.u, test.y);
-        let observed = crate::effects::observed(&effects, est.sample_rate_hz, test.y);
         sources.push(Source {
             file: name(&t.path),
             sha256: t.sha256.clone(),
             role: if i == 0 { "estimation" } else { "validation" }.into(),
-            nrmse: fit::nrmse_of(&observed, &ym),
+            // With a noise model, the one-step-ahead prediction error (said when printed).
+            nrmse: crate::effects::judged_nrmse(&fitted.model, &effects, test.u, test.y),
             noise_floor: fit::noise_floor(&t.y, quiet),
         });
     }
@@ -798,9 +806,14 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     let design = match inverse::check::design_checked(
         &fitted.model,
         judge,
-        &args
-            .inverse
-            .request(&fitted.model, &args.columns, raw_judge, judge, None)?,
+        &args.inverse.request(
+            &fitted.model,
+            &effects,
+            &args.columns,
+            raw_judge,
+            judge,
+            None,
+        )?,
         crate::effects::nonlinear_gain(&effects),
     )
     .and_then(|mut d| {
@@ -1070,6 +1083,7 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
         &tests,
         &args.inverse.request(
             &file.model,
+            &file.effects,
             &args.columns,
             &raw_tests,
             &tests,
@@ -1185,7 +1199,26 @@ fn print_fit(file: &ModelFile, est: &Trace) {
             }
         }
     }
-    crate::outln!("errors (simulation, RMS / range of y):");
+    match file.effects.iter().find_map(|e| match e {
+        crate::effects::Effect::ColouredNoise { ar, innovation_std } => Some((ar, innovation_std)),
+        _ => None,
+    }) {
+        Some((ar, innovation)) => {
+            crate::outln!(
+                "noise model beside the dynamics: AR({}) D = [1, {}], innovation std {:.4e}",
+                ar.len(),
+                ar.iter()
+                    .map(|d| format!("{d:.4}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                innovation
+            );
+            crate::outln!(
+                "errors (one-step-ahead prediction D(q)(y - G u), RMS / range of y; the simulation error is in `unlag compare`):"
+            );
+        }
+        None => crate::outln!("errors (simulation, RMS / range of y):"),
+    }
     for s in &file.sources {
         crate::outln!(
             "  {:<11} {:<40} nrmse {:>10}   noise floor {:>10}",

@@ -226,8 +226,13 @@ fn print_history(file: &ModelFile) {
     crate::outln!("error history of this model file (mean nrmse over its tests):");
     for (i, h) in file.history.iter().enumerate() {
         let mean = h.tests.iter().map(|t| t.nrmse).sum::<f64>() / h.tests.len().max(1) as f64;
+        let error = if h.effects.iter().any(|e| e == "coloured-noise") {
+            " (one-step-ahead prediction error: the model has a noise model)"
+        } else {
+            ""
+        };
         crate::outln!(
-            "  {:>2}. order {:>2}, delay {:>3}, effects [{}]: {}",
+            "  {:>2}. order {:>2}, delay {:>3}, effects [{}]: {}{error}",
             i + 1,
             h.order,
             h.delay,

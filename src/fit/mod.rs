@@ -17,6 +17,7 @@
 //! starts in equilibrium.
 
 pub mod arx;
+pub mod noise;
 pub mod oe;
 pub mod step;
 

@@ -80,6 +80,38 @@ impl NoiseModel {
         }
     }
 
+    /// Takes the coloured part of the probe noise from an AR noise model `D(q) v = e`
+    /// (`ar` = `[d1..dp]`, `innovation_std` of `e`), as the AR(1) with the same variance and
+    /// lag-1 correlation, less the white part already measured.
+    pub fn take_ar_part(&mut self, ar: &[f64], innovation_std: f64) {
+        // Impulse response of 1 / D(q), long enough for a pole at 0.9995 to fade.
+        let mut h = vec![0.0f64; 8192];
+        for k in 0..h.len() {
+            let past: f64 = ar
+                .iter()
+                .enumerate()
+                .filter_map(|(i, d)| k.checked_sub(i + 1).and_then(|j| h.get(j)).map(|v| d * v))
+                .sum();
+            if let Some(x) = h.get_mut(k) {
+                *x = if k == 0 { 1.0 } else { 0.0 } - past;
+            }
+        }
+        let var = |lag: usize| -> f64 {
+            innovation_std
+                * innovation_std
+                * h.iter()
+                    .zip(h.iter().skip(lag))
+                    .map(|(a, b)| a * b)
+                    .sum::<f64>()
+        };
+        let (r0, r1) = (var(0), var(1));
+        let coloured = r0 - self.probe_white_std * self.probe_white_std;
+        if r0 > 0.0 && coloured > 0.0 && r0.is_finite() {
+            self.probe_ar_pole = (r1 / r0).clamp(0.0, 0.9995);
+            self.probe_ar_std = coloured.sqrt();
+        }
+    }
+
     /// Total probe noise standard deviation.
     #[must_use]
     pub fn probe_std(&self) -> f64 {

@@ -36,6 +36,10 @@ use crate::model::Model;
 /// A trial must lower the held-out error by at least this factor to be offered.
 pub const MIN_IMPROVEMENT: f64 = 1.15;
 
+/// A held-out error that falls this much in a trial overrules a noise floor that says nothing
+/// is missing.
+pub const FLOOR_OVERRULED: f64 = 1.4;
+
 /// Score charged per parameter an effect adds: between two effects that explain the data
 /// equally well, the simpler one ranks first (an offset before a drift, a leak before a mode).
 pub const PARAMETER_PENALTY: f64 = 0.03;
@@ -46,11 +50,8 @@ pub fn parameters(kind: &str) -> usize {
     match kind {
         "mode" => 4,
         "leak" | "drift" => 2,
-        "offset"
-        | "nonlinear-damping"
-        | "temperature"
-        | "temperature-viscous"
-        | "sensor-resonance" => 1,
+        "offset" | "nonlinear-damping" | "temperature" | "temperature-viscous" => 1,
+        "sensor-resonance" => 4,
         _ => 0,
     }
 }
@@ -682,7 +683,8 @@ pub fn diagnose(
             let f = rp.frequency_hz;
             let added = Effect::SensorResonance {
                 natural_frequency_hz: f,
-                prefilter_hz: 0.5 * f,
+                prefilter_hz: 0.0,
+                remedy: effects::SensorRemedy::Modes,
             };
             if let Some((after, _)) = trial(added, &base) {
                 sensor_matched = true;
@@ -692,21 +694,22 @@ pub fn diagnose(
                     json!({"reference_peak_hz": f, "reference_above_floor_db": rp.above_floor_db,
                            "reference_q": rp.q, "reference_test": e.file,
                            "probe_peak_hz": pp.frequency_hz, "probe_above_floor_db": pp.above_floor_db,
-                           "probe_source": source, "prefilter_hz": 0.5 * f,
-                           "prefilter": format!("Butterworth order {}", effects::PREFILTER_ORDER)}),
+                           "probe_source": source,
+                           "remedy": "the transducers' modes in the model: two more poles and zeros, fitted on the raw signals (sensor-resonance-prefilter: the paper's prefilter instead)"}),
                     format!(
                         "the reference itself rings at {f:.0} Hz ({:.0} dB above the floor of its \
                          increments, Q about {:.0}) and the probe's {source} peaks at {:.0} Hz: the \
                          transducers' own diaphragm resonance, in both channels, not the line's; \
-                         fit below it, both channels prefiltered at half of it ({:.0} Hz)",
+                         model the transducers' modes (two more poles and zeros, on the raw \
+                         signals), or, as the paper does, fit below it with both channels \
+                         prefiltered at {:.0} Hz (sensor-resonance-prefilter)",
                         rp.above_floor_db,
                         rp.q,
                         pp.frequency_hz,
                         0.5 * f
                     ),
                     format!(
-                        "unlag fit ... --add sensor-resonance={f:.0}   (model file: effects = [{{ kind = \"sensor-resonance\", natural_frequency_hz = {f:.0}, prefilter_hz = {:.0} }}])",
-                        0.5 * f
+                        "unlag fit ... --add sensor-resonance={f:.0}   (model file: effects = [{{ kind = \"sensor-resonance\", natural_frequency_hz = {f:.0}, remedy = \"modes\" }}])"
                     ),
                 );
             }
@@ -946,7 +949,13 @@ pub fn diagnose(
             separated_by: None,
         });
     }
-    if at_floor && (white || out.is_empty()) {
+    // A trial that cuts the error by FLOOR_OVERRULED or more shows the floor was measured too
+    // high (a noisy pre-step segment): the candidates then stand.
+    let best_fall = out
+        .iter()
+        .map(|c| c.nrmse_before / c.nrmse_after)
+        .fold(0.0f64, f64::max);
+    if at_floor && ((white && best_fall < FLOOR_OVERRULED) || out.is_empty()) {
         let none = Candidate {
             kind: "none".into(),
             score: 0.0,

@@ -100,15 +100,22 @@ pub enum Effect {
         #[serde(default)]
         gain: f64,
     },
-    /// The transducers' own diaphragm resonance, ringing in both channels: both are
-    /// prefiltered below it before fitting.
+    /// The transducers' own diaphragm resonance, ringing in both channels. Modelled
+    /// ([`SensorRemedy::Modes`], what `--add sensor-resonance` writes): two more poles and
+    /// zeros, the probe transducer's mode and the reference transducer's as zeros, fitted on
+    /// the raw signals; or, as the paper does ([`SensorRemedy::Prefilter`],
+    /// `--add sensor-resonance-prefilter`), both channels low-passed below it before fitting.
     SensorResonance {
         /// The diaphragm's natural frequency (Hz); 0 until found in the reference's spectrum.
         #[serde(default)]
         natural_frequency_hz: f64,
-        /// Corner of the prefilter (Hz): half the natural frequency.
+        /// Corner of the prefilter (Hz): half the natural frequency; 0 without a prefilter.
         #[serde(default)]
         prefilter_hz: f64,
+        /// How the resonance enters the model (a file without the field is a prefiltered one,
+        /// as every file written before the modes existed).
+        #[serde(default)]
+        remedy: SensorRemedy,
     },
     /// Tests at other gas temperatures: the model scaled by `sqrt(T / reference_k)`.
     Temperature {
@@ -120,6 +127,23 @@ pub enum Effect {
         #[serde(default, skip_serializing_if = "TemperatureDamping::is_constant")]
         damping: TemperatureDamping,
     },
+}
+
+/// How a sensor resonance enters the model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SensorRemedy {
+    /// Both channels low-passed (Butterworth, order [`PREFILTER_ORDER`], at half the
+    /// diaphragm's frequency) before fitting, the prefilter run first on the board, as the
+    /// paper does. The model then says nothing about the band above the corner: its
+    /// simulation against the raw probe does not improve.
+    #[default]
+    Prefilter,
+    /// The transducers' modes in the model: the order raised by two (a pole pair at the
+    /// probe transducer's resonance, a zero pair at the reference transducer's), fitted on
+    /// the raw signals. The simulation against the measured probe improves, and `u_hat`
+    /// reconstructs the reference as its transducer measures it.
+    Modes,
 }
 
 /// How a `temperature` effect moves the damping ratio of every resonance with the gas
@@ -251,6 +275,12 @@ impl Effect {
             "sensor-resonance" => Self::SensorResonance {
                 natural_frequency_hz: 0.0,
                 prefilter_hz: 0.0,
+                remedy: SensorRemedy::Modes,
+            },
+            "sensor-resonance-prefilter" => Self::SensorResonance {
+                natural_frequency_hz: 0.0,
+                prefilter_hz: 0.0,
+                remedy: SensorRemedy::Prefilter,
             },
             "temperature" => Self::Temperature {
                 reference_k: DEFAULT_REFERENCE_K,
@@ -260,14 +290,27 @@ impl Effect {
                 reference_k: DEFAULT_REFERENCE_K,
                 damping: TemperatureDamping::Viscous,
             },
-            _ if kind.starts_with("sensor-resonance=") => {
-                let f: f64 = kind.strip_prefix("sensor-resonance=")?.parse().ok()?;
+            _ if kind.starts_with("sensor-resonance") => {
+                let (remedy, f) = if let Some(f) = kind.strip_prefix("sensor-resonance=") {
+                    (SensorRemedy::Modes, f)
+                } else {
+                    (
+                        SensorRemedy::Prefilter,
+                        kind.strip_prefix("sensor-resonance-prefilter=")?,
+                    )
+                };
+                let f: f64 = f.parse().ok()?;
                 if !(f.is_finite() && f > 0.0) {
                     return None;
                 }
                 Self::SensorResonance {
                     natural_frequency_hz: f,
-                    prefilter_hz: 0.5 * f,
+                    prefilter_hz: if remedy == SensorRemedy::Prefilter {
+                        0.5 * f
+                    } else {
+                        0.0
+                    },
+                    remedy,
                 }
             }
             _ if kind.starts_with("temperature") => {
@@ -327,6 +370,10 @@ impl FitChanges {
                 Effect::Delay { samples } => c.delay = Some(*samples),
                 Effect::ColouredNoise { .. } => c.method = Some(Method::Oe),
                 Effect::NonlinearDamping { .. } => c.nonlinear = true,
+                Effect::SensorResonance {
+                    remedy: SensorRemedy::Modes,
+                    ..
+                } => c.extra_order += 2,
                 Effect::SensorResonance { .. } | Effect::Temperature { .. } => {}
             }
         }
@@ -1079,6 +1126,7 @@ pub fn resolve(effects: &[Effect], u: &[f64], fs: f64) -> Result<Vec<Effect>> {
             Effect::SensorResonance {
                 natural_frequency_hz,
                 prefilter_hz,
+                remedy,
             } => {
                 let f = if *natural_frequency_hz > 0.0 {
                     *natural_frequency_hz
@@ -1093,6 +1141,13 @@ pub fn resolve(effects: &[Effect], u: &[f64], fs: f64) -> Result<Vec<Effect>> {
                                 .into(),
                         })?
                 };
+                if *remedy == SensorRemedy::Modes {
+                    return Ok(Effect::SensorResonance {
+                        natural_frequency_hz: f,
+                        prefilter_hz: 0.0,
+                        remedy: *remedy,
+                    });
+                }
                 let corner = if *prefilter_hz > 0.0 {
                     *prefilter_hz
                 } else {
@@ -1102,6 +1157,7 @@ pub fn resolve(effects: &[Effect], u: &[f64], fs: f64) -> Result<Vec<Effect>> {
                 Ok(Effect::SensorResonance {
                     natural_frequency_hz: f,
                     prefilter_hz: corner,
+                    remedy: *remedy,
                 })
             }
             Effect::Temperature { reference_k, .. } => {
@@ -1831,7 +1887,8 @@ mod tests {
             vec![
                 Effect::SensorResonance {
                     natural_frequency_hz: 2000.0,
-                    prefilter_hz: 1000.0
+                    prefilter_hz: 1000.0,
+                    remedy: SensorRemedy::Prefilter,
                 },
                 Effect::Temperature {
                     reference_k: DEFAULT_REFERENCE_K,

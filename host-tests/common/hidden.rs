@@ -529,21 +529,6 @@ pub fn cases() -> Vec<Case> {
             },
             2,
         ),
-        Case {
-            steps: &[(1.0, 0.0), (0.2, 0.9)],
-            ..line(
-                "sensor resonance: 5 kHz, falling step, 20 kHz",
-                "sensor-resonance",
-                20_000.0,
-                30,
-                Hidden::SensorResonance {
-                    f: 5_000.0,
-                    zeta: 0.05,
-                    probe: 0.5,
-                },
-                2,
-            )
-        },
         line(
             "temperature: validation at 343 K",
             "temperature",
@@ -933,7 +918,7 @@ pub fn physical_limits() -> Vec<Case> {
         steps,
         second: None,
     };
-    vec![
+    let mut limits = vec![
         // The thermal creep is there, but so is the 1 m line's second acoustic mode: the
         // diagnosis names `mode` first (both are real; the user's plain model misses both).
         case(
@@ -993,5 +978,27 @@ pub fn physical_limits() -> Vec<Case> {
                 ..tight
             },
         ),
-    ]
+    ];
+    // Judged against the raw probe (not a prefiltered one, whose fall was an artefact of
+    // filtering the probe it is compared with), a 5 kHz ringing of half the step that dies in
+    // 13 samples stays under this test's noise floor (0.82 % against 0.94 %): the residual is
+    // consistent with noise and the diagnosis says `none`.
+    limits.push(Case {
+        name: "sensor resonance: 5 kHz, falling step, 20 kHz",
+        kind: "sensor-resonance",
+        fs: 20_000.0,
+        mode: (95.0, 0.3),
+        delay: 30,
+        noise: 0.002,
+        n: 4000,
+        hidden: Hidden::SensorResonance {
+            f: 5_000.0,
+            zeta: 0.05,
+            probe: 0.5,
+        },
+        order: 2,
+        steps: &[(1.0, 0.0), (0.2, 0.9)],
+        second: None,
+    });
+    limits
 }

@@ -397,8 +397,9 @@ pub struct FitArgs {
     #[arg(long, value_name = "SAMPLES")]
     pub delay: Option<usize>,
     /// Add a physical effect to the model (repeatable): mode, leak, offset, drift,
-    /// coloured-noise, nonlinear-damping, delay=N, sensor-resonance (frequency found in the
-    /// reference) or sensor-resonance=HZ, temperature (reference 293.15 K) or temperature=K
+    /// coloured-noise, nonlinear-damping, delay=N, sensor-resonance (the transducers' modes;
+    /// frequency found in the reference) or sensor-resonance=HZ, sensor-resonance-prefilter[=HZ]
+    /// (the paper's prefilter instead), temperature (reference 293.15 K) or temperature=K
     /// (the estimation test's gas temperature). Effects already in the output model file are
     /// kept.
     #[arg(long = "add", value_name = "KIND")]
@@ -724,7 +725,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         let e = crate::effects::Effect::parse(kind).ok_or_else(|| Error::InvalidArgument {
             what: "--add",
             message: format!(
-                "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, temperature=K, temperature-viscous[=K]",
+                "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, sensor-resonance-prefilter[=HZ], temperature=K, temperature-viscous[=K]",
                 crate::effects::KINDS
                     .iter()
                     .filter(|k| **k != "delay")

@@ -917,6 +917,19 @@ pub fn diagnose(
             }
         }
     }
+    // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
+    // too: when an effect in the dynamics scores within CLOSE_MARGIN of it, the physics goes
+    // first and the noise model is the last resort.
+    if out.first().is_some_and(|c| c.kind == "coloured-noise") {
+        let top = out.first().map_or(0.0, |c| c.score);
+        if let Some(i) = out
+            .iter()
+            .position(|c| c.kind != "coloured-noise" && c.score >= top - CLOSE_MARGIN)
+        {
+            let c = out.remove(0);
+            out.insert(i, c);
+        }
+    }
     // Nothing is missing when the residual is what both channels' noise leaves (at the floor,
     // correlated only as that noise is), or at the floor with no effect's trial lowering it.
     // A residual above the floor that no effect's trial lowers is not "none": something

@@ -1142,6 +1142,16 @@ pub fn resolve(effects: &[Effect], u: &[f64], fs: f64) -> Result<Vec<Effect>> {
                         })?
                 };
                 if *remedy == SensorRemedy::Modes {
+                    if f >= 0.5 * fs {
+                        return Err(crate::error::Error::InvalidArgument {
+                            what: "sensor-resonance",
+                            message: format!(
+                                "the transducer's natural frequency {f} Hz is not below half \
+                                 the sample rate ({} Hz): the record cannot show it",
+                                0.5 * fs
+                            ),
+                        });
+                    }
                     return Ok(Effect::SensorResonance {
                         natural_frequency_hz: f,
                         prefilter_hz: 0.0,
@@ -1829,8 +1839,18 @@ mod tests {
     #[test]
     fn the_prefilter_passes_a_step_and_stops_the_resonance() {
         let fs = 10_000.0;
-        let e = resolve(&[Effect::parse("sensor-resonance=2000").unwrap()], &[], fs).unwrap();
+        let e = resolve(
+            &[Effect::parse("sensor-resonance-prefilter=2000").unwrap()],
+            &[],
+            fs,
+        )
+        .unwrap();
         assert_eq!(prefilter_hz(&e), Some(1000.0));
+        // The transducers' modes (the default remedy) prefilter nothing: two more poles and
+        // zeros instead.
+        let m = resolve(&[Effect::parse("sensor-resonance=2000").unwrap()], &[], fs).unwrap();
+        assert_eq!(prefilter_hz(&m), None);
+        assert_eq!(FitChanges::of(&m).extra_order, 2);
         let step: Vec<f64> = (0..2000)
             .map(|k| if k >= 100 { 3.0 } else { 1.0 })
             .collect();

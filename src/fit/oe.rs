@@ -144,48 +144,64 @@ pub fn output_error(
     }
     let rows: usize = sets.iter().map(|s| s.y.len()).sum();
     let mut lambda: f64 = 1e-4;
+    // The Jacobian with the residual as its last column, filled in place every iteration (one
+    // allocation for the whole fit). One QR of it per iteration gives R and Q^T r at once;
+    // each damping trial then solves the small problem [R; sqrt(lambda) D] delta = [Q^T r; 0],
+    // the same least-squares solution as the full damped system, at the cost of np rows.
+    if rows <= np {
+        return Ok((a, b));
+    }
+    let mut aug = Mat::<f64>::zeros(rows, np + 1);
     for _ in 0..max_iterations {
-        // Residuals and Jacobian, stacked over the data sets.
-        let mut jac = Mat::<f64>::zeros(rows + np, np);
-        let mut res = Mat::<f64>::zeros(rows + np, 1);
         let mut r0 = 0;
         for s in sets {
             let yh = filter(&b, &a, d, s.u);
             let w = allpole(&a, s.u);
             let vv = allpole(&a, &yh);
-            for k in 0..s.y.len() {
-                res[(r0 + k, 0)] = s.y[k] - yh[k];
+            for (k, (yk, yhk)) in s.y.iter().zip(&yh).enumerate() {
+                let row = r0 + k;
                 for i in 0..m {
-                    if let Some(j) = k.checked_sub(i + 1) {
-                        jac[(r0 + k, i)] = -vv[j];
-                    }
+                    aug[(row, i)] = k
+                        .checked_sub(i + 1)
+                        .and_then(|j| vv.get(j))
+                        .map_or(0.0, |x| -x);
                 }
                 for i in 0..np - m {
-                    if let Some(j) = k.checked_sub(d + i) {
-                        jac[(r0 + k, m + i)] = w[j];
-                    }
+                    aug[(row, m + i)] = k
+                        .checked_sub(d + i)
+                        .and_then(|j| w.get(j))
+                        .copied()
+                        .unwrap_or(0.0);
                 }
+                aug[(row, np)] = yk - yhk;
             }
             r0 += s.y.len();
         }
+        let r_aug = aug.qr().thin_R().to_owned();
+        // Column norms of J are those of R (Q is orthogonal).
         let norms: Vec<f64> = (0..np)
             .map(|c| {
-                (0..rows)
-                    .map(|r| jac[(r, c)] * jac[(r, c)])
+                (0..=c.min(np - 1))
+                    .map(|r| r_aug[(r, c)] * r_aug[(r, c)])
                     .sum::<f64>()
                     .sqrt()
             })
             .collect();
+        let mut small = Mat::<f64>::zeros(2 * np, np);
+        let mut target = Mat::<f64>::zeros(2 * np, 1);
+        for r in 0..np {
+            for c in r..np {
+                small[(r, c)] = r_aug[(r, c)];
+            }
+            target[(r, 0)] = r_aug[(r, np)];
+        }
         let mut improved = false;
         for _ in 0..12 {
             // Damping rows: sqrt(lambda) * diag(column norms).
             for (c, nrm) in norms.iter().enumerate() {
-                for c2 in 0..np {
-                    jac[(rows + c, c2)] = 0.0;
-                }
-                jac[(rows + c, c)] = lambda.sqrt() * nrm.max(1e-300);
+                small[(np + c, c)] = lambda.sqrt() * nrm.max(1e-300);
             }
-            let Ok(delta) = arx::lstsq(&jac, &res, "output error") else {
+            let Ok(delta) = arx::lstsq(&small, &target, "output error") else {
                 lambda *= 10.0;
                 continue;
             };

@@ -420,6 +420,13 @@ fn dash_is_standard_output_and_a_full_device_is_an_error() {
             stderr.contains("cannot write to standard output"),
             "{stderr}"
         );
+        // Help on a full standard output: an error too, not a silent success.
+        let o = Command::new(env!("CARGO_BIN_EXE_unlag"))
+            .arg("--help")
+            .stdout(std::fs::File::create("/dev/full").unwrap())
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1));
         // A full standard error: the error has nowhere to go, but the exit status says it.
         let o = Command::new(env!("CARGO_BIN_EXE_unlag"))
             .args(["inspect", "nothere.toml"])

@@ -18,7 +18,16 @@ fn main() -> ExitCode {
                 unlag::cli::console::warn(format_args!("{text}"));
                 return ExitCode::from(2);
             }
-            e.exit();
+            // Help, version and usage errors as clap prints them, but a full or closed
+            // terminal is an error here too, never a silent success.
+            let code = u8::try_from(e.exit_code()).unwrap_or(2);
+            return match e.print() {
+                Err(w) if w.kind() != std::io::ErrorKind::BrokenPipe => {
+                    unlag::errln!("error: cannot write to standard output: {w}");
+                    ExitCode::FAILURE
+                }
+                _ => ExitCode::from(code),
+            };
         }
     };
     let result = unlag::cli::run(cli);

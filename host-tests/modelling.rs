@@ -642,18 +642,13 @@ fn sensor_resonance_through_the_command_line() {
     unlag_json(&["fit", &est, &val, "--order", "2", "-o", p, "--json"]);
     let d = unlag_json(&["diagnose", p, &est, &val, "--json"]);
     assert_eq!(d["candidates"][0]["kind"], "sensor-resonance", "{d}");
-    let f = unlag_json(&[
-        "fit",
-        &est,
-        &val,
-        "--order",
-        "2",
-        "--add",
-        "sensor-resonance",
-        "-o",
-        s,
-        "--json",
-    ]);
+    // `unlag fit EST VAL --order 2 --add KIND -o OUT --json`.
+    let fit_adding = |kind: &str, out: &str| {
+        unlag_json(&[
+            "fit", &est, &val, "--order", "2", "--add", kind, "-o", out, "--json",
+        ])
+    };
+    let f = fit_adding("sensor-resonance", s);
     let e = &f["effects"][0];
     assert_eq!(e["kind"], "sensor-resonance", "{f}");
     assert_eq!(e["remedy"], "modes", "{f}");
@@ -665,18 +660,7 @@ fn sensor_resonance_through_the_command_line() {
     let sections = f["inverse"]["sections"].as_array().unwrap().len();
     // The paper's way is still there: both channels prefiltered, the prefilter on the board.
     let pre = dir.join("prefilter.toml");
-    let g = unlag_json(&[
-        "fit",
-        &est,
-        &val,
-        "--order",
-        "2",
-        "--add",
-        "sensor-resonance-prefilter",
-        "-o",
-        pre.to_str().unwrap(),
-        "--json",
-    ]);
+    let g = fit_adding("sensor-resonance-prefilter", pre.to_str().unwrap());
     assert!(
         (g["effects"][0]["prefilter_hz"].as_f64().unwrap() - 0.5 * fn_hz).abs() < 0.05 * fn_hz,
         "{g}"

@@ -141,29 +141,38 @@ mod private {
         target_arch = "x86_64"
     )))]
     impl Sealed for f32 {}
+
+    /// `Sealed` for a float on x86-64, where `scalar` is a value barrier. LLVM's SLP
+    /// vectoriser packs the sections of a sample into one SSE vector and puts shuffles on the
+    /// loop-carried chain from one sample to the next (`f32` ran at 0.7x the same code in
+    /// `f64`). An empty `asm!` that claims to rewrite the value in its XMM register keeps every
+    /// section scalar; it emits no instruction and cannot change a bit.
     #[cfg(target_arch = "x86_64")]
-    #[allow(unsafe_code)] // One empty asm! block, below: no instruction runs.
-    impl Sealed for f32 {
-        /// LLVM's SLP vectoriser packs the `f32` sections of a sample into one SSE vector and
-        /// puts shuffles on the loop-carried chain from one sample to the next: 0.7x the
-        /// throughput of the same code in `f64`, which it leaves scalar. An empty `asm!` that
-        /// claims to rewrite the section's output in its XMM register keeps every section
-        /// scalar; it emits no instruction and cannot change a bit.
-        #[inline(always)]
-        fn scalar(self) -> Self {
-            let mut x = self;
-            // SAFETY: the template is a comment: no instruction runs; `x` stays in its
-            // register unchanged, and no memory, stack or flag is touched.
-            unsafe {
-                core::arch::asm!(
-                    "/* {0} */",
-                    inout(xmm_reg) x,
-                    options(pure, nomem, nostack, preserves_flags)
-                );
+    macro_rules! sealed_with_value_barrier {
+        ($t:ty) => {
+            #[allow(unsafe_code)] // One empty asm! block: no instruction runs.
+            impl Sealed for $t {
+                #[inline(always)]
+                fn scalar(self) -> Self {
+                    let mut x = self;
+                    // SAFETY: the template is a comment: no instruction runs; `x` stays in its
+                    // register unchanged, and no memory, stack or flag is touched.
+                    unsafe {
+                        core::arch::asm!(
+                            "/* {0} */",
+                            inout(xmm_reg) x,
+                            options(pure, nomem, nostack, preserves_flags)
+                        );
+                    }
+                    x
+                }
             }
-            x
-        }
+        };
     }
+    #[cfg(target_arch = "x86_64")]
+    sealed_with_value_barrier!(f32);
+    #[cfg(target_arch = "x86_64")]
+    sealed_with_value_barrier!(f64);
     #[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
     impl Sealed for f32 {
         #[inline(always)]
@@ -185,25 +194,6 @@ mod private {
     }
     #[cfg(not(target_arch = "x86_64"))]
     impl Sealed for f64 {}
-    #[cfg(target_arch = "x86_64")]
-    #[allow(unsafe_code)] // One empty asm! block, below: no instruction runs.
-    impl Sealed for f64 {
-        /// As `f32`'s: the sections kept scalar.
-        #[inline(always)]
-        fn scalar(self) -> Self {
-            let mut x = self;
-            // SAFETY: the template is a comment: no instruction runs; `x` stays in its
-            // register unchanged, and no memory, stack or flag is touched.
-            unsafe {
-                core::arch::asm!(
-                    "/* {0} */",
-                    inout(xmm_reg) x,
-                    options(pure, nomem, nostack, preserves_flags)
-                );
-            }
-            x
-        }
-    }
 }
 
 /// The Cortex-M kernels of the `f32` cascade (Thumb-2 + single-precision VFP, hard-float ABI).

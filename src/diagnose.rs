@@ -873,17 +873,13 @@ pub fn diagnose(
     // correlates with: noise biases least squares; with output error already, the signature
     // must be clean (no cause in the input).
     if p < 1e-3 && (current.method != Method::Oe || !input_explains) {
-        let (after, how) = (
-            trial(
-                Effect::ColouredNoise {
-                    ar: Vec::new(),
-                    innovation_std: 0.0,
-                },
-                &base,
-            )
-            .map_or(f64::NAN, |t| t.0),
-            "output error and an AR noise model; the error is the one-step-ahead prediction error",
-        );
+        let added = Effect::ColouredNoise {
+            ar: Vec::new(),
+            innovation_std: 0.0,
+        };
+        let after = trial(added, &base).map_or(f64::NAN, |t| t.0);
+        let how =
+            "output error and an AR noise model; the error is the one-step-ahead prediction error";
         let rho1 = evidence
             .first()
             .and_then(|e| e.autocorrelation.values.first().copied())

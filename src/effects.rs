@@ -1282,7 +1282,7 @@ pub fn fit_with(
             other => other.clone(),
         })
         .collect();
-    let out = with_noise_model(&fitted.model, out, estimation_raw, fs);
+    let out = with_noise_model(&fitted.model, out, estimation_raw);
     // A real pole slower than the record is not resolved by it: a drift makes the same
     // creep, and a near-integrator pole-zero pair inverts it into a runaway. Unless the user
     // asked for a leak or a drift, try the drift and keep it when it explains the estimation
@@ -1327,24 +1327,14 @@ pub fn fit_with(
 
 /// Fits the `coloured-noise` effect's AR model, if `effects` has one, to what the model and
 /// the other effects leave on the estimation test.
-fn with_noise_model(
-    model: &Model,
-    effects: Vec<Effect>,
-    estimation: &Test<'_>,
-    fs: f64,
-) -> Vec<Effect> {
+fn with_noise_model(model: &Model, effects: Vec<Effect>, estimation: &Test<'_>) -> Vec<Effect> {
     if !effects
         .iter()
         .any(|e| matches!(e, Effect::ColouredNoise { .. }))
     {
         return effects;
     }
-    let ym = predict(model, &effects, estimation.u, estimation.y);
-    let v: Vec<f64> = observed(&effects, fs, estimation.y)
-        .iter()
-        .zip(&ym)
-        .map(|(a, b)| a - b)
-        .collect();
+    let v = residual(model, &effects, estimation.u, estimation.y);
     let noise = crate::fit::noise::fit(&v, crate::fit::noise::MAX_NOISE_ORDER);
     effects
         .into_iter()
@@ -1363,16 +1353,22 @@ fn with_noise_model(
 /// simulation error `y - G u` itself.
 #[must_use]
 pub fn prediction_error(model: &Model, effects: &[Effect], u: &[f64], y: &[f64]) -> Vec<f64> {
-    let ym = predict(model, effects, u, y);
-    let v: Vec<f64> = observed(effects, model.fs, y)
-        .iter()
-        .zip(&ym)
-        .map(|(a, b)| a - b)
-        .collect();
+    let v = residual(model, effects, u, y);
     match noise_model(effects) {
         Some(ar) => crate::fit::noise::whiten(ar, &v),
         None => v,
     }
+}
+
+/// What the model with its effects leaves of a test: the observed probe signal less
+/// [`predict`].
+fn residual(model: &Model, effects: &[Effect], u: &[f64], y: &[f64]) -> Vec<f64> {
+    let ym = predict(model, effects, u, y);
+    observed(effects, model.fs, y)
+        .iter()
+        .zip(&ym)
+        .map(|(a, b)| a - b)
+        .collect()
 }
 
 /// The fitted AR noise model of a `coloured-noise` effect, if any.
@@ -1401,19 +1397,10 @@ pub fn innovation_std(effects: &[Effect]) -> f64 {
 /// white residuals); over the range of the observed probe signal.
 #[must_use]
 pub fn judged_nrmse(model: &Model, effects: &[Effect], u: &[f64], y: &[f64]) -> f64 {
-    let observed = observed(effects, model.fs, y);
-    let e = prediction_error(model, effects, u, y);
-    let rms = (e.iter().map(|v| v * v).sum::<f64>() / e.len().max(1) as f64).sqrt();
-    let (lo, hi) = observed
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-            (lo.min(*v), hi.max(*v))
-        });
-    if hi > lo {
-        rms / (hi - lo)
-    } else {
-        f64::NAN
-    }
+    crate::fit::nrmse_of_error(
+        &observed(effects, model.fs, y),
+        prediction_error(model, effects, u, y),
+    )
 }
 
 /// A first drift estimate from the record's ends: the probe's slope over its last 30 % less

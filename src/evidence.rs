@@ -646,21 +646,7 @@ mod tests {
     use super::*;
 
     fn noise(n: usize, seed: u64) -> Vec<f64> {
-        let mut s = seed;
-        (0..n)
-            .map(|_| {
-                // Sum of 12 uniforms minus 6: close enough to Gaussian for these checks.
-                (0..12)
-                    .map(|_| {
-                        s = s
-                            .wrapping_mul(6_364_136_223_846_793_005)
-                            .wrapping_add(1_442_695_040_888_963_407);
-                        (s >> 11) as f64 / (1u64 << 53) as f64
-                    })
-                    .sum::<f64>()
-                    - 6.0
-            })
-            .collect()
+        crate::testing::gaussian(n, seed)
     }
 
     #[test]

@@ -44,3 +44,5 @@ pub mod trace;
 
 #[cfg(feature = "std")]
 pub use error::Error;
+#[cfg(all(test, feature = "std"))]
+pub(crate) mod testing;

@@ -5,11 +5,12 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
-    let json = std::env::args_os().any(|a| a == "--json");
     let cli = match unlag::cli::Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
             use clap::error::ErrorKind;
+            // Not parsed, so the flag is looked for among the words.
+            let json = std::env::args_os().any(|a| a == "--json");
             if json && !matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
                 let text = e.to_string();
                 let first = text.lines().next().unwrap_or("");
@@ -30,6 +31,7 @@ fn main() -> ExitCode {
             };
         }
     };
+    let json = cli.command.json();
     let result = unlag::cli::run(cli);
     let written = unlag::cli::console::finish();
     match (result, written) {

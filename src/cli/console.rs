@@ -24,6 +24,16 @@ pub fn print(args: std::fmt::Arguments<'_>) {
     }
 }
 
+/// A line beside the command's result: with `json` on standard error, out of the way of the
+/// one JSON object on standard output; else with the command's text.
+pub fn note(json: bool, line: &str) {
+    if json {
+        warn(format_args!("{line}\n"));
+    } else {
+        print(format_args!("{line}\n"));
+    }
+}
+
 /// From now on the command's text goes to standard error: standard output is the data.
 pub fn data_on_stdout() {
     DATA_ON_STDOUT.store(true, Ordering::Relaxed);

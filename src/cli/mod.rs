@@ -714,11 +714,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
                     String::new()
                 }
             );
-            if args.json {
-                crate::errln!("{msg}");
-            } else {
-                crate::outln!("{msg}");
-            }
+            console::note(args.json, &msg);
         }
     }
     for kind in &args.add {
@@ -1356,11 +1352,7 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
             "note: the reference of {} does not move above its noise: no error against it is reported",
             name(&args.file)
         );
-        if args.json {
-            crate::errln!("{msg}");
-        } else {
-            crate::outln!("{msg}");
-        }
+        console::note(args.json, &msg);
     }
     let error = trace.u.as_ref().filter(|_| !still).map(|u| {
         let u = &crate::effects::observed(&file.effects, m.fs, u);

@@ -115,23 +115,25 @@ pub fn nrmse(model: &Model, u: &[f64], y: &[f64]) -> f64 {
 /// `RMS(y - y_model) / range(y)`.
 #[must_use]
 pub fn nrmse_of(y: &[f64], ym: &[f64]) -> f64 {
-    let n = y.len().min(ym.len());
+    nrmse_of_error(y, y.iter().zip(ym).map(|(a, b)| a - b))
+}
+
+/// `RMS(error) / range(y)`: an error sequence (a simulation's, a one-step predictor's) over
+/// the range of the signal it belongs to.
+#[must_use]
+pub fn nrmse_of_error(y: &[f64], error: impl IntoIterator<Item = f64>) -> f64 {
+    let (sum, n) = error
+        .into_iter()
+        .fold((0.0, 0usize), |(s, n), e| (s + e * e, n + 1));
     if n == 0 {
         return f64::NAN;
     }
-    let rms = (y
-        .iter()
-        .zip(ym)
-        .map(|(a, b)| (a - b) * (a - b))
-        .sum::<f64>()
-        / n as f64)
-        .sqrt();
     let (lo, hi) = y
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
             (l.min(*v), h.max(*v))
         });
-    rms / (hi - lo)
+    (sum / n as f64).sqrt() / (hi - lo)
 }
 
 /// Noise floor of the probe channel: noise RMS / range(y), the noise as

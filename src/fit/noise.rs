@@ -90,16 +90,8 @@ pub fn fit(v: &[f64], max_order: usize) -> ArNoise {
 /// samples use the samples there are).
 #[must_use]
 pub fn whiten(ar: &[f64], x: &[f64]) -> Vec<f64> {
-    (0..x.len())
-        .map(|k| {
-            let past: f64 = ar
-                .iter()
-                .enumerate()
-                .filter_map(|(i, d)| k.checked_sub(i + 1).and_then(|j| x.get(j)).map(|v| d * v))
-                .sum();
-            x.get(k).copied().unwrap_or(0.0) + past
-        })
-        .collect()
+    let d: Vec<f64> = std::iter::once(1.0).chain(ar.iter().copied()).collect();
+    crate::model::filter(&d, &[], 0, x)
 }
 
 fn rms(v: &[f64]) -> f64 {
@@ -111,21 +103,7 @@ mod tests {
     use super::*;
 
     fn white(n: usize, seed: u64) -> Vec<f64> {
-        // Sum of 12 uniforms less 6: close enough to Gaussian, unit variance.
-        let mut s = seed;
-        (0..n)
-            .map(|_| {
-                (0..12)
-                    .map(|_| {
-                        s = s
-                            .wrapping_mul(6_364_136_223_846_793_005)
-                            .wrapping_add(1_442_695_040_888_963_407);
-                        (s >> 11) as f64 / (1u64 << 53) as f64
-                    })
-                    .sum::<f64>()
-                    - 6.0
-            })
-            .collect()
+        crate::testing::gaussian(n, seed)
     }
 
     #[test]

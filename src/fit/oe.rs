@@ -181,7 +181,7 @@ pub fn output_error(
         // Column norms of J are those of R (Q is orthogonal).
         let norms: Vec<f64> = (0..np)
             .map(|c| {
-                (0..=c.min(np - 1))
+                (0..=c)
                     .map(|r| r_aug[(r, c)] * r_aug[(r, c)])
                     .sum::<f64>()
                     .sqrt()

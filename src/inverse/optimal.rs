@@ -85,17 +85,11 @@ impl NoiseModel {
     /// lag-1 correlation, less the white part already measured.
     pub fn take_ar_part(&mut self, ar: &[f64], innovation_std: f64) {
         // Impulse response of 1 / D(q), long enough for a pole at 0.9995 to fade.
-        let mut h = vec![0.0f64; 8192];
-        for k in 0..h.len() {
-            let past: f64 = ar
-                .iter()
-                .enumerate()
-                .filter_map(|(i, d)| k.checked_sub(i + 1).and_then(|j| h.get(j)).map(|v| d * v))
-                .sum();
-            if let Some(x) = h.get_mut(k) {
-                *x = if k == 0 { 1.0 } else { 0.0 } - past;
-            }
+        let mut impulse = vec![0.0f64; 8192];
+        if let Some(first) = impulse.first_mut() {
+            *first = 1.0;
         }
+        let h = crate::fit::oe::allpole(ar, &impulse);
         let var = |lag: usize| -> f64 {
             innovation_std
                 * innovation_std

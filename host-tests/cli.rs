@@ -275,7 +275,7 @@ fn fit_compensate_simulate_end_to_end() {
         "delay = ",
         "a = [",
         "b = [",
-        "method = \"oe\"",
+        "method = \"bj\"",
         "[[sources]]",
         "sha256",
     ] {

@@ -473,7 +473,10 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
     }
     // invert's own numbers include the correction.
     eprintln!("invert's reconstruction of the estimation test: {rebuilt:?}");
-    assert!(rebuilt[0] < rebuilt[1] / 1.3, "{rebuilt:?}");
+    // The default fit (Box-Jenkins) makes the plain linear model a better compensator than
+    // output error did (here 2.0 % against 3.7 %), which narrows the correction's margin:
+    // measured 1.13x here, 1.25x on the large step below (2.1x and 2.4x against output error).
+    assert!(rebuilt[0] < rebuilt[1] / 1.1, "{rebuilt:?}");
     let comp = |m: &str, arith: &str| -> f64 {
         let tag = if m == model { "nl" } else { "lin" };
         let v = run(&[
@@ -493,7 +496,7 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
     eprintln!(
         "compensation of the large step: {c_nl:.5} with the correction (f64 {c_nl64:.5}), {c_lin:.5} linear"
     );
-    assert!(c_nl < c_lin / 2.0, "{c_nl} against {c_lin}");
+    assert!(c_nl < c_lin / 1.2, "{c_nl} against {c_lin}");
     assert!((c_nl - c_nl64).abs() < 0.05 * c_nl64);
 
     // The board's view: the blob carries the correction; parsed and run by the board's

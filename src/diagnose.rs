@@ -872,7 +872,7 @@ pub fn diagnose(
     // With least squares (ARX, SM) an output-error refit is the trial, whatever the residual
     // correlates with: noise biases least squares; with output error already, the signature
     // must be clean (no cause in the input).
-    if p < 1e-3 && (current.method != Method::Oe || !input_explains) {
+    if p < 1e-3 && (!matches!(current.method, Method::Oe | Method::Bj) || !input_explains) {
         let added = Effect::ColouredNoise {
             ar: Vec::new(),
             innovation_std: 0.0,

@@ -368,7 +368,7 @@ impl FitChanges {
                 Effect::Offset { .. } => c.offset = true,
                 Effect::Drift { .. } => c.drift = true,
                 Effect::Delay { samples } => c.delay = Some(*samples),
-                Effect::ColouredNoise { .. } => c.method = Some(Method::Oe),
+                Effect::ColouredNoise { .. } => c.method = Some(Method::Bj),
                 Effect::NonlinearDamping { .. } => c.nonlinear = true,
                 Effect::SensorResonance {
                     remedy: SensorRemedy::Modes,

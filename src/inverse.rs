@@ -695,6 +695,16 @@ impl Design {
             .collect())
     }
 
+    /// Whether the design passes the probe signal through unchanged but for its gain (every
+    /// section the identity): the delay-only design. Its output is then compared with the
+    /// reference over the raw probe's lags, since it is the raw probe.
+    #[must_use]
+    pub fn passes_probe(&self) -> bool {
+        self.sections
+            .iter()
+            .all(|s| *s == [1.0, 0.0, 0.0, 0.0, 0.0])
+    }
+
     /// Checks that the board may run it: every pole inside the unit circle by
     /// [`MIN_POLE_MARGIN`].
     ///
@@ -712,6 +722,23 @@ impl Design {
         }
         Ok(())
     }
+}
+
+/// The lags at which a compensator's output is compared with the reference: its stated
+/// latency `nominal` plus or minus 4 samples, or plus or minus the part of the latency beyond
+/// the probe's delay when that is larger (a latency that is itself an estimate, as the
+/// delay-only design's group delay, is searched over its own size).
+#[must_use]
+pub fn alignment_lags(nominal: usize, delay: usize) -> std::ops::RangeInclusive<usize> {
+    let w = nominal.saturating_sub(delay).max(4);
+    nominal.saturating_sub(w)..=nominal + w
+}
+
+/// The lags at which the raw probe is compared with the reference: from 0 to the delay plus
+/// four times the compensator's latency (at least 40 samples), whatever the compensator.
+#[must_use]
+pub fn raw_alignment_lags(delay: usize, latency: usize) -> std::ops::RangeInclusive<usize> {
+    0..=delay + 4 * latency.max(10)
 }
 
 /// Error of an estimate against a reference when the estimate lags by `lag` samples, searched
@@ -776,9 +803,14 @@ pub fn reconstruct_with(
         }
     }
     let nominal = design.latency_samples.round().max(0.0) as usize;
-    let lo = nominal.saturating_sub(4);
-    let (e, lag) = aligned_error(test.u, &u_hat, lo..=nominal + 4);
-    let (raw, _) = aligned_error(test.u, test.y, 0..=model.delay + 4 * nominal.max(10));
+    let raw_lags = raw_alignment_lags(model.delay, nominal);
+    let lags = if design.passes_probe() {
+        raw_lags.clone()
+    } else {
+        alignment_lags(nominal, model.delay)
+    };
+    let (e, lag) = aligned_error(test.u, &u_hat, lags);
+    let (raw, _) = aligned_error(test.u, test.y, raw_lags);
     let range = test.u.iter().fold(f64::NEG_INFINITY, |m, v| m.max(*v))
         - test.u.iter().fold(f64::INFINITY, |m, v| m.min(*v));
     let model_part = design.budget.map(|b| {

@@ -47,6 +47,19 @@ impl Model {
         self.b.iter().sum::<f64>() / (1.0 + self.a.iter().sum::<f64>())
     }
 
+    /// Group delay at zero frequency in samples, the delay included: `d + sum k b_k / sum b_k -
+    /// sum k a_k / (1 + sum a_k)`, how late the probe follows a slow signal. `None` when the DC
+    /// gain is zero or not finite.
+    #[must_use]
+    pub fn dc_group_delay(&self) -> Option<f64> {
+        let moment = |p: &[f64]| p.iter().enumerate().map(|(k, c)| k as f64 * c).sum::<f64>();
+        let sb = self.b.iter().sum::<f64>();
+        let den = self.denominator();
+        let sa = den.iter().sum::<f64>();
+        let tau = self.delay as f64 + moment(&self.b) / sb - moment(&den) / sa;
+        (sb.abs() > 1e-300 && sa.abs() > 1e-300 && tau.is_finite()).then_some(tau)
+    }
+
     /// Denominator as a polynomial in `z^-1`: `[1, a1, ..., am]`.
     #[must_use]
     pub fn denominator(&self) -> Vec<f64> {
@@ -665,6 +678,28 @@ mod tests {
             a: vec![-1.5, 0.7],
             b: vec![0.1, 0.08, 0.02],
         }
+    }
+
+    #[test]
+    fn dc_group_delay_is_how_late_a_slow_ramp_is_followed() {
+        // One pole at 0.9 behind one sample of delay: 1 + 0.9 / 0.1 = 10 samples.
+        let m = Model {
+            fs: 1000.0,
+            delay: 1,
+            a: vec![-0.9],
+            b: vec![0.1],
+        };
+        let tau = m.dc_group_delay().unwrap();
+        assert!((tau - 10.0).abs() < 1e-12, "{tau}");
+        // The simulated response to a ramp settles `tau` samples behind it.
+        let u: Vec<f64> = (0..400).map(f64::from).collect();
+        let y = filter(&m.b, &m.a, m.delay, &u);
+        assert!((u[399] - y[399] - tau).abs() < 1e-6);
+        // The same for the second-order model, measured the same way.
+        let m = m2();
+        let y = filter(&m.b, &m.a, m.delay, &u);
+        let lag = u[399] - y[399] / m.dc_gain();
+        assert!((lag - m.dc_group_delay().unwrap()).abs() < 1e-6, "{lag}");
     }
 
     #[test]

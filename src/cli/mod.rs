@@ -104,6 +104,8 @@ impl ColumnArgs {
 pub enum MethodArg {
     /// Output error (default): unbiased under measurement noise.
     Oe,
+    /// Box-Jenkins: output error with an autoregressive noise model, for coloured probe noise.
+    Bj,
     /// Steiglitz-McBride iterations.
     Sm,
     /// The paper's direct least squares (biased by noise).
@@ -391,7 +393,7 @@ pub struct FitArgs {
     #[arg(long, default_value_t = 6, value_name = "N")]
     pub max_order: usize,
     /// Identification method.
-    #[arg(long, value_enum, default_value_t = MethodArg::Oe)]
+    #[arg(long, value_enum, default_value_t = MethodArg::Bj)]
     pub method: MethodArg,
     /// Known delay in samples (skips the delay search).
     #[arg(long, value_name = "SAMPLES")]
@@ -613,6 +615,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     }
     let method = match args.method {
         MethodArg::Oe => Method::Oe,
+        MethodArg::Bj => Method::Bj,
         MethodArg::Sm => Method::Sm,
         MethodArg::Arx => Method::Arx,
     };
@@ -1362,14 +1365,20 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
             0.0
         };
         let nominal = (latency - prefilter).round().max(0.0) as usize;
-        let (e, lag) = inverse::aligned_error(u, &u_hat, nominal.saturating_sub(4)..=nominal + 4);
         // The raw probe is searched over the same lags whatever the compensator's latency
         // (the offline optimum has none), so that its error does not depend on it.
         let causal = design
             .map_or(latency, |d| d.latency_samples)
             .round()
             .max(0.0) as usize;
-        let (raw, _) = inverse::aligned_error(u, &trace.y, 0..=m.delay + 4 * causal.max(10));
+        let raw_lags = inverse::raw_alignment_lags(m.delay, causal);
+        let lags = if design.is_some_and(inverse::Design::passes_probe) {
+            raw_lags.clone()
+        } else {
+            inverse::alignment_lags(nominal, m.delay)
+        };
+        let (e, lag) = inverse::aligned_error(u, &u_hat, lags);
+        let (raw, _) = inverse::aligned_error(u, &trace.y, raw_lags);
         (e, raw, lag)
     });
     let bytes = trace.to_csv_with(&[("u_hat", &u_hat)])?;

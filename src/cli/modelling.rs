@@ -67,6 +67,7 @@ pub(crate) fn method_of(file: &ModelFile) -> Method {
     match file.fit.as_ref().map(|f| f.method.as_str()) {
         Some("arx") => Method::Arx,
         Some("sm") => Method::Sm,
+        Some("bj") => Method::Bj,
         _ => Method::Oe,
     }
 }

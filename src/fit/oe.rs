@@ -44,6 +44,12 @@ fn stable(a: &[f64]) -> bool {
     schur_stable(&p).is_ok()
 }
 
+/// A fall in the loss, in units of the residual variance, below which the iterations stop.
+const NEGLIGIBLE: f64 = 1e-3;
+
+/// Rows of the Jacobian reduced to its triangle at a time.
+const BLOCK: usize = 8192;
+
 /// Sum of squared simulation errors over all data sets.
 #[must_use]
 pub fn loss(sets: &[Data<'_>], (a, b): (&[f64], &[f64]), d: usize) -> f64 {
@@ -144,40 +150,57 @@ pub fn output_error(
     }
     let rows: usize = sets.iter().map(|s| s.y.len()).sum();
     let mut lambda: f64 = 1e-4;
-    // The Jacobian with the residual as its last column, filled in place every iteration (one
-    // allocation for the whole fit). One QR of it per iteration gives R and Q^T r at once;
-    // each damping trial then solves the small problem [R; sqrt(lambda) D] delta = [Q^T r; 0],
-    // the same least-squares solution as the full damped system, at the cost of np rows.
+    // The Jacobian with the residual as its last column, reduced to its triangular factor R
+    // block by block (R of [R_prev; next rows] is R of all rows so far): one QR pass per
+    // iteration over a buffer of `BLOCK` rows, whatever the record's length. R gives the column
+    // norms and Q^T r at once; each damping trial then solves the small problem
+    // [R; sqrt(lambda) D] delta = [Q^T r; 0], the same least-squares solution as the full
+    // damped system, at the cost of np rows.
     if rows <= np {
         return Ok((a, b));
     }
-    let mut aug = Mat::<f64>::zeros(rows, np + 1);
+    let width = np + 1;
+    let mut block = Mat::<f64>::zeros(width + BLOCK.min(rows), width);
     for _ in 0..max_iterations {
-        let mut r0 = 0;
+        let mut r_aug = Mat::<f64>::zeros(width, width);
         for s in sets {
             let yh = filter(&b, &a, d, s.u);
             let w = allpole(&a, s.u);
             let vv = allpole(&a, &yh);
-            for (k, (yk, yhk)) in s.y.iter().zip(&yh).enumerate() {
-                let row = r0 + k;
-                for i in 0..m {
-                    aug[(row, i)] = k
-                        .checked_sub(i + 1)
-                        .and_then(|j| vv.get(j))
-                        .map_or(0.0, |x| -x);
+            let n = s.y.len();
+            let mut k0 = 0;
+            while k0 < n {
+                let k1 = (k0 + BLOCK).min(n);
+                // Rows: the triangle so far, then samples k0..k1.
+                for r in 0..width {
+                    for c in 0..width {
+                        block[(r, c)] = if c >= r { r_aug[(r, c)] } else { 0.0 };
+                    }
                 }
-                for i in 0..np - m {
-                    aug[(row, m + i)] = k
-                        .checked_sub(d + i)
-                        .and_then(|j| w.get(j))
-                        .copied()
-                        .unwrap_or(0.0);
+                let measured = s.y.get(k0..k1).unwrap_or(&[]).iter();
+                let simulated = yh.get(k0..k1).unwrap_or(&[]).iter();
+                for (k, (yk, yhk)) in (k0..k1).zip(measured.zip(simulated)) {
+                    let row = width + k - k0;
+                    for i in 0..m {
+                        block[(row, i)] = k
+                            .checked_sub(i + 1)
+                            .and_then(|j| vv.get(j))
+                            .map_or(0.0, |x| -x);
+                    }
+                    for i in 0..np - m {
+                        block[(row, m + i)] = k
+                            .checked_sub(d + i)
+                            .and_then(|j| w.get(j))
+                            .copied()
+                            .unwrap_or(0.0);
+                    }
+                    block[(row, np)] = yk - yhk;
                 }
-                aug[(row, np)] = yk - yhk;
+                let used = width + k1 - k0;
+                r_aug = block.as_ref().subrows(0, used).qr().thin_R().to_owned();
+                k0 = k1;
             }
-            r0 += s.y.len();
         }
-        let r_aug = aug.qr().thin_R().to_owned();
         // Column norms of J are those of R (Q is orthogonal).
         let norms: Vec<f64> = (0..np)
             .map(|c| {
@@ -215,7 +238,11 @@ pub fn output_error(
                     b = b_new;
                     v = v_new;
                     lambda = (lambda / 10.0).max(1e-12);
-                    improved = rel > 1e-12;
+                    // Stop once a step no longer matters statistically: its fall in the
+                    // loss, in units of the residual variance `v / rows`, is below
+                    // `NEGLIGIBLE` (the parameters then move far less than their
+                    // standard errors).
+                    improved = rel * rows as f64 > NEGLIGIBLE;
                     break;
                 }
             }

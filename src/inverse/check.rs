@@ -60,7 +60,8 @@ pub enum Request {
 }
 
 /// The design that only undoes the DC gain: `u_hat` is the probe signal over the model's DC
-/// gain, `delay` samples late. The last fall-back.
+/// gain, as late as the probe follows a slow signal (its group delay at zero frequency, at
+/// least the delay). The last fall-back.
 ///
 /// # Errors
 /// [`Error::Numerical`] when the model's DC gain is zero or not finite.
@@ -72,7 +73,9 @@ pub fn delay_only(model: &Model) -> Result<Design> {
             message: format!("the model's DC gain is {dc}"),
         });
     }
-    let latency = model.delay as f64;
+    let latency = model
+        .dc_group_delay()
+        .map_or(model.delay as f64, |t| t.max(model.delay as f64));
     Ok(Design {
         method: "delay only: the probe signal over the model's DC gain".into(),
         lowpass: super::LowpassKind::Bessel,

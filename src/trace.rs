@@ -10,12 +10,15 @@
 //! Output files are written to a temporary file in the same directory and renamed at the end
 //! ([`write_atomically`]), so a failed run never leaves a half-written file.
 
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 use sha2::{Digest, Sha256};
 
 use crate::error::{Error, Result};
+
+/// Rows read before the signals' buffers are sized from the file's length.
+const SIZING_ROWS: usize = 64;
 
 /// Allowed deviation of one time step from the mean step.
 pub const MAX_JITTER: f64 = 0.01;
@@ -66,8 +69,61 @@ pub struct Trace {
     pub y_column: usize,
     /// The header, to write the columns back.
     pub headers: csv::StringRecord,
-    /// The rows as read, to write them back with new columns.
-    pub records: Vec<csv::StringRecord>,
+    /// Where the rows are read again to be written back with new columns (they are not kept:
+    /// a trace holds its two signals, 16 bytes a sample).
+    source: Source,
+}
+
+/// Where a trace's rows come from.
+#[derive(Debug, Clone, PartialEq)]
+enum Source {
+    /// The file at the trace's path, read again (and checked unchanged) when written back.
+    File,
+    /// Bytes given to [`Trace::parse`].
+    Bytes(std::sync::Arc<[u8]>),
+}
+
+/// A reader that hashes what passes through it.
+struct Hashing<R> {
+    inner: R,
+    hasher: Sha256,
+}
+
+impl<R: Read> Read for Hashing<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.hasher.update(buf.get(..n).unwrap_or(&[]));
+        Ok(n)
+    }
+}
+
+/// What stops a streamed write: the output failed, or what was being written did.
+#[derive(Debug)]
+pub enum WriteFailure {
+    /// Writing to the output failed.
+    Output(std::io::Error),
+    /// The content could not be made (its error names its own file).
+    Content(Error),
+}
+
+impl From<std::io::Error> for WriteFailure {
+    fn from(e: std::io::Error) -> Self {
+        Self::Output(e)
+    }
+}
+
+impl From<Error> for WriteFailure {
+    fn from(e: Error) -> Self {
+        Self::Content(e)
+    }
+}
+
+/// The CSV reader every trace is read (and read again) with.
+fn csv_reader<R: Read>(reader: R) -> csv::Reader<R> {
+    csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(reader)
 }
 
 impl Trace {
@@ -76,12 +132,24 @@ impl Trace {
     /// # Errors
     /// [`Error`] naming the file, line and column of the first problem found.
     pub fn read(path: &Path, columns: &Columns) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|source| Error::Io {
+        let cannot_read = |source| Error::Io {
             path: path.to_path_buf(),
             action: "cannot read",
             source,
-        })?;
-        Self::parse(path, &bytes, columns)
+        };
+        let file = std::fs::File::open(path).map_err(cannot_read)?;
+        let meta = file.metadata().map_err(cannot_read)?;
+        if meta.is_dir() {
+            return Err(cannot_read(std::io::Error::other("it is a directory")));
+        }
+        let mut reader = Hashing {
+            inner: std::io::BufReader::with_capacity(1 << 16, file),
+            hasher: Sha256::new(),
+        };
+        let mut trace = Self::parse_reader(path, &mut reader, meta.len(), columns)?;
+        trace.sha256 = hex(&reader.hasher.finalize());
+        trace.source = Source::File;
+        Ok(trace)
     }
 
     /// Parses a trace from bytes; `path` is used for messages and provenance.
@@ -89,6 +157,15 @@ impl Trace {
     /// # Errors
     /// As [`Trace::read`].
     pub fn parse(path: &Path, bytes: &[u8], columns: &Columns) -> Result<Self> {
+        let mut trace = Self::parse_reader(path, bytes, bytes.len() as u64, columns)?;
+        trace.sha256 = hex(&Sha256::digest(bytes));
+        trace.source = Source::Bytes(bytes.into());
+        Ok(trace)
+    }
+
+    /// Parses and checks a trace as it streams from `reader` (`size` bytes long, to size the
+    /// signals' buffers); the hash and the source are the caller's to set.
+    fn parse_reader<R: Read>(path: &Path, reader: R, size: u64, columns: &Columns) -> Result<Self> {
         let p = || path.to_path_buf();
         if let Some(fs) = columns.sample_rate_hz {
             if !(fs.is_finite() && fs > 0.0 && fs <= crate::model::MAX_SAMPLE_RATE_HZ) {
@@ -101,11 +178,7 @@ impl Trace {
                 });
             }
         }
-        let sha256 = hex(&Sha256::digest(bytes));
-        let mut reader = csv::ReaderBuilder::new()
-            .trim(csv::Trim::All)
-            .comment(Some(b'#'))
-            .from_reader(bytes);
+        let mut reader = csv_reader(reader);
         let headers = reader.headers().map_err(|e| csv_error(path, &e))?.clone();
         if headers.is_empty() || headers.iter().all(str::is_empty) {
             return Err(Error::Empty {
@@ -145,13 +218,28 @@ impl Trace {
             })?)
         };
 
-        let mut records = Vec::new();
         let mut t = Vec::new();
         let mut u = Vec::new();
         let mut y = Vec::new();
-        let mut lines = Vec::new();
-        for rec in reader.records() {
-            let rec = rec.map_err(|e| csv_error(path, &e))?;
+        let mut lines: Vec<u64> = Vec::new();
+        let mut rec = csv::StringRecord::new();
+        loop {
+            match reader.read_record(&mut rec) {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(e) => return Err(csv_error(path, &e)),
+            }
+            if lines.len() == SIZING_ROWS {
+                // The file's length over the bytes a row has taken so far: room for all the
+                // rows at once, instead of buffers doubling (and briefly tripling) as they grow.
+                let start = rec.position().map_or(0, csv::Position::byte);
+                let per_row = (start / SIZING_ROWS as u64).max(1);
+                let rows = usize::try_from(size / per_row + size / per_row / 8).unwrap_or(0);
+                for v in [&mut t, &mut u, &mut y] {
+                    v.reserve(rows);
+                }
+                lines.reserve(rows);
+            }
             let line = rec.position().map_or(0, csv::Position::line);
             let field = |idx: usize| -> Result<f64> {
                 let text = rec.get(idx).unwrap_or("");
@@ -182,7 +270,6 @@ impl Trace {
             }
             y.push(field(y_idx)?);
             lines.push(line);
-            records.push(rec);
         }
         if y.is_empty() {
             return Err(Error::Empty {
@@ -213,14 +300,14 @@ impl Trace {
         }
         Ok(Self {
             path: p(),
-            sha256,
+            sha256: String::new(),
             sample_rate_hz,
             u: u_idx.map(|_| u),
             y,
             u_column: u_idx.map(|i| i + 1),
             y_column: y_idx + 1,
             headers,
-            records,
+            source: Source::File,
         })
     }
 
@@ -249,48 +336,112 @@ impl Trace {
         })
     }
 
-    /// The CSV text of this trace with extra columns appended.
+    /// Writes this trace as CSV with extra columns appended, row by row: the rows are read
+    /// again from the file (which must not have changed since it was read: its hash is
+    /// checked at the end) and written with the new values beside them.
     ///
     /// # Errors
-    /// [`Error::Mismatch`] when a column's length differs from the trace's.
-    pub fn to_csv_with(&self, extra: &[(&str, &[f64])]) -> Result<Vec<u8>> {
+    /// [`WriteFailure::Content`] with [`Error::Mismatch`] when a column's length differs from
+    /// the trace's or the file changed, [`WriteFailure::Output`] when `out` fails.
+    pub fn write_csv_with(
+        &self,
+        out: &mut dyn Write,
+        extra: &[(&str, &[f64])],
+    ) -> std::result::Result<(), WriteFailure> {
         for (name, col) in extra {
-            if col.len() != self.records.len() {
+            if col.len() != self.len() {
                 return Err(Error::Mismatch {
                     path: self.path.clone(),
                     message: format!(
                         "column '{name}' has {} values for {} rows",
                         col.len(),
-                        self.records.len()
+                        self.len()
                     ),
-                });
+                }
+                .into());
             }
         }
-        let mut out = Vec::with_capacity(self.records.len() * 48);
+        let changed = || -> WriteFailure {
+            Error::Mismatch {
+                path: self.path.clone(),
+                message: "the file changed while unlag was running; run again".into(),
+            }
+            .into()
+        };
         let mut header = self.headers.iter().collect::<Vec<_>>().join(",");
         for (name, _) in extra {
             header.push(',');
             header.push_str(name);
         }
         header.push('\n');
-        out.extend_from_slice(header.as_bytes());
-        for (k, rec) in self.records.iter().enumerate() {
-            let mut first = true;
-            for f in rec {
-                if !first {
-                    out.push(b',');
+        out.write_all(header.as_bytes())?;
+        let mut copy = |reader: &mut dyn Read| -> std::result::Result<(), WriteFailure> {
+            let mut reader = csv_reader(reader);
+            let mut rec = csv::StringRecord::new();
+            // Skip the header.
+            reader.headers().map_err(|_| changed())?;
+            let mut k = 0;
+            let mut line = Vec::with_capacity(128);
+            while reader.read_record(&mut rec).map_err(|_| changed())? {
+                line.clear();
+                for (i, f) in rec.iter().enumerate() {
+                    if i > 0 {
+                        line.push(b',');
+                    }
+                    line.extend_from_slice(f.as_bytes());
                 }
-                first = false;
-                out.extend_from_slice(f.as_bytes());
+                for (_, col) in extra {
+                    let v = col.get(k).copied().ok_or_else(changed)?;
+                    // `{}` on f64 prints the shortest text that reads back to the same value.
+                    write!(line, ",{v}")?;
+                }
+                line.push(b'\n');
+                out.write_all(&line)?;
+                k += 1;
             }
-            for (_, col) in extra {
-                let v = col.get(k).copied().unwrap_or(f64::NAN);
-                // `{}` on f64 prints the shortest text that reads back to the same value.
-                let _ = write!(out, ",{v}");
+            if k == self.len() {
+                Ok(())
+            } else {
+                Err(changed())
             }
-            out.push(b'\n');
+        };
+        match &self.source {
+            Source::Bytes(bytes) => copy(&mut &bytes[..]),
+            Source::File => {
+                let file = std::fs::File::open(&self.path).map_err(|source| Error::Io {
+                    path: self.path.clone(),
+                    action: "cannot read",
+                    source,
+                })?;
+                let mut reader = Hashing {
+                    inner: std::io::BufReader::with_capacity(1 << 16, file),
+                    hasher: Sha256::new(),
+                };
+                copy(&mut reader)?;
+                if hex(&reader.hasher.finalize()) == self.sha256 {
+                    Ok(())
+                } else {
+                    Err(changed())
+                }
+            }
         }
-        Ok(out)
+    }
+
+    /// The CSV text of this trace with extra columns appended (see [`Trace::write_csv_with`]).
+    ///
+    /// # Errors
+    /// As [`Trace::write_csv_with`].
+    pub fn to_csv_with(&self, extra: &[(&str, &[f64])]) -> Result<Vec<u8>> {
+        let mut out = Vec::new();
+        match self.write_csv_with(&mut out, extra) {
+            Ok(()) => Ok(out),
+            Err(WriteFailure::Content(e)) => Err(e),
+            Err(WriteFailure::Output(source)) => Err(Error::Io {
+                path: self.path.clone(),
+                action: "cannot write",
+                source,
+            }),
+        }
     }
 }
 
@@ -488,17 +639,44 @@ fn hex(bytes: &[u8]) -> String {
 /// # Errors
 /// [`Error::Io`] when the target cannot be written.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomically_with(path, |out| Ok(out.write_all(bytes)?))
+}
+
+/// [`write_atomically`] for content made as it is written: `fill` writes it to the (buffered)
+/// output, so that a long result never has to be held in memory. When `fill` fails, nothing is
+/// left behind (a regular file's temporary is removed; a device or standard output may have
+/// received part of it).
+///
+/// # Errors
+/// [`Error::Io`] naming `path` when the output fails; `fill`'s own error otherwise.
+pub fn write_atomically_with<F>(path: &Path, fill: F) -> Result<()>
+where
+    F: FnOnce(&mut dyn Write) -> std::result::Result<(), WriteFailure>,
+{
     let io = |action: &'static str, source: std::io::Error| Error::Io {
         path: path.to_path_buf(),
         action,
         source,
     };
+    let failed = |action: &'static str, f: WriteFailure| match f {
+        WriteFailure::Output(e) => io(action, bare(&e)),
+        WriteFailure::Content(e) => e,
+    };
+    let buffered = |w: &mut dyn Write, fill: F| -> std::result::Result<(), WriteFailure> {
+        let mut out = std::io::BufWriter::with_capacity(1 << 16, w);
+        fill(&mut out)?;
+        out.flush()?;
+        Ok(())
+    };
     if path == Path::new("-") {
         let mut out = std::io::stdout().lock();
-        return match out.write_all(bytes).and_then(|()| out.flush()) {
+        return match buffered(&mut out, fill) {
             // The reader stopped (`| head`): what it wanted, it has.
-            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-            r => r.map_err(|e| io("cannot write to standard output", e)),
+            Err(WriteFailure::Output(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+            r => r.map_err(|f| match f {
+                WriteFailure::Output(e) => io("cannot write to standard output", e),
+                WriteFailure::Content(e) => e,
+            }),
         };
     }
     // Follow a symbolic link to the file it names, so that the link survives.
@@ -536,10 +714,7 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
                 .write(true)
                 .open(&target)
                 .map_err(|e| io("cannot write", bare(&e)))?;
-            return f
-                .write_all(bytes)
-                .and_then(|()| f.flush())
-                .map_err(|e| io("cannot write", bare(&e)));
+            return buffered(&mut f, fill).map_err(|e| failed("cannot write", e));
         }
     }
     let dir = match target.parent() {
@@ -571,8 +746,7 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
             .set_permissions(m.permissions())
             .map_err(|e| io("cannot keep the mode of", bare(&e)))?;
     }
-    tmp.write_all(bytes)
-        .map_err(|e| io("cannot write", bare(&e)))?;
+    buffered(tmp.as_file_mut(), fill).map_err(|e| failed("cannot write", e))?;
     tmp.as_file()
         .sync_all()
         .map_err(|e| io("cannot write", bare(&e)))?;
@@ -696,6 +870,54 @@ mod tests {
             s.push_str(&format!("{},{u},{y}\n", k as f64 * 1e-3));
         }
         assert!(parse(&s).is_ok());
+    }
+
+    #[test]
+    fn a_file_is_streamed_back_with_new_columns_and_a_changed_one_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("in.csv");
+        let text = "t,u,y\n# a comment\n0, 0,0\n0.001,1,0.5\n0.002,1,0.75\n";
+        std::fs::write(&input, text).unwrap();
+        let tr = Trace::read(&input, &Columns::default()).unwrap();
+        assert_eq!(tr.sha256, hex(&Sha256::digest(text.as_bytes())));
+        assert_eq!(tr.y, [0.0, 0.5, 0.75]);
+        let out = dir.path().join("out.csv");
+        write_atomically_with(&out, |w| tr.write_csv_with(w, &[("u_hat", &[0.0, 1.0, 2.5])]))
+            .unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&out).unwrap(),
+            "t,u,y,u_hat\n0,0,0,0\n0.001,1,0.5,1\n0.002,1,0.75,2.5\n"
+        );
+        // The input changes between reading and writing: nothing is written.
+        std::fs::write(&input, text.replace("0.75", "0.70")).unwrap();
+        let again = dir.path().join("again.csv");
+        let e = write_atomically_with(&again, |w| {
+            tr.write_csv_with(w, &[("u_hat", &[0.0, 1.0, 2.5])])
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("changed while unlag was running"), "{e}");
+        assert!(!again.exists());
+        // Only the output named is in the directory: no temporary left behind.
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names.len(), 2, "{names:?}");
+    }
+
+    #[test]
+    fn buffers_are_sized_from_the_file_not_doubled() {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("long.csv");
+        let mut text = String::from("t,u,y\n");
+        for k in 0..10_000 {
+            text.push_str(&format!("{},{},{}\n", k as f64 * 1e-3, u8::from(k > 100), 0.5));
+        }
+        std::fs::write(&input, &text).unwrap();
+        let tr = Trace::read(&input, &Columns::default()).unwrap();
+        assert_eq!(tr.len(), 10_000);
+        // Room for the rows and an eighth more, never the doubling growth gives.
+        assert!(tr.y.capacity() < 10_000 * 5 / 4, "{}", tr.y.capacity());
     }
 
     #[test]

@@ -1381,8 +1381,9 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         let (raw, _) = inverse::aligned_error(u, &trace.y, raw_lags);
         (e, raw, lag)
     });
-    let bytes = trace.to_csv_with(&[("u_hat", &u_hat)])?;
-    crate::trace::write_atomically(&args.output, &bytes)?;
+    crate::trace::write_atomically_with(&args.output, |out| {
+        trace.write_csv_with(out, &[("u_hat", &u_hat)])
+    })?;
     let arith = match args.arithmetic {
         _ if args.offline => "f64",
         Arithmetic::F32 => "f32",
@@ -1510,8 +1511,9 @@ fn run_simulate(args: &SimulateArgs) -> Result<()> {
     let y_model = crate::effects::predict_with(&file.model, &file.effects, u, &trace.y, scale);
     let observed = crate::effects::observed(&file.effects, file.model.fs, &trace.y);
     let error = fit::nrmse_of(&observed, &y_model);
-    let bytes = trace.to_csv_with(&[("y_model", &y_model)])?;
-    crate::trace::write_atomically(&args.output, &bytes)?;
+    crate::trace::write_atomically_with(&args.output, |out| {
+        trace.write_csv_with(out, &[("y_model", &y_model)])
+    })?;
     if args.json {
         let v = json!({
             "output": name(&args.output),

@@ -40,19 +40,50 @@ pub struct ReportArgs {
     pub json: bool,
 }
 
-/// A spinner on stderr for work that may take more than a second: it appears only after a
-/// second, and never under `--json` or when stdout is not a terminal.
+/// Seconds between two progress lines when stdout is not a terminal.
+const PROGRESS_LINE_SECONDS: u64 = 5;
+
+/// Progress on stderr for work that may take more than a second: on a terminal a spinner
+/// with the current step and the time taken, shown after a second; off a terminal (a log, a
+/// pipe) one line every few seconds, the first after that many. Never under `--json`.
 pub(crate) struct Progress {
     bar: Option<ProgressBar>,
     done: Arc<AtomicBool>,
+    message: Arc<std::sync::Mutex<String>>,
 }
 
 impl Progress {
-    /// Starts the (hidden) spinner with a first message.
+    /// Starts the (hidden) spinner, or the line printer, with a first message.
     pub(crate) fn start(json: bool, message: &str) -> Self {
         let done = Arc::new(AtomicBool::new(false));
-        if json || !std::io::stdout().is_terminal() {
-            return Self { bar: None, done };
+        let text = Arc::new(std::sync::Mutex::new(message.to_string()));
+        if json {
+            return Self {
+                bar: None,
+                done,
+                message: text,
+            };
+        }
+        if !std::io::stdout().is_terminal() {
+            let (flag, shown) = (Arc::clone(&done), Arc::clone(&text));
+            std::thread::spawn(move || {
+                let start = std::time::Instant::now();
+                let mut next = PROGRESS_LINE_SECONDS;
+                while !flag.load(Ordering::SeqCst) {
+                    std::thread::sleep(Duration::from_millis(100));
+                    let elapsed = start.elapsed().as_secs();
+                    if elapsed >= next && !flag.load(Ordering::SeqCst) {
+                        let now = shown.lock().map(|m| m.clone()).unwrap_or_default();
+                        crate::errln!("unlag: {now} ({elapsed} s)");
+                        next = elapsed + PROGRESS_LINE_SECONDS;
+                    }
+                }
+            });
+            return Self {
+                bar: None,
+                done,
+                message: text,
+            };
         }
         let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
         if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} ({elapsed})") {
@@ -70,6 +101,7 @@ impl Progress {
         Self {
             bar: Some(bar),
             done,
+            message: text,
         }
     }
 
@@ -77,6 +109,9 @@ impl Progress {
     pub(crate) fn step(&self, message: &str) {
         if let Some(b) = &self.bar {
             b.set_message(message.to_string());
+        }
+        if let Ok(mut m) = self.message.lock() {
+            message.clone_into(&mut m);
         }
     }
 

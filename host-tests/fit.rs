@@ -341,3 +341,106 @@ fn a_long_record_is_chosen_on_a_window_and_refined_on_all_of_it() {
     let e = fit::nrmse(&f.model, &est.u, &est.y);
     assert!(e < 1.05 * floor, "{e}");
 }
+
+/// Spread of `x` (sample standard deviation).
+fn spread(x: &[f64]) -> f64 {
+    let n = x.len() as f64;
+    let m = x.iter().sum::<f64>() / n;
+    (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / (n - 1.0)).sqrt()
+}
+
+#[test]
+fn the_stated_uncertainty_is_the_spread_over_repeated_tests() {
+    // 40 repeats of the line's step test, each with its own noise: the standard deviations
+    // the fit states must match the spread of what it finds (within the sampling error of
+    // a standard deviation from 40 draws, about 11 %, and the asymptotics).
+    let opts = Options {
+        method: Method::Bj,
+        order: Order::Fixed(2),
+        delay: Some(18),
+    };
+    let (mut fns, mut zetas, mut dcs) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut sfn, mut sz, mut sdc) = (Vec::new(), Vec::new(), Vec::new());
+    for seed in 0..40 {
+        let est = line_test(500 + seed, 0.0, 1.0, 400, 3000);
+        let f = fit::fit(
+            &Test {
+                name: "est",
+                u: &est.u,
+                y: &est.y,
+            },
+            &[],
+            FS,
+            &opts,
+        )
+        .unwrap();
+        let u = f.report.uncertainty.clone().expect("an uncertainty");
+        let r = u.resonances[0];
+        fns.push(r.natural_frequency_hz);
+        zetas.push(r.damping);
+        dcs.push(f.model.dc_gain());
+        sfn.push(r.natural_frequency_std_hz);
+        sz.push(r.damping_std);
+        sdc.push(u.dc_gain_std);
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    for (name, found, stated) in [
+        ("natural frequency", &fns, &mut sfn),
+        ("damping", &zetas, &mut sz),
+        ("DC gain", &dcs, &mut sdc),
+    ] {
+        let (s, st) = (spread(found), median(stated));
+        eprintln!("{name}: spread {s:.3e}, stated {st:.3e}");
+        assert!(
+            st > 0.6 * s && st < 1.6 * s,
+            "{name}: spread {s:.3e}, stated {st:.3e}"
+        );
+    }
+}
+
+#[test]
+fn with_coloured_noise_the_noise_model_states_the_uncertainty_that_white_noise_hides() {
+    // The same, the probe's noise wandering (AR(1), pole 0.97): output error, which takes the
+    // residual for white, states a natural frequency far surer than its spread; Box-Jenkins,
+    // which whitens it first, states the spread.
+    let mut stated = [Vec::new(), Vec::new()];
+    let mut found = [Vec::new(), Vec::new()];
+    for seed in 0..40 {
+        let est = coloured_line(700 + seed, 4000, 0.0015);
+        for (i, method) in [Method::Oe, Method::Bj].into_iter().enumerate() {
+            let f = fit::fit(
+                &Test {
+                    name: "est",
+                    u: &est.u,
+                    y: &est.y,
+                },
+                &[],
+                FS,
+                &Options {
+                    method,
+                    order: Order::Fixed(2),
+                    delay: Some(18),
+                },
+            )
+            .unwrap();
+            let r = f.report.uncertainty.expect("an uncertainty").resonances[0];
+            found[i].push(r.natural_frequency_hz);
+            stated[i].push(r.natural_frequency_std_hz);
+        }
+    }
+    let ratio = |i: usize| {
+        let mut s = stated[i].clone();
+        s.sort_by(f64::total_cmp);
+        s[s.len() / 2] / spread(&found[i])
+    };
+    let (oe, bj) = (ratio(0), ratio(1));
+    eprintln!("stated / spread: output error {oe:.2}, Box-Jenkins {bj:.2}");
+    assert!(oe < 0.6, "output error states {oe:.2} of its spread");
+    assert!(
+        bj > 0.6 && bj < 1.6,
+        "Box-Jenkins states {bj:.2} of its spread"
+    );
+}

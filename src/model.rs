@@ -231,6 +231,39 @@ pub struct FitReport {
     /// What the fit decided beyond the tables (a slow pole-zero pair read as a drift).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
+    /// How sure the fit is of what it found (one standard deviation), when it could say.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<Uncertainty>,
+}
+
+/// One standard deviation of what a fit found, from the Jacobian at the estimate and the
+/// residual variance (the asymptotic covariance of the prediction-error estimate; with a
+/// noise model, on the whitened data, so that coloured noise is not counted as independent
+/// samples). It covers the noise, not the model's structure.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Uncertainty {
+    /// The DC gain's standard deviation.
+    pub dc_gain_std: f64,
+    /// Each resonance, lowest natural frequency first.
+    #[serde(default)]
+    pub resonances: Vec<ResonanceUncertainty>,
+    /// Whether the residual was whitened by a noise model first.
+    pub noise_model: bool,
+}
+
+/// A resonance's natural frequency and damping with their standard deviations.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ResonanceUncertainty {
+    /// Natural frequency, Hz.
+    pub natural_frequency_hz: f64,
+    /// Its standard deviation, Hz.
+    pub natural_frequency_std_hz: f64,
+    /// Damping ratio.
+    pub damping: f64,
+    /// Its standard deviation.
+    pub damping_std: f64,
 }
 
 /// One row of the order-selection table.

@@ -882,8 +882,10 @@ mod tests {
         assert_eq!(tr.sha256, hex(&Sha256::digest(text.as_bytes())));
         assert_eq!(tr.y, [0.0, 0.5, 0.75]);
         let out = dir.path().join("out.csv");
-        write_atomically_with(&out, |w| tr.write_csv_with(w, &[("u_hat", &[0.0, 1.0, 2.5])]))
-            .unwrap();
+        write_atomically_with(&out, |w| {
+            tr.write_csv_with(w, &[("u_hat", &[0.0, 1.0, 2.5])])
+        })
+        .unwrap();
         assert_eq!(
             std::fs::read_to_string(&out).unwrap(),
             "t,u,y,u_hat\n0,0,0,0\n0.001,1,0.5,1\n0.002,1,0.75,2.5\n"
@@ -895,7 +897,10 @@ mod tests {
             tr.write_csv_with(w, &[("u_hat", &[0.0, 1.0, 2.5])])
         })
         .unwrap_err();
-        assert!(e.to_string().contains("changed while unlag was running"), "{e}");
+        assert!(
+            e.to_string().contains("changed while unlag was running"),
+            "{e}"
+        );
         assert!(!again.exists());
         // Only the output named is in the directory: no temporary left behind.
         let names: Vec<_> = std::fs::read_dir(dir.path())
@@ -911,7 +916,12 @@ mod tests {
         let input = dir.path().join("long.csv");
         let mut text = String::from("t,u,y\n");
         for k in 0..10_000 {
-            text.push_str(&format!("{},{},{}\n", k as f64 * 1e-3, u8::from(k > 100), 0.5));
+            text.push_str(&format!(
+                "{},{},{}\n",
+                k as f64 * 1e-3,
+                u8::from(k > 100),
+                0.5
+            ));
         }
         std::fs::write(&input, &text).unwrap();
         let tr = Trace::read(&input, &Columns::default()).unwrap();

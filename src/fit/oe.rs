@@ -130,6 +130,102 @@ pub fn steiglitz_mcbride_nb(
     Ok(best)
 }
 
+/// The triangular factor `R` of `[J r]`, the output-error Jacobian at `(a, b)` with the
+/// residual as its last column, reduced `BLOCK` rows at a time in `block` (which must have
+/// `np + 1` columns and at least `np + 1 + BLOCK` rows, or all the rows there are).
+fn triangle(
+    sets: &[Data<'_>],
+    (a, b): (&[f64], &[f64]),
+    d: usize,
+    block: &mut Mat<f64>,
+) -> Mat<f64> {
+    let (m, np) = (a.len(), a.len() + b.len());
+    let width = np + 1;
+    let mut r_aug = Mat::<f64>::zeros(width, width);
+    for s in sets {
+        let yh = filter(b, a, d, s.u);
+        let w = allpole(a, s.u);
+        let vv = allpole(a, &yh);
+        let n = s.y.len();
+        let mut k0 = 0;
+        while k0 < n {
+            let k1 = (k0 + BLOCK)
+                .min(n)
+                .min(k0 + block.nrows().saturating_sub(width).max(1));
+            // Rows: the triangle so far, then samples k0..k1.
+            for r in 0..width {
+                for c in 0..width {
+                    block[(r, c)] = if c >= r { r_aug[(r, c)] } else { 0.0 };
+                }
+            }
+            let measured = s.y.get(k0..k1).unwrap_or(&[]).iter();
+            let simulated = yh.get(k0..k1).unwrap_or(&[]).iter();
+            for (k, (yk, yhk)) in (k0..k1).zip(measured.zip(simulated)) {
+                let row = width + k - k0;
+                for i in 0..m {
+                    block[(row, i)] = k
+                        .checked_sub(i + 1)
+                        .and_then(|j| vv.get(j))
+                        .map_or(0.0, |x| -x);
+                }
+                for i in 0..np - m {
+                    block[(row, m + i)] = k
+                        .checked_sub(d + i)
+                        .and_then(|j| w.get(j))
+                        .copied()
+                        .unwrap_or(0.0);
+                }
+                block[(row, np)] = yk - yhk;
+            }
+            let used = width + k1 - k0;
+            r_aug = block.as_ref().subrows(0, used).qr().thin_R().to_owned();
+            k0 = k1;
+        }
+    }
+    r_aug
+}
+
+/// The asymptotic covariance of an output-error estimate `[a; b]`: `s^2 (J^T J)^-1` with
+/// `s^2` the residual variance, as `s^2 R^-1 R^-T` from the Jacobian's triangular factor (back
+/// substitution on `R`, never the normal equations). Valid for white residuals: give the data
+/// whitened by the noise model when there is one. `None` when the Jacobian is rank-deficient
+/// or there are no more rows than parameters.
+#[must_use]
+pub fn covariance(sets: &[Data<'_>], (a, b): (&[f64], &[f64]), d: usize) -> Option<Mat<f64>> {
+    let np = a.len() + b.len();
+    let rows: usize = sets.iter().map(|s| s.y.len()).sum();
+    if rows <= np + 1 {
+        return None;
+    }
+    let mut block = Mat::<f64>::zeros(np + 1 + BLOCK.min(rows), np + 1);
+    let r_aug = triangle(sets, (a, b), d, &mut block);
+    // The last diagonal element of R of [J r] is the norm of the residual J cannot explain.
+    let rss = r_aug[(np, np)] * r_aug[(np, np)];
+    let s2 = rss / (rows - np) as f64;
+    let scale = (0..np).map(|i| r_aug[(i, i)].abs()).fold(0.0, f64::max);
+    if (0..np).any(|i| r_aug[(i, i)].abs() <= 1e-12 * scale || r_aug[(i, i)].is_nan()) {
+        return None;
+    }
+    // X = R^-1 (upper triangular), column by column.
+    let mut x = Mat::<f64>::zeros(np, np);
+    for c in 0..np {
+        for r in (0..=c).rev() {
+            let mut acc = if r == c { 1.0 } else { 0.0 };
+            for k in r + 1..=c {
+                acc -= r_aug[(r, k)] * x[(k, c)];
+            }
+            x[(r, c)] = acc / r_aug[(r, r)];
+        }
+    }
+    let mut cov = Mat::<f64>::zeros(np, np);
+    for i in 0..np {
+        for j in 0..np {
+            cov[(i, j)] = s2 * (0..np).map(|k| x[(i, k)] * x[(j, k)]).sum::<f64>();
+        }
+    }
+    Some(cov)
+}
+
 /// Output-error refinement by Levenberg-Marquardt from `init` (which should be stable).
 /// Never returns a worse or unstable model than `init` when `init` is stable.
 ///
@@ -162,45 +258,7 @@ pub fn output_error(
     let width = np + 1;
     let mut block = Mat::<f64>::zeros(width + BLOCK.min(rows), width);
     for _ in 0..max_iterations {
-        let mut r_aug = Mat::<f64>::zeros(width, width);
-        for s in sets {
-            let yh = filter(&b, &a, d, s.u);
-            let w = allpole(&a, s.u);
-            let vv = allpole(&a, &yh);
-            let n = s.y.len();
-            let mut k0 = 0;
-            while k0 < n {
-                let k1 = (k0 + BLOCK).min(n);
-                // Rows: the triangle so far, then samples k0..k1.
-                for r in 0..width {
-                    for c in 0..width {
-                        block[(r, c)] = if c >= r { r_aug[(r, c)] } else { 0.0 };
-                    }
-                }
-                let measured = s.y.get(k0..k1).unwrap_or(&[]).iter();
-                let simulated = yh.get(k0..k1).unwrap_or(&[]).iter();
-                for (k, (yk, yhk)) in (k0..k1).zip(measured.zip(simulated)) {
-                    let row = width + k - k0;
-                    for i in 0..m {
-                        block[(row, i)] = k
-                            .checked_sub(i + 1)
-                            .and_then(|j| vv.get(j))
-                            .map_or(0.0, |x| -x);
-                    }
-                    for i in 0..np - m {
-                        block[(row, m + i)] = k
-                            .checked_sub(d + i)
-                            .and_then(|j| w.get(j))
-                            .copied()
-                            .unwrap_or(0.0);
-                    }
-                    block[(row, np)] = yk - yhk;
-                }
-                let used = width + k1 - k0;
-                r_aug = block.as_ref().subrows(0, used).qr().thin_R().to_owned();
-                k0 = k1;
-            }
-        }
+        let r_aug = triangle(sets, (&a, &b), d, &mut block);
         // Column norms of J are those of R (Q is orthogonal).
         let norms: Vec<f64> = (0..np)
             .map(|c| {

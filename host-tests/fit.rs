@@ -342,6 +342,21 @@ fn a_long_record_is_chosen_on_a_window_and_refined_on_all_of_it() {
     assert!(e < 1.05 * floor, "{e}");
 }
 
+/// The line's estimation test fitted at its true order and delay.
+fn fit_second_order(est: &Line, method: Method) -> fit::Fitted {
+    let test = Test {
+        name: "est",
+        u: &est.u,
+        y: &est.y,
+    };
+    let options = Options {
+        method,
+        order: Order::Fixed(2),
+        delay: Some(18),
+    };
+    fit::fit(&test, &[], FS, &options).unwrap()
+}
+
 /// Spread of `x` (sample standard deviation).
 fn spread(x: &[f64]) -> f64 {
     let n = x.len() as f64;
@@ -354,26 +369,11 @@ fn the_stated_uncertainty_is_the_spread_over_repeated_tests() {
     // 40 repeats of the line's step test, each with its own noise: the standard deviations
     // the fit states must match the spread of what it finds (within the sampling error of
     // a standard deviation from 40 draws, about 11 %, and the asymptotics).
-    let opts = Options {
-        method: Method::Bj,
-        order: Order::Fixed(2),
-        delay: Some(18),
-    };
     let (mut fns, mut zetas, mut dcs) = (Vec::new(), Vec::new(), Vec::new());
     let (mut sfn, mut sz, mut sdc) = (Vec::new(), Vec::new(), Vec::new());
     for seed in 0..40 {
         let est = line_test(500 + seed, 0.0, 1.0, 400, 3000);
-        let f = fit::fit(
-            &Test {
-                name: "est",
-                u: &est.u,
-                y: &est.y,
-            },
-            &[],
-            FS,
-            &opts,
-        )
-        .unwrap();
+        let f = fit_second_order(&est, Method::Bj);
         let u = f.report.uncertainty.clone().expect("an uncertainty");
         let r = u.resonances[0];
         fns.push(r.natural_frequency_hz);
@@ -411,21 +411,7 @@ fn with_coloured_noise_the_noise_model_states_the_uncertainty_that_white_noise_h
     for seed in 0..40 {
         let est = coloured_line(700 + seed, 4000, 0.0015);
         for (i, method) in [Method::Oe, Method::Bj].into_iter().enumerate() {
-            let f = fit::fit(
-                &Test {
-                    name: "est",
-                    u: &est.u,
-                    y: &est.y,
-                },
-                &[],
-                FS,
-                &Options {
-                    method,
-                    order: Order::Fixed(2),
-                    delay: Some(18),
-                },
-            )
-            .unwrap();
+            let f = fit_second_order(&est, method);
             let r = f.report.uncertainty.expect("an uncertainty").resonances[0];
             found[i].push(r.natural_frequency_hz);
             stated[i].push(r.natural_frequency_std_hz);

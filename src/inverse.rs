@@ -724,21 +724,28 @@ impl Design {
     }
 }
 
-/// The lags at which a compensator's output is compared with the reference: its stated
-/// latency `nominal` plus or minus 4 samples, or plus or minus the part of the latency beyond
-/// the probe's delay when that is larger (a latency that is itself an estimate, as the
-/// delay-only design's group delay, is searched over its own size).
+/// The lags at which a compensator's output and the raw probe are compared with the
+/// reference, `(output's, raw probe's)`. The raw probe: from 0 to the delay plus four times the
+/// compensator's causal latency (at least 40 samples), whatever the compensator. The output:
+/// its stated latency `nominal` plus or minus 4 samples, or plus or minus the part of the
+/// latency beyond the delay when that is larger; a design that passes the probe on
+/// ([`Design::passes_probe`]) is the raw probe, and is searched over the raw probe's lags.
 #[must_use]
-pub fn alignment_lags(nominal: usize, delay: usize) -> std::ops::RangeInclusive<usize> {
+pub fn comparison_lags(
+    design: Option<&Design>,
+    nominal: usize,
+    causal: usize,
+    delay: usize,
+) -> (
+    std::ops::RangeInclusive<usize>,
+    std::ops::RangeInclusive<usize>,
+) {
+    let raw = 0..=delay + 4 * causal.max(10);
+    if design.is_some_and(Design::passes_probe) {
+        return (raw.clone(), raw);
+    }
     let w = nominal.saturating_sub(delay).max(4);
-    nominal.saturating_sub(w)..=nominal + w
-}
-
-/// The lags at which the raw probe is compared with the reference: from 0 to the delay plus
-/// four times the compensator's latency (at least 40 samples), whatever the compensator.
-#[must_use]
-pub fn raw_alignment_lags(delay: usize, latency: usize) -> std::ops::RangeInclusive<usize> {
-    0..=delay + 4 * latency.max(10)
+    (nominal.saturating_sub(w)..=nominal + w, raw)
 }
 
 /// Error of an estimate against a reference when the estimate lags by `lag` samples, searched
@@ -803,12 +810,7 @@ pub fn reconstruct_with(
         }
     }
     let nominal = design.latency_samples.round().max(0.0) as usize;
-    let raw_lags = raw_alignment_lags(model.delay, nominal);
-    let lags = if design.passes_probe() {
-        raw_lags.clone()
-    } else {
-        alignment_lags(nominal, model.delay)
-    };
+    let (lags, raw_lags) = comparison_lags(Some(design), nominal, nominal, model.delay);
     let (e, lag) = aligned_error(test.u, &u_hat, lags);
     let (raw, _) = aligned_error(test.u, test.y, raw_lags);
     let range = test.u.iter().fold(f64::NEG_INFINITY, |m, v| m.max(*v))

@@ -89,6 +89,27 @@ struct Hashing<R> {
     hasher: Sha256,
 }
 
+impl Hashing<std::io::BufReader<std::fs::File>> {
+    /// Opens the file at `path` to be read through a buffer and hashed; with its length.
+    fn open(path: &Path) -> Result<(Self, u64)> {
+        let cannot_read = |source| Error::Io {
+            path: path.to_path_buf(),
+            action: "cannot read",
+            source,
+        };
+        let file = std::fs::File::open(path).map_err(cannot_read)?;
+        let meta = file.metadata().map_err(cannot_read)?;
+        if meta.is_dir() {
+            return Err(cannot_read(std::io::Error::other("it is a directory")));
+        }
+        let reader = Self {
+            inner: std::io::BufReader::with_capacity(1 << 16, file),
+            hasher: Sha256::new(),
+        };
+        Ok((reader, meta.len()))
+    }
+}
+
 impl<R: Read> Read for Hashing<R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = self.inner.read(buf)?;
@@ -132,21 +153,8 @@ impl Trace {
     /// # Errors
     /// [`Error`] naming the file, line and column of the first problem found.
     pub fn read(path: &Path, columns: &Columns) -> Result<Self> {
-        let cannot_read = |source| Error::Io {
-            path: path.to_path_buf(),
-            action: "cannot read",
-            source,
-        };
-        let file = std::fs::File::open(path).map_err(cannot_read)?;
-        let meta = file.metadata().map_err(cannot_read)?;
-        if meta.is_dir() {
-            return Err(cannot_read(std::io::Error::other("it is a directory")));
-        }
-        let mut reader = Hashing {
-            inner: std::io::BufReader::with_capacity(1 << 16, file),
-            hasher: Sha256::new(),
-        };
-        let mut trace = Self::parse_reader(path, &mut reader, meta.len(), columns)?;
+        let (mut reader, size) = Hashing::open(path)?;
+        let mut trace = Self::parse_reader(path, &mut reader, size, columns)?;
         trace.sha256 = hex(&reader.hasher.finalize());
         trace.source = Source::File;
         Ok(trace)
@@ -408,15 +416,7 @@ impl Trace {
         match &self.source {
             Source::Bytes(bytes) => copy(&mut &bytes[..]),
             Source::File => {
-                let file = std::fs::File::open(&self.path).map_err(|source| Error::Io {
-                    path: self.path.clone(),
-                    action: "cannot read",
-                    source,
-                })?;
-                let mut reader = Hashing {
-                    inner: std::io::BufReader::with_capacity(1 << 16, file),
-                    hasher: Sha256::new(),
-                };
+                let (mut reader, _) = Hashing::open(&self.path)?;
                 copy(&mut reader)?;
                 if hex(&reader.hasher.finalize()) == self.sha256 {
                     Ok(())
@@ -424,23 +424,6 @@ impl Trace {
                     Err(changed())
                 }
             }
-        }
-    }
-
-    /// The CSV text of this trace with extra columns appended (see [`Trace::write_csv_with`]).
-    ///
-    /// # Errors
-    /// As [`Trace::write_csv_with`].
-    pub fn to_csv_with(&self, extra: &[(&str, &[f64])]) -> Result<Vec<u8>> {
-        let mut out = Vec::new();
-        match self.write_csv_with(&mut out, extra) {
-            Ok(()) => Ok(out),
-            Err(WriteFailure::Content(e)) => Err(e),
-            Err(WriteFailure::Output(source)) => Err(Error::Io {
-                path: self.path.clone(),
-                action: "cannot write",
-                source,
-            }),
         }
     }
 }
@@ -673,10 +656,7 @@ where
         return match buffered(&mut out, fill) {
             // The reader stopped (`| head`): what it wanted, it has.
             Err(WriteFailure::Output(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-            r => r.map_err(|f| match f {
-                WriteFailure::Output(e) => io("cannot write to standard output", e),
-                WriteFailure::Content(e) => e,
-            }),
+            r => r.map_err(|f| failed("cannot write to standard output", f)),
         };
     }
     // Follow a symbolic link to the file it names, so that the link survives.
@@ -933,7 +913,9 @@ mod tests {
     #[test]
     fn csv_round_trip_keeps_columns() {
         let tr = parse("t,u,y\n0,0,0\n0.001,1,0.5\n").unwrap();
-        let out = tr.to_csv_with(&[("u_hat", &[0.0, 1.0])]).unwrap();
+        let mut out = Vec::new();
+        tr.write_csv_with(&mut out, &[("u_hat", &[0.0, 1.0])])
+            .unwrap();
         assert_eq!(
             String::from_utf8(out).unwrap(),
             "t,u,y,u_hat\n0,0,0,0\n0.001,1,0.5,1\n"

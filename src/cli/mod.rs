@@ -1392,12 +1392,7 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
             .map_or(latency, |d| d.latency_samples)
             .round()
             .max(0.0) as usize;
-        let raw_lags = inverse::raw_alignment_lags(m.delay, causal);
-        let lags = if design.is_some_and(inverse::Design::passes_probe) {
-            raw_lags.clone()
-        } else {
-            inverse::alignment_lags(nominal, m.delay)
-        };
+        let (lags, raw_lags) = inverse::comparison_lags(design, nominal, causal, m.delay);
         let (e, lag) = inverse::aligned_error(u, &u_hat, lags);
         let (raw, _) = inverse::aligned_error(u, &trace.y, raw_lags);
         (e, raw, lag)

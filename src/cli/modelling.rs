@@ -64,12 +64,10 @@ fn tests(l: &Loaded) -> Result<Vec<Test<'_>>> {
 }
 
 pub(crate) fn method_of(file: &ModelFile) -> Method {
-    match file.fit.as_ref().map(|f| f.method.as_str()) {
-        Some("arx") => Method::Arx,
-        Some("sm") => Method::Sm,
-        Some("bj") => Method::Bj,
-        _ => Method::Oe,
-    }
+    file.fit
+        .as_ref()
+        .and_then(|f| Method::from_name(&f.method))
+        .unwrap_or(Method::Oe)
 }
 
 fn print_evidence(evidence: &[TestEvidence]) {

@@ -55,17 +55,16 @@ pub(crate) struct Progress {
 impl Progress {
     /// Starts the (hidden) spinner, or the line printer, with a first message.
     pub(crate) fn start(json: bool, message: &str) -> Self {
-        let done = Arc::new(AtomicBool::new(false));
-        let text = Arc::new(std::sync::Mutex::new(message.to_string()));
+        let mut progress = Self {
+            bar: None,
+            done: Arc::new(AtomicBool::new(false)),
+            message: Arc::new(std::sync::Mutex::new(message.to_string())),
+        };
         if json {
-            return Self {
-                bar: None,
-                done,
-                message: text,
-            };
+            return progress;
         }
         if !std::io::stdout().is_terminal() {
-            let (flag, shown) = (Arc::clone(&done), Arc::clone(&text));
+            let (flag, shown) = (Arc::clone(&progress.done), Arc::clone(&progress.message));
             std::thread::spawn(move || {
                 let start = std::time::Instant::now();
                 let mut next = PROGRESS_LINE_SECONDS;
@@ -79,18 +78,14 @@ impl Progress {
                     }
                 }
             });
-            return Self {
-                bar: None,
-                done,
-                message: text,
-            };
+            return progress;
         }
         let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
         if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} ({elapsed})") {
             bar.set_style(style);
         }
         bar.set_message(message.to_string());
-        let (shown, flag) = (bar.clone(), Arc::clone(&done));
+        let (shown, flag) = (bar.clone(), Arc::clone(&progress.done));
         std::thread::spawn(move || {
             std::thread::sleep(Duration::from_secs(1));
             if !flag.load(Ordering::SeqCst) {
@@ -98,11 +93,8 @@ impl Progress {
                 shown.enable_steady_tick(Duration::from_millis(120));
             }
         });
-        Self {
-            bar: Some(bar),
-            done,
-            message: text,
-        }
+        progress.bar = Some(bar);
+        progress
     }
 
     /// What is being done now.

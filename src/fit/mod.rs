@@ -56,6 +56,14 @@ impl Method {
             Self::Arx => "arx",
         }
     }
+
+    /// The method a name stands for ([`Method::name`]'s inverse).
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        [Self::Oe, Self::Bj, Self::Sm, Self::Arx]
+            .into_iter()
+            .find(|m| m.name() == name)
+    }
 }
 
 /// How to choose the order.
@@ -222,15 +230,9 @@ fn refine(whole: &[Data<'_>], model: &Model, method: Method) -> Result<(Vec<f64>
     match method {
         Method::Arx | Method::Sm => fit_at(whole, m, d, method),
         Method::Oe | Method::Bj => {
-            let mut b = model.b.clone();
-            let short = b.len() > 1 && b.last() == Some(&0.0);
-            if short {
-                b.pop();
-            }
-            let (a, mut b) = oe::output_error(whole, (model.a.clone(), b), d, REFINE_ITERATIONS)?;
-            if short {
-                b.push(0.0);
-            }
+            let (b, short) = unpadded(&model.b);
+            let (a, b) = oe::output_error(whole, (model.a.clone(), b), d, REFINE_ITERATIONS)?;
+            let b = padded(b, short);
             if method == Method::Bj {
                 box_jenkins(whole, (a, b), d)
             } else {
@@ -275,40 +277,28 @@ fn uncertainty(sets: &[Data<'_>], model: &Model, method: Method) -> Option<Uncer
         return None;
     }
     let d = model.delay;
-    let mut b = model.b.clone();
-    let short = b.len() > 1 && b.last() == Some(&0.0);
-    if short {
-        b.pop();
-    }
+    let (b, short) = unpadded(&model.b);
     let ar = if method == Method::Bj {
-        noise::fit(
-            &residuals(sets, (&model.a, &model.b), d).concat(),
-            noise::MAX_NOISE_ORDER,
-        )
-        .ar
+        residual_noise(sets, (&model.a, &model.b), d).0
     } else {
         Vec::new()
     };
-    let white: Vec<(Vec<f64>, Vec<f64>)> = sets
-        .iter()
-        .map(|s| (noise::whiten(&ar, s.u), noise::whiten(&ar, s.y)))
-        .collect();
+    let white = whitened(sets, &ar);
     let wsets: Vec<Data<'_>> = white.iter().map(|(u, y)| Data { u, y }).collect();
     let cov = oe::covariance(&wsets, (&model.a, &b), d)?;
     let m = model.a.len();
     let theta: Vec<f64> = model.a.iter().chain(&b).copied().collect();
     let at = |t: &[f64]| -> Option<(f64, Vec<(f64, f64)>)> {
-        let mut bb: Vec<f64> = t.get(m..)?.to_vec();
-        if short {
-            bb.push(0.0);
-        }
         features(&Model {
             a: t.get(..m)?.to_vec(),
-            b: bb,
+            b: padded(t.get(m..)?.to_vec(), short),
             ..model.clone()
         })
     };
     let (dc, res) = at(&theta)?;
+    if !dc.is_finite() {
+        return None;
+    }
     // Gradient of each feature by central differences, a hundredth of a standard deviation.
     let k = 1 + 2 * res.len();
     let flat = |f: &(f64, Vec<(f64, f64)>)| -> Option<Vec<f64>> {
@@ -359,7 +349,6 @@ fn uncertainty(sets: &[Data<'_>], model: &Model, method: Method) -> Option<Uncer
             .collect(),
         noise_model: !ar.is_empty(),
     })
-    .filter(|_| dc.is_finite())
 }
 
 /// Rounds of the Box-Jenkins alternation (noise model, then dynamics on whitened data).
@@ -374,16 +363,11 @@ fn box_jenkins(
     init: (Vec<f64>, Vec<f64>),
     d: usize,
 ) -> Result<(Vec<f64>, Vec<f64>)> {
-    let (a, mut b) = init;
-    let short = b.len() > 1 && b.last() == Some(&0.0);
-    if short {
-        b.pop();
-    }
-    let mut current = (a, b);
+    let (b, short) = unpadded(&init.1);
+    let mut current = (init.0, b);
     let mut previous_ar: Vec<f64> = Vec::new();
     for _ in 0..BJ_ROUNDS {
-        let all: Vec<f64> = residuals(sets, (&current.0, &current.1), d).concat();
-        let ar = noise::fit(&all, noise::MAX_NOISE_ORDER).ar;
+        let ar = residual_noise(sets, (&current.0, &current.1), d).0;
         if ar.is_empty() {
             break;
         }
@@ -392,10 +376,7 @@ fn box_jenkins(
                 .iter()
                 .zip(&previous_ar)
                 .all(|(x, y)| (x - y).abs() < 1e-3);
-        let white: Vec<(Vec<f64>, Vec<f64>)> = sets
-            .iter()
-            .map(|s| (noise::whiten(&ar, s.u), noise::whiten(&ar, s.y)))
-            .collect();
+        let white = whitened(sets, &ar);
         let wsets: Vec<Data<'_>> = white.iter().map(|(u, y)| Data { u, y }).collect();
         current = oe::output_error(&wsets, current, d, 60)?;
         if settled {
@@ -403,10 +384,43 @@ fn box_jenkins(
         }
         previous_ar = ar;
     }
+    Ok((current.0, padded(current.1, short)))
+}
+
+/// A numerator without the zero that pads the short numerator (`m` coefficients stored as
+/// `m + 1`), and whether it was there; [`padded`] puts it back.
+fn unpadded(b: &[f64]) -> (Vec<f64>, bool) {
+    let short = b.len() > 1 && b.last() == Some(&0.0);
+    let kept = if short { &b[..b.len() - 1] } else { b };
+    (kept.to_vec(), short)
+}
+
+/// `b` with the short numerator's padding zero back when `short`.
+fn padded(mut b: Vec<f64>, short: bool) -> Vec<f64> {
     if short {
-        current.1.push(0.0);
+        b.push(0.0);
     }
-    Ok(current)
+    b
+}
+
+/// The AR noise model of the simulation residuals at `(a, b)`, and the residuals.
+fn residual_noise(
+    sets: &[Data<'_>],
+    (a, b): (&[f64], &[f64]),
+    d: usize,
+) -> (Vec<f64>, Vec<Vec<f64>>) {
+    let residual = residuals(sets, (a, b), d);
+    (
+        noise::fit(&residual.concat(), noise::MAX_NOISE_ORDER).ar,
+        residual,
+    )
+}
+
+/// Each data set's `(D u, D y)` under the noise model `ar`.
+fn whitened(sets: &[Data<'_>], ar: &[f64]) -> Vec<(Vec<f64>, Vec<f64>)> {
+    sets.iter()
+        .map(|s| (noise::whiten(ar, s.u), noise::whiten(ar, s.y)))
+        .collect()
 }
 
 /// The simulation residual `y - q^-d B/A u` of each data set.
@@ -422,8 +436,7 @@ fn residuals(sets: &[Data<'_>], (a, b): (&[f64], &[f64]), d: usize) -> Vec<Vec<f
 /// The sum of squared one-step-ahead prediction errors of `model` under the AR noise model of
 /// its simulation residual, and that noise model's number of parameters.
 fn prediction_loss(sets: &[Data<'_>], model: &Model) -> (f64, usize) {
-    let residual = residuals(sets, (&model.a, &model.b), model.delay);
-    let ar = noise::fit(&residual.concat(), noise::MAX_NOISE_ORDER).ar;
+    let (ar, residual) = residual_noise(sets, (&model.a, &model.b), model.delay);
     let rss = residual
         .iter()
         .map(|v| noise::whiten(&ar, v).iter().map(|e| e * e).sum::<f64>())

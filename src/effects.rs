@@ -704,8 +704,11 @@ fn fit_nonlinear(
 /// What a prediction of [`predict`] is compared with: the probe signal, prefiltered when the
 /// effects have a `sensor-resonance`.
 #[must_use]
-pub fn observed(effects: &[Effect], fs: f64, y: &[f64]) -> Vec<f64> {
-    prefiltered(effects, fs, y)
+pub fn observed<'a>(effects: &[Effect], fs: f64, y: &'a [f64]) -> std::borrow::Cow<'a, [f64]> {
+    match prefilter_hz(effects) {
+        Some(_) => std::borrow::Cow::Owned(prefiltered(effects, fs, y)),
+        None => std::borrow::Cow::Borrowed(y),
+    }
 }
 
 /// The prefilter corner of `effects` (Hz), when they have a sensor resonance with a known

@@ -191,27 +191,74 @@ pub struct ModelError {
 /// A model-error peak counts from this height (dB) above the ratio's median.
 pub const MODEL_ERROR_PEAK_DB: f64 = 2.0;
 
+/// Longest segment one spectrum transforms at once: a longer record is cut into equal segments
+/// no longer than this, whose periodograms are averaged (Bartlett's method). Up to this length
+/// the spectrum is the record's own; beyond it memory stays bounded and the resolution is that of
+/// a record of this length, while a transient keeps its ratio to the noise (both fall with the
+/// record's length as they would in one long transform).
+pub const SPECTRUM_SEGMENT: usize = 1 << 20;
+
+/// How a record of `n` samples is cut for its spectrum.
+#[derive(Debug, Clone, Copy)]
+struct Segments {
+    /// Samples per segment (the last may be shorter).
+    len: usize,
+    /// Number of segments, as the averaging divisor.
+    count: f64,
+    /// Transform length: twice the segment, to a power of two (zero padding).
+    nfft: usize,
+}
+
+impl Segments {
+    fn of(n: usize) -> Self {
+        let count = n.div_ceil(SPECTRUM_SEGMENT).max(1);
+        let len = n.div_ceil(count).max(1);
+        Self {
+            len,
+            count: n.div_ceil(len).max(1) as f64,
+            nfft: (2 * len).next_power_of_two(),
+        }
+    }
+}
+
 /// The model-error spectrum of a test (see [`ModelError`]).
 #[must_use]
 pub fn model_error(y: &[f64], y_model: &[f64], noise_std: f64, fs: f64) -> ModelError {
     let n = y.len().min(y_model.len()).max(2);
-    let nfft = (2 * n).next_power_of_two();
-    let spectrum_of = |x: &[f64]| {
-        let mut buf: Vec<Complex64> = std::iter::once(0.0)
-            .chain(x[..n].windows(2).map(|w| w[1] - w[0]))
-            .map(|v| Complex64::new(v, 0.0))
-            .collect();
-        buf.resize(nfft, Complex64::new(0.0, 0.0));
-        FftPlanner::new().plan_fft_forward(nfft).process(&mut buf);
-        buf
+    let plan = Segments::of(n);
+    let nfft = plan.nfft;
+    // The increments' powers, both signals in one transform (y real, the model imaginary):
+    // for a real pair, Y_k = (Z_k + conj Z_(N-k)) / 2 and M_k = (Z_k - conj Z_(N-k)) / 2i.
+    let increment = |x: &[f64], i: usize| match i {
+        0 => 0.0,
+        _ => x.get(i).copied().unwrap_or(0.0) - x.get(i - 1).copied().unwrap_or(0.0),
     };
-    let (fy, fm) = (spectrum_of(y), spectrum_of(y_model));
+    let half = nfft / 2;
+    let (mut fy, mut fm) = (vec![0.0; half + 1], vec![0.0; half + 1]);
+    let mut buf = vec![Complex64::new(0.0, 0.0); nfft];
+    let fft = FftPlanner::new().plan_fft_forward(nfft);
+    for start in (0..n).step_by(plan.len) {
+        let end = (start + plan.len).min(n);
+        buf.iter_mut().enumerate().for_each(|(j, c)| {
+            *c = if start + j < end {
+                Complex64::new(increment(y, start + j), increment(y_model, start + j))
+            } else {
+                Complex64::new(0.0, 0.0)
+            };
+        });
+        fft.process(&mut buf);
+        for k in 0..=half {
+            let (z, zc) = (buf[k], buf[(nfft - k) % nfft].conj());
+            fy[k] += ((z + zc) * 0.5).norm_sqr() / plan.count;
+            fm[k] += ((z - zc) * 0.5).norm_sqr() / plan.count;
+        }
+    }
+    drop(buf);
     let resolution_hz = fs / nfft as f64;
     // Power averaged over 9 neighbouring bins (the zero padding correlates pairs of them):
     // the ratio's scatter from noise falls to a fraction of a dB where the model stands
     // 10 dB above the noise.
-    let smooth = |f: &[Complex64]| -> Vec<f64> {
-        let p: Vec<f64> = f[..=nfft / 2].iter().map(|c| c.norm_sqr()).collect();
+    let smooth = |p: &[f64]| -> Vec<f64> {
         (0..p.len())
             .map(|i| {
                 let (lo, hi) = (i.saturating_sub(4), (i + 5).min(p.len()));
@@ -220,8 +267,9 @@ pub fn model_error(y: &[f64], y_model: &[f64], noise_std: f64, fs: f64) -> Model
             .collect()
     };
     let (py, pm) = (smooth(&fy), smooth(&fm));
-    // White noise of std s gives increments of std s sqrt 2, and FFT powers near 2 n s^2.
-    let noise_power = 2.0 * n as f64 * noise_std * noise_std;
+    // White noise of std s gives increments of std s sqrt 2, and FFT powers near 2 n s^2 (n
+    // the segment's length).
+    let noise_power = 2.0 * plan.len as f64 * noise_std * noise_std;
     let valid = (1..pm.len())
         .take_while(|&i| pm[i] > 10.0 * noise_power)
         .last()
@@ -492,19 +540,26 @@ pub fn spectrum(x: &[f64], fs: f64) -> Spectrum {
 /// stands [`PEAK_DB`] above the shape at the floor's level.
 #[must_use]
 pub fn spectrum_against(x: &[f64], fs: f64, shape: impl Fn(f64) -> f64) -> Spectrum {
-    let n = x.len().max(2);
-    let nfft = (2 * n).next_power_of_two();
+    let plan = Segments::of(x.len().max(2));
+    let nfft = plan.nfft;
     let m = mean(x);
+    let half = nfft / 2;
     // No taper: the residual of a step test is a transient that starts with the segment, and a
     // window would erase it.
-    let mut buf: Vec<Complex64> = x.iter().map(|v| Complex64::new(v - m, 0.0)).collect();
-    buf.resize(nfft, Complex64::new(0.0, 0.0));
-    FftPlanner::new().plan_fft_forward(nfft).process(&mut buf);
-    let half = nfft / 2;
-    let raw: Vec<f64> = buf[..=half]
-        .iter()
-        .map(|c| c.norm_sqr().max(1e-300))
-        .collect();
+    let mut raw = vec![0.0; half + 1];
+    let mut buf = vec![Complex64::new(0.0, 0.0); nfft];
+    let fft = FftPlanner::new().plan_fft_forward(nfft);
+    for chunk in x.chunks(plan.len) {
+        buf.iter_mut().enumerate().for_each(|(j, c)| {
+            *c = Complex64::new(chunk.get(j).map_or(0.0, |v| v - m), 0.0);
+        });
+        fft.process(&mut buf);
+        raw.iter_mut()
+            .zip(&buf)
+            .for_each(|(p, c)| *p += c.norm_sqr() / plan.count);
+    }
+    drop(buf);
+    raw.iter_mut().for_each(|p| *p = p.max(1e-300));
     // A periodogram bin scatters like chi-square with 2 degrees of freedom (10 dB above the
     // median once in a thousand bins); averaging 9 neighbours makes a 10 dB excursion of noise
     // practically impossible while a resonance, wider than that, stays.
@@ -776,5 +831,45 @@ mod tests {
         assert!((p.frequency_hz - 362.0).abs() < 5.0, "{p:?}");
         assert!(p.q > 3.0 && p.q < 30.0, "{p:?}");
         assert!(spectrum(&w, fs).peaks.is_empty());
+    }
+
+    /// A record longer than [`SPECTRUM_SEGMENT`] is averaged over segments: the transform stays
+    /// the segment's size, a resonance in the residual is still found where it is, and the
+    /// floor stays that of the noise.
+    #[test]
+    fn long_records_are_averaged_over_segments_and_keep_their_peaks() {
+        let fs = 1e6;
+        let n = 3 * SPECTRUM_SEGMENT + 12_345;
+        let w = noise(n, 7);
+        let f0 = 41_000.0;
+        let x: Vec<f64> = w
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + 0.05 * (2.0 * std::f64::consts::PI * f0 * k as f64 / fs).sin())
+            .collect();
+        let s = spectrum(&x, fs);
+        // Four segments of at most 2^20 samples, each padded to 2^21.
+        assert_eq!(s.psd_db.len(), (1 << 20) + 1);
+        assert!((s.resolution_hz - fs / f64::from(1 << 21)).abs() < 1e-12);
+        let top = s.peaks.first().expect("the sinusoid is a peak");
+        assert!((top.frequency_hz - f0).abs() < 3.0, "{top:?}");
+        // White noise alone: no peak, and the floor a segment's periodogram gives.
+        let plain = spectrum(&w, fs);
+        assert!(plain.peaks.is_empty(), "{:?}", plain.peaks);
+    }
+
+    /// Up to one segment the spectrum is the record's own: the same bins as one transform of
+    /// the whole record, and the model-error ratio of a signal with itself is 0 dB.
+    #[test]
+    fn short_records_are_one_segment_and_model_error_of_itself_is_flat() {
+        let n = 5000;
+        let x = noise(n, 3);
+        let s = spectrum(&x, 1000.0);
+        assert_eq!(s.psd_db.len(), (2 * n).next_power_of_two() / 2 + 1);
+        let steps: Vec<f64> = (0..n).map(|k| f64::from(u8::from(k >= 100))).collect();
+        let e = model_error(&steps, &steps, 1e-6, 1000.0);
+        assert!(e.db.len() > 10);
+        assert!(e.db.iter().all(|v| v.abs() < 1e-9), "{:?}", &e.db[..5]);
+        assert!(e.peaks.is_empty());
     }
 }

@@ -306,6 +306,9 @@ impl Trace {
         if let Some(ui) = u_idx {
             check_clipping(path, &u, &lines, ui + 1, &columns.input)?;
         }
+        // The sizing estimate leaves room to spare: give it back (the signals live for the run).
+        u.shrink_to_fit();
+        y.shrink_to_fit();
         Ok(Self {
             path: p(),
             sha256: String::new(),

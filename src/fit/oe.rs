@@ -132,7 +132,10 @@ pub fn steiglitz_mcbride_nb(
 
 /// The triangular factor `R` of `[J r]`, the output-error Jacobian at `(a, b)` with the
 /// residual as its last column, reduced `BLOCK` rows at a time in `block` (which must have
-/// `np + 1` columns and at least `np + 1 + BLOCK` rows, or all the rows there are).
+/// `np + 1` columns and at least `np + 1 + BLOCK` rows, or all the rows there are). The three
+/// recursions the rows need (the simulation `yh`, `u / A` and `yh / A`) run block by block in
+/// buffers of one block and its history (zeros before the record), in the arithmetic order of
+/// [`filter`] and [`allpole`]: a long record is never held three times over.
 fn triangle(
     sets: &[Data<'_>],
     (a, b): (&[f64], &[f64]),
@@ -141,44 +144,66 @@ fn triangle(
 ) -> Mat<f64> {
     let (m, np) = (a.len(), a.len() + b.len());
     let width = np + 1;
+    // Lags read: yh and vv up to m, w up to d + nb - 1.
+    let h = m.max(d + b.len());
+    let step = BLOCK.min(block.nrows().saturating_sub(width).max(1));
     let mut r_aug = Mat::<f64>::zeros(width, width);
+    // yh = q^-d B/A u, w = u/A, vv = yh/A; local index h + (k - k0) is sample k.
+    let (mut yh, mut w, mut vv) = (
+        vec![0.0; h + step],
+        vec![0.0; h + step],
+        vec![0.0; h + step],
+    );
     for s in sets {
-        let yh = filter(b, a, d, s.u);
-        let w = allpole(a, s.u);
-        let vv = allpole(a, &yh);
         let n = s.y.len();
+        for t in [&mut yh, &mut w, &mut vv] {
+            t.fill(0.0);
+        }
         let mut k0 = 0;
         while k0 < n {
-            let k1 = (k0 + BLOCK)
-                .min(n)
-                .min(k0 + block.nrows().saturating_sub(width).max(1));
+            let k1 = (k0 + step).min(n);
             // Rows: the triangle so far, then samples k0..k1.
             for r in 0..width {
                 for c in 0..width {
                     block[(r, c)] = if c >= r { r_aug[(r, c)] } else { 0.0 };
                 }
             }
-            let measured = s.y.get(k0..k1).unwrap_or(&[]).iter();
-            let simulated = yh.get(k0..k1).unwrap_or(&[]).iter();
-            for (k, (yk, yhk)) in (k0..k1).zip(measured.zip(simulated)) {
+            for k in k0..k1 {
+                let p = h + k - k0;
+                let mut acc = 0.0;
+                for (i, bi) in b.iter().enumerate() {
+                    if let Some(j) = k.checked_sub(i + d) {
+                        acc += bi * s.u.get(j).copied().unwrap_or(0.0);
+                    }
+                }
+                for (i, ai) in a.iter().enumerate() {
+                    acc -= ai * yh[p - i - 1];
+                }
+                let mut acc_w = s.u.get(k).copied().unwrap_or(0.0);
+                let mut acc_v = acc;
+                for (i, ai) in a.iter().enumerate() {
+                    acc_w -= ai * w[p - i - 1];
+                    acc_v -= ai * vv[p - i - 1];
+                }
+                yh[p] = acc;
+                w[p] = acc_w;
+                vv[p] = acc_v;
                 let row = width + k - k0;
                 for i in 0..m {
-                    block[(row, i)] = k
-                        .checked_sub(i + 1)
-                        .and_then(|j| vv.get(j))
-                        .map_or(0.0, |x| -x);
+                    block[(row, i)] = if k > i { -vv[p - i - 1] } else { 0.0 };
                 }
                 for i in 0..np - m {
-                    block[(row, m + i)] = k
-                        .checked_sub(d + i)
-                        .and_then(|j| w.get(j))
-                        .copied()
-                        .unwrap_or(0.0);
+                    block[(row, m + i)] = w[p - d - i];
                 }
-                block[(row, np)] = yk - yhk;
+                block[(row, np)] = s.y.get(k).copied().unwrap_or(0.0) - acc;
             }
             let used = width + k1 - k0;
             r_aug = block.as_ref().subrows(0, used).qr().thin_R().to_owned();
+            // The last h samples become the next block's history.
+            let filled = h + k1 - k0;
+            for t in [&mut yh, &mut w, &mut vv] {
+                t.copy_within(filled - h..filled, 0);
+            }
             k0 = k1;
         }
     }

@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Peak memory per sample at shock-tube scale (issue 16, item 2): each streaming command on a
+# 5e6-row step test and a 5e6-row validation test (written by bench/fit_baseline.py gen, the
+# data of bench/run-fit.sh), wall time and peak resident memory by GNU time, as bytes per row of
+# one test and as a ratio against the 100 B a row asked for and the 16 B a row the two signals
+# take in f64.
+#
+#   bash bench/run-memory.sh          # N=5e6 by default; BENCH_MEMORY_ROWS=1e6 for a quick run
+#
+# Prints a Markdown table; BENCHMARKS.md holds the last one with this command.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$PWD
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
+venv="$root/target/bench-venv"
+n="${BENCH_MEMORY_ROWS:-5e6}"
+dir="$root/target/bench-fit/$n"
+if [ ! -x "$venv/bin/python" ]; then
+  python3 -m venv "$venv"
+fi
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 scipy==1.17.1
+cargo build --release --bin unlag
+unlag="$CARGO_TARGET_DIR/release/unlag"
+if [ ! -f "$dir/est.csv" ]; then
+  "$venv/bin/python" bench/fit_baseline.py gen "$n" "$dir"
+fi
+rows=$(python3 -c "print(int(float('$n')))")
+cd "$dir"
+echo "| command ($n rows a test) | wall | peak memory | per row | / 100 B budget | / 16 B (u and y in f64) |"
+echo "|---|---|---|---|---|---|"
+run() { # label, arguments...
+  local label=$1
+  shift
+  /usr/bin/time -f "%e %M" -o time.txt "$unlag" "$@" > run.log 2>&1
+  read -r wall kb < time.txt
+  python3 - "$label" "$wall" "$kb" "$rows" <<'PY'
+import sys
+label, wall, kb, rows = sys.argv[1], float(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
+per = kb * 1024 / rows
+print(f"| `{label}` | {wall:.1f} s | {kb / 1024:.0f} MB | {per:.0f} B | {per / 100:.2f}x | {per / 16:.1f}x |")
+PY
+}
+run "unlag fit est.csv -o m.toml" fit est.csv -o m.toml
+run "unlag compensate m.toml val.csv -o out.csv" compensate m.toml val.csv -o out.csv
+run "unlag simulate m.toml val.csv -o sim.csv" simulate m.toml val.csv -o sim.csv
+run "unlag compare m.toml val.csv" compare m.toml val.csv
+run "unlag report m.toml est.csv val.csv -o report.html" report m.toml est.csv val.csv -o report.html
+rm -f out.csv sim.csv
+echo
+echo "date: $(date -u '+%Y-%m-%d %H:%M UTC'); git $(git -C "$root" rev-parse --short HEAD); CPU: $(grep -m1 '^model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//'), $(nproc) cores"

@@ -10,26 +10,14 @@
 # Prints a Markdown table; BENCHMARKS.md holds the last one with this command.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-root=$PWD
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
-venv="$root/target/bench-venv"
-out="$root/target/bench-fit"
-if [ ! -x "$venv/bin/python" ]; then
-  python3 -m venv "$venv"
-fi
-"$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 scipy==1.17.1
-cargo build --release --bin unlag
-unlag="$CARGO_TARGET_DIR/release/unlag"
+source bench/fit-data.sh
 sizes="1e5 1e6"
 if [ "${BENCH_FIT_5E6:-0}" = 1 ]; then sizes="$sizes 5e6"; fi
 
 echo "| rows | unlag fit (default), wall | peak memory | per sample | order / delay | numpy/scipy SM + OE, same order and delay | baseline / unlag | validation nrmse unlag | validation nrmse baseline |"
 echo "|---|---|---|---|---|---|---|---|---|"
 for n in $sizes; do
-  dir="$out/$n"
-  if [ ! -f "$dir/est.csv" ]; then
-    "$venv/bin/python" bench/fit_baseline.py gen "$n" "$dir"
-  fi
+  dir=$(fit_data "$n")
   /usr/bin/time -f "%e %M" -o "$dir/time.txt" "$unlag" fit "$dir/est.csv" -o "$dir/m.toml" > "$dir/fit.log" 2>&1
   read -r wall kb < "$dir/time.txt"
   "$venv/bin/python" bench/fit_baseline.py fit "$dir" "$dir/m.toml" > "$dir/baseline.txt"

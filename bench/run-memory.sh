@@ -10,20 +10,9 @@
 # Prints a Markdown table; BENCHMARKS.md holds the last one with this command.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-root=$PWD
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
-venv="$root/target/bench-venv"
+source bench/fit-data.sh
 n="${BENCH_MEMORY_ROWS:-5e6}"
-dir="$root/target/bench-fit/$n"
-if [ ! -x "$venv/bin/python" ]; then
-  python3 -m venv "$venv"
-fi
-"$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 scipy==1.17.1
-cargo build --release --bin unlag
-unlag="$CARGO_TARGET_DIR/release/unlag"
-if [ ! -f "$dir/est.csv" ]; then
-  "$venv/bin/python" bench/fit_baseline.py gen "$n" "$dir"
-fi
+dir=$(fit_data "$n")
 rows=$(python3 -c "print(int(float('$n')))")
 cd "$dir"
 echo "| command ($n rows a test) | wall | peak memory | per row | / 100 B budget | / 16 B (u and y in f64) |"

@@ -834,8 +834,8 @@ mod tests {
     }
 
     /// A record longer than [`SPECTRUM_SEGMENT`] is averaged over segments: the transform stays
-    /// the segment's size, a resonance in the residual is still found where it is, and the
-    /// floor stays that of the noise.
+    /// the segment's size, a resonance in the residual is still found where it is, and noise
+    /// alone gives no peak.
     #[test]
     fn long_records_are_averaged_over_segments_and_keep_their_peaks() {
         let fs = 1e6;
@@ -853,7 +853,7 @@ mod tests {
         assert!((s.resolution_hz - fs / f64::from(1 << 21)).abs() < 1e-12);
         let top = s.peaks.first().expect("the sinusoid is a peak");
         assert!((top.frequency_hz - f0).abs() < 3.0, "{top:?}");
-        // White noise alone: no peak, and the floor a segment's periodogram gives.
+        // White noise alone: no peak.
         let plain = spectrum(&w, fs);
         assert!(plain.peaks.is_empty(), "{:?}", plain.peaks);
     }

@@ -130,6 +130,9 @@ struct Outcome {
     truth_check: Option<f64>,
     /// Physics cases: the truth fit's nrmse on its noise-free test.
     truth_fit: Option<f64>,
+    /// The same three errors against the validation test's noise-free reference (what the
+    /// reference sensor would read without its noise and ADC): `(raw, comp, oracle)`.
+    clean: (Option<f64>, Option<f64>, Option<f64>),
     /// ADC full scale, in steps.
     adc_steps: f64,
     /// Order and delay of the fitted model.
@@ -169,6 +172,14 @@ fn errors(json: &str) -> Result<(f64, f64), String> {
     verdict(json).map(|(e, r, _)| (e, r))
 }
 
+/// The lag `unlag compensate ... --json` aligned `u_hat` at (0 if it says none).
+fn alignment(json: &str) -> usize {
+    serde_json::from_str::<serde_json::Value>(json.trim())
+        .ok()
+        .and_then(|v| v.get("alignment_samples")?.as_u64())
+        .map_or(0, |a| a as usize)
+}
+
 /// `(nrmse_u_hat, nrmse_raw, verdict is "worse")` of `unlag compensate ... --json`.
 fn verdict(json: &str) -> Result<(f64, f64, bool), String> {
     let v: serde_json::Value = serde_json::from_str(json.trim())
@@ -180,6 +191,30 @@ fn verdict(json: &str) -> Result<(f64, f64, bool), String> {
     };
     let worse = v.get("verdict").and_then(serde_json::Value::as_str) == Some("worse");
     Ok((get("nrmse_u_hat")?, get("nrmse_raw")?, worse))
+}
+
+/// `(raw, comp)` errors of a `compensate` output (`t,u,y,u_hat`) against the noise-free
+/// reference `clean`, RMS over the range of `clean`: the reconstruction judged without the
+/// reference sensor's own noise. Each at its best alignment over lags like the CLI's:
+/// `u_hat` within 4 samples of the lag the CLI found (`alignment`), the raw probe from 0 to
+/// `alignment + 4 max(alignment, 10)`.
+fn against_clean(clean: &[f64], out: &Path, alignment: usize) -> Result<(f64, f64), String> {
+    let text =
+        std::fs::read_to_string(out).map_err(|e| format!("cannot read {}: {e}", out.display()))?;
+    let mut y = Vec::with_capacity(clean.len());
+    let mut u_hat = Vec::with_capacity(clean.len());
+    for line in text.lines().skip(1) {
+        let f: Vec<f64> = line.split(',').filter_map(|v| v.parse().ok()).collect();
+        if let [_, _, yy, uh] = f[..] {
+            y.push(yy);
+            u_hat.push(uh);
+        }
+    }
+    let raw_lags = 0..=alignment + 4 * alignment.max(10);
+    let lags = alignment.saturating_sub(4)..=alignment + 4;
+    let (raw, _) = unlag::inverse::aligned_error(clean, &y, raw_lags);
+    let (comp, _) = unlag::inverse::aligned_error(clean, &u_hat, lags);
+    Ok((raw, comp))
 }
 
 /// Order and delay of a model file (read as TOML text, enough for the report).
@@ -222,11 +257,14 @@ fn run_case(case: &Case, s: &Settings) -> Outcome {
     let start = Instant::now();
     let mut o = Outcome::default();
     let dir = s.out.join(format!("case-{:03}", case.id));
-    if let Err(e) = make_files(case, &dir, &s.unlag, &mut o) {
-        o.failure = Some(format!("simulation: {e}"));
-        o.seconds = start.elapsed().as_secs_f64();
-        return o;
-    }
+    let clean_u = match make_files(case, &dir, &s.unlag, &mut o) {
+        Ok(u) => u,
+        Err(e) => {
+            o.failure = Some(format!("simulation: {e}"));
+            o.seconds = start.elapsed().as_secs_f64();
+            return o;
+        }
+    };
     let user = unlag(
         &s.unlag,
         &dir,
@@ -248,12 +286,16 @@ fn run_case(case: &Case, s: &Settings) -> Outcome {
             "compensate.log",
         )
     })
-    .and_then(|json| verdict(&json));
+    .and_then(|json| Ok((verdict(&json)?, alignment(&json))));
     match user {
-        Ok((comp, raw, worse)) => {
+        Ok(((comp, raw, worse), lag)) => {
             o.comp = Some(comp);
             o.raw = Some(raw);
             o.said_worse = worse;
+            if let Ok((raw, comp)) = against_clean(&clean_u, &dir.join("out.csv"), lag) {
+                o.clean.0 = Some(raw);
+                o.clean.1 = Some(comp);
+            }
         }
         Err(e) => o.failure = Some(e),
     }
@@ -314,11 +356,14 @@ fn run_case(case: &Case, s: &Settings) -> Outcome {
                 "oracle.log",
             )
         })
-        .and_then(|json| errors(&json));
+        .and_then(|json| Ok((errors(&json)?, alignment(&json))));
         match oracle {
-            Ok((e, raw)) => {
+            Ok(((e, raw), lag)) => {
                 o.oracle = Some(e);
                 o.raw = o.raw.or(Some(raw));
+                o.clean.2 = against_clean(&clean_u, &dir.join("o.csv"), lag)
+                    .ok()
+                    .map(|(_, e)| e);
             }
             Err(e) => o.oracle_failure = Some(e),
         }
@@ -331,7 +376,8 @@ fn run_case(case: &Case, s: &Settings) -> Outcome {
 
 /// Writes `est.csv`, `val.csv` and `truth.toml` (a physics case: by `unlag fit` on a long
 /// noise-free estimation test; its failure is an oracle failure).
-fn make_files(case: &Case, dir: &Path, bin: &Path, o: &mut Outcome) -> Result<(), String> {
+/// Returns the validation test's noise-free reference.
+fn make_files(case: &Case, dir: &Path, bin: &Path, o: &mut Outcome) -> Result<Vec<f64>, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     let mut rng = Rng::new(case.seed);
     let val_k = match case.effect {
@@ -385,7 +431,7 @@ fn make_files(case: &Case, dir: &Path, bin: &Path, o: &mut Outcome) -> Result<()
             }
         }
     }
-    Ok(())
+    Ok(uv)
 }
 
 /// Median and smallest and largest of `v`.
@@ -443,6 +489,30 @@ fn summary_row(name: &str, rows: &[&(Case, Outcome)]) -> String {
     )
 }
 
+/// One Markdown row of the noise-free-reference summary for `rows`.
+fn clean_row(name: &str, rows: &[&(Case, Outcome)]) -> String {
+    let ratio = |f: &dyn Fn(&Outcome) -> Option<f64>| -> Vec<f64> {
+        rows.iter().filter_map(|(_, o)| f(o)).collect()
+    };
+    let gain = ratio(&|o| Some(o.clean.0? / o.clean.1?));
+    let oracle_gain = ratio(&|o| Some(o.clean.0? / o.clean.2?));
+    let vs_oracle = ratio(&|o| Some(o.clean.1? / o.clean.2?));
+    let worse = gain.iter().filter(|g| **g < 1.0).count();
+    let oracle_worse = oracle_gain.iter().filter(|g| **g < 1.0).count();
+    let two = |v: Vec<f64>, worst_low: bool| {
+        stats(v).map_or("- | -".into(), |(m, lo, hi)| {
+            format!("{m:.2} | {:.2}", if worst_low { lo } else { hi })
+        })
+    };
+    format!(
+        "| {name} | {} | {} | {worse} | {} | {oracle_worse} | {} |",
+        gain.len(),
+        two(gain, true),
+        two(oracle_gain, true),
+        two(vs_oracle, false),
+    )
+}
+
 fn csv_field(s: &str) -> String {
     if s.contains([',', '"']) {
         format!("\"{}\"", s.replace('"', "\"\""))
@@ -459,7 +529,7 @@ fn opt(v: Option<f64>) -> String {
 fn write_results(path: &Path, rows: &[(Case, Outcome)]) -> Result<(), Box<dyn Error>> {
     let mut s = String::from(
         "id,family,generator,kind,effect,probe,f_hz,zeta,delay,fs,n_est,n_val,step_pa,noise_u,noise_y,adc_steps,est,val_kind,val,\
-         nrmse_raw,nrmse_comp,nrmse_oracle,nrmse_remedy,said_worse,raw_over_comp,comp_over_oracle,fitted_order,fitted_delay,truth_check,truth_fit_nrmse,seconds,failure,oracle_failure\n",
+         nrmse_raw,nrmse_comp,nrmse_oracle,nrmse_remedy,clean_raw,clean_comp,clean_oracle,said_worse,raw_over_comp,comp_over_oracle,fitted_order,fitted_delay,truth_check,truth_fit_nrmse,seconds,failure,oracle_failure\n",
     );
     for (c, o) in rows {
         let delay = match c.generator {
@@ -490,6 +560,9 @@ fn write_results(path: &Path, rows: &[(Case, Outcome)]) -> Result<(), Box<dyn Er
             opt(o.comp),
             opt(o.oracle),
             opt(o.remedy),
+            opt(o.clean.0),
+            opt(o.clean.1),
+            opt(o.clean.2),
             o.said_worse.to_string(),
             opt(o.raw.zip(o.comp).map(|(r, e)| r / e)),
             opt(o.comp.zip(o.oracle).map(|(e, q)| e / q)),
@@ -543,6 +616,18 @@ fn report(rows: &[(Case, Outcome)], s: &Settings, seconds: f64) -> String {
     }
     let all: Vec<&(Case, Outcome)> = rows.iter().collect();
     let _ = writeln!(r, "{}", summary_row("**all**", &all));
+    let _ = writeln!(r, "\nAgainst the noise-free reference (the reference channel without its noise and ADC; the CLI's figure above is floored by that noise): raw/comp, and the oracle's raw/oracle, each at its best alignment.\n");
+    let _ = writeln!(r, "| group | cases | raw/comp median | raw/comp worst | worse than raw | raw/oracle median | raw/oracle worst | oracle worse than raw | comp/oracle median | comp/oracle worst |");
+    let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|---|");
+    for f in FAMILIES {
+        let g: Vec<&(Case, Outcome)> = rows.iter().filter(|(c, _)| c.family == f).collect();
+        let _ = writeln!(r, "{}", clean_row(&format!("family {}", f.name()), &g));
+    }
+    for k in KINDS {
+        let g: Vec<&(Case, Outcome)> = rows.iter().filter(|(c, _)| c.kind == k).collect();
+        let _ = writeln!(r, "{}", clean_row(&format!("kind {}", k.name()), &g));
+    }
+    let _ = writeln!(r, "{}", clean_row("**all**", &all));
     let gains: Vec<f64> = rows
         .iter()
         .filter_map(|(_, o)| Some(o.raw? / o.comp?))
@@ -709,7 +794,7 @@ fn run_loop(cases: &[Case], s: &Settings) -> Result<(), Box<dyn Error>> {
                 let dir = s.out.join(format!("case-{:03}", case.id));
                 let mut ignored = Outcome::default();
                 let o = match make_files(case, &dir, &s.unlag, &mut ignored) {
-                    Ok(()) => modelling_loop::run(&s.unlag, &dir),
+                    Ok(_) => modelling_loop::run(&s.unlag, &dir),
                     Err(e) => modelling_loop::LoopOutcome {
                         failure: Some(format!("simulation: {e}")),
                         ..Default::default()

@@ -10,7 +10,10 @@
 //!    derivative) while `μ` grows geometrically from `10⁻⁴ μ` to `μ` in 16 steps, so every pole
 //!    keeps its identity. A pole that reaches the real axis has become overdamped.
 //! 3. Real poles: sign changes of the real function `M₁₁(−σ)` on a logarithmic grid, refined by
-//!    bisection; candidates where `|M₁₁|` is not small are poles of the Bessel ratio, not zeros.
+//!    bisection up to four times the highest mode searched, past the accumulation points of
+//!    the Bessel ratios' poles (a narrow tube in series has creeps beyond a wide one's);
+//!    candidates where `|M₁₁|` is not small are poles of the Bessel ratio, not zeros, and
+//!    zeros with a negligible residue are dropped.
 //!
 //! A complex pole `s = −ζω_n + iω_n√(1−ζ²)` gives the mode `(ω_n = |s|, ζ = −Re s/|s|)`. When the
 //! two slowest real poles `σ₁ < σ₂` are slower than every oscillatory mode (an overdamped line),
@@ -64,8 +67,7 @@ pub struct ModeAnalysis {
     /// Real poles found, `−σ` [rad/s], slowest first.
     pub real_poles_rad_s: Vec<f64>,
     /// The real axis is searched from `0` to `−σ_max` [rad/s]: `σ_max` is four times the
-    /// highest mode searched, and stops short of the widest tube's thermal accumulation point,
-    /// where spurious zeros crowd (a real pole beyond it is not found).
+    /// highest mode searched (a real pole beyond it is not found).
     pub real_search_limit_rad_s: f64,
     /// Front delay `ΣL/a` [s].
     pub delay_s: f64,
@@ -237,17 +239,23 @@ pub fn find_modes(line: &Line, gas: &Gas, count: usize) -> Result<ModeAnalysis> 
     }
     complex_poles.sort_by(|x, y| x.norm().total_cmp(&y.norm()));
 
-    // Zeros of M11 accumulate at the thermal Bessel poles σ = j₀₁² ν/(R² Pr); the real poles of
-    // an overdamped line lie below 6ν/R² (lumped: σ₁ + σ₂ = 6ν/R²) < j₀₁²ν/(R² Pr).
+    // Zeros of M11 crowd at the poles of the Bessel ratios (σ = j₀ₖ²ν/R² and j₀ₖ²ν/(R² Pr) of
+    // each tube), with tiny residues: `real_poles` drops those and the singular points
+    // themselves, so the search runs past them. In lines in series a wide tube's accumulation
+    // point can lie below a real pole of a narrow one that shapes the response.
+    let sigma_max = 4.0 * omega_max;
+    let reals = real_poles(line, gas, 1e-4 * quarter, sigma_max);
+    let mut modes: Vec<Mode> = complex_poles.iter().map(|&p| Mode::from_pole(p)).collect();
+    // An overdamped line's pair lies below 6ν/R² (lumped: σ₁ + σ₂ = 6ν/R²), under the widest
+    // tube's thermal accumulation point j₀₁²ν/(R² Pr); real poles beyond it are creeps of
+    // narrower tubes, listed but not paired into a mode.
     let nu = gas.kinematic_viscosity();
-    let sigma_accumulation = line
+    let sigma_pair = line
         .tubes()
         .map(|t| J01_SQUARED * nu / (t.radius_m * t.radius_m * gas.prandtl))
         .fold(f64::INFINITY, f64::min);
-    let sigma_max = (4.0 * omega_max).min(0.999 * sigma_accumulation);
-    let reals = real_poles(line, gas, 1e-4 * quarter, sigma_max);
-    let mut modes: Vec<Mode> = complex_poles.iter().map(|&p| Mode::from_pole(p)).collect();
-    if let [s1, s2, ..] = reals.as_slice() {
+    let paired: Vec<f64> = reals.iter().copied().filter(|s| *s < sigma_pair).collect();
+    if let [s1, s2, ..] = paired.as_slice() {
         let wn = (s1 * s2).sqrt();
         if modes.first().is_none_or(|m| wn < m.pole.norm()) {
             modes.insert(
@@ -289,6 +297,38 @@ mod tests {
         for m in &an.modes {
             let h = line.response(&gas, m.pole + Complex64::new(0.0, 1e-9 * m.pole.norm()));
             assert!(h.norm() > 1e6, "{m:?}: |H| {}", h.norm());
+        }
+    }
+
+    /// Lines in series (issue 14): two independent Bergh-Tijdeman implementations find real
+    /// poles at -11.05 and -67.93 rad/s; the second lies beyond the wide tube's thermal
+    /// accumulation point (52.9 rad/s), where the search used to stop.
+    #[test]
+    fn finds_real_poles_beyond_a_wide_tubes_accumulation_point() {
+        let gas = Gas::air(288.15, 101_325.0);
+        let line = Line::new()
+            .tube(0.1, 0.25e-3)
+            .tube(1.0, 1.5e-3)
+            .tube(0.3, 0.5e-3)
+            .volume(3e-7);
+        let an = find_modes(&line, &gas, 3).expect("modes");
+        for want in [-11.05, -67.93] {
+            assert!(
+                an.real_poles_rad_s
+                    .iter()
+                    .any(|p| (p - want).abs() < 0.01 * want.abs()),
+                "{want} not in {:?}",
+                an.real_poles_rad_s
+            );
+        }
+        // Poles of the Bessel ratios are not zeros of M11: none is listed.
+        let nu = gas.kinematic_viscosity();
+        for t in line.tubes() {
+            let sigma = J01_SQUARED * nu / (t.radius_m * t.radius_m * gas.prandtl);
+            assert!(an
+                .real_poles_rad_s
+                .iter()
+                .all(|p| (p + sigma).abs() > 1e-3 * sigma));
         }
     }
 

@@ -145,6 +145,7 @@ fn the_diagnosis_offers_the_damping_law_the_physics_has() {
             model: &plain.model,
             effects: &fx,
             method: options.method,
+            uncertainty: plain.report.uncertainty.as_ref(),
         };
         let evidence = diagnose::evidence(&current, &tests);
         let candidates = diagnose::diagnose(&current, &tests, &evidence).unwrap();
@@ -258,6 +259,7 @@ fn nonlinear_damping_is_named_from_its_amplitude_signature() {
             model: &plain.model,
             effects: &fx,
             method: options.method,
+            uncertainty: plain.report.uncertainty.as_ref(),
         };
         let evidence = diagnose::evidence(&current, &tests);
         let across = diagnose::per_test(&current, &tests, &evidence);
@@ -629,6 +631,55 @@ fn case_files(kind: &str, dir: &std::path::Path) -> (String, String, common::hid
         v.to_str().unwrap().to_string(),
         case,
     )
+}
+
+/// `coloured-noise` says which error falls (the one-step-ahead prediction error) and states the
+/// parameter uncertainty before and after: before from white noise, after from the noise its
+/// AR model whitens (issue 14, item 2).
+#[test]
+fn coloured_noise_states_the_uncertainty_before_and_after() {
+    let dir = std::env::temp_dir().join(format!("unlag-coloured-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let case = cases()
+        .into_iter()
+        .find(|c| c.kind == "coloured-noise" && c.name.contains("output-error"))
+        .unwrap();
+    let tests = case.tests(11);
+    let [(ue, ye), (uv, yv)] = [&tests[0], &tests[1]];
+    let (est, val) = (dir.join("est.csv"), dir.join("val.csv"));
+    common::write_csv(&est, case.fs, ue, ye);
+    common::write_csv(&val, case.fs, uv, yv);
+    let (est, val) = (est.to_str().unwrap(), val.to_str().unwrap());
+    let m = dir.join("oe.toml");
+    let m = m.to_str().unwrap();
+    unlag_json(&[
+        "fit", est, val, "--order", "2", "--method", "oe", "-o", m, "--json",
+    ]);
+    let d = unlag_json(&["diagnose", m, est, val, "--json"]);
+    let c = &d["candidates"][0];
+    assert_eq!(c["kind"], "coloured-noise", "{d}");
+    assert!(
+        c["evidence"]["fit"]
+            .as_str()
+            .unwrap()
+            .contains("one-step-ahead prediction error"),
+        "{c}"
+    );
+    let (b, a) = (&c["uncertainty_before"], &c["uncertainty_after"]);
+    assert_eq!(b["noise_model"], false, "{c}");
+    assert_eq!(a["noise_model"], true, "{c}");
+    for u in [b, a] {
+        let dc = u["dc_gain_std"].as_f64().unwrap();
+        assert!(dc > 0.0 && dc < 0.1, "{u}");
+        assert_eq!(u["resonances"].as_array().unwrap().len(), 1, "{u}");
+    }
+    let (ok, text, err) = unlag(&["diagnose", m, est, val]);
+    assert!(ok, "{err}");
+    assert!(
+        text.contains("stated uncertainty (1 sigma): before"),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `sensor-resonance` through the whole product: `fit --add` finds the diaphragm in the

@@ -31,7 +31,7 @@ use crate::effects::{self, Effect, FitChanges};
 use crate::error::Result;
 use crate::evidence::TestEvidence;
 use crate::fit::{Method, Options, Order, Test};
-use crate::model::Model;
+use crate::model::{Model, Uncertainty};
 
 /// A trial must lower the held-out error by at least this factor to be offered.
 pub const MIN_IMPROVEMENT: f64 = 1.15;
@@ -81,6 +81,14 @@ pub struct Candidate {
     /// When the next candidate is within [`CLOSE_MARGIN`]: the test that would tell the two
     /// apart.
     pub separated_by: Option<String>,
+    /// The model's stated uncertainty before the trial (its fit report's), when it has one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uncertainty_before: Option<Uncertainty>,
+    /// The trial refit's stated uncertainty, when it could say: with `coloured-noise` it is
+    /// computed on the data its noise model whitens, so coloured noise is no longer counted
+    /// as independent samples.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uncertainty_after: Option<Uncertainty>,
 }
 
 /// Two candidates closer than this in score are close: the diagnosis names the test that
@@ -118,6 +126,8 @@ pub struct Current<'a> {
     pub effects: &'a [Effect],
     /// The method it was fitted with.
     pub method: Method,
+    /// Its stated uncertainty (the fit report's), if any.
+    pub uncertainty: Option<&'a Uncertainty>,
 }
 
 fn mean(x: impl Iterator<Item = f64>) -> f64 {
@@ -471,13 +481,19 @@ pub fn diagnose(
     let Some((estimation, validation)) = tests.split_first() else {
         return Ok(Vec::new());
     };
+    // Each trial's held-out error and stated uncertainty, for the candidate it becomes.
+    let stated: std::cell::RefCell<Vec<(f64, Option<Uncertainty>)>> = Default::default();
     let trial = |added: Effect, options: &Options| -> Option<(f64, Vec<Effect>)> {
         let mut with = current.effects.to_vec();
         with.retain(|e| e.kind() != added.kind());
         with.push(added);
         let (fitted, fx) = effects::fit_with(estimation, validation, fs, options, &with).ok()?;
         fitted.model.check_stable("trial").ok()?;
-        Some((held_out(&fitted.model, &fx, tests), fx))
+        let after = held_out(&fitted.model, &fx, tests);
+        stated
+            .borrow_mut()
+            .push((after, fitted.report.uncertainty.clone()));
+        Some((after, fx))
     };
     let floor = mean(evidence.iter().map(|e| e.noise_floor));
     let white = evidence.iter().all(|e| e.autocorrelation.p_value > 0.01);
@@ -496,6 +512,13 @@ pub fn diagnose(
                 nrmse_after: after,
                 margin: 0.0,
                 separated_by: None,
+                uncertainty_before: current.uncertainty.cloned(),
+                uncertainty_after: stated
+                    .borrow()
+                    .iter()
+                    .rev()
+                    .find(|(e, _)| e.to_bits() == after.to_bits())
+                    .and_then(|(_, u)| u.clone()),
             });
         }
     };
@@ -956,6 +979,8 @@ pub fn diagnose(
             nrmse_after: before,
             margin: 0.0,
             separated_by: None,
+            uncertainty_before: current.uncertainty.cloned(),
+            uncertainty_after: None,
         });
     }
     // A trial that cuts the error by FLOOR_OVERRULED or more shows the floor was measured too
@@ -981,6 +1006,8 @@ pub fn diagnose(
             nrmse_after: before,
             margin: 0.0,
             separated_by: None,
+            uncertainty_before: current.uncertainty.cloned(),
+            uncertainty_after: None,
         };
         out.insert(0, none);
     }

@@ -252,6 +252,34 @@ pub struct Uncertainty {
     pub noise_model: bool,
 }
 
+impl Uncertainty {
+    /// One line: `DC gain +/- 1.2e-4; 113.3 +/- 2.1e-1 Hz, damping 0.2506 +/- 1.0e-3`.
+    #[must_use]
+    pub fn summary(&self) -> String {
+        let modes: String = self
+            .resonances
+            .iter()
+            .map(|q| {
+                format!(
+                    "; {:.4} +/- {:.2e} Hz, damping {:.4} +/- {:.1e}",
+                    q.natural_frequency_hz, q.natural_frequency_std_hz, q.damping, q.damping_std
+                )
+            })
+            .collect();
+        format!("DC gain +/- {:.1e}{modes}", self.dc_gain_std)
+    }
+
+    /// How the noise was counted: `its AR model whitened it` or `white`.
+    #[must_use]
+    pub fn noise_text(&self) -> &'static str {
+        if self.noise_model {
+            "the noise as its AR model whitens it"
+        } else {
+            "the noise taken as white"
+        }
+    }
+}
+
 /// A resonance's natural frequency and damping with their standard deviations.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

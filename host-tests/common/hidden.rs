@@ -857,6 +857,7 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
         model: &plain.model,
         effects: &fx,
         method: options.method,
+        uncertainty: plain.report.uncertainty.as_ref(),
     };
     let evidence = diagnose::evidence(&current, &tests);
     let candidates = diagnose::diagnose(&current, &tests, &evidence).expect("diagnosis");

@@ -1189,24 +1189,10 @@ fn print_fit(file: &ModelFile, est: &Trace) {
     crate::outln!("  b = {:?}", m.b);
     crate::outln!("  DC gain {:.6} (1 for a calibrated probe)", m.dc_gain());
     if let Some(u) = &r.uncertainty {
-        let modes: String = u
-            .resonances
-            .iter()
-            .map(|q| {
-                format!(
-                    "; {:.4} +/- {:.2e} Hz, damping {:.4} +/- {:.1e}",
-                    q.natural_frequency_hz, q.natural_frequency_std_hz, q.damping, q.damping_std
-                )
-            })
-            .collect();
         crate::outln!(
-            "  uncertainty (1 sigma, from the noise{}): DC gain +/- {:.1e}{modes}",
-            if u.noise_model {
-                " as its AR model whitens it"
-            } else {
-                ", white"
-            },
-            u.dc_gain_std
+            "  uncertainty (1 sigma, from {}): {}",
+            u.noise_text(),
+            u.summary()
         );
     }
     if let Ok(z) = m.zeros() {

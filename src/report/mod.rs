@@ -239,6 +239,21 @@ fn verdict(h: &mut String, inputs: &Inputs<'_>) {
     }
 }
 
+/// The candidate's stated uncertainty before and after its trial, as HTML (empty when either
+/// is missing).
+fn stated_uncertainty(c: &Candidate) -> String {
+    match (&c.uncertainty_before, &c.uncertainty_after) {
+        (Some(b), Some(a)) => format!(
+            "<br><small>Stated uncertainty (1 sigma): before, from {}: {}; after, from {}: {}</small>",
+            escape(b.noise_text()),
+            escape(&b.summary()),
+            escape(a.noise_text()),
+            escape(&a.summary())
+        ),
+        _ => String::new(),
+    }
+}
+
 fn summary_table(h: &mut String, inputs: &Inputs<'_>) {
     h.push_str(
         "<p>The noise floor is what a correct model leaves: the probe's noise and the \
@@ -1297,7 +1312,7 @@ fn candidates(h: &mut String, inputs: &Inputs<'_>) {
         let _ = writeln!(
             h,
             "<tr><td class=\"num\">{}</td><td><b>{}</b></td><td class=\"num\">{:.2}</td>\
-             <td class=\"num\">{} &rarr; {}</td><td>{}<br><small><code>{}</code></small></td>\
+             <td class=\"num\">{} &rarr; {}</td><td>{}{}<br><small><code>{}</code></small></td>\
              <td><code>{}</code></td></tr>",
             i + 1,
             escape(&c.kind),
@@ -1305,6 +1320,7 @@ fn candidates(h: &mut String, inputs: &Inputs<'_>) {
             pct(c.nrmse_before),
             pct(c.nrmse_after),
             escape(&c.reading),
+            stated_uncertainty(c),
             escape(&evidence),
             escape(&c.change)
         );
@@ -1421,6 +1437,8 @@ mod tests {
             nrmse_after: 0.00456,
             margin: 0.5,
             separated_by: None,
+            uncertainty_before: None,
+            uncertainty_after: None,
         };
         let html = render(&Inputs {
             model_name: "m.toml",

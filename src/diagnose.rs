@@ -139,6 +139,33 @@ fn mean(x: impl Iterator<Item = f64>) -> f64 {
     }
 }
 
+/// A trial on a record longer than this refits on this many samples from just before the step
+/// (the held-out error is still judged on the whole records): ranking the candidates needs
+/// each effect's signature, which a quarter of a million samples show, not a shock-tube
+/// record's full precision, and a trial on five million samples would cost a whole fit each.
+pub const TRIAL_WINDOW: usize = 1 << 18;
+
+/// Samples kept before the step in a trial's window.
+const TRIAL_LEAD: usize = 200;
+
+/// The stretch of `test` a trial refits on: all of it up to [`TRIAL_WINDOW`] samples, else
+/// [`TRIAL_WINDOW`] samples from [`TRIAL_LEAD`] before the step (from the start when no step is
+/// found).
+fn trial_window<'a>(test: &Test<'a>) -> Test<'a> {
+    let n = test.u.len().min(test.y.len());
+    if n <= TRIAL_WINDOW {
+        return *test;
+    }
+    let onset = crate::fit::step::find_step(test.u).map_or(0, |s| s.onset);
+    let start = onset.saturating_sub(TRIAL_LEAD).min(n - TRIAL_WINDOW);
+    let range = start..start + TRIAL_WINDOW;
+    Test {
+        name: test.name,
+        u: test.u.get(range.clone()).unwrap_or(test.u),
+        y: test.y.get(range).unwrap_or(test.y),
+    }
+}
+
 /// The held-out error of a model with effects: mean nrmse over the validation tests, or the
 /// estimation test's when there are none.
 fn held_out(model: &Model, effects: &[Effect], tests: &[Test<'_>]) -> f64 {
@@ -481,6 +508,8 @@ pub fn diagnose(
     let Some((estimation, validation)) = tests.split_first() else {
         return Ok(Vec::new());
     };
+    let estimation = &trial_window(estimation);
+    let validation: &[Test<'_>] = &validation.iter().map(trial_window).collect::<Vec<_>>();
     // Each trial's held-out error and stated uncertainty, for the candidate it becomes.
     let stated: std::cell::RefCell<Vec<(f64, Option<Uncertainty>)>> = Default::default();
     let trial = |added: Effect, options: &Options| -> Option<(f64, Vec<Effect>)> {

@@ -298,12 +298,11 @@ fn time_unit(samples: usize, fs: f64) -> (f64, &'static str) {
 }
 
 fn points(values: &[f64], range: std::ops::Range<usize>, fs: f64, scale: f64) -> Vec<(f64, f64)> {
-    values
-        .get(range.clone())
-        .unwrap_or(&[])
-        .iter()
-        .zip(range)
-        .map(|(v, k)| (scale * k as f64 / fs, *v))
+    let v = values.get(range.clone()).unwrap_or(&[]);
+    // Decimated here as the line series would be, so a long record is never copied whole.
+    plot::decimated_indices(v.len(), plot::COLUMNS, |i| v.get(i).copied().unwrap_or(0.0))
+        .into_iter()
+        .filter_map(|i| Some((scale * (range.start + i) as f64 / fs, *v.get(i)?)))
         .collect()
 }
 
@@ -442,6 +441,10 @@ fn per_test(
             ev.step_onset
         ),
     );
+    // The model's response and residual are drawn: free them before the compensated signal
+    // is made (a shock-tube record is millions of samples).
+    drop(residual);
+    drop(y_model);
     compensated(h, inputs, number, test, window)?;
     spectrum(h, inputs, number, ev)?;
     correlations(h, number, ev)?;
@@ -532,7 +535,7 @@ fn compensated(
         );
         return Ok(());
     };
-    let aligned: Vec<f64> = u_hat.iter().skip(lag).copied().collect();
+    let aligned = u_hat.get(lag..).unwrap_or_default();
     let (scale, t_label) = time_unit(n, fs);
     let panel = |range: std::ops::Range<usize>, what: &str| {
         let aligned_range = range.start..range.end.min(aligned.len());
@@ -555,7 +558,7 @@ fn compensated(
                 ),
                 Series::line(
                     "compensated u_hat",
-                    &points(&aligned, aligned_range, fs, scale),
+                    &points(aligned, aligned_range, fs, scale),
                     colour::COMPENSATED,
                     2,
                 ),

@@ -42,30 +42,42 @@ pub mod colour {
 /// `2 columns` points are returned whole.
 #[must_use]
 pub fn decimate(points: &[(f64, f64)], columns: usize) -> Vec<(f64, f64)> {
-    let n = points.len();
+    decimated_indices(points.len(), columns, |i| {
+        points.get(i).map_or(0.0, |p| p.1)
+    })
+    .into_iter()
+    .filter_map(|i| points.get(i).copied())
+    .collect()
+}
+
+/// The indices [`decimate`] keeps of `n` evenly spaced samples whose values `y(i)` gives, so
+/// that a long trace is decimated without first being copied whole.
+#[must_use]
+pub fn decimated_indices(n: usize, columns: usize, y: impl Fn(usize) -> f64) -> Vec<usize> {
     if columns == 0 || n <= 2 * columns {
-        return points.to_vec();
+        return (0..n).collect();
     }
     let mut out = Vec::with_capacity(2 * columns);
     for c in 0..columns {
         let (lo, hi) = (c * n / columns, (c + 1) * n / columns);
-        let Some(bucket) = points.get(lo..hi) else {
+        if lo >= hi {
             continue;
-        };
-        let mut min_i = 0;
-        let mut max_i = 0;
-        for (i, p) in bucket.iter().enumerate() {
-            if p.1 < bucket[min_i].1 {
-                min_i = i;
+        }
+        let (mut min_i, mut max_i) = (lo, lo);
+        let (mut min_v, mut max_v) = (y(lo), y(lo));
+        for i in lo + 1..hi {
+            let v = y(i);
+            if v < min_v {
+                (min_i, min_v) = (i, v);
             }
-            if p.1 > bucket[max_i].1 {
-                max_i = i;
+            if v > max_v {
+                (max_i, max_v) = (i, v);
             }
         }
         let (a, b) = (min_i.min(max_i), min_i.max(max_i));
-        out.push(bucket[a]);
+        out.push(a);
         if b != a {
-            out.push(bucket[b]);
+            out.push(b);
         }
     }
     out

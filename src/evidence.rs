@@ -486,12 +486,14 @@ pub fn autocorrelation_against(r: &[f64], expected: &[f64], bartlett: f64) -> Au
     }
 }
 
-/// `Σ_i (a[i] − ma)(b[i+k] − mb)` over `i + k < n` for `k` in `0..lags`, by FFT block by
+/// `Σ_i (a[i] − ma)(b[i+k] − mb)` over `i < a.len()`, `i + k < b.len()` for `k` in `0..lags`
+/// (for signals of one length `n`: over `i + k < n`), by FFT block by
 /// block (overlap-save): each block of `a` against the stretch of `b` it reaches, in one
 /// transform size, so the work is `O(n log lags)` and the memory `O(lags)` beside the signals,
 /// not `O(n lags)` as the direct sums are.
-fn lagged_products(a: &[f64], b: &[f64], (ma, mb): (f64, f64), lags: usize) -> Vec<f64> {
-    let n = a.len().min(b.len());
+pub(crate) fn lagged_products(a: &[f64], b: &[f64], (ma, mb): (f64, f64), lags: usize) -> Vec<f64> {
+    // `a` is taken whole, `b` as far as it goes (the sum stops at `i + k < b.len()`).
+    let (n, nb) = (a.len(), b.len());
     let mut out = vec![0.0; lags];
     if lags == 0 || n == 0 {
         return out;
@@ -508,7 +510,7 @@ fn lagged_products(a: &[f64], b: &[f64], (ma, mb): (f64, f64), lags: usize) -> V
     let mut start = 0;
     while start < n {
         let end = (start + block).min(n);
-        let reach = (start + nfft).min(n);
+        let reach = (start + nfft).min(nb);
         // a's block in the real part, b's stretch in the imaginary part: one transform.
         for (j, v) in x.iter_mut().enumerate() {
             let i = start + j;

@@ -765,8 +765,13 @@ pub fn aligned_error(
             (l.min(*v), h.max(*v))
         });
     let range = hi_v - lo_v;
+    let lo = *lags.start();
+    let count = n.saturating_sub(hi);
+    if lo < hi && count > 0 && (hi - lo + 1).saturating_mul(count) > FFT_ALIGNMENT_WORK {
+        return aligned_error_by_fft(reference, estimate, lo..=hi, range);
+    }
     let mut best = (f64::INFINITY, 0);
-    for lag in *lags.start()..=hi {
+    for lag in lo..=hi {
         let count = n - hi;
         let sse: f64 = (hi..n)
             .map(|k| {
@@ -780,6 +785,51 @@ pub fn aligned_error(
         }
     }
     best
+}
+
+/// Above this many multiply-adds (lags times samples) [`aligned_error`] finds the best lag by
+/// FFT cross-correlation; below it, by direct sums.
+const FFT_ALIGNMENT_WORK: usize = 1 << 24;
+
+/// [`aligned_error`] for long records: the squared error at each lag is `Σ e² + Σ r² − 2 Σ e r`,
+/// its cross term for every lag at once by FFT blocks and the reference's energy by a running
+/// sum; the best lag's error is then summed directly, so the figure is exact.
+fn aligned_error_by_fft(
+    reference: &[f64],
+    estimate: &[f64],
+    lags: std::ops::RangeInclusive<usize>,
+    range: f64,
+) -> (f64, usize) {
+    let (lo, hi) = (*lags.start(), *lags.end());
+    let n = reference.len().min(estimate.len());
+    let (Some(e), Some(r)) = (estimate.get(hi..n), reference.get(..n - lo)) else {
+        return (f64::INFINITY, lo);
+    };
+    // Σ_j e[j] r[s + j] for s = hi − lag, s in 0..=hi − lo.
+    let cross = crate::evidence::lagged_products(e, r, (0.0, 0.0), hi - lo + 1);
+    let ee: f64 = e.iter().map(|v| v * v).sum();
+    // Σ r[s..s + len]² for s = 0, 1, ...: a sliding window.
+    let len = e.len();
+    let mut rr: f64 = r.iter().take(len).map(|v| v * v).sum();
+    let mut best = (f64::INFINITY, lo);
+    for (s, c) in cross.iter().enumerate() {
+        if s > 0 {
+            let (out, inn) = (r.get(s - 1), r.get(s + len - 1));
+            rr += inn.map_or(0.0, |v| v * v) - out.map_or(0.0, |v| v * v);
+        }
+        let sse = (ee + rr - 2.0 * c).max(0.0);
+        if sse < best.0 {
+            best = (sse, hi - s);
+        }
+    }
+    let lag = best.1;
+    let sse: f64 = (hi..n)
+        .map(|k| {
+            let d = estimate[k] - reference[k - lag];
+            d * d
+        })
+        .sum();
+    ((sse / len as f64).sqrt() / range, lag)
 }
 
 /// Reconstruction error of `design` on one test (f64 arithmetic), against the raw probe.
@@ -955,6 +1005,44 @@ pub fn design_auto_with(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The FFT search of a long record finds the lag and the error the direct sums find.
+    #[test]
+    fn aligned_error_of_a_long_record_is_the_direct_search() {
+        let n: usize = 200_000;
+        let reference: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64;
+                (t / 900.0).sin() + 0.3 * (t / 97.0).sin() + if k > 5000 { 1.0 } else { 0.0 }
+            })
+            .collect();
+        let estimate: Vec<f64> = (0..n)
+            .map(|k| {
+                reference.get(k.wrapping_sub(37)).copied().unwrap_or(0.0)
+                    + 1e-3 * (k as f64 * 1.7).sin()
+            })
+            .collect();
+        let lags = 0..=120;
+        assert!(121 * (n - 120) > FFT_ALIGNMENT_WORK);
+        let (e, lag) = aligned_error(&reference, &estimate, lags.clone());
+        let direct = lags
+            .map(|l| {
+                let sse: f64 = (120..n)
+                    .map(|k| (estimate[k] - reference[k - l]).powi(2))
+                    .sum();
+                (sse, l)
+            })
+            .fold((f64::INFINITY, 0), |b, x| if x.0 < b.0 { x } else { b });
+        assert_eq!(lag, 37);
+        assert_eq!(lag, direct.1);
+        let (lo, hi) = reference
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(*v), h.max(*v))
+            });
+        let want = (direct.0 / (n - 120) as f64).sqrt() / (hi - lo);
+        assert!((e / want - 1.0).abs() < 1e-12, "{e} against {want}");
+    }
 
     #[test]
     fn lowpass_has_unit_dc_and_minus_3db_at_the_corner() {

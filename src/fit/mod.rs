@@ -533,6 +533,43 @@ fn search_delay(p: &Prepared, m: usize) -> Result<(usize, Vec<DelayRow>)> {
     Ok((d, rows))
 }
 
+/// `f` of each item, in the items' order, on up to as many threads as the machine has cores
+/// (each item on one thread; the results do not depend on which).
+fn in_parallel<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .min(items.len());
+    if threads <= 1 {
+        return items.iter().map(f).collect();
+    }
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let slots: Vec<std::sync::Mutex<Option<R>>> =
+        items.iter().map(|_| std::sync::Mutex::new(None)).collect();
+    std::thread::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|| {
+                // The last items first: the highest orders take longest.
+                while let Some(i) = items
+                    .len()
+                    .checked_sub(1 + next.fetch_add(1, std::sync::atomic::Ordering::Relaxed))
+                {
+                    let Some(item) = items.get(i) else { break };
+                    let r = f(item);
+                    if let Some(slot) = slots.get(i) {
+                        if let Ok(mut s) = slot.lock() {
+                            *s = Some(r);
+                        }
+                    }
+                }
+            });
+        }
+    });
+    slots
+        .into_iter()
+        .filter_map(|s| s.into_inner().ok().flatten())
+        .collect()
+}
+
 /// Fits a model to the estimation test; validation tests are held out (used for the order
 /// choice and reported).
 ///
@@ -562,19 +599,21 @@ pub fn fit(
         Order::Fixed(m) => vec![m],
         Order::Auto { max } => (1..=max.max(1)).collect(),
     };
-    let mut candidates = Vec::new();
-    let mut last_delay_rows = Vec::new();
-    let mut first_error = None;
-    for &m in &orders {
+    // Each order's delay search and fit are independent: they run on the cores there are,
+    // and are taken in order, so the choice is the same as one after the other.
+    let results = in_parallel(&orders, |&m| -> std::result::Result<_, (Error, bool)> {
         if m == 0 || m > crate::model::MAX_ORDER {
-            return Err(Error::InvalidArgument {
-                what: "--order",
-                message: format!("the order must be 1..={}, not {m}", crate::model::MAX_ORDER),
-            });
+            return Err((
+                Error::InvalidArgument {
+                    what: "--order",
+                    message: format!("the order must be 1..={}, not {m}", crate::model::MAX_ORDER),
+                },
+                true,
+            ));
         }
         let (d, rows) = match options.delay {
             Some(d) => (d, Vec::new()),
-            None => search_delay(&p, m)?,
+            None => search_delay(&p, m).map_err(|e| (e, true))?,
         };
         let needed = 2 * (2 * m + 1) + m + d + 1;
         if p.y.len() < needed {
@@ -585,47 +624,51 @@ pub fn fit(
                 delay: d,
                 needed,
             };
-            if matches!(options.order, Order::Fixed(_)) {
-                return Err(e);
-            }
-            first_error.get_or_insert(e);
-            continue;
+            return Err((e, matches!(options.order, Order::Fixed(_))));
         }
-        let (a, b) = match fit_at(&data, m, d, options.method) {
-            Ok(ab) => ab,
-            Err(e) => {
-                first_error.get_or_insert(e);
-                continue;
-            }
-        };
+        let (a, b) = fit_at(&data, m, d, options.method).map_err(|e| (e, false))?;
         let model = Model {
             fs: sample_rate_hz,
             delay: d,
             a,
             b,
         };
-        let stable = model.check_stable("fit").is_ok();
-        let est = nrmse(&model, estimation.u, estimation.y);
-        let val: Vec<f64> = validation.iter().map(|t| nrmse(&model, t.u, t.y)).collect();
-        let criterion = if val.is_empty() {
-            // BIC on the simulation residual; with a noise model (Box-Jenkins), on the
-            // one-step-ahead prediction error, the noise model's parameters counted.
-            let n = data[0].y.len() as f64;
-            let (rss, extra) = if options.method == Method::Bj {
-                prediction_loss(&data, &model)
-            } else {
-                (oe::loss(&data, (&model.a, &model.b), d), 0)
-            };
-            n * (rss.max(1e-300) / n).ln() + (2 * m + 2 + extra) as f64 * n.ln()
-        } else {
-            val.iter().sum::<f64>() / val.len() as f64
-        };
-        last_delay_rows = if rows.is_empty() {
-            last_delay_rows
-        } else {
-            rows.clone()
-        };
-        candidates.push((m, model, rows, est, val, criterion, stable));
+        Ok((m, model, rows))
+    });
+    let mut candidates = Vec::new();
+    let mut last_delay_rows = Vec::new();
+    let mut first_error = None;
+    for result in results {
+        match result {
+            Ok((m, model, rows)) => {
+                // On the whole records, one order at a time (the threads above only touch the
+                // window, so they add little memory).
+                let stable = model.check_stable("fit").is_ok();
+                let est = nrmse(&model, estimation.u, estimation.y);
+                let val: Vec<f64> = validation.iter().map(|t| nrmse(&model, t.u, t.y)).collect();
+                let criterion = if val.is_empty() {
+                    // BIC on the simulation residual; with a noise model (Box-Jenkins), on the
+                    // one-step-ahead prediction error, the noise model's parameters counted.
+                    let n = data[0].y.len() as f64;
+                    let (rss, extra) = if options.method == Method::Bj {
+                        prediction_loss(&data, &model)
+                    } else {
+                        (oe::loss(&data, (&model.a, &model.b), model.delay), 0)
+                    };
+                    n * (rss.max(1e-300) / n).ln() + (2 * m + 2 + extra) as f64 * n.ln()
+                } else {
+                    val.iter().sum::<f64>() / val.len() as f64
+                };
+                if !rows.is_empty() {
+                    last_delay_rows.clone_from(&rows);
+                }
+                candidates.push((m, model, rows, est, val, criterion, stable));
+            }
+            Err((e, true)) => return Err(e),
+            Err((e, false)) => {
+                first_error.get_or_insert(e);
+            }
+        }
     }
     let held_out = !validation.is_empty();
     let table: Vec<OrderRow> = candidates

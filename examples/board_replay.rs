@@ -87,8 +87,9 @@ fn fnv1a(bits: impl Iterator<Item = u32>) -> u64 {
     h
 }
 
-/// Block lengths for the block-mode run: every remainder modulo 3 (the Cortex-M block
-/// kernel's loop is three samples long), an empty block, and long ones.
+/// Block lengths for the block-mode run: every remainder modulo 6 and 3 (the Cortex-M block
+/// kernels' loops are six samples long for one or two sections, three for more), an empty
+/// block, and long ones.
 const CHUNKS: [usize; 12] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 64, 100];
 
 /// The cascade of the first `K` sections on the whole trace, from equilibrium: one sample per

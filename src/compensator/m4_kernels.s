@@ -28,80 +28,134 @@ unlag_m4_cascade_call_1:
     .size unlag_m4_cascade_call_1, .-unlag_m4_cascade_call_1
     .popsection
 
-@ A block in place through 1 section(s), coefficients and state in registers.
-@ Each section's three registers rotate roles (s1, s2, scratch) every sample, so the
-@ loop body is three samples long and moves nothing.
+@ A block in place through 1 section(s), 6 samples a pass: one VLDM of the
+@ inputs, two VSTMs of the outputs. Sections before the last rotate three registers
+@ (s1, s2, scratch) every sample; the last rotates 6, so that its outputs y_p stay
+@ in consecutive registers until they are stored. Same arithmetic as the call kernel.
     .pushsection .text.unlag_m4_cascade_block_1,"ax",%progbits
     .p2align 2
     .global unlag_m4_cascade_block_1
     .type unlag_m4_cascade_block_1,%function
     .thumb_func
 unlag_m4_cascade_block_1:
+    vpush {s16-s16}
     vldm r0, {s0-s4}
     vldr s5, [r1, #4]
     vldr s6, [r1, #0]
     movw r12, #0xaaab
     movt r12, #0xaaaa
     umull r12, r0, r3, r12
-    lsrs r0, r0, #1
+    lsrs r0, r0, #2
     add r12, r0, r0, lsl #1
-    subs r3, r3, r12
+    sub r3, r3, r12, lsl #1
     cmp r0, #0
     beq .Lunlag_m4_cascade_block_1_rem
 .Lunlag_m4_cascade_block_1_loop:
-    vldr s7, [r2]
-    vmla.f32 s5, s0, s7
-    vmla.f32 s6, s1, s7
+    vldm r2, {s11-s16}
+    vmla.f32 s5, s0, s11
+    vmla.f32 s6, s1, s11
     vmls.f32 s6, s2, s5
-    vmul.f32 s7, s4, s7
+    vmul.f32 s7, s4, s11
     vmls.f32 s7, s3, s5
-    vstmia r2!, {s5}
-    vldr s5, [r2]
-    vmla.f32 s6, s0, s5
-    vmla.f32 s7, s1, s5
+    vmla.f32 s6, s0, s12
+    vmla.f32 s7, s1, s12
     vmls.f32 s7, s2, s6
-    vmul.f32 s5, s4, s5
-    vmls.f32 s5, s3, s6
-    vstmia r2!, {s6}
-    vldr s6, [r2]
-    vmla.f32 s7, s0, s6
-    vmla.f32 s5, s1, s6
-    vmls.f32 s5, s2, s7
-    vmul.f32 s6, s4, s6
-    vmls.f32 s6, s3, s7
-    vstmia r2!, {s7}
+    vmul.f32 s8, s4, s12
+    vmls.f32 s8, s3, s6
+    vmla.f32 s7, s0, s13
+    vmla.f32 s8, s1, s13
+    vmls.f32 s8, s2, s7
+    vmul.f32 s9, s4, s13
+    vmls.f32 s9, s3, s7
+    vmla.f32 s8, s0, s14
+    vmla.f32 s9, s1, s14
+    vmls.f32 s9, s2, s8
+    vmul.f32 s10, s4, s14
+    vmls.f32 s10, s3, s8
+    vstmia r2!, {s5-s8}
+    vmla.f32 s9, s0, s15
+    vmla.f32 s10, s1, s15
+    vmls.f32 s10, s2, s9
+    vmul.f32 s5, s4, s15
+    vmls.f32 s5, s3, s9
+    vmla.f32 s10, s0, s16
+    vmla.f32 s5, s1, s16
+    vmls.f32 s5, s2, s10
+    vmul.f32 s6, s4, s16
+    vmls.f32 s6, s3, s10
+    vstmia r2!, {s9-s10}
     subs r0, r0, #1
     bne .Lunlag_m4_cascade_block_1_loop
 .Lunlag_m4_cascade_block_1_rem:
     cmp r3, #0
     beq .Lunlag_m4_cascade_block_1_store0
-    vldr s7, [r2]
-    vmla.f32 s5, s0, s7
-    vmla.f32 s6, s1, s7
+    vldr s11, [r2]
+    vmla.f32 s5, s0, s11
+    vmla.f32 s6, s1, s11
     vmls.f32 s6, s2, s5
-    vmul.f32 s7, s4, s7
+    vmul.f32 s7, s4, s11
     vmls.f32 s7, s3, s5
     vstmia r2!, {s5}
     cmp r3, #1
     beq .Lunlag_m4_cascade_block_1_store1
-    vldr s5, [r2]
-    vmla.f32 s6, s0, s5
-    vmla.f32 s7, s1, s5
+    vldr s11, [r2]
+    vmla.f32 s6, s0, s11
+    vmla.f32 s7, s1, s11
     vmls.f32 s7, s2, s6
-    vmul.f32 s5, s4, s5
-    vmls.f32 s5, s3, s6
+    vmul.f32 s8, s4, s11
+    vmls.f32 s8, s3, s6
     vstmia r2!, {s6}
-    vstr s7, [r1, #4]
+    cmp r3, #2
+    beq .Lunlag_m4_cascade_block_1_store2
+    vldr s11, [r2]
+    vmla.f32 s7, s0, s11
+    vmla.f32 s8, s1, s11
+    vmls.f32 s8, s2, s7
+    vmul.f32 s9, s4, s11
+    vmls.f32 s9, s3, s7
+    vstmia r2!, {s7}
+    cmp r3, #3
+    beq .Lunlag_m4_cascade_block_1_store3
+    vldr s11, [r2]
+    vmla.f32 s8, s0, s11
+    vmla.f32 s9, s1, s11
+    vmls.f32 s9, s2, s8
+    vmul.f32 s10, s4, s11
+    vmls.f32 s10, s3, s8
+    vstmia r2!, {s8}
+    cmp r3, #4
+    beq .Lunlag_m4_cascade_block_1_store4
+    vldr s11, [r2]
+    vmla.f32 s9, s0, s11
+    vmla.f32 s10, s1, s11
+    vmls.f32 s10, s2, s9
+    vmul.f32 s5, s4, s11
+    vmls.f32 s5, s3, s9
+    vstmia r2!, {s9}
+    vstr s10, [r1, #4]
     vstr s5, [r1, #0]
+    b .Lunlag_m4_cascade_block_1_done
+.Lunlag_m4_cascade_block_1_store0:
+    vstr s5, [r1, #4]
+    vstr s6, [r1, #0]
     b .Lunlag_m4_cascade_block_1_done
 .Lunlag_m4_cascade_block_1_store1:
     vstr s6, [r1, #4]
     vstr s7, [r1, #0]
     b .Lunlag_m4_cascade_block_1_done
-.Lunlag_m4_cascade_block_1_store0:
-    vstr s5, [r1, #4]
-    vstr s6, [r1, #0]
+.Lunlag_m4_cascade_block_1_store2:
+    vstr s7, [r1, #4]
+    vstr s8, [r1, #0]
+    b .Lunlag_m4_cascade_block_1_done
+.Lunlag_m4_cascade_block_1_store3:
+    vstr s8, [r1, #4]
+    vstr s9, [r1, #0]
+    b .Lunlag_m4_cascade_block_1_done
+.Lunlag_m4_cascade_block_1_store4:
+    vstr s9, [r1, #4]
+    vstr s10, [r1, #0]
 .Lunlag_m4_cascade_block_1_done:
+    vpop {s16-s16}
     bx lr
     .p2align 2
     .size unlag_m4_cascade_block_1, .-unlag_m4_cascade_block_1
@@ -133,15 +187,17 @@ unlag_m4_cascade_call_2:
     .size unlag_m4_cascade_call_2, .-unlag_m4_cascade_call_2
     .popsection
 
-@ A block in place through 2 section(s), coefficients and state in registers.
-@ Each section's three registers rotate roles (s1, s2, scratch) every sample, so the
-@ loop body is three samples long and moves nothing.
+@ A block in place through 2 section(s), 6 samples a pass: one VLDM of the
+@ inputs, two VSTMs of the outputs. Sections before the last rotate three registers
+@ (s1, s2, scratch) every sample; the last rotates 6, so that its outputs y_p stay
+@ in consecutive registers until they are stored. Same arithmetic as the call kernel.
     .pushsection .text.unlag_m4_cascade_block_2,"ax",%progbits
     .p2align 2
     .global unlag_m4_cascade_block_2
     .type unlag_m4_cascade_block_2,%function
     .thumb_func
 unlag_m4_cascade_block_2:
+    vpush {s16-s24}
     vldm r0, {s0-s9}
     vldr s10, [r1, #8]
     vldr s11, [r1, #0]
@@ -150,58 +206,85 @@ unlag_m4_cascade_block_2:
     movw r12, #0xaaab
     movt r12, #0xaaaa
     umull r12, r0, r3, r12
-    lsrs r0, r0, #1
+    lsrs r0, r0, #2
     add r12, r0, r0, lsl #1
-    subs r3, r3, r12
+    sub r3, r3, r12, lsl #1
     cmp r0, #0
     beq .Lunlag_m4_cascade_block_2_rem
 .Lunlag_m4_cascade_block_2_loop:
-    vldr s12, [r2]
-    vmla.f32 s10, s0, s12
-    vmla.f32 s11, s1, s12
+    vldm r2, {s19-s24}
+    vmla.f32 s10, s0, s19
+    vmla.f32 s11, s1, s19
     vmls.f32 s11, s2, s10
-    vmul.f32 s12, s8, s12
+    vmul.f32 s12, s8, s19
     vmls.f32 s12, s3, s10
     vmla.f32 s13, s4, s10
     vmla.f32 s14, s5, s10
     vmls.f32 s14, s6, s13
     vmul.f32 s15, s9, s10
     vmls.f32 s15, s7, s13
-    vstmia r2!, {s13}
-    vldr s10, [r2]
-    vmla.f32 s11, s0, s10
-    vmla.f32 s12, s1, s10
+    vmla.f32 s11, s0, s20
+    vmla.f32 s12, s1, s20
     vmls.f32 s12, s2, s11
-    vmul.f32 s10, s8, s10
+    vmul.f32 s10, s8, s20
     vmls.f32 s10, s3, s11
     vmla.f32 s14, s4, s11
     vmla.f32 s15, s5, s11
     vmls.f32 s15, s6, s14
-    vmul.f32 s13, s9, s11
-    vmls.f32 s13, s7, s14
-    vstmia r2!, {s14}
-    vldr s11, [r2]
-    vmla.f32 s12, s0, s11
-    vmla.f32 s10, s1, s11
+    vmul.f32 s16, s9, s11
+    vmls.f32 s16, s7, s14
+    vmla.f32 s12, s0, s21
+    vmla.f32 s10, s1, s21
     vmls.f32 s10, s2, s12
-    vmul.f32 s11, s8, s11
+    vmul.f32 s11, s8, s21
     vmls.f32 s11, s3, s12
     vmla.f32 s15, s4, s12
+    vmla.f32 s16, s5, s12
+    vmls.f32 s16, s6, s15
+    vmul.f32 s17, s9, s12
+    vmls.f32 s17, s7, s15
+    vmla.f32 s10, s0, s22
+    vmla.f32 s11, s1, s22
+    vmls.f32 s11, s2, s10
+    vmul.f32 s12, s8, s22
+    vmls.f32 s12, s3, s10
+    vmla.f32 s16, s4, s10
+    vmla.f32 s17, s5, s10
+    vmls.f32 s17, s6, s16
+    vmul.f32 s18, s9, s10
+    vmls.f32 s18, s7, s16
+    vstmia r2!, {s13-s16}
+    vmla.f32 s11, s0, s23
+    vmla.f32 s12, s1, s23
+    vmls.f32 s12, s2, s11
+    vmul.f32 s10, s8, s23
+    vmls.f32 s10, s3, s11
+    vmla.f32 s17, s4, s11
+    vmla.f32 s18, s5, s11
+    vmls.f32 s18, s6, s17
+    vmul.f32 s13, s9, s11
+    vmls.f32 s13, s7, s17
+    vmla.f32 s12, s0, s24
+    vmla.f32 s10, s1, s24
+    vmls.f32 s10, s2, s12
+    vmul.f32 s11, s8, s24
+    vmls.f32 s11, s3, s12
+    vmla.f32 s18, s4, s12
     vmla.f32 s13, s5, s12
-    vmls.f32 s13, s6, s15
+    vmls.f32 s13, s6, s18
     vmul.f32 s14, s9, s12
-    vmls.f32 s14, s7, s15
-    vstmia r2!, {s15}
+    vmls.f32 s14, s7, s18
+    vstmia r2!, {s17-s18}
     subs r0, r0, #1
     bne .Lunlag_m4_cascade_block_2_loop
 .Lunlag_m4_cascade_block_2_rem:
     cmp r3, #0
     beq .Lunlag_m4_cascade_block_2_store0
-    vldr s12, [r2]
-    vmla.f32 s10, s0, s12
-    vmla.f32 s11, s1, s12
+    vldr s19, [r2]
+    vmla.f32 s10, s0, s19
+    vmla.f32 s11, s1, s19
     vmls.f32 s11, s2, s10
-    vmul.f32 s12, s8, s12
+    vmul.f32 s12, s8, s19
     vmls.f32 s12, s3, s10
     vmla.f32 s13, s4, s10
     vmla.f32 s14, s5, s10
@@ -211,22 +294,70 @@ unlag_m4_cascade_block_2:
     vstmia r2!, {s13}
     cmp r3, #1
     beq .Lunlag_m4_cascade_block_2_store1
-    vldr s10, [r2]
-    vmla.f32 s11, s0, s10
-    vmla.f32 s12, s1, s10
+    vldr s19, [r2]
+    vmla.f32 s11, s0, s19
+    vmla.f32 s12, s1, s19
     vmls.f32 s12, s2, s11
-    vmul.f32 s10, s8, s10
+    vmul.f32 s10, s8, s19
     vmls.f32 s10, s3, s11
     vmla.f32 s14, s4, s11
     vmla.f32 s15, s5, s11
     vmls.f32 s15, s6, s14
-    vmul.f32 s13, s9, s11
-    vmls.f32 s13, s7, s14
+    vmul.f32 s16, s9, s11
+    vmls.f32 s16, s7, s14
     vstmia r2!, {s14}
+    cmp r3, #2
+    beq .Lunlag_m4_cascade_block_2_store2
+    vldr s19, [r2]
+    vmla.f32 s12, s0, s19
+    vmla.f32 s10, s1, s19
+    vmls.f32 s10, s2, s12
+    vmul.f32 s11, s8, s19
+    vmls.f32 s11, s3, s12
+    vmla.f32 s15, s4, s12
+    vmla.f32 s16, s5, s12
+    vmls.f32 s16, s6, s15
+    vmul.f32 s17, s9, s12
+    vmls.f32 s17, s7, s15
+    vstmia r2!, {s15}
+    cmp r3, #3
+    beq .Lunlag_m4_cascade_block_2_store3
+    vldr s19, [r2]
+    vmla.f32 s10, s0, s19
+    vmla.f32 s11, s1, s19
+    vmls.f32 s11, s2, s10
+    vmul.f32 s12, s8, s19
+    vmls.f32 s12, s3, s10
+    vmla.f32 s16, s4, s10
+    vmla.f32 s17, s5, s10
+    vmls.f32 s17, s6, s16
+    vmul.f32 s18, s9, s10
+    vmls.f32 s18, s7, s16
+    vstmia r2!, {s16}
+    cmp r3, #4
+    beq .Lunlag_m4_cascade_block_2_store4
+    vldr s19, [r2]
+    vmla.f32 s11, s0, s19
+    vmla.f32 s12, s1, s19
+    vmls.f32 s12, s2, s11
+    vmul.f32 s10, s8, s19
+    vmls.f32 s10, s3, s11
+    vmla.f32 s17, s4, s11
+    vmla.f32 s18, s5, s11
+    vmls.f32 s18, s6, s17
+    vmul.f32 s13, s9, s11
+    vmls.f32 s13, s7, s17
+    vstmia r2!, {s17}
     vstr s12, [r1, #8]
     vstr s10, [r1, #0]
-    vstr s15, [r1, #12]
+    vstr s18, [r1, #12]
     vstr s13, [r1, #4]
+    b .Lunlag_m4_cascade_block_2_done
+.Lunlag_m4_cascade_block_2_store0:
+    vstr s10, [r1, #8]
+    vstr s11, [r1, #0]
+    vstr s13, [r1, #12]
+    vstr s14, [r1, #4]
     b .Lunlag_m4_cascade_block_2_done
 .Lunlag_m4_cascade_block_2_store1:
     vstr s11, [r1, #8]
@@ -234,12 +365,25 @@ unlag_m4_cascade_block_2:
     vstr s14, [r1, #12]
     vstr s15, [r1, #4]
     b .Lunlag_m4_cascade_block_2_done
-.Lunlag_m4_cascade_block_2_store0:
+.Lunlag_m4_cascade_block_2_store2:
+    vstr s12, [r1, #8]
+    vstr s10, [r1, #0]
+    vstr s15, [r1, #12]
+    vstr s16, [r1, #4]
+    b .Lunlag_m4_cascade_block_2_done
+.Lunlag_m4_cascade_block_2_store3:
     vstr s10, [r1, #8]
     vstr s11, [r1, #0]
-    vstr s13, [r1, #12]
-    vstr s14, [r1, #4]
+    vstr s16, [r1, #12]
+    vstr s17, [r1, #4]
+    b .Lunlag_m4_cascade_block_2_done
+.Lunlag_m4_cascade_block_2_store4:
+    vstr s11, [r1, #8]
+    vstr s12, [r1, #0]
+    vstr s17, [r1, #12]
+    vstr s18, [r1, #4]
 .Lunlag_m4_cascade_block_2_done:
+    vpop {s16-s24}
     bx lr
     .p2align 2
     .size unlag_m4_cascade_block_2, .-unlag_m4_cascade_block_2

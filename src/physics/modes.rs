@@ -13,7 +13,8 @@
 //!    bisection up to four times the highest mode searched, past the accumulation points of
 //!    the Bessel ratios' poles (a narrow tube in series has creeps beyond a wide one's);
 //!    candidates where `|M₁₁|` is not small are poles of the Bessel ratio, not zeros, and
-//!    zeros with a negligible residue are dropped.
+//!    zeros with a negligible residue are dropped (below 0.1 % of the step; beyond the widest
+//!    tube's accumulation point, where zeros crowd, below 1 %).
 //!
 //! A complex pole `s = −ζω_n + iω_n√(1−ζ²)` gives the mode `(ω_n = |s|, ζ = −Re s/|s|)`. When the
 //! two slowest real poles `σ₁ < σ₂` are slower than every oscillatory mode (an overdamped line),
@@ -79,6 +80,10 @@ const J01_SQUARED: f64 = 2.404_825_557_695_773 * 2.404_825_557_695_773;
 /// Real poles whose step-response amplitude `|Res/σ|` is below this are ignored.
 const MIN_REAL_POLE_WEIGHT: f64 = 1e-3;
 
+/// Beyond the widest tube's accumulation point, where zeros crowd at every pole of the Bessel
+/// ratios, a real pole is listed only from this step-response amplitude (1 % of the step).
+const MIN_FAR_REAL_POLE_WEIGHT: f64 = 1e-2;
+
 /// Newton's method for a zero of `f` from `s0`, with a step limit. `None` if it fails.
 fn newton(f: &dyn Fn(Complex64) -> Complex64, s0: Complex64) -> Option<Complex64> {
     let mut s = s0;
@@ -136,12 +141,13 @@ fn lossless_guesses(line: &Line, gas: &Gas, omega_max: f64) -> Vec<f64> {
     out
 }
 
-/// Real zeros `σ > 0` of `M₁₁(−σ)` in `[sigma_min, sigma_max]` [1/s].
-fn real_poles(line: &Line, gas: &Gas, sigma_min: f64, sigma_max: f64) -> Vec<f64> {
+/// Real zeros `σ > 0` of `M₁₁(−σ)` in `[sigma_min, sigma_max]` [1/s], each with its weight in
+/// the step response `|Res/σ|` (at least [`MIN_REAL_POLE_WEIGHT`]).
+fn real_poles(line: &Line, gas: &Gas, sigma_min: f64, sigma_max: f64) -> Vec<(f64, f64)> {
     let f = |sig: f64| line.inverse_response(gas, Complex64::new(-sig, 0.0)).re;
     let n = 3000;
     let ratio = (sigma_max / sigma_min).ln() / n as f64;
-    let mut out: Vec<f64> = Vec::new();
+    let mut out: Vec<(f64, f64)> = Vec::new();
     let mut s_prev = sigma_min;
     let mut v_prev = f(s_prev);
     for i in 1..=n {
@@ -171,7 +177,7 @@ fn real_poles(line: &Line, gas: &Gas, sigma_min: f64, sigma_max: f64) -> Vec<f64
                 let slope = (f(root + h) - f(root - h)) / (2.0 * h); // d M11/dσ
                 let weight = 1.0 / (slope * root).abs();
                 if weight > MIN_REAL_POLE_WEIGHT {
-                    out.push(root);
+                    out.push((root, weight));
                 }
             }
         }
@@ -244,7 +250,7 @@ pub fn find_modes(line: &Line, gas: &Gas, count: usize) -> Result<ModeAnalysis> 
     // themselves, so the search runs past them. In lines in series a wide tube's accumulation
     // point can lie below a real pole of a narrow one that shapes the response.
     let sigma_max = 4.0 * omega_max;
-    let reals = real_poles(line, gas, 1e-4 * quarter, sigma_max);
+    let all_reals = real_poles(line, gas, 1e-4 * quarter, sigma_max);
     let mut modes: Vec<Mode> = complex_poles.iter().map(|&p| Mode::from_pole(p)).collect();
     // An overdamped line's pair lies below 6ν/R² (lumped: σ₁ + σ₂ = 6ν/R²), under the widest
     // tube's thermal accumulation point j₀₁²ν/(R² Pr); real poles beyond it are creeps of
@@ -254,6 +260,11 @@ pub fn find_modes(line: &Line, gas: &Gas, count: usize) -> Result<ModeAnalysis> 
         .tubes()
         .map(|t| J01_SQUARED * nu / (t.radius_m * t.radius_m * gas.prandtl))
         .fold(f64::INFINITY, f64::min);
+    let reals: Vec<f64> = all_reals
+        .iter()
+        .filter(|(s, w)| *s < sigma_pair || *w >= MIN_FAR_REAL_POLE_WEIGHT)
+        .map(|(s, _)| *s)
+        .collect();
     let paired: Vec<f64> = reals.iter().copied().filter(|s| *s < sigma_pair).collect();
     if let [s1, s2, ..] = paired.as_slice() {
         let wn = (s1 * s2).sqrt();
@@ -321,6 +332,9 @@ mod tests {
                 an.real_poles_rad_s
             );
         }
+        // Beyond the accumulation point only poles of at least 1 % of the step are listed:
+        // -292 rad/s (0.3 %) is not.
+        assert_eq!(an.real_poles_rad_s.len(), 2, "{:?}", an.real_poles_rad_s);
         // Poles of the Bessel ratios are not zeros of M11: none is listed.
         let nu = gas.kinematic_viscosity();
         for t in line.tubes() {

@@ -1050,3 +1050,64 @@ pub fn diagnose(
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A record of `n` samples at 0, stepping to 1 at `onset`, with a small ripple so that
+    /// the step finder has noise to measure.
+    fn step(n: usize, onset: usize) -> Vec<f64> {
+        (0..n)
+            .map(|k| f64::from(u8::from(k >= onset)) + 1e-4 * ((k % 7) as f64 - 3.0))
+            .collect()
+    }
+
+    #[test]
+    fn a_trial_refits_a_long_record_on_the_window_from_its_step() {
+        let n = TRIAL_WINDOW + 100_000;
+        let onset = 30_000;
+        let u = step(n, onset);
+        let y: Vec<f64> = (0..n).map(|k| k as f64).collect();
+        let t = Test {
+            name: "long",
+            u: &u,
+            y: &y,
+        };
+        let w = trial_window(&t);
+        assert_eq!(w.u.len(), TRIAL_WINDOW);
+        assert_eq!(w.y.len(), TRIAL_WINDOW);
+        // y[k] = k: the window's first sample is TRIAL_LEAD before the onset the finder saw.
+        let start = w.y[0] as usize;
+        let found = crate::fit::step::find_step(&u)
+            .map(|s| s.onset)
+            .unwrap_or(0);
+        assert!(found.abs_diff(onset) <= 2, "onset {found}");
+        assert_eq!(start, found - TRIAL_LEAD);
+        assert_eq!(w.u[0], u[start]);
+        // A step near the end: the window ends with the record.
+        let late = step(n, n - 1000);
+        let t = Test {
+            name: "late",
+            u: &late,
+            y: &y,
+        };
+        let w = trial_window(&t);
+        assert_eq!(w.y.len(), TRIAL_WINDOW);
+        assert_eq!(w.y[TRIAL_WINDOW - 1] as usize, n - 1);
+    }
+
+    #[test]
+    fn a_record_up_to_the_window_is_refitted_whole() {
+        let u = step(TRIAL_WINDOW, 5000);
+        let y = u.clone();
+        let t = Test {
+            name: "short",
+            u: &u,
+            y: &y,
+        };
+        let w = trial_window(&t);
+        assert_eq!(w.u.len(), TRIAL_WINDOW);
+        assert!(std::ptr::eq(w.u.as_ptr(), u.as_ptr()));
+    }
+}

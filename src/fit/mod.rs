@@ -766,3 +766,23 @@ pub fn fit(
         nrmse_validation: val,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn in_parallel_keeps_the_items_order() {
+        let items: Vec<usize> = (0..37).collect();
+        let out = in_parallel(&items, |&i| {
+            // Uneven work, so that the threads finish out of order.
+            let spin: u64 = (0..(37 - i) * 1000).map(|k| k as u64 % 7).sum();
+            (i * i, spin)
+        });
+        assert_eq!(out.len(), items.len());
+        for (i, (sq, _)) in out.iter().enumerate() {
+            assert_eq!(*sq, i * i);
+        }
+        assert!(in_parallel(&[] as &[usize], |&i| i).is_empty());
+    }
+}

@@ -456,6 +456,37 @@ mod tests {
     use super::*;
 
     #[test]
+    fn decimated_indices_are_the_points_decimate_keeps() {
+        let pts: Vec<(f64, f64)> = (0..10_007)
+            .map(|k| (k as f64, ((k * 7919) % 1013) as f64 - 500.0))
+            .collect();
+        for columns in [1, 3, 800, 5000, 6000] {
+            let kept: Vec<(f64, f64)> = decimated_indices(pts.len(), columns, |i| pts[i].1)
+                .into_iter()
+                .map(|i| pts[i])
+                .collect();
+            let mut want = Vec::new();
+            // The buckets by hand: smallest and largest of each, in their order.
+            if pts.len() <= 2 * columns {
+                want.clone_from(&pts);
+            } else {
+                for c in 0..columns {
+                    let (lo, hi) = (c * pts.len() / columns, (c + 1) * pts.len() / columns);
+                    let b = &pts[lo..hi];
+                    let min = (0..b.len()).fold(0, |m, i| if b[i].1 < b[m].1 { i } else { m });
+                    let max = (0..b.len()).fold(0, |m, i| if b[i].1 > b[m].1 { i } else { m });
+                    want.push(b[min.min(max)]);
+                    if min != max {
+                        want.push(b[min.max(max)]);
+                    }
+                }
+            }
+            assert_eq!(kept, want, "{columns} columns");
+            assert_eq!(decimate(&pts, columns), want);
+        }
+    }
+
+    #[test]
     fn a_one_sample_spike_survives_decimation() {
         for at in [0usize, 1, 4_999, 77_777, 99_999] {
             let mut pts: Vec<(f64, f64)> = (0..100_000)

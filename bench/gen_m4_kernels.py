@@ -38,6 +38,39 @@ def func_tail(name):
     emit("")
 
 
+def emit_sections(n, reg, p, v):
+    """Sample phase `p` of a block kernel through `n` sections, input in register `v`:
+    section i's s1, s2 and scratch are reg(i, p), reg(i, p + 1), reg(i, p + 2); coefficients
+    as the block kernels load them (b0, b1, a1, a2 of each section, then every b2). Returns
+    the register holding the output."""
+    for i in range(n):
+        st1, st2, tmp = reg(i, p), reg(i, p + 1), reg(i, p + 2)
+        b0, b1, a1, a2, b2 = s(4 * i), s(4 * i + 1), s(4 * i + 2), s(4 * i + 3), s(4 * n + i)
+        emit(f"    vmla.f32 {st1}, {b0}, {v}")
+        emit(f"    vmla.f32 {st2}, {b1}, {v}")
+        emit(f"    vmls.f32 {st2}, {a1}, {st1}")
+        emit(f"    vmul.f32 {tmp}, {b2}, {v}")
+        emit(f"    vmls.f32 {tmp}, {a2}, {st1}")
+        v = st1
+    return v
+
+
+def emit_load(n, reg):
+    """Loads the coefficients into s0.. and the state as phase 0: s1 of section i into
+    reg(i, 0), s2 into reg(i, 1)."""
+    emit(f"    vldm r0, {{s0-s{5 * n - 1}}}")
+    for i in range(n):
+        emit(f"    vldr {reg(i, 0)}, [r1, #{4 * (n + i)}]")  # s1
+        emit(f"    vldr {reg(i, 1)}, [r1, #{4 * i}]")  # s2
+
+
+def emit_store(n, reg, p):
+    """Writes back the state of phase `p`: s1 of each section after every s2."""
+    for i in range(n):
+        emit(f"    vstr {reg(i, p)}, [r1, #{4 * (n + i)}]")
+        emit(f"    vstr {reg(i, p + 1)}, [r1, #{4 * i}]")
+
+
 def call_kernel(n):
     """f32 unlag_m4_cascade_call_N(const f32 *coeffs /*r0*/, f32 *state /*r1*/, f32 x /*s0*/)."""
     name = f"unlag_m4_cascade_call_{n}"
@@ -84,16 +117,8 @@ def block_kernel(n):
     top = 8 * n - 1
     if top >= 16:
         emit(f"    vpush {{s16-s{top}}}")
-    b0 = lambda i: s(4 * i)
-    b1 = lambda i: s(4 * i + 1)
-    a1 = lambda i: s(4 * i + 2)
-    a2 = lambda i: s(4 * i + 3)
-    b2 = lambda i: s(4 * n + i)
     reg = lambda i, k: s(5 * n + 3 * i + k % 3)
-    emit(f"    vldm r0, {{s0-s{5 * n - 1}}}")
-    for i in range(n):
-        emit(f"    vldr {reg(i, 0)}, [r1, #{4 * (n + i)}]")  # s1
-        emit(f"    vldr {reg(i, 1)}, [r1, #{4 * i}]")  # s2
+    emit_load(n, reg)
     # q = len / 3 (exact for every 32-bit len), r3 = len % 3.
     emit("    movw r12, #0xaaab")
     emit("    movt r12, #0xaaaa")
@@ -105,24 +130,10 @@ def block_kernel(n):
     emit(f"    beq .L{name}_rem")
 
     def sample(p):
-        st1 = lambda i: reg(i, p)
-        st2 = lambda i: reg(i, p + 1)
-        tmp = lambda i: reg(i, p + 2)
-        emit(f"    vldr {tmp(0)}, [r2]")
-        v = tmp(0)
-        for i in range(n):
-            emit(f"    vmla.f32 {st1(i)}, {b0(i)}, {v}")
-            emit(f"    vmla.f32 {st2(i)}, {b1(i)}, {v}")
-            emit(f"    vmls.f32 {st2(i)}, {a1(i)}, {st1(i)}")
-            emit(f"    vmul.f32 {tmp(i)}, {b2(i)}, {v}")
-            emit(f"    vmls.f32 {tmp(i)}, {a2(i)}, {st1(i)}")
-            v = st1(i)
-        emit(f"    vstmia r2!, {{{v}}}")
+        emit(f"    vldr {reg(0, p + 2)}, [r2]")
+        emit(f"    vstmia r2!, {{{emit_sections(n, reg, p, reg(0, p + 2))}}}")
 
-    def store(p):
-        for i in range(n):
-            emit(f"    vstr {reg(i, p)}, [r1, #{4 * (n + i)}]")
-            emit(f"    vstr {reg(i, p + 1)}, [r1, #{4 * i}]")
+    store = lambda p: emit_store(n, reg, p)
 
     emit(f".L{name}_loop:")
     for p in range(3):
@@ -165,11 +176,6 @@ def wide_block_kernel(n):
     emit(f"@ (s1, s2, scratch) every sample; the last rotates {WIDE}, so that its outputs y_p stay")
     emit(f"@ in consecutive registers until they are stored. Same arithmetic as the call kernel.")
     func_head(name)
-    b0 = lambda i: s(4 * i)
-    b1 = lambda i: s(4 * i + 1)
-    a1 = lambda i: s(4 * i + 2)
-    a2 = lambda i: s(4 * i + 3)
-    b2 = lambda i: s(4 * n + i)
     base = 5 * n
     last = n - 1
 
@@ -184,10 +190,7 @@ def wide_block_kernel(n):
     assert top <= 31
     if top >= 16:
         emit(f"    vpush {{s16-s{top}}}")
-    emit(f"    vldm r0, {{s0-s{5 * n - 1}}}")
-    for i in range(n):
-        emit(f"    vldr {reg(i, 0)}, [r1, #{4 * (n + i)}]")  # s1
-        emit(f"    vldr {reg(i, 1)}, [r1, #{4 * i}]")  # s2
+    emit_load(n, reg)
     # q = len / 6 (exact for every 32-bit len), r3 = len % 6.
     emit("    movw r12, #0xaaab")
     emit("    movt r12, #0xaaaa")
@@ -198,21 +201,8 @@ def wide_block_kernel(n):
     emit("    cmp r0, #0")
     emit(f"    beq .L{name}_rem")
 
-    def sample(p, v):
-        for i in range(n):
-            st1, st2, tmp = reg(i, p), reg(i, p + 1), reg(i, p + 2)
-            emit(f"    vmla.f32 {st1}, {b0(i)}, {v}")
-            emit(f"    vmla.f32 {st2}, {b1(i)}, {v}")
-            emit(f"    vmls.f32 {st2}, {a1(i)}, {st1}")
-            emit(f"    vmul.f32 {tmp}, {b2(i)}, {v}")
-            emit(f"    vmls.f32 {tmp}, {a2(i)}, {st1}")
-            v = st1
-        return v
-
-    def store(p):
-        for i in range(n):
-            emit(f"    vstr {reg(i, p)}, [r1, #{4 * (n + i)}]")
-            emit(f"    vstr {reg(i, p + 1)}, [r1, #{4 * i}]")
+    sample = lambda p, v: emit_sections(n, reg, p, v)
+    store = lambda p: emit_store(n, reg, p)
 
     # y_p sits in the last section's register p until sample p + WIDE - 2 takes it as scratch:
     # the first WIDE - 2 outputs are stored before that sample, the last two after the pass.

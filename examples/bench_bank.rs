@@ -167,21 +167,20 @@ fn unlag(unlag: &Path, dir: &Path, args: &[&str], log: &str) -> Result<String, S
     }
 }
 
-/// `(nrmse_u_hat, nrmse_raw)` of `unlag compensate ... --json`.
-fn errors(json: &str) -> Result<(f64, f64), String> {
-    verdict(json).map(|(e, r, _)| (e, r))
+/// What `unlag compensate ... --json` says of a run.
+struct Verdict {
+    /// `nrmse_u_hat`.
+    comp: f64,
+    /// `nrmse_raw`.
+    raw: f64,
+    /// Its `verdict` is "worse".
+    worse: bool,
+    /// The lag it aligned `u_hat` at (`alignment_samples`, 0 if it says none).
+    lag: usize,
 }
 
-/// The lag `unlag compensate ... --json` aligned `u_hat` at (0 if it says none).
-fn alignment(json: &str) -> usize {
-    serde_json::from_str::<serde_json::Value>(json.trim())
-        .ok()
-        .and_then(|v| v.get("alignment_samples")?.as_u64())
-        .map_or(0, |a| a as usize)
-}
-
-/// `(nrmse_u_hat, nrmse_raw, verdict is "worse")` of `unlag compensate ... --json`.
-fn verdict(json: &str) -> Result<(f64, f64, bool), String> {
+/// The [`Verdict`] in the JSON of `unlag compensate ... --json`.
+fn verdict(json: &str) -> Result<Verdict, String> {
     let v: serde_json::Value = serde_json::from_str(json.trim())
         .map_err(|e| format!("compensate: unreadable JSON ({e})"))?;
     let get = |k: &str| {
@@ -189,8 +188,15 @@ fn verdict(json: &str) -> Result<(f64, f64, bool), String> {
             .and_then(serde_json::Value::as_f64)
             .ok_or_else(|| format!("compensate: no {k} in the JSON"))
     };
-    let worse = v.get("verdict").and_then(serde_json::Value::as_str) == Some("worse");
-    Ok((get("nrmse_u_hat")?, get("nrmse_raw")?, worse))
+    Ok(Verdict {
+        comp: get("nrmse_u_hat")?,
+        raw: get("nrmse_raw")?,
+        worse: v.get("verdict").and_then(serde_json::Value::as_str) == Some("worse"),
+        lag: v
+            .get("alignment_samples")
+            .and_then(serde_json::Value::as_u64)
+            .map_or(0, |a| a as usize),
+    })
 }
 
 /// `(raw, comp)` errors of a `compensate` output (`t,u,y,u_hat`) against the noise-free
@@ -199,21 +205,16 @@ fn verdict(json: &str) -> Result<(f64, f64, bool), String> {
 /// `u_hat` within 4 samples of the lag the CLI found (`alignment`), the raw probe from 0 to
 /// `alignment + 4 max(alignment, 10)`.
 fn against_clean(clean: &[f64], out: &Path, alignment: usize) -> Result<(f64, f64), String> {
-    let text =
-        std::fs::read_to_string(out).map_err(|e| format!("cannot read {}: {e}", out.display()))?;
-    let mut y = Vec::with_capacity(clean.len());
-    let mut u_hat = Vec::with_capacity(clean.len());
-    for line in text.lines().skip(1) {
-        let f: Vec<f64> = line.split(',').filter_map(|v| v.parse().ok()).collect();
-        if let [_, _, yy, uh] = f[..] {
-            y.push(yy);
-            u_hat.push(uh);
-        }
-    }
+    let columns = unlag::trace::Columns {
+        input: "u_hat".into(),
+        ..unlag::trace::Columns::default()
+    };
+    let trace = unlag::trace::Trace::read(out, &columns).map_err(|e| e.to_string())?;
+    let (y, u_hat) = (&trace.y, trace.u.as_deref().unwrap_or_default());
     let raw_lags = 0..=alignment + 4 * alignment.max(10);
     let lags = alignment.saturating_sub(4)..=alignment + 4;
-    let (raw, _) = unlag::inverse::aligned_error(clean, &y, raw_lags);
-    let (comp, _) = unlag::inverse::aligned_error(clean, &u_hat, lags);
+    let (raw, _) = unlag::inverse::aligned_error(clean, y, raw_lags);
+    let (comp, _) = unlag::inverse::aligned_error(clean, u_hat, lags);
     Ok((raw, comp))
 }
 
@@ -286,13 +287,13 @@ fn run_case(case: &Case, s: &Settings) -> Outcome {
             "compensate.log",
         )
     })
-    .and_then(|json| Ok((verdict(&json)?, alignment(&json))));
+    .and_then(|json| verdict(&json));
     match user {
-        Ok(((comp, raw, worse), lag)) => {
-            o.comp = Some(comp);
-            o.raw = Some(raw);
-            o.said_worse = worse;
-            if let Ok((raw, comp)) = against_clean(&clean_u, &dir.join("out.csv"), lag) {
+        Ok(v) => {
+            o.comp = Some(v.comp);
+            o.raw = Some(v.raw);
+            o.said_worse = v.worse;
+            if let Ok((raw, comp)) = against_clean(&clean_u, &dir.join("out.csv"), v.lag) {
                 o.clean.0 = Some(raw);
                 o.clean.1 = Some(comp);
             }
@@ -330,8 +331,8 @@ fn run_case(case: &Case, s: &Settings) -> Outcome {
                 "remedy-compensate.log",
             )
         })
-        .and_then(|json| errors(&json));
-        o.remedy = remedy.ok().map(|(e, _)| e);
+        .and_then(|json| verdict(&json));
+        o.remedy = remedy.ok().map(|v| v.comp);
     }
     o.fitted = order_delay(&dir.join("model.toml"));
     if dir.join("truth.toml").is_file() {
@@ -356,12 +357,12 @@ fn run_case(case: &Case, s: &Settings) -> Outcome {
                 "oracle.log",
             )
         })
-        .and_then(|json| Ok((errors(&json)?, alignment(&json))));
+        .and_then(|json| verdict(&json));
         match oracle {
-            Ok(((e, raw), lag)) => {
-                o.oracle = Some(e);
-                o.raw = o.raw.or(Some(raw));
-                o.clean.2 = against_clean(&clean_u, &dir.join("o.csv"), lag)
+            Ok(v) => {
+                o.oracle = Some(v.comp);
+                o.raw = o.raw.or(Some(v.raw));
+                o.clean.2 = against_clean(&clean_u, &dir.join("o.csv"), v.lag)
                     .ok()
                     .map(|(_, e)| e);
             }
@@ -582,6 +583,37 @@ fn write_results(path: &Path, rows: &[(Case, Outcome)]) -> Result<(), Box<dyn Er
     Ok(())
 }
 
+/// One `row` per family, per kind, per generator (when `generators`) and for the whole bank.
+fn groups(
+    rows: &[(Case, Outcome)],
+    row: fn(&str, &[&(Case, Outcome)]) -> String,
+    generators: bool,
+) -> String {
+    let of = |keep: &dyn Fn(&Case) -> bool| -> Vec<&(Case, Outcome)> {
+        rows.iter().filter(|(c, _)| keep(c)).collect()
+    };
+    let mut lines: Vec<String> = Vec::new();
+    for f in FAMILIES {
+        lines.push(row(
+            &format!("family {}", f.name()),
+            &of(&|c| c.family == f),
+        ));
+    }
+    for k in KINDS {
+        lines.push(row(&format!("kind {}", k.name()), &of(&|c| c.kind == k)));
+    }
+    if generators {
+        for gen in ["lumped", "physics"] {
+            lines.push(row(
+                &format!("generator {gen}"),
+                &of(&|c| c.generator_name() == gen),
+            ));
+        }
+    }
+    lines.push(row("**all**", &of(&|_| true)));
+    lines.iter().map(|l| format!("{l}\n")).collect()
+}
+
 /// The printed report.
 fn report(rows: &[(Case, Outcome)], s: &Settings, seconds: f64) -> String {
     let mut r = String::new();
@@ -599,35 +631,11 @@ fn report(rows: &[(Case, Outcome)], s: &Settings, seconds: f64) -> String {
     let _ = writeln!(r, "The last three columns are the remedy `compensate` names when it finds a run worse: the compensator redesigned with `unlag invert model.toml est.csv --signal run.csv`, where `run.csv` is another run of the validation test's kind (its own draw), then run on the validation test. *silent* counts runs worse than raw that `compensate` did not flag.\n");
     let _ = writeln!(r, "| group | cases | failed | no oracle | raw/comp median | raw/comp worst | worse than raw | silent | comp/oracle median | comp/oracle worst | --signal raw/comp median | --signal worst | --signal worse |");
     let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
-    for f in FAMILIES {
-        let g: Vec<&(Case, Outcome)> = rows.iter().filter(|(c, _)| c.family == f).collect();
-        let _ = writeln!(r, "{}", summary_row(&format!("family {}", f.name()), &g));
-    }
-    for k in KINDS {
-        let g: Vec<&(Case, Outcome)> = rows.iter().filter(|(c, _)| c.kind == k).collect();
-        let _ = writeln!(r, "{}", summary_row(&format!("kind {}", k.name()), &g));
-    }
-    for gen in ["lumped", "physics"] {
-        let g: Vec<&(Case, Outcome)> = rows
-            .iter()
-            .filter(|(c, _)| c.generator_name() == gen)
-            .collect();
-        let _ = writeln!(r, "{}", summary_row(&format!("generator {gen}"), &g));
-    }
-    let all: Vec<&(Case, Outcome)> = rows.iter().collect();
-    let _ = writeln!(r, "{}", summary_row("**all**", &all));
-    let _ = writeln!(r, "\nAgainst the noise-free reference (the reference channel without its noise and ADC; the CLI's figure above is floored by that noise): raw/comp, and the oracle's raw/oracle, each at its best alignment.\n");
+    r.push_str(&groups(rows, summary_row, true));
+    let _ = writeln!(r, "\nAgainst the noise-free reference (the reference channel without its noise and ADC, which the CLI's figure above includes): raw/comp, and the oracle's raw/oracle, each at its best alignment.\n");
     let _ = writeln!(r, "| group | cases | raw/comp median | raw/comp worst | worse than raw | raw/oracle median | raw/oracle worst | oracle worse than raw | comp/oracle median | comp/oracle worst |");
     let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|---|");
-    for f in FAMILIES {
-        let g: Vec<&(Case, Outcome)> = rows.iter().filter(|(c, _)| c.family == f).collect();
-        let _ = writeln!(r, "{}", clean_row(&format!("family {}", f.name()), &g));
-    }
-    for k in KINDS {
-        let g: Vec<&(Case, Outcome)> = rows.iter().filter(|(c, _)| c.kind == k).collect();
-        let _ = writeln!(r, "{}", clean_row(&format!("kind {}", k.name()), &g));
-    }
-    let _ = writeln!(r, "{}", clean_row("**all**", &all));
+    r.push_str(&groups(rows, clean_row, false));
     let gains: Vec<f64> = rows
         .iter()
         .filter_map(|(_, o)| Some(o.raw? / o.comp?))

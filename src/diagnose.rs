@@ -91,6 +91,31 @@ pub struct Candidate {
     pub uncertainty_after: Option<Uncertainty>,
 }
 
+impl Candidate {
+    /// The stated uncertainty before and after the trial in one sentence, when both are
+    /// known; with a noise model added, which figure to quote.
+    #[must_use]
+    pub fn uncertainty_text(&self) -> Option<String> {
+        let (b, a) = (
+            self.uncertainty_before.as_ref()?,
+            self.uncertainty_after.as_ref()?,
+        );
+        let quote = if !b.noise_model && a.noise_model {
+            " (the white-noise figure counts correlated samples as independent: it understates; \
+             the whitened one is the one to quote)"
+        } else {
+            ""
+        };
+        Some(format!(
+            "stated uncertainty (1 sigma): before, from {}: {}; after, from {}: {}{quote}",
+            b.noise_text(),
+            b.summary(),
+            a.noise_text(),
+            a.summary()
+        ))
+    }
+}
+
 /// Two candidates closer than this in score are close: the diagnosis names the test that
 /// would separate them.
 pub const CLOSE_MARGIN: f64 = 0.3;

@@ -811,18 +811,19 @@ fn aligned_error_by_fft(
     // Σ r[s..s + len]² for s = 0, 1, ...: a sliding window.
     let len = e.len();
     let mut rr: f64 = r.iter().take(len).map(|v| v * v).sum();
-    let mut best = (f64::INFINITY, lo);
+    let mut sse = Vec::with_capacity(cross.len());
     for (s, c) in cross.iter().enumerate() {
         if s > 0 {
             let (out, inn) = (r.get(s - 1), r.get(s + len - 1));
             rr += inn.map_or(0.0, |v| v * v) - out.map_or(0.0, |v| v * v);
         }
-        let sse = (ee + rr - 2.0 * c).max(0.0);
-        if sse < best.0 {
-            best = (sse, hi - s);
-        }
+        sse.push((ee + rr - 2.0 * c).max(0.0));
     }
-    let lag = best.1;
+    // The smallest lag among equals, as the direct search takes it.
+    let (_, lag) = (lo..=hi).fold((f64::INFINITY, lo), |best, lag| match sse.get(hi - lag) {
+        Some(&e) if e < best.0 => (e, lag),
+        _ => best,
+    });
     let sse: f64 = (hi..n)
         .map(|k| {
             let d = estimate[k] - reference[k - lag];

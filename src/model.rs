@@ -269,7 +269,8 @@ impl Uncertainty {
         format!("DC gain +/- {:.1e}{modes}", self.dc_gain_std)
     }
 
-    /// How the noise was counted: `its AR model whitened it` or `white`.
+    /// How the noise was counted: `the noise as its AR model whitens it` or `the noise taken as
+    /// white`.
     #[must_use]
     pub fn noise_text(&self) -> &'static str {
         if self.noise_model {
@@ -458,6 +459,12 @@ const HEADER: &str = "\
 ";
 
 impl ModelFile {
+    /// The fit's stated uncertainty, when the file records one.
+    #[must_use]
+    pub fn uncertainty(&self) -> Option<&Uncertainty> {
+        self.fit.as_ref()?.uncertainty.as_ref()
+    }
+
     /// Renders the file as TOML.
     ///
     /// # Errors

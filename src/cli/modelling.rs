@@ -256,7 +256,7 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
         model: &l.file.model,
         effects: &l.file.effects,
         method: method_of(&l.file),
-        uncertainty: l.file.fit.as_ref().and_then(|f| f.uncertainty.as_ref()),
+        uncertainty: l.file.uncertainty(),
     };
     let evidence = diagnose::evidence(&current, &tests);
     let across = diagnose::per_test(&current, &tests, &evidence);
@@ -306,7 +306,7 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
         model: &l.file.model,
         effects: &l.file.effects,
         method: method_of(&l.file),
-        uncertainty: l.file.fit.as_ref().and_then(|f| f.uncertainty.as_ref()),
+        uncertainty: l.file.uncertainty(),
     };
     let evidence = diagnose::evidence(&current, &tests);
     let candidates = diagnose::diagnose(&current, &tests, &evidence)?;
@@ -360,20 +360,8 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
             pct(c.nrmse_after)
         );
         crate::outln!("    {}", c.reading);
-        if let (Some(b), Some(a)) = (&c.uncertainty_before, &c.uncertainty_after) {
-            crate::outln!(
-                "    stated uncertainty (1 sigma): before, from {}: {}; after, from {}: {}",
-                b.noise_text(),
-                b.summary(),
-                a.noise_text(),
-                a.summary()
-            );
-            if !b.noise_model && a.noise_model {
-                crate::outln!(
-                    "    (the white-noise figure counts correlated samples as independent: it \
-                     understates; the whitened one is the one to quote)"
-                );
-            }
+        if let Some(text) = c.uncertainty_text() {
+            crate::outln!("    {text}");
         }
         crate::outln!("    change: {}", c.change);
         if let Some(test) = &c.separated_by {

@@ -144,7 +144,7 @@ pub(crate) fn write_report(
         model: &file.model,
         effects: &file.effects,
         method: super::modelling::method_of(file),
-        uncertainty: file.fit.as_ref().and_then(|f| f.uncertainty.as_ref()),
+        uncertainty: file.uncertainty(),
     };
     progress.step("report: measuring the residuals");
     let evidence = diagnose::evidence(&current, tests);

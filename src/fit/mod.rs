@@ -548,7 +548,7 @@ fn in_parallel<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec
     std::thread::scope(|scope| {
         for _ in 0..threads {
             scope.spawn(|| {
-                // The last items first: the highest orders take longest.
+                // The last items first (the fit's highest orders, which take longest).
                 while let Some(i) = items
                     .len()
                     .checked_sub(1 + next.fetch_add(1, std::sync::atomic::Ordering::Relaxed))
@@ -636,7 +636,6 @@ pub fn fit(
         Ok((m, model, rows))
     });
     let mut candidates = Vec::new();
-    let mut last_delay_rows = Vec::new();
     let mut first_error = None;
     for result in results {
         match result {
@@ -659,9 +658,6 @@ pub fn fit(
                 } else {
                     val.iter().sum::<f64>() / val.len() as f64
                 };
-                if !rows.is_empty() {
-                    last_delay_rows.clone_from(&rows);
-                }
                 candidates.push((m, model, rows, est, val, criterion, stable));
             }
             Err((e, true)) => return Err(e),
@@ -711,7 +707,6 @@ pub fn fit(
             message: "order selection failed".into(),
         })?;
     let (m, mut model, rows, mut est, mut val, _, _) = chosen.clone();
-    let _ = last_delay_rows;
     if window.is_some() {
         let refined = refine(&whole, &model, options.method)?;
         let candidate = Model {

@@ -242,16 +242,9 @@ fn verdict(h: &mut String, inputs: &Inputs<'_>) {
 /// The candidate's stated uncertainty before and after its trial, as HTML (empty when either
 /// is missing).
 fn stated_uncertainty(c: &Candidate) -> String {
-    match (&c.uncertainty_before, &c.uncertainty_after) {
-        (Some(b), Some(a)) => format!(
-            "<br><small>Stated uncertainty (1 sigma): before, from {}: {}; after, from {}: {}</small>",
-            escape(b.noise_text()),
-            escape(&b.summary()),
-            escape(a.noise_text()),
-            escape(&a.summary())
-        ),
-        _ => String::new(),
-    }
+    c.uncertainty_text()
+        .map(|t| format!("<br><small>{}</small>", escape(&t)))
+        .unwrap_or_default()
 }
 
 fn summary_table(h: &mut String, inputs: &Inputs<'_>) {

@@ -313,6 +313,16 @@ fn no_output_may_destroy_an_input() {
     refuses(&["export", m, "--format", "c", "-o", m], None, msg);
     refuses(&["resample", m, "--fs", "20000", "-o", m], None, msg);
     refuses(&["diagnose", m, &csv, "--report", &csv], None, msg);
+    // The report of a fit may not replace the model it writes, existing or not.
+    let fresh = tmp("not-yet-written.toml");
+    let _ = std::fs::remove_file(&fresh);
+    refuses(&["fit", &csv, "-o", &fresh, "--report", &fresh], None, msg);
+    // ... while a refit onto its own model, with a report, goes through again and again.
+    let (model, page) = (tmp("refit.toml"), tmp("refit.html"));
+    for _ in 0..2 {
+        let o = unlag(&["fit", &csv, "-o", &model, "--report", &page]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
     // Through a symbolic link too.
     #[cfg(unix)]
     {

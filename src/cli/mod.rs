@@ -1595,12 +1595,10 @@ impl Command {
             Self::Fit(a) => {
                 let mut inputs = data(&a.files);
                 inputs.extend(data(&a.inverse.signal));
-                let mut outputs = vec![a.output.as_path()];
-                if let Some(r) = &a.report {
-                    // The report must not replace the model just written either.
-                    inputs.push((a.output.as_path(), "the model file this fit writes"));
-                    outputs.push(r.as_path());
-                }
+                // The report must not replace the model just written either: see guard_files.
+                let outputs = std::iter::once(a.output.as_path())
+                    .chain(a.report.as_deref())
+                    .collect();
                 (outputs, inputs)
             }
             Self::Invert(a) => {
@@ -1637,6 +1635,22 @@ impl Command {
     /// through links), and routes the command's text to standard error when an output is
     /// `-` (standard output), which `--json` cannot share.
     fn guard_files(&self) -> Result<()> {
+        // `fit -o MODEL --report PAGE`: two outputs of one run, which must differ. The model
+        // may already exist (a refit onto it is the point), so it is not an input.
+        if let Self::Fit(FitArgs {
+            output,
+            report: Some(page),
+            ..
+        }) = self
+        {
+            if page == output || same_file::is_same_file(page, output).unwrap_or(false) {
+                return Err(Error::Overwrite {
+                    output: page.clone(),
+                    input: output.clone(),
+                    what: "the model file this fit writes",
+                });
+            }
+        }
         let (outputs, inputs) = self.files();
         for out in &outputs {
             if *out == Path::new("-") {

@@ -345,6 +345,8 @@ impl<const N: usize> FixedCascade<N> {
 #[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
 mod m4;
 
+pub mod direct;
+
 /// A scaled rotation `[[s, -w], [w, s]]` with `s^2 + w^2 < 1`, or lower triangular
 /// `[[p1, 0], [g, p2]]` with `|p1|, |p2| < 1`: the forms for which magnitude truncation
 /// provably leaves no zero-input limit cycle.

@@ -15,10 +15,11 @@
 use std::f64::consts::PI;
 
 use unlag::compensator::{CascadeCoefficients, CascadeState};
+use unlag::fixed::direct::{DirectCascade, DirectState};
 use unlag::fixed::{FixedCascade, FixedState};
 use unlag::inverse::{self, Design, Options};
 use unlag::model::{filter, Model};
-use unlag::quantise::FixedPlan;
+use unlag::quantise::{DirectPlan, FixedPlan};
 
 /// ADC full scale of the simulated probe signals.
 const FULL_SCALE: f64 = 2.0;
@@ -167,6 +168,7 @@ fn main() {
     );
     println!("|---|---|---|---|---|---|---|---|");
     let mut rng = Rng(7);
+    let mut direct_rows = Vec::new();
     for c in &cases {
         let model = probe(c);
         let design = match inverse::design(&model, c.bandwidth, &Options::default()) {
@@ -245,6 +247,7 @@ fn main() {
             cascade.process(&mut st, 0);
             steps += 1;
         }
+        direct_rows.push(direct_row(c, &design, &y, &reference, walk, &mut rng));
         let forms: Vec<&str> = plan.sections.iter().map(|s| s.form.as_str()).collect();
         println!(
             "| {} | {} ({}) | {:.2} | {:.1} dB | {} | {:.1} dB | {:.0e}, {} | {}{} ({}) |",
@@ -262,4 +265,74 @@ fn main() {
             bound
         );
     }
+    println!();
+    println!("Direct form I with first-order error feedback (`unlag::fixed::direct`, `DirectPlan`), same signals:");
+    println!();
+    println!(
+        "| case | headroom (bits, L1 bound incl. error feedback) | SNR direct-form sections vs f64 | full-scale random walk: samples, overflows | zero input after full-scale excitation: samples until the outputs are zero; largest output code left after 10^6 samples |"
+    );
+    println!("|---|---|---|---|---|");
+    for r in direct_rows {
+        println!("{r}");
+    }
+}
+
+/// The direct-form row of one case: plan, SNR on the same signal, overflow count on a
+/// full-scale random walk, and the zero-input behaviour after full-scale excitation.
+fn direct_row(
+    c: &Case,
+    design: &Design,
+    y: &[f64],
+    reference: &[f64],
+    walk: usize,
+    rng: &mut Rng,
+) -> String {
+    let plan = match DirectPlan::new(design, FULL_SCALE) {
+        Ok(p) => p,
+        Err(e) => return format!("| {} | plan refused: {e} ||||", c.name),
+    };
+    let run = plan.run(y).expect("direct run");
+    let snr = snr_db(reference, &run.u_hat);
+    let cascade = DirectCascade::<8>::new(&plan.board_sections()).expect("direct cascade");
+    let mut st = DirectState::<8>::default();
+    let mut x: i64 = 0;
+    let mut overflows = 0u64;
+    let step = 1i64 << 27;
+    for _ in 0..walk {
+        let r = rng.next();
+        x += if r & 1 == 0 { step } else { -step };
+        x = x.clamp(i64::from(i32::MIN), i64::from(i32::MAX));
+        cascade.process(&mut st, x as i32);
+        if st.take_overflow() {
+            overflows += 1;
+        }
+    }
+    let mut st = DirectState::<8>::default();
+    for k in 0..10_000 {
+        let v = if (k / 37) % 2 == 0 {
+            i32::MAX
+        } else {
+            i32::MIN
+        };
+        cascade.process(&mut st, v);
+    }
+    let limit = 1_000_000usize;
+    let mut quiet_at = None;
+    for n in 0..limit {
+        let out = cascade.process(&mut st, 0);
+        if out != 0 {
+            quiet_at = None;
+        } else if quiet_at.is_none() && st.is_quiet() {
+            quiet_at = Some(n);
+        }
+    }
+    let left = st.largest_output();
+    let quiet = match quiet_at {
+        Some(n) if st.is_quiet() => format!("{n}; 0"),
+        _ => format!("never (limit cycle); {left}"),
+    };
+    format!(
+        "| {} | {:.2} | {:.1} dB | {:.0e}, {} | {} |",
+        c.name, plan.headroom_bits, snr, walk as f64, overflows, quiet
+    )
 }

@@ -25,6 +25,9 @@ use crate::error::{Error, Result};
 use crate::fixed::{FixedCascade, FixedSection, FixedState, MAX_COEFFICIENT, STATE_BITS};
 use crate::inverse::Design;
 
+mod direct;
+pub use direct::{DirectPlan, DirectPlanSection};
+
 /// Largest value, as a fraction of the `i32` range, any state or output may reach by the L1
 /// bound: one bit of headroom.
 pub const TARGET: f64 = 0.5;
@@ -94,6 +97,20 @@ pub struct FixedRun {
     pub clipped_inputs: usize,
     /// `true` when a state or output saturated inside the compensator.
     pub overflowed: bool,
+}
+
+/// The Q1.31 code of `y` for the full scale `full_scale`, clamped; `true` when clamped.
+fn code_of(y: f64, full_scale: f64) -> (i32, bool) {
+    let v = (y / full_scale * 2f64.powi(31)).round();
+    if v >= f64::from(i32::MAX) {
+        (i32::MAX, true)
+    } else if v < f64::from(i32::MIN) {
+        (i32::MIN, true)
+    } else {
+        // In range.
+        #[allow(clippy::cast_possible_truncation)]
+        (v as i32, false)
+    }
 }
 
 fn plan_error(message: impl Into<String>) -> Error {
@@ -373,16 +390,7 @@ impl FixedPlan {
     /// The Q1.31 code of a probe value, clamped to the full scale; `true` when clamped.
     #[must_use]
     pub fn to_code(&self, y: f64) -> (i32, bool) {
-        let v = (y / self.full_scale * 2f64.powi(31)).round();
-        if v >= f64::from(i32::MAX) {
-            (i32::MAX, true)
-        } else if v < f64::from(i32::MIN) {
-            (i32::MIN, true)
-        } else {
-            // In range.
-            #[allow(clippy::cast_possible_truncation)]
-            (v as i32, false)
-        }
+        code_of(y, self.full_scale)
     }
 
     /// The probe's units of an output code.

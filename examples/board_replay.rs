@@ -46,6 +46,12 @@ mod fixed {
 
 static BLOB: &[u8] = include_bytes!("data/board_coefficients.bin");
 
+/// The direct-form fixed-point compensator of the same design (`unlag::quantise::DirectPlan`).
+#[allow(dead_code)]
+mod direct {
+    include!("data/board_direct.rs");
+}
+
 /// Fixed-point sections and input that make the fixed-point cascade saturate on purpose.
 mod stress {
     include!("data/fixed_stress.rs");
@@ -153,6 +159,83 @@ fn replay_fixed_stress(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
     Ok(true)
 }
 
+/// The direct-form cascade's first `K` sections of `sections` on `input(k)` for `len` samples,
+/// one call per sample (`DC`, the overflow flag read and cleared after each sample and hashed
+/// with the output), then in blocks of the lengths in [`CHUNKS`] (`DB`, the flag read after
+/// each block). Reports whether this build runs the Cortex-M kernel and the FNV-1a hashes.
+fn replay_direct<const K: usize>(
+    out: &mut impl Write,
+    name: &str,
+    sections: &[unlag::fixed::direct::DirectSection],
+    len: usize,
+    input: impl Fn(usize) -> i32,
+) -> Result<bool, core::fmt::Error> {
+    use unlag::fixed::direct::{uses_kernel, DirectCascade, DirectState};
+    let Some(Ok(c)) = sections.get(..K).map(DirectCascade::<K>::new) else {
+        writeln!(out, "ERROR direct {name} K={K}: sections refused")?;
+        return Ok(false);
+    };
+    let kind = if uses_kernel(K) { "asm" } else { "portable" };
+    writeln!(out, "DKERNEL {name} K={K} {kind}")?;
+    let mut state = DirectState::<K>::default();
+    let mut overflows = 0u32;
+    let calls = fnv1a((0..len).flat_map(|k| {
+        let y = c.process(&mut state, input(k));
+        let flag = state.take_overflow();
+        overflows += u32::from(flag);
+        [y as u32, u32::from(flag)]
+    }));
+    writeln!(
+        out,
+        "DH {name} K={K} call {calls:016x} overflows={overflows}"
+    )?;
+    let mut buf = [0i32; 4096];
+    let Some(buf) = buf.get_mut(..len) else {
+        return Ok(false);
+    };
+    for (k, v) in buf.iter_mut().enumerate() {
+        *v = input(k);
+    }
+    let mut state = DirectState::<K>::default();
+    let mut flags = [0u32; 64];
+    let mut rest = &mut buf[..];
+    for (n, f) in CHUNKS.iter().cycle().zip(flags.iter_mut()) {
+        let (head, tail) = rest.split_at_mut((*n).min(rest.len()));
+        c.process_in_place(&mut state, head);
+        *f = u32::from(state.take_overflow());
+        rest = tail;
+    }
+    c.process_in_place(&mut state, rest);
+    let last = u32::from(state.take_overflow());
+    let blocks = fnv1a(
+        buf.iter()
+            .map(|v| *v as u32)
+            .chain(flags)
+            .chain(core::iter::once(last)),
+    );
+    writeln!(out, "DH {name} K={K} block {blocks:016x}")?;
+    Ok(true)
+}
+
+/// The direct-form runs: the planned sections on the trace's codes (K = 1, 2, 3, 4: the
+/// first K of the m = 8 plan), and the stress sections on the stress input.
+fn replay_direct_all(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
+    let trace = |k: usize| code(trace::TRACE.get(k).copied().unwrap_or(0.0));
+    let n = trace::TRACE.len();
+    let s = &direct::SECTIONS_M8;
+    let mut ok = replay_direct::<1>(out, "trace", s, n, trace)?;
+    ok &= replay_direct::<2>(out, "trace", s, n, trace)?;
+    ok &= replay_direct::<3>(out, "trace", s, n, trace)?;
+    ok &= replay_direct::<4>(out, "trace", s, n, trace)?;
+    let st = &stress::DIRECT_STRESS_SECTIONS;
+    let len = stress::STRESS_LEN;
+    ok &= replay_direct::<1>(out, "stress", st, len, stress::stress_input)?;
+    ok &= replay_direct::<2>(out, "stress", st, len, stress::stress_input)?;
+    ok &= replay_direct::<3>(out, "stress", st, len, stress::stress_input)?;
+    ok &= replay_direct::<4>(out, "stress", st, len, stress::stress_input)?;
+    Ok(ok)
+}
+
 /// Section capacity of this firmware: up to an 8th-order compensator.
 const SECTIONS: usize = 4;
 
@@ -206,6 +289,7 @@ fn replay(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
     sections_ok &= replay_sections::<3>(out)?;
     sections_ok &= replay_sections::<4>(out)?;
     sections_ok &= replay_fixed_stress(out)?;
+    sections_ok &= replay_direct_all(out)?;
     let ok = refused && fixed_ok && sections_ok;
     writeln!(out, "DONE {}", if ok { "ok" } else { "FAILED" })?;
     Ok(ok)

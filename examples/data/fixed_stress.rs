@@ -57,3 +57,25 @@ pub const fn stress_input(k: usize) -> i32 {
         _ => r as i32,
     }
 }
+
+/// Direct-form sections for the same stress input (hand-written): a slow resonance (r 0.999,
+/// theta 0.05, unit DC gain), a resonance with DC gain 3 (outputs saturate), a fast one
+/// (r 0.6, theta 2.5), a slow one at half gain.
+pub const DIRECT_STRESS_SECTIONS: [unlag::fixed::direct::DirectSection; 4] = [
+    unlag::fixed::direct::DirectSection {
+        b: [670_546, 1_341_093, 670_546],
+        neg_a: [2_142_655_053, -1_071_595_414],
+    },
+    unlag::fixed::direct::DirectSection {
+        b: [72_795_121, 145_590_242, 72_795_121],
+        neg_a: [1_846_412_540, -869_730_877],
+    },
+    unlag::fixed::direct::DirectSection {
+        b: [467_353_982, 934_707_963, 467_353_982],
+        neg_a: [-1_032_265_688, -386_547_057],
+    },
+    unlag::fixed::direct::DirectSection {
+        b: [386_545, 773_091, 386_545],
+        neg_a: [2_039_701_457, -969_051_996],
+    },
+];

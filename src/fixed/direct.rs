@@ -355,6 +355,20 @@ impl<const N: usize> DirectCascade<N> {
     }
 }
 
+/// `true` when this build runs [`DirectCascade::process`] and
+/// [`DirectCascade::process_in_place`] for `sections` sections through the Cortex-M kernels
+/// (`N` = 1..=4 on a hard-float Arm bare-metal target), `false` when it runs the portable Rust
+/// code. Both compute the same bits.
+#[must_use]
+pub const fn uses_kernel(sections: usize) -> bool {
+    cfg!(all(
+        target_arch = "arm",
+        target_abi = "eabihf",
+        target_os = "none"
+    )) && sections >= 1
+        && sections <= 4
+}
+
 /// Poles strictly inside the unit circle: `|a2| < 1` and `|a1| < 1 + a2`, in Q2.30 integers.
 fn stable(neg_a: [i32; 2]) -> bool {
     let [na1, na2] = neg_a.map(i64::from);

@@ -19,7 +19,9 @@ use serde::{Deserialize, Serialize};
 
 use super::{plan_error, MAX_IMPULSE, TARGET};
 use crate::error::{Error, Result};
-use crate::fixed::direct::{DirectCascade, DirectSection, DirectState, COEFFICIENT_BITS};
+use crate::fixed::direct::{
+    DirectCascade, DirectSection, DirectState, COEFFICIENT_BITS, MAX_COEFFICIENT_SUM,
+};
 use crate::inverse::Design;
 
 /// One section of a direct-form plan: the board's integers and the bounds behind them.
@@ -177,9 +179,20 @@ impl DirectPlan {
                     "section {k}: the L1 bound is not finite and positive"
                 )));
             }
+            // The accumulator's bound: the coefficient magnitudes must sum below 2^32 (with
+            // room for the rounding of the numerator), which caps the numerator's scale.
+            let room = (MAX_COEFFICIENT_SUM as f64
+                - 16.0
+                - f64::from(neg_a[0].unsigned_abs())
+                - f64::from(neg_a[1].unsigned_abs()))
+                / one;
+            let b_sum = b.iter().map(|v| v.abs()).sum::<f64>();
+            let lambda_max = room / b_sum;
             let lambda = if k == last {
                 l1_gain = out_l1 / scale_in;
+                // Output scale 2^-e of the whole cascade, no larger than the cap allows.
                 let e = -(TARGET / l1_gain).log2().floor();
+                let e = e.max(-(lambda_max * scale_in).log2().floor());
                 if !e.is_finite() || e.abs() > 60.0 {
                     return Err(plan_error(format!("L1 gain {l1_gain:e} out of range")));
                 }
@@ -190,7 +203,7 @@ impl DirectPlan {
                 }
                 (-e).exp2() / scale_in
             } else {
-                TARGET / out_l1
+                (TARGET / out_l1).min(lambda_max)
             };
             // The numerator, DC-matched to the quantised denominator.
             let t = b.map(|v| v * lambda * one);

@@ -4,10 +4,12 @@
 # direct call and tail branch from the out-of-line per-sample functions (`call_unlag<K>`, one
 # sample with state by reference, and `block_unlag<K>`, a block, for K = 1, 2, 4 sections; mangled
 # names, one per instantiation), the same for the fixed-point compensator of issue 4
-# (`call_fixed<K>`, `block_fixed<K>`), the nonlinear-damping correction (`call_nonlinear`), the
+# (`call_fixed<K>`, `block_fixed<K>`) and of its direct form (`call_direct<K>`,
+# `block_direct<K>`), the nonlinear-damping correction (`call_nonlinear`), the
 # temperature bank (`call_bank`, `bank_temperature`), from the Cortex-M assembly kernels of the f32 cascade
 # (`unlag_m4_cascade_call_N`, `unlag_m4_cascade_block_N`, N = 1..4, which the f32 calls
-# branch to) and of the fixed-point cascade (`unlag_m4_fixed_process`), and from the blob parser (`parse_blob`), and
+# branch to) and of the fixed-point cascades (`unlag_m4_fixed_process`, `unlag_m4_direct_call_N`,
+# `unlag_m4_direct_block_N`), and from the blob parser (`parse_blob`), and
 # fails if any path reaches a panic symbol or an indirect call it cannot follow.
 #   bash .ci/no-panic.sh [ELF]     (default: builds the example first)
 # NO_PANIC_ROOTS=<regex on mangled names> checks other functions instead. As a negative control
@@ -49,7 +51,7 @@ for line in open(sys.argv[1]):
     if re.search(r"\s(blx|bx)\s+r(?!14)\d", line) or re.search(r"\smov\s+pc,", line):
         indirect[cur].append(line.strip())
 panic = re.compile(r"panic|unwrap_failed|expect_failed|rust_begin_unwind|slice_(start_|end_)?index|bounds_check|unreachable|abort|HardFault", re.I)
-root_re = os.environ.get("NO_PANIC_ROOTS", r"\d((call|block)_(unlag|fixed)|call_nonlinear|call_bank|bank_temperature|parse_blob)17h[0-9a-f]{16}E$|^unlag_m4_\w+$")
+root_re = os.environ.get("NO_PANIC_ROOTS", r"\d((call|block)_(unlag|fixed|direct)|call_nonlinear|call_bank|bank_temperature|parse_blob)17h[0-9a-f]{16}E$|^unlag_m4_\w+$")
 roots = sorted(f for f in edges if re.search(root_re, f))
 if not roots:
     sys.exit("no-panic: no call_unlag/block_unlag function in the ELF (inlined or renamed?)")

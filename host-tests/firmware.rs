@@ -205,6 +205,76 @@ fn host_fixed_outputs() -> Vec<u32> {
         .collect()
 }
 
+#[allow(dead_code)]
+mod direct {
+    include!("../examples/data/board_direct.rs");
+}
+
+/// Block lengths of `examples/board_replay.rs`'s block runs.
+const CHUNKS: [usize; 12] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 64, 100];
+
+/// The host's lines for one direct-form run of `examples/board_replay.rs` (`DH <name> K=<k>
+/// call <hash> overflows=<n>` and `DH <name> K=<k> block <hash>`), with the portable code.
+fn host_direct<const K: usize>(
+    name: &str,
+    sections: &[unlag::fixed::direct::DirectSection],
+    input: &[i32],
+) -> [String; 2] {
+    use unlag::fixed::direct::{DirectCascade, DirectState};
+    let c = DirectCascade::<K>::new(&sections[..K]).expect("valid sections");
+    let mut state = DirectState::<K>::default();
+    let mut overflows = 0u32;
+    let mut bits = Vec::new();
+    for &x in input {
+        let y = c.process_portable(&mut state, x);
+        let flag = state.take_overflow();
+        overflows += u32::from(flag);
+        bits.extend([y as u32, u32::from(flag)]);
+    }
+    let call = format!(
+        "DH {name} K={K} call {:016x} overflows={overflows}",
+        fnv1a(bits.into_iter())
+    );
+    let mut buf = input.to_vec();
+    let mut state = DirectState::<K>::default();
+    let mut flags = Vec::new();
+    let mut rest = &mut buf[..];
+    for n in CHUNKS.iter().cycle().take(64) {
+        let (head, tail) = rest.split_at_mut((*n).min(rest.len()));
+        c.process_in_place_portable(&mut state, head);
+        flags.push(u32::from(state.take_overflow()));
+        rest = tail;
+    }
+    c.process_in_place_portable(&mut state, rest);
+    flags.push(u32::from(state.take_overflow()));
+    let block = format!(
+        "DH {name} K={K} block {:016x}",
+        fnv1a(buf.iter().map(|v| *v as u32).chain(flags))
+    );
+    [call, block]
+}
+
+/// Every direct-form line the board must print, from the host's portable code.
+fn host_direct_lines() -> Vec<String> {
+    let code = |y: f32| (f64::from(y) / direct::FULL_SCALE * 2_147_483_648.0).round() as i32;
+    let trace: Vec<i32> = trace::TRACE.iter().map(|&y| code(y)).collect();
+    let stress: Vec<i32> = (0..stress::STRESS_LEN).map(stress::stress_input).collect();
+    let (s, st) = (&direct::SECTIONS_M8, &stress::DIRECT_STRESS_SECTIONS);
+    [
+        host_direct::<1>("trace", s, &trace),
+        host_direct::<2>("trace", s, &trace),
+        host_direct::<3>("trace", s, &trace),
+        host_direct::<4>("trace", s, &trace),
+        host_direct::<1>("stress", st, &stress),
+        host_direct::<2>("stress", st, &stress),
+        host_direct::<3>("stress", st, &stress),
+        host_direct::<4>("stress", st, &stress),
+    ]
+    .into_iter()
+    .flatten()
+    .collect()
+}
+
 #[test]
 fn board_replay_in_qemu_is_bit_identical_to_the_host() {
     if let Some(reason) = missing_tools() {
@@ -318,6 +388,39 @@ fn board_replay_in_qemu_is_bit_identical_to_the_host() {
             .filter(|l| l.starts_with("STRESS"))
             .collect::<Vec<_>>()
             .join("\n")
+    );
+    // The direct-form kernels (1 to 4 sections, per call and in blocks of the lengths in
+    // CHUNKS, on the planned sections and on sections that saturate) against the portable code.
+    for k in 1..=4 {
+        for name in ["trace", "stress"] {
+            assert!(
+                stdout.contains(&format!("DKERNEL {name} K={k} asm")),
+                "the board build does not run the direct-form kernel for {k} sections:\n{stdout}"
+            );
+        }
+    }
+    let direct_lines = host_direct_lines();
+    for want in &direct_lines {
+        assert!(
+            stdout.lines().any(|l| l == want),
+            "direct form: the board differs from the host (host: {want}):\n{}",
+            stdout
+                .lines()
+                .filter(|l| l.starts_with("DH "))
+                .collect::<Vec<_>>()
+                .join("\n")
+        );
+    }
+    let stress_overflows: Vec<u32> = direct_lines
+        .iter()
+        .filter(|l| l.starts_with("DH stress") && l.contains(" call "))
+        .map(|l| l.rsplit_once('=').unwrap().1.parse().unwrap())
+        .collect();
+    assert!(
+        stress_overflows
+            .iter()
+            .all(|&n| n > 10 && (n as usize) < stress::STRESS_LEN - 100),
+        "the direct-form stress case must saturate sometimes, not always: {stress_overflows:?}"
     );
     assert!(stdout.contains("DONE ok"), "{stdout}");
     // The reconstruction is a real one: it falls with the step like the trace does.

@@ -247,7 +247,9 @@ fn main() {
             cascade.process(&mut st, 0);
             steps += 1;
         }
-        direct_rows.push(direct_row(c, &design, &y, &reference, walk, &mut rng));
+        // The direct form's own random walk (its own generator: the normal form's figures
+        // above stay those of the same signals as before).
+        direct_rows.push(direct_row(c, &design, &y, &reference, walk, &mut Rng(11)));
         let forms: Vec<&str> = plan.sections.iter().map(|s| s.form.as_str()).collect();
         println!(
             "| {} | {} ({}) | {:.2} | {:.1} dB | {} | {:.1} dB | {:.0e}, {} | {}{} ({}) |",
@@ -269,12 +271,49 @@ fn main() {
     println!("Direct form I with first-order error feedback (`unlag::fixed::direct`, `DirectPlan`), same signals:");
     println!();
     println!(
-        "| case | headroom (bits, L1 bound incl. error feedback) | SNR direct-form sections vs f64 | full-scale random walk: samples, overflows | zero input after full-scale excitation: samples until the outputs are zero; largest output code left after 10^6 samples |"
+        "| case | headroom (bits, L1 bound incl. error feedback) | SNR direct-form sections vs f64 | SNR same integers, plain truncation (no error feedback) vs f64 | full-scale random walk: samples, overflows | zero input after full-scale excitation: samples until the outputs are zero; largest output code left after 10^6 samples |"
     );
-    println!("|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|");
     for r in direct_rows {
         println!("{r}");
     }
+}
+
+/// The direct form's integers without error feedback: every accumulator starts at zero and
+/// is truncated towards minus infinity (`>> 30`), wrapping. Starts in the same rounded
+/// equilibrium as the plan's run.
+fn plain_truncation(plan: &DirectPlan, y: &[f64]) -> Vec<f64> {
+    let sections = plan.board_sections();
+    let first = i64::from(plan.to_code(y[0]).0);
+    let mut x = [first; 2];
+    let mut v = first as f64;
+    let mut hist: Vec<[i64; 2]> = sections
+        .iter()
+        .map(|s| {
+            let b: f64 = s.b.iter().map(|&c| f64::from(c)).sum();
+            let a = (1u64 << 30) as f64 - s.neg_a.iter().map(|&c| f64::from(c)).sum::<f64>();
+            v = (v * b / a).floor();
+            [v as i64; 2]
+        })
+        .collect();
+    y.iter()
+        .map(|&p| {
+            let x0 = i64::from(plan.to_code(p).0);
+            let (mut v0, mut v1, mut v2) = (x0, x[0], x[1]);
+            x = [x0, x[0]];
+            for (s, h) in sections.iter().zip(hist.iter_mut()) {
+                let b = s.b.map(i64::from);
+                let na = s.neg_a.map(i64::from);
+                let acc = (b[0] * v0 + b[1] * v1 + b[2] * v2)
+                    .wrapping_add(na[0] * h[0])
+                    .wrapping_add(na[1] * h[1]);
+                let yv = i64::from((acc >> 30) as i32);
+                (v0, v1, v2) = (yv, h[0], h[1]);
+                *h = [yv, h[0]];
+            }
+            plan.from_code(v0 as i32)
+        })
+        .collect()
 }
 
 /// The direct-form row of one case: plan, SNR on the same signal, overflow count on a
@@ -289,10 +328,11 @@ fn direct_row(
 ) -> String {
     let plan = match DirectPlan::new(design, FULL_SCALE) {
         Ok(p) => p,
-        Err(e) => return format!("| {} | plan refused: {e} ||||", c.name),
+        Err(e) => return format!("| {} | plan refused: {e} |||||", c.name),
     };
     let run = plan.run(y).expect("direct run");
     let snr = snr_db(reference, &run.u_hat);
+    let snr_plain = snr_db(reference, &plain_truncation(&plan, y));
     let cascade = DirectCascade::<8>::new(&plan.board_sections()).expect("direct cascade");
     let mut st = DirectState::<8>::default();
     let mut x: i64 = 0;
@@ -332,7 +372,7 @@ fn direct_row(
         _ => format!("never (limit cycle); {left}"),
     };
     format!(
-        "| {} | {:.2} | {:.1} dB | {:.0e}, {} | {} |",
-        c.name, plan.headroom_bits, snr, walk as f64, overflows, quiet
+        "| {} | {:.2} | {:.1} dB | {:.1} dB | {:.0e}, {} | {} |",
+        c.name, plan.headroom_bits, snr, snr_plain, walk as f64, overflows, quiet
     )
 }

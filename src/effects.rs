@@ -1092,6 +1092,9 @@ pub fn at_temperature(
             if let Some(p) = &d.fixed {
                 nd.fixed = Some(crate::quantise::FixedPlan::new(&nd, p.full_scale)?);
             }
+            if let Some(p) = &d.fixed_direct {
+                nd.fixed_direct = Some(crate::quantise::DirectPlan::new(&nd, p.full_scale)?);
+            }
             Some(nd)
         }
         None => None,

@@ -162,6 +162,9 @@ pub struct Design {
     /// scaling and headroom for the ADC's full scale.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fixed: Option<crate::quantise::FixedPlan>,
+    /// The direct-form fixed-point version (`--fixed-form direct`), instead of `fixed`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_direct: Option<crate::quantise::DirectPlan>,
     /// The noise both channels showed, as the design used it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise: Option<optimal::NoiseModel>,
@@ -601,6 +604,7 @@ pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
         candidates: Vec::new(),
         reconstruction: Vec::new(),
         fixed: None,
+        fixed_direct: None,
         noise: None,
         prior: None,
         budget: None,

@@ -28,6 +28,23 @@ use crate::inverse::Design;
 mod direct;
 pub use direct::{DirectPlan, DirectPlanSection};
 
+/// Which fixed-point form the board runs: the choice between the guarantees of the normal
+/// form and the instruction budget of the direct form (the trade table is in BENCHMARKS.md,
+/// "Fixed point: the two forms").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FixedForm {
+    /// Normal (coupled) state-space sections, [`FixedPlan`] and [`crate::fixed::FixedCascade`]:
+    /// no limit cycles, every state saturates with the flag, 100 dB at fs/fn = 1000; about
+    /// 115 instructions a sample for m = 4 on a Cortex-M4. The default.
+    #[default]
+    Normal,
+    /// Direct-form-I sections with first-order error feedback, [`DirectPlan`] and
+    /// [`crate::fixed::direct::DirectCascade`]: about 34 instructions a sample for m = 4;
+    /// limit cycles of a few codes not excluded, about 90 dB at fs/fn = 1000.
+    Direct,
+}
+
 /// Largest value, as a fraction of the `i32` range, any state or output may reach by the L1
 /// bound: one bit of headroom.
 pub const TARGET: f64 = 0.5;

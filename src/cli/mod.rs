@@ -146,6 +146,30 @@ pub struct InverseArgs {
     /// fixed-point compensator). Default: the largest |y| of the tests, plus 25 %.
     #[arg(long, value_name = "FS")]
     pub full_scale: Option<f64>,
+    /// The fixed-point form: `normal` (coupled sections: no limit cycles, 100 dB at
+    /// fs/fn = 1000, about 115 instructions a sample for m = 4 on a Cortex-M4) or `direct`
+    /// (direct form I with error feedback: about 34, limit cycles of a few codes possible,
+    /// about 90 dB at fs/fn = 1000). See BENCHMARKS.md, "Fixed point: the two forms".
+    #[arg(long, value_enum, default_value_t = FixedFormArg::Normal)]
+    pub fixed_form: FixedFormArg,
+}
+
+/// Fixed-point form on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FixedFormArg {
+    /// Normal (coupled) state-space sections (`unlag::fixed::FixedCascade`).
+    Normal,
+    /// Direct-form-I sections with error feedback (`unlag::fixed::direct::DirectCascade`).
+    Direct,
+}
+
+impl From<FixedFormArg> for crate::quantise::FixedForm {
+    fn from(v: FixedFormArg) -> Self {
+        match v {
+            FixedFormArg::Normal => Self::Normal,
+            FixedFormArg::Direct => Self::Direct,
+        }
+    }
 }
 
 /// Low-pass family on the command line.
@@ -176,8 +200,17 @@ impl InverseArgs {
                 }
             }
         };
-        match crate::quantise::FixedPlan::new(design, full_scale) {
-            Ok(plan) => design.fixed = Some(plan),
+        let planned = match crate::quantise::FixedForm::from(self.fixed_form) {
+            crate::quantise::FixedForm::Normal => {
+                crate::quantise::FixedPlan::new(design, full_scale).map(|p| design.fixed = Some(p))
+            }
+            crate::quantise::FixedForm::Direct => {
+                crate::quantise::DirectPlan::new(design, full_scale)
+                    .map(|p| design.fixed_direct = Some(p))
+            }
+        };
+        match planned {
+            Ok(()) => {}
             // A full scale the user gave that makes no sense is their error.
             Err(e @ Error::InvalidArgument { .. }) => return Err(e),
             Err(e) => crate::errln!("warning: no fixed-point compensator: {e}"),
@@ -975,6 +1008,17 @@ fn print_inverse(d: &inverse::Design, fs: f64) {
             forms.join(", ")
         );
     }
+    if let Some(p) = &d.fixed_direct {
+        crate::outln!(
+            "  fixed point (direct form with error feedback): inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {:.3}; headroom {:.2} bits by the L1 bound (no overflow possible); {} sections",
+            p.full_scale,
+            p.full_scale,
+            p.output_exponent,
+            p.l1_gain,
+            p.headroom_bits,
+            p.sections.len()
+        );
+    }
     if let Some(b) = &d.budget {
         crate::outln!(
             "  predicted error of u_hat (RMS, pressure units): {:.4} = noise {:.4} + band limit {:.4} (in quadrature); a noisy reference adds {:.4}",
@@ -1455,6 +1499,21 @@ fn warn_if_worse(args: &CompensateArgs, error: Option<(f64, f64, usize)>) {
 
 /// The fixed-point compensator on the trace, refusing to hide a saturation.
 fn run_fixed(d: &inverse::Design, model: &Path, trace: &Trace, y: &[f64]) -> Result<Vec<f64>> {
+    if let Some(plan) = &d.fixed_direct {
+        let run = plan.run(y)?;
+        if run.clipped_inputs > 0 {
+            crate::errln!(
+                "warning: {} samples of {} lie outside the fixed-point full scale +-{} and were clamped",
+                run.clipped_inputs,
+                trace.path.display(),
+                plan.full_scale
+            );
+        }
+        if run.overflowed {
+            crate::errln!("warning: the fixed-point compensator saturated (overflow flag set)");
+        }
+        return Ok(run.u_hat);
+    }
     let plan = d.fixed.as_ref().ok_or_else(|| Error::InvalidArgument {
         what: "--arithmetic",
         message: format!(

@@ -96,6 +96,7 @@ pub fn delay_only(model: &Model) -> Result<Design> {
         candidates: Vec::new(),
         reconstruction: Vec::new(),
         fixed: None,
+        fixed_direct: None,
         noise: None,
         prior: None,
         budget: None,

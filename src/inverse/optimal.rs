@@ -1193,6 +1193,7 @@ fn design_for(
         candidates: Vec::new(),
         reconstruction: Vec::new(),
         fixed: None,
+        fixed_direct: None,
         noise: Some(*noise),
         prior: Some(*prior),
         budget: Some(full_budget),

@@ -500,3 +500,146 @@ fn direct_form_accuracy_at_three_sample_rates() {
         assert!(snr > min_db, "fs/fn {}: SNR {snr:.1} dB", fs / f_n);
     }
 }
+
+#[test]
+fn the_direct_form_is_chosen_on_the_command_line_and_runs_bit_exact() {
+    let dir = std::env::temp_dir().join(format!("unlag-direct-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model = dir.join("model.toml");
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_unlag"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let unlag = |args: &[&str]| {
+        let o = run(args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/host-tests/data/line_est.csv");
+    let val = concat!(env!("CARGO_MANIFEST_DIR"), "/host-tests/data/line_val.csv");
+    let m = model.to_str().unwrap();
+    let printed = unlag(&[
+        "fit",
+        data,
+        val,
+        "-o",
+        m,
+        "--order",
+        "2",
+        "--full-scale",
+        "4",
+        "--fixed-form",
+        "direct",
+    ]);
+    assert!(
+        printed.contains("direct form with error feedback"),
+        "{printed}"
+    );
+    let file = unlag::model::ModelFile::load(&model).unwrap();
+    let design = file.inverse.unwrap();
+    assert!(design.fixed.is_none());
+    let plan = design.fixed_direct.unwrap();
+    assert_eq!(plan.full_scale, 4.0);
+    // compensate --arithmetic fixed runs the stored direct plan.
+    let out = dir.join("u.csv");
+    unlag(&[
+        "compensate",
+        m,
+        val,
+        "-o",
+        out.to_str().unwrap(),
+        "--arithmetic",
+        "fixed",
+    ]);
+    let trace =
+        unlag::trace::Trace::read(std::path::Path::new(val), &unlag::trace::Columns::default())
+            .unwrap();
+    let expected = plan.run(&trace.y).unwrap().u_hat;
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "u_hat").unwrap();
+    let got: Vec<f64> = lines
+        .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(got.len(), expected.len());
+    for (g, e) in got.iter().zip(&expected) {
+        assert!(
+            (g - e).abs() <= 1e-12 * e.abs().max(1e-300) + 1e-15,
+            "{g} vs {e}"
+        );
+    }
+    // export: the stored form by default, in Rust and C; the blob has no direct layout yet.
+    let rs = dir.join("c.rs");
+    unlag(&[
+        "export",
+        m,
+        "--format",
+        "rust",
+        "--number-format",
+        "fixed",
+        "-o",
+        rs.to_str().unwrap(),
+    ]);
+    let text = std::fs::read_to_string(&rs).unwrap();
+    assert!(
+        text.contains("unlag::fixed::direct::DirectSection { b: ["),
+        "{text}"
+    );
+    for s in &plan.board_sections() {
+        assert!(text.contains(&format!("b: {:?}, neg_a: {:?}", s.b, s.neg_a)));
+    }
+    let h = dir.join("c.h");
+    unlag(&[
+        "export",
+        m,
+        "--format",
+        "c",
+        "--number-format",
+        "fixed",
+        "--fixed-form",
+        "direct",
+        "-o",
+        h.to_str().unwrap(),
+    ]);
+    assert!(std::fs::read_to_string(&h)
+        .unwrap()
+        .contains("unlag_direct_sections"));
+    let bin = dir.join("c.bin");
+    let o = run(&[
+        "export",
+        m,
+        "--format",
+        "bin",
+        "--number-format",
+        "fixed",
+        "-o",
+        bin.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success() && !bin.exists());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("direct form"));
+    // --fixed-form normal on the same model plans the normal form anew.
+    let o = run(&[
+        "export",
+        m,
+        "--format",
+        "bin",
+        "--number-format",
+        "fixed",
+        "--fixed-form",
+        "normal",
+        "--full-scale",
+        "4",
+        "-o",
+        bin.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let _ = std::fs::remove_dir_all(&dir);
+}

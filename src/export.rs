@@ -12,7 +12,9 @@
 //!
 //! All three carry the same `f32` values, so a board gets bit-identical coefficients whichever
 //! way they arrive. With [`NumberFormat::Fixed`] the same three forms carry the fixed-point
-//! compensator of [`crate::fixed`] (the integers of [`crate::quantise::FixedPlan`]). The output file is written atomically. Every section is
+//! compensator of [`crate::fixed`] (the integers of [`crate::quantise::FixedPlan`]), and with
+//! [`NumberFormat::FixedDirect`] the Rust and C forms carry its direct form
+//! ([`crate::quantise::DirectPlan`]). The output file is written atomically. Every section is
 //! `[b0, b1, b2, a1, a2]` in the crate's sign convention (see [`crate::compensator`]);
 //! CMSIS-DSP's biquad functions want `a1`, `a2` negated, which the C header says.
 //!
@@ -28,9 +30,10 @@ pub mod verify;
 use crate::blob;
 use crate::compensator::{CascadeCoefficients, NonlinearDampingCoefficients};
 use crate::error::{Error, Result};
+use crate::fixed::direct::{DirectCascade, DirectSection};
 use crate::fixed::{FixedCascade, FixedSection};
 use crate::model::ModelFile;
-use crate::quantise::FixedPlan;
+use crate::quantise::{DirectPlan, FixedPlan};
 use crate::trace::write_atomically;
 
 /// Largest section count `unlag export` writes (a 32nd-order compensator).
@@ -635,6 +638,207 @@ impl FixedBoardCoefficients {
     }
 }
 
+/// The board's direct-form fixed-point compensator as exported (`--number-format fixed
+/// --fixed-form direct`): the integer sections of [`crate::quantise::DirectPlan`], validated as
+/// the board validates them. Rust and C only: the coefficient blob has no layout for the
+/// direct form yet.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DirectBoardCoefficients {
+    /// Sample rate in Hz the coefficients belong to.
+    pub sample_rate_hz: f64,
+    /// The model's delay in samples.
+    pub delay_samples: u32,
+    /// Latency of the reconstruction behind the true pressure, in samples (from the design).
+    pub latency_samples: f64,
+    /// ADC full scale in the probe's units: the input code `2^31`.
+    pub full_scale: f64,
+    /// The output is Q1.31 of `full_scale * 2^output_exponent`.
+    pub output_exponent: i32,
+    /// The sections.
+    pub sections: Vec<DirectSection>,
+}
+
+impl DirectBoardCoefficients {
+    /// Takes the direct-form plan of the model file's `[inverse]` design, or plans one for
+    /// `full_scale` when it is given (it replaces a stored plan).
+    ///
+    /// # Errors
+    /// [`Error::UnsupportedOnBoard`] when the model has nonlinear damping; [`Error::Model`]
+    /// naming `path` when there is no design, no direct-form plan and no full scale, or the
+    /// sections are refused by the board's validation; the planner's errors.
+    pub fn from_model_file(file: &ModelFile, path: &Path, full_scale: Option<f64>) -> Result<Self> {
+        check_fixed_point(file, path)?;
+        let bad = |message: String| Error::Model {
+            path: path.to_path_buf(),
+            message,
+        };
+        let Some(design) = &file.inverse else {
+            return Err(bad(
+                "no [inverse] compensator design to export (run `unlag invert` first)".into(),
+            ));
+        };
+        design.check_exportable()?;
+        let plan = match (full_scale, &design.fixed_direct) {
+            (Some(f), _) => DirectPlan::new(design, f)?,
+            (None, Some(p)) => p.clone(),
+            (None, None) => {
+                return Err(bad(
+                    "no direct-form fixed-point plan in the model file: give --full-scale (the ADC's full scale in the probe's units)".into(),
+                ))
+            }
+        };
+        let sections = plan.board_sections();
+        if sections.is_empty() || sections.len() > MAX_EXPORT_SECTIONS {
+            return Err(bad(format!(
+                "the direct-form compensator has {} sections; export needs 1 to {MAX_EXPORT_SECTIONS}",
+                sections.len()
+            )));
+        }
+        DirectCascade::<MAX_EXPORT_SECTIONS>::new(&sections)
+            .map_err(|e| bad(format!("the direct-form sections are not valid: {e}")))?;
+        let fs = file.model.fs;
+        if !(fs.is_finite() && fs > 0.0) {
+            return Err(bad(format!(
+                "sample rate {fs} Hz is not finite and positive"
+            )));
+        }
+        let delay_samples = u32::try_from(file.model.delay).map_err(|_| {
+            bad(format!(
+                "delay {} does not fit in 32 bits",
+                file.model.delay
+            ))
+        })?;
+        Ok(Self {
+            sample_rate_hz: fs,
+            delay_samples,
+            latency_samples: design.latency_samples,
+            full_scale: plan.full_scale,
+            output_exponent: plan.output_exponent,
+            sections,
+        })
+    }
+
+    /// Rust source: `const` items, with the sections as `unlag::fixed::direct::DirectSection`.
+    #[must_use]
+    pub fn to_rust(&self, source: &str) -> String {
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "// Generated by `unlag export --format rust --number-format fixed --fixed-form direct` from {source} (unlag {}). Do not edit.",
+            env!("CARGO_PKG_VERSION")
+        );
+        s.push_str(
+            "// The board's direct-form fixed-point compensator: input codes are Q1.31 of FULL_SCALE,\n\
+             // outputs Q1.31 of FULL_SCALE * 2^OUTPUT_EXPONENT. Build it with\n\
+             // `unlag::fixed::direct::DirectCascade::<SECTION_COUNT>::new(&SECTIONS)`.\n",
+        );
+        let _ = writeln!(s, "/// Sample rate in Hz the coefficients belong to.\npub const SAMPLE_RATE_HZ: f64 = {:?};", self.sample_rate_hz);
+        let _ = writeln!(
+            s,
+            "/// The probe model's delay in samples.\npub const DELAY_SAMPLES: u32 = {};",
+            self.delay_samples
+        );
+        let _ = writeln!(s, "/// Latency of the reconstruction behind the true pressure, in samples.\npub const LATENCY_SAMPLES: f64 = {:?};", self.latency_samples);
+        let _ = writeln!(s, "/// ADC full scale in the probe's units: the input code 2^31.\npub const FULL_SCALE: f64 = {:?};", self.full_scale);
+        let _ = writeln!(s, "/// The output is Q1.31 of FULL_SCALE * 2^OUTPUT_EXPONENT.\npub const OUTPUT_EXPONENT: i32 = {};", self.output_exponent);
+        let _ = writeln!(
+            s,
+            "/// Number of sections.\npub const SECTION_COUNT: usize = {};",
+            self.sections.len()
+        );
+        s.push_str("/// The sections.\npub const SECTIONS: [unlag::fixed::direct::DirectSection; SECTION_COUNT] = [\n");
+        for f in &self.sections {
+            let _ = writeln!(
+                s,
+                "    unlag::fixed::direct::DirectSection {{ b: {:?}, neg_a: {:?} }},",
+                f.b, f.neg_a
+            );
+        }
+        s.push_str("];\n");
+        s
+    }
+
+    /// A C header with `int32_t` sections.
+    #[must_use]
+    pub fn to_c(&self, source: &str) -> String {
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "/* Generated by `unlag export --format c --number-format fixed --fixed-form direct` from {source} (unlag {}). Do not edit.",
+            env!("CARGO_PKG_VERSION")
+        );
+        for line in [
+            " * Direct-form-I sections with first-order error feedback, per sample and section (x the",
+            " * section input, y its output, e the residual carried, all int32, 64-bit accumulator):",
+            " *   acc = e + b0 x0 + b1 x1 + b2 x2 + na1 y1 + na2 y2      (na = -a: the NEGATED denominator)",
+            " *   y = acc >> 30 (floor; high word saturated to 30 bits), e = acc & (2^30 - 1);",
+            " * see unlag::fixed::direct for the exact arithmetic. Input: Q1.31 of UNLAG_FULL_SCALE;",
+            " * output: Q1.31 of UNLAG_FULL_SCALE * 2^UNLAG_OUTPUT_EXPONENT. */",
+        ] {
+            s.push_str(line);
+            s.push('\n');
+        }
+        s.push_str("#ifndef UNLAG_DIRECT_COEFFICIENTS_H\n#define UNLAG_DIRECT_COEFFICIENTS_H\n\n#include <stdint.h>\n\n");
+        let _ = writeln!(
+            s,
+            "#define UNLAG_SAMPLE_RATE_HZ {:?} /* Hz */",
+            self.sample_rate_hz
+        );
+        let _ = writeln!(
+            s,
+            "#define UNLAG_DELAY_SAMPLES {}u /* model delay, samples */",
+            self.delay_samples
+        );
+        let _ = writeln!(
+            s,
+            "#define UNLAG_LATENCY_SAMPLES {:?} /* reconstruction latency, samples */",
+            self.latency_samples
+        );
+        let _ = writeln!(
+            s,
+            "#define UNLAG_FULL_SCALE {:?} /* input code 2^31 */",
+            self.full_scale
+        );
+        let _ = writeln!(s, "#define UNLAG_OUTPUT_EXPONENT {}", self.output_exponent);
+        let _ = writeln!(s, "#define UNLAG_SECTION_COUNT {}u\n", self.sections.len());
+        s.push_str("/* {b0, b1, b2, -a1, -a2} per section, Q2.30 */\n");
+        s.push_str("static const int32_t unlag_direct_sections[UNLAG_SECTION_COUNT][5] = {\n");
+        for f in &self.sections {
+            let v: Vec<String> =
+                f.b.iter()
+                    .chain(&f.neg_a)
+                    .map(|x| {
+                        if *x == i32::MIN {
+                            "INT32_MIN".to_string()
+                        } else {
+                            x.to_string()
+                        }
+                    })
+                    .collect();
+            let _ = writeln!(s, "    {{{}}},", v.join(", "));
+        }
+        s.push_str("};\n\n#endif /* UNLAG_DIRECT_COEFFICIENTS_H */\n");
+        s
+    }
+
+    /// The file's bytes in `format`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for [`Format::Bin`]: the blob has no direct-form layout yet.
+    pub fn render(&self, format: Format, source: &str) -> Result<Vec<u8>> {
+        match format {
+            Format::Rust => Ok(self.to_rust(source).into_bytes()),
+            Format::C => Ok(self.to_c(source).into_bytes()),
+            Format::Bin => Err(Error::InvalidArgument {
+                what: "--format",
+                message: "the coefficient blob has no layout for the direct form yet: export it \
+                          with --format rust or c, or the normal form as bin"
+                    .into(),
+            }),
+        }
+    }
+}
+
 /// The board's number format for [`export_with`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum NumberFormat {
@@ -642,6 +846,12 @@ pub enum NumberFormat {
     F32,
     /// Fixed point: the model file's plan, or a new one for this full scale.
     Fixed {
+        /// ADC full scale in the probe's units; `None` takes the plan stored in the model file.
+        full_scale: Option<f64>,
+    },
+    /// Fixed point in the direct form ([`DirectBoardCoefficients`]): the model file's plan, or
+    /// a new one for this full scale. Rust and C only.
+    FixedDirect {
         /// ADC full scale in the probe's units; `None` takes the plan stored in the model file.
         full_scale: Option<f64>,
     },
@@ -721,6 +931,19 @@ pub fn export_file(
         }
         NumberFormat::Fixed { full_scale } => {
             let c = FixedBoardCoefficients::from_model_file(&file, model, full_scale)?;
+            let bytes = c.render(format, &source)?;
+            let summary = Summary {
+                number_format: "fixed",
+                sample_rate_hz: c.sample_rate_hz,
+                delay_samples: c.delay_samples,
+                latency_samples: c.latency_samples,
+                sections: c.sections.len(),
+                bytes: bytes.len(),
+            };
+            (bytes, summary)
+        }
+        NumberFormat::FixedDirect { full_scale } => {
+            let c = DirectBoardCoefficients::from_model_file(&file, model, full_scale)?;
             let bytes = c.render(format, &source)?;
             let summary = Summary {
                 number_format: "fixed",

@@ -30,6 +30,11 @@ pub struct ExportArgs {
     /// the plan stored by `unlag invert` is used).
     #[arg(long, value_name = "VALUE")]
     pub full_scale: Option<f64>,
+    /// The fixed-point form for `--number-format fixed`: `normal` or `direct` (see `unlag
+    /// invert --fixed-form`). Default: the form of the plan stored in the model file (normal
+    /// when it holds none, or both).
+    #[arg(long, value_enum, value_name = "FORM")]
+    pub fixed_form: Option<super::FixedFormArg>,
     /// Gas temperature (K) the board will measure at: the model (with a `temperature` effect)
     /// is scaled to it through its continuous-time equivalent and the compensator designed
     /// anew; a running board swaps to the new set as a blob.
@@ -92,7 +97,27 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
         }
         (NumberFormatArg::Fixed, full_scale) => NumberFormat::Fixed { full_scale },
     };
+    if args.fixed_form.is_some() && args.number_format != NumberFormatArg::Fixed {
+        return Err(Error::InvalidArgument {
+            what: "--fixed-form",
+            message: "only applies to --number-format fixed".into(),
+        });
+    }
     let file = crate::model::ModelFile::load(&args.model)?;
+    let number_format = match (number_format, args.fixed_form) {
+        (NumberFormat::Fixed { full_scale }, Some(super::FixedFormArg::Direct)) => {
+            NumberFormat::FixedDirect { full_scale }
+        }
+        (NumberFormat::Fixed { full_scale }, None)
+            if file
+                .inverse
+                .as_ref()
+                .is_some_and(|d| d.fixed_direct.is_some() && d.fixed.is_none()) =>
+        {
+            NumberFormat::FixedDirect { full_scale }
+        }
+        (n, _) => n,
+    };
     if let Some(check) = file.inverse.as_ref().and_then(|d| d.check.as_ref()) {
         if check.verdict == crate::inverse::check::Verdict::NotBetter && !args.force {
             return Err(Error::InvalidArgument {

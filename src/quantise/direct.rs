@@ -180,14 +180,17 @@ impl DirectPlan {
                 )));
             }
             // The accumulator's bound: the coefficient magnitudes must sum below 2^32 (with
-            // room for the rounding of the numerator), which caps the numerator's scale.
+            // room for the rounding of the numerator), which caps the numerator's scale (the
+            // section's output then uses less of the i32 range than TARGET).
             let room = (MAX_COEFFICIENT_SUM as f64
                 - 16.0
                 - f64::from(neg_a[0].unsigned_abs())
                 - f64::from(neg_a[1].unsigned_abs()))
                 / one;
             let b_sum = b.iter().map(|v| v.abs()).sum::<f64>();
-            let lambda_max = room / b_sum;
+            // And each numerator coefficient must fit Q2.30.
+            let b_max = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let lambda_max = (room / b_sum).min((f64::from(i32::MAX) - 8.0) / one / b_max);
             let lambda = if k == last {
                 l1_gain = out_l1 / scale_in;
                 // Output scale 2^-e of the whole cascade, no larger than the cap allows.

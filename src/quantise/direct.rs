@@ -344,7 +344,7 @@ mod tests {
 
     #[test]
     fn rounding_to_a_sum_moves_the_cheapest_coefficient() {
-        assert_eq!(round_to_sum([1.4, 2.4, 3.0], 7), [1, 3, 3]);
+        assert_eq!(round_to_sum([1.3, 2.45, 3.0], 7), [1, 3, 3]);
         assert_eq!(round_to_sum([1.6, 2.4, 3.0], 6), [1, 2, 3]);
         assert_eq!(round_to_sum([1.0, 2.0, 3.0], 6), [1, 2, 3]);
     }

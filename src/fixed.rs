@@ -39,6 +39,14 @@
 //!
 //! Integer arithmetic is exact, so the host (`unlag compensate --arithmetic fixed`) computes
 //! bit for bit what the board computes.
+//!
+//! # The cheaper form
+//!
+//! [`direct`] holds the alternative the user can choose (`--fixed-form direct`): direct-form-I
+//! sections with first-order error feedback, about a third of the instructions on a
+//! Cortex-M4, no overflow for planned coefficients and a flag, but limit cycles of a few codes
+//! not excluded and about 90 dB instead of 100 at fs/fn = 1000 (BENCHMARKS.md, "Fixed point:
+//! the two forms"). This form stays the default.
 #![deny(
     clippy::indexing_slicing,
     clippy::unwrap_used,

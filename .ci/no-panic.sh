@@ -9,7 +9,7 @@
 # temperature bank (`call_bank`, `bank_temperature`), from the Cortex-M assembly kernels of the f32 cascade
 # (`unlag_m4_cascade_call_N`, `unlag_m4_cascade_block_N`, N = 1..4, which the f32 calls
 # branch to) and of the fixed-point cascades (`unlag_m4_fixed_process`, `unlag_m4_direct_call_N`,
-# `unlag_m4_direct_block_N`), and from the blob parser (`parse_blob`), and
+# `unlag_m4_direct_block_N`), and from the blob parsers (`parse_blob`, `parse_direct_blob`), and
 # fails if any path reaches a panic symbol or an indirect call it cannot follow.
 #   bash .ci/no-panic.sh [ELF]     (default: builds the example first)
 # NO_PANIC_ROOTS=<regex on mangled names> checks other functions instead. As a negative control
@@ -51,7 +51,7 @@ for line in open(sys.argv[1]):
     if re.search(r"\s(blx|bx)\s+r(?!14)\d", line) or re.search(r"\smov\s+pc,", line):
         indirect[cur].append(line.strip())
 panic = re.compile(r"panic|unwrap_failed|expect_failed|rust_begin_unwind|slice_(start_|end_)?index|bounds_check|unreachable|abort|HardFault", re.I)
-root_re = os.environ.get("NO_PANIC_ROOTS", r"\d((call|block)_(unlag|fixed|direct)|call_nonlinear|call_bank|bank_temperature|parse_blob)17h[0-9a-f]{16}E$|^unlag_m4_\w+$")
+root_re = os.environ.get("NO_PANIC_ROOTS", r"\d((call|block)_(unlag|fixed|direct)|call_nonlinear|call_bank|bank_temperature|parse_blob|parse_direct_blob)17h[0-9a-f]{16}E$|^unlag_m4_\w+$")
 roots = sorted(f for f in edges if re.search(root_re, f))
 if not roots:
     sys.exit("no-panic: no call_unlag/block_unlag function in the ELF (inlined or renamed?)")

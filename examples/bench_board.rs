@@ -134,6 +134,15 @@ mod board {
         unlag::blob::parse(bytes)
     }
 
+    /// The board-side parser of the direct-form blob, out of line so that `.ci/no-panic.sh`
+    /// checks it too.
+    #[inline(never)]
+    fn parse_direct_blob(
+        bytes: &[u8],
+    ) -> Result<unlag::blob::DirectCoefficientSet<4>, unlag::blob::BlobError> {
+        unlag::blob::parse_direct(bytes)
+    }
+
     #[inline(never)]
     fn call_fixed<const K: usize>(c: &FixedCascade<K>, s: &mut FixedState<K>, x: i32) -> i32 {
         c.process(s, x)
@@ -637,6 +646,21 @@ mod board {
         // no-panic check).
         if let Err(e) = parse_blob(black_box(BLOB)) {
             hprintln!("ERROR blob refused: {}", e);
+            debug::exit(debug::EXIT_FAILURE);
+        }
+        // The direct form's blob, written here and parsed back (the parser stays in the ELF).
+        let mut direct_blob = [0u8; unlag::blob::encoded_len_direct(4)];
+        let parsed = unlag::blob::encode_direct(
+            &mut direct_blob,
+            10_000.0,
+            2,
+            direct::FULL_SCALE,
+            direct::OUTPUT_EXPONENT_M8,
+            &direct::SECTIONS_M8,
+        )
+        .and_then(|_| parse_direct_blob(black_box(&direct_blob[..])));
+        if let Err(e) = parsed {
+            hprintln!("ERROR direct-form blob refused: {}", e);
             debug::exit(debug::EXIT_FAILURE);
         }
         let x = &X;

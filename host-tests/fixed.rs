@@ -576,7 +576,7 @@ fn the_direct_form_is_chosen_on_the_command_line_and_runs_bit_exact() {
             "{g} vs {e}"
         );
     }
-    // export: the stored form by default, in Rust and C; the blob has no direct layout yet.
+    // export: the stored form by default, in Rust, C and the blob (number format 2).
     let rs = dir.join("c.rs");
     unlag(&[
         "export",
@@ -623,9 +623,17 @@ fn the_direct_form_is_chosen_on_the_command_line_and_runs_bit_exact() {
         "-o",
         bin.to_str().unwrap(),
     ]);
-    assert!(!o.status.success() && !bin.exists());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("direct form"));
-    // --fixed-form normal on the same model plans the normal form anew.
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let set: unlag::blob::DirectCoefficientSet<8> =
+        unlag::blob::parse_direct(&std::fs::read(&bin).unwrap()).unwrap();
+    assert_eq!(set.sections, plan.sections.len());
+    assert_eq!(set.full_scale, 4.0);
+    assert_eq!(set.output_exponent, plan.output_exponent);
+    assert_eq!(
+        set.cascade,
+        unlag::fixed::direct::DirectCascade::<8>::new(&plan.board_sections()).unwrap()
+    );
+    // --fixed-form normal on the same model plans the normal form anew (number format 1).
     let o = run(&[
         "export",
         m,
@@ -641,5 +649,6 @@ fn the_direct_form_is_chosen_on_the_command_line_and_runs_bit_exact() {
         bin.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(unlag::blob::parse_fixed::<8>(&std::fs::read(&bin).unwrap()).is_ok());
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -50,6 +50,12 @@
 //! bytes: `a11 a12 a21 a22 b1 b2 c1 c2 d` as `i32`, `shift` as `u8` and three zero bytes
 //! (see [`crate::fixed::FixedSection`]); the CRC-32 ends the blob as before.
 //!
+//! With number format 2 (the direct form of the fixed-point compensator, [`parse_direct`],
+//! [`encode_direct`]) the header is the same as for number format 1 (fractional bits
+//! [`crate::fixed::direct::COEFFICIENT_BITS`], output exponent, `f64` full scale) and each
+//! section is 20 bytes: `b0 b1 b2 na1 na2` as `i32`, with `na = -a` **negated** (see
+//! [`crate::fixed::direct::DirectSection`]).
+//!
 //! Sections follow the crate's sign convention (see [`crate::compensator`]):
 //! `y = b0 x + b1 x[k-1] + b2 x[k-2] - a1 y[k-1] - a2 y[k-2]`. The CRC detects every single-bit
 //! error and every burst up to 32 bits; the checks of magic, version, length, number format,
@@ -83,6 +89,7 @@
 use core::fmt;
 
 use crate::compensator::{CascadeCoefficients, InverseError, NonlinearDampingCoefficients};
+use crate::fixed::direct::{DirectCascade, DirectError, DirectSection, COEFFICIENT_BITS};
 use crate::fixed::{FixedCascade, FixedError, FixedSection, STATE_BITS};
 
 /// The first four bytes of every blob.
@@ -114,6 +121,9 @@ pub const FIXED_SECTION_LEN: usize = 40;
 
 /// Bytes of the fixed-point header extension (the `f64` full scale).
 pub const FIXED_EXTRA_LEN: usize = 8;
+
+/// Bytes per direct-form fixed-point section: five `i32`.
+pub const DIRECT_SECTION_LEN: usize = 20;
 
 /// Largest section count the format can carry.
 pub const MAX_SECTIONS: usize = u16::MAX as usize;
@@ -148,6 +158,15 @@ pub const fn encoded_len_fixed(sections: usize) -> usize {
         .saturating_add(CRC_LEN)
 }
 
+/// Length in bytes of a direct-form fixed-point blob with `sections` sections (saturates).
+#[must_use]
+pub const fn encoded_len_direct(sections: usize) -> usize {
+    HEADER_LEN
+        .saturating_add(FIXED_EXTRA_LEN)
+        .saturating_add(sections.saturating_mul(DIRECT_SECTION_LEN))
+        .saturating_add(CRC_LEN)
+}
+
 /// CRC-32/ISO-HDLC of `bytes`, as stored in the blob.
 #[must_use]
 pub fn crc32(bytes: &[u8]) -> u32 {
@@ -167,6 +186,12 @@ pub enum NumberFormat {
         /// Fractional bits of the coefficient format.
         frac_bits: u8,
     },
+    /// The direct form of the fixed-point compensator (code 2):
+    /// [`crate::fixed::direct::DirectCascade`], read by [`parse_direct`].
+    FixedDirect {
+        /// Fractional bits of the coefficient format.
+        frac_bits: u8,
+    },
 }
 
 impl NumberFormat {
@@ -176,6 +201,7 @@ impl NumberFormat {
         match self {
             Self::F32 => 0,
             Self::Fixed { .. } => 1,
+            Self::FixedDirect { .. } => 2,
         }
     }
 }
@@ -242,6 +268,9 @@ pub enum BlobError {
     InvalidFullScale,
     /// The fixed-point sections are refused by [`crate::fixed::FixedCascade::new`].
     InvalidFixedSections(FixedError),
+    /// The direct-form sections are refused by
+    /// [`crate::fixed::direct::DirectCascade::new`].
+    InvalidDirectSections(DirectError),
     /// [`encode`]: the output buffer is shorter than [`encoded_len`].
     BufferTooSmall {
         /// Bytes needed.
@@ -291,6 +320,7 @@ impl fmt::Display for BlobError {
             ),
             Self::InvalidFullScale => write!(f, "full scale is not finite and positive"),
             Self::InvalidFixedSections(e) => write!(f, "invalid fixed-point sections: {e}"),
+            Self::InvalidDirectSections(e) => write!(f, "invalid direct-form sections: {e}"),
         }
     }
 }
@@ -338,6 +368,7 @@ impl defmt::Format for BlobError {
             }
             Self::InvalidFullScale => defmt::write!(f, "InvalidFullScale"),
             Self::InvalidFixedSections(e) => defmt::write!(f, "InvalidFixedSections({})", e),
+            Self::InvalidDirectSections(e) => defmt::write!(f, "InvalidDirectSections({})", e),
         }
     }
 }
@@ -446,6 +477,8 @@ fn header(bytes: &[u8]) -> Result<Header<'_>, BlobError> {
     // measured as f32; its CRC then fails or it is refused by the caller.
     let expected = if format_code == (NumberFormat::Fixed { frac_bits }).code() {
         encoded_len_fixed(sections)
+    } else if format_code == (NumberFormat::FixedDirect { frac_bits }).code() {
+        encoded_len_direct(sections)
     } else if version == FORMAT_VERSION_NONLINEAR {
         encoded_len_nonlinear(sections, usize::from(reserved))
     } else {
@@ -673,6 +706,148 @@ pub fn parse_fixed<const N: usize>(bytes: &[u8]) -> Result<FixedCoefficientSet<N
         output_exponent,
         cascade,
     })
+}
+
+/// A validated direct-form fixed-point coefficient set (number format 2) received from the
+/// host.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DirectCoefficientSet<const N: usize> {
+    /// Sample rate in Hz the coefficients were designed for.
+    pub sample_rate_hz: f64,
+    /// The model's delay in samples.
+    pub delay_samples: u32,
+    /// Sections in use (the rest of the `N` are identities).
+    pub sections: usize,
+    /// The ADC full scale in the probe's units: the input code `2^31`.
+    pub full_scale: f64,
+    /// The output is Q1.31 of `full_scale * 2^output_exponent`.
+    pub output_exponent: i32,
+    /// The compensator, ready for `process(&mut state, code)`.
+    pub cascade: DirectCascade<N>,
+}
+
+impl<const N: usize> DirectCoefficientSet<N> {
+    /// Parses `bytes` and, only if the whole blob is valid, replaces `self` with it; on any
+    /// error `self` is left as it was.
+    ///
+    /// # Errors
+    /// See [`parse_direct`].
+    pub fn update(&mut self, bytes: &[u8]) -> Result<(), BlobError> {
+        *self = parse_direct(bytes)?;
+        Ok(())
+    }
+}
+
+/// Parses and validates a direct-form fixed-point blob (number format 2) for a board with
+/// room for `N` sections: the same header checks as [`parse`], then the fractional bits, the
+/// full scale and every section as [`crate::fixed::direct::DirectCascade::new`] checks it.
+///
+/// # Errors
+/// The first [`BlobError`] found; never panics, whatever the bytes.
+pub fn parse_direct<const N: usize>(bytes: &[u8]) -> Result<DirectCoefficientSet<N>, BlobError> {
+    let mut h = header(bytes)?;
+    let short = BlobError::Truncated {
+        needed: encoded_len_direct(h.sections),
+        got: bytes.len(),
+    };
+    if h.format_code != (NumberFormat::FixedDirect { frac_bits: 0 }).code() {
+        return Err(BlobError::UnsupportedNumberFormat {
+            code: h.format_code,
+        });
+    }
+    if h.version != FORMAT_VERSION {
+        return Err(BlobError::UnsupportedVersion { found: h.version });
+    }
+    if u32::from(h.frac_bits) != COEFFICIENT_BITS {
+        return Err(BlobError::UnsupportedFractionalBits { found: h.frac_bits });
+    }
+    if h.sections > N {
+        return Err(BlobError::TooManySections {
+            sections: h.sections,
+            capacity: N,
+        });
+    }
+    let output_exponent = h.rest.i32().ok_or(short)?;
+    let full_scale = h.rest.f64().ok_or(short)?;
+    if !(full_scale.is_finite() && full_scale > 0.0) {
+        return Err(BlobError::InvalidFullScale);
+    }
+    let mut sections = [DirectSection::IDENTITY; N];
+    for section in sections.iter_mut().take(h.sections) {
+        let mut v = [0i32; 5];
+        for x in &mut v {
+            *x = h.rest.i32().ok_or(short)?;
+        }
+        let [b0, b1, b2, na1, na2] = v;
+        *section = DirectSection {
+            b: [b0, b1, b2],
+            neg_a: [na1, na2],
+        };
+    }
+    let used = sections.get(..h.sections).ok_or(short)?;
+    let cascade = DirectCascade::new(used).map_err(BlobError::InvalidDirectSections)?;
+    Ok(DirectCoefficientSet {
+        sample_rate_hz: h.sample_rate_hz,
+        delay_samples: h.delay_samples,
+        sections: h.sections,
+        full_scale,
+        output_exponent,
+        cascade,
+    })
+}
+
+/// Writes a version-[`FORMAT_VERSION`] direct-form fixed-point blob (number format 2) into
+/// `out` and returns its length ([`encoded_len_direct`]`(sections.len())`).
+///
+/// # Errors
+/// [`BlobError::BufferTooSmall`] when `out` is too short, [`BlobError::TooManySections`] for
+/// more than [`MAX_SECTIONS`] sections.
+pub fn encode_direct(
+    out: &mut [u8],
+    sample_rate_hz: f64,
+    delay_samples: u32,
+    full_scale: f64,
+    output_exponent: i32,
+    sections: &[DirectSection],
+) -> Result<usize, BlobError> {
+    let count = u16::try_from(sections.len()).map_err(|_| BlobError::TooManySections {
+        sections: sections.len(),
+        capacity: MAX_SECTIONS,
+    })?;
+    let needed = encoded_len_direct(sections.len());
+    let available = out.len();
+    let too_small = BlobError::BufferTooSmall { needed, available };
+    let out = out.get_mut(..needed).ok_or(too_small)?;
+    let body_len = needed.saturating_sub(CRC_LEN);
+    let (body, crc_out) = out.split_at_mut(body_len);
+    let mut w = Writer {
+        rest: body,
+        ok: true,
+    };
+    w.put(&MAGIC);
+    w.put(&FORMAT_VERSION.to_le_bytes());
+    #[allow(clippy::cast_possible_truncation)]
+    let frac_bits = COEFFICIENT_BITS as u8;
+    w.put(&[NumberFormat::FixedDirect { frac_bits }.code(), frac_bits]);
+    w.put(&sample_rate_hz.to_le_bytes());
+    w.put(&delay_samples.to_le_bytes());
+    w.put(&count.to_le_bytes());
+    w.put(&0u16.to_le_bytes());
+    w.put(&output_exponent.to_le_bytes());
+    w.put(&full_scale.to_le_bytes());
+    for s in sections {
+        for v in s.b.iter().chain(&s.neg_a) {
+            w.put(&v.to_le_bytes());
+        }
+    }
+    if !w.ok {
+        return Err(too_small);
+    }
+    let crc = crc32(body).to_le_bytes();
+    for (dst, src) in crc_out.iter_mut().zip(crc) {
+        *dst = src;
+    }
+    Ok(needed)
 }
 
 /// Writes a version-[`FORMAT_VERSION`] fixed-point blob (number format 1) into `out` and
@@ -1007,6 +1182,60 @@ mod tests {
         d: 1 << 30,
         shift: 30,
     };
+
+    #[test]
+    fn direct_round_trip_and_typed_errors() {
+        let s = DirectSection {
+            b: [1 << 28, -(1 << 29), 1 << 28],
+            neg_a: [1_900_000_000, -900_000_000],
+        };
+        let mut buf = [0u8; encoded_len_direct(2)];
+        let n = encode_direct(&mut buf, 50_000.0, 3, 1000.0, 2, &[s, s]).unwrap();
+        assert_eq!(n, 28 + 8 + 2 * 20 + 4);
+        let set: DirectCoefficientSet<4> = parse_direct(&buf).unwrap();
+        assert_eq!(
+            (set.sample_rate_hz, set.delay_samples, set.full_scale),
+            (50_000.0, 3, 1000.0)
+        );
+        assert_eq!((set.output_exponent, set.sections), (2, 2));
+        assert_eq!(set.cascade, DirectCascade::new(&[s, s]).unwrap());
+        // The three formats do not read each other.
+        assert_eq!(
+            parse::<4>(&buf),
+            Err(BlobError::UnsupportedNumberFormat { code: 2 })
+        );
+        assert_eq!(
+            parse_fixed::<4>(&buf),
+            Err(BlobError::UnsupportedNumberFormat { code: 2 })
+        );
+        let mut fixed = [0u8; encoded_len_fixed(1)];
+        encode_fixed(&mut fixed, 50_000.0, 3, 1000.0, 2, &[ROTATION]).unwrap();
+        assert_eq!(
+            parse_direct::<4>(&fixed),
+            Err(BlobError::UnsupportedNumberFormat { code: 1 })
+        );
+        assert!(matches!(
+            parse_direct::<1>(&buf),
+            Err(BlobError::TooManySections { .. })
+        ));
+        // An unstable section, correctly signed, is refused by the board's validation.
+        let bad = DirectSection {
+            neg_a: [1 << 30, 1 << 29],
+            ..s
+        };
+        let mut b = [0u8; encoded_len_direct(1)];
+        encode_direct(&mut b, 50_000.0, 3, 1000.0, 2, &[bad]).unwrap();
+        assert!(matches!(
+            parse_direct::<4>(&b),
+            Err(BlobError::InvalidDirectSections(_))
+        ));
+        // Every single flipped bit is refused.
+        for i in 0..n * 8 {
+            let mut c = buf;
+            c[i / 8] ^= 1 << (i % 8);
+            assert!(parse_direct::<4>(&c).is_err(), "bit {i}");
+        }
+    }
 
     #[test]
     fn fixed_round_trip_and_typed_errors() {

@@ -13,8 +13,7 @@
 //! All three carry the same `f32` values, so a board gets bit-identical coefficients whichever
 //! way they arrive. With [`NumberFormat::Fixed`] the same three forms carry the fixed-point
 //! compensator of [`crate::fixed`] (the integers of [`crate::quantise::FixedPlan`]), and with
-//! [`NumberFormat::FixedDirect`] the Rust and C forms carry its direct form
-//! ([`crate::quantise::DirectPlan`]). The output file is written atomically. Every section is
+//! [`NumberFormat::FixedDirect`] its direct form ([`crate::quantise::DirectPlan`]). The output file is written atomically. Every section is
 //! `[b0, b1, b2, a1, a2]` in the crate's sign convention (see [`crate::compensator`]);
 //! CMSIS-DSP's biquad functions want `a1`, `a2` negated, which the C header says.
 //!
@@ -640,8 +639,7 @@ impl FixedBoardCoefficients {
 
 /// The board's direct-form fixed-point compensator as exported (`--number-format fixed
 /// --fixed-form direct`): the integer sections of [`crate::quantise::DirectPlan`], validated as
-/// the board validates them. Rust and C only: the coefficient blob has no layout for the
-/// direct form yet.
+/// the board validates them; as Rust, C, or the blob's number format 2.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DirectBoardCoefficients {
     /// Sample rate in Hz the coefficients belong to.
@@ -821,20 +819,45 @@ impl DirectBoardCoefficients {
         s
     }
 
+    /// The direct-form blob of [`crate::blob`] (number format 2), checked by parsing it back.
+    ///
+    /// # Errors
+    /// [`Error::Numerical`] if the blob cannot be encoded or does not parse back.
+    pub fn to_bin(&self) -> Result<Vec<u8>> {
+        let fail = |message: String| Error::Numerical {
+            context: "export".into(),
+            message,
+        };
+        let mut out = vec![0u8; blob::encoded_len_direct(self.sections.len())];
+        let n = blob::encode_direct(
+            &mut out,
+            self.sample_rate_hz,
+            self.delay_samples,
+            self.full_scale,
+            self.output_exponent,
+            &self.sections,
+        )
+        .map_err(|e| fail(e.to_string()))?;
+        out.truncate(n);
+        let back = blob::parse_direct::<MAX_EXPORT_SECTIONS>(&out)
+            .map_err(|e| fail(format!("the blob does not parse back: {e}")))?;
+        let cascade = DirectCascade::<MAX_EXPORT_SECTIONS>::new(&self.sections)
+            .map_err(|e| fail(e.to_string()))?;
+        if back.cascade != cascade || back.sections != self.sections.len() {
+            return Err(fail("the blob parses back to other coefficients".into()));
+        }
+        Ok(out)
+    }
+
     /// The file's bytes in `format`.
     ///
     /// # Errors
-    /// [`Error::InvalidArgument`] for [`Format::Bin`]: the blob has no direct-form layout yet.
+    /// See [`Self::to_bin`].
     pub fn render(&self, format: Format, source: &str) -> Result<Vec<u8>> {
         match format {
             Format::Rust => Ok(self.to_rust(source).into_bytes()),
             Format::C => Ok(self.to_c(source).into_bytes()),
-            Format::Bin => Err(Error::InvalidArgument {
-                what: "--format",
-                message: "the coefficient blob has no layout for the direct form yet: export it \
-                          with --format rust or c, or the normal form as bin"
-                    .into(),
-            }),
+            Format::Bin => self.to_bin(),
         }
     }
 }
@@ -850,7 +873,7 @@ pub enum NumberFormat {
         full_scale: Option<f64>,
     },
     /// Fixed point in the direct form ([`DirectBoardCoefficients`]): the model file's plan, or
-    /// a new one for this full scale. Rust and C only.
+    /// a new one for this full scale.
     FixedDirect {
         /// ADC full scale in the probe's units; `None` takes the plan stored in the model file.
         full_scale: Option<f64>,

@@ -118,16 +118,21 @@ def call_kernel(n):
 
 def block_kernel(n):
     """void unlag_m4_direct_block_N(const DirectSection *c /*r0*/, DirectState *s /*r1*/,
-    i32 *buf /*r2*/, usize len /*r3*/), in place. Registers: r0, r1 walk the coefficients and
-    the state and are reset every sample, r2 the buffer, r3 counts down; a section's
-    coefficients come in two LDMs (b, then -a, into registers the first part freed), so that
-    ten registers suffice for a section."""
+    i32 *buf /*r2*/, usize len /*r3*/), in place. Registers: r0 walks the coefficients and is
+    reset every sample, r2 the buffer, r3 counts down; a section's coefficients come in two
+    LDMs (b, then -a, into registers the first part freed), so that ten registers suffice for a
+    section. The state: with one or two sections r1 stays put (at the second section's state,
+    which LDM/STM reach, the first's just below it by LDMDB/STMDB), with more it walks and is
+    reset every sample."""
+    fixed_state = n <= 2
     name = f"unlag_m4_direct_block_{n}"
     emit(f"@ A block in place through {n} section(s).")
     func_head(name)
     emit("    push {r4-r11, lr}")
     emit("    mov lr, #0")
     emit("    msr APSR_nzcvq, lr          @ clears Q (and the flags)")
+    if n == 2:
+        emit("    add r1, r1, #20              @ the second section's state")
     emit("    cmp r3, #0")
     emit(f"    beq .L{name}_done")
     emit(f".L{name}_loop:")
@@ -136,7 +141,8 @@ def block_kernel(n):
     b = [7, 8, 9]
     y1, y2, e = 10, 11, 12
     emit(f"    ldr {r(x0)}, [r2]")
-    emit(f"    ldm r1, {regs([x1, x2, y1, y2, e])}")
+    first_ld = "ldmdb r1" if n == 2 else "ldm r1"
+    emit(f"    {first_ld}, {regs([x1, x2, y1, y2, e])}")
     emit(f"    ldm r0!, {regs(b)}")
     emit("    mov lr, #0")
     for ci, vi in zip(b, [x0, x1, x2]):
@@ -148,7 +154,8 @@ def block_kernel(n):
     y = b[1]
     assert x1 < y < y1
     quantise(y, e)
-    emit(f"    stmia r1!, {regs([x0, x1, y, y1, e])}")
+    first_st = {1: "stm r1", 2: "stmdb r1"}.get(n, "stmia r1!")
+    emit(f"    {first_st}, {regs([x0, x1, y, y1, e])}")
     v = (y, y1, y2)
     for k in range(1, n):
         free = [i for i in pool if i not in v]
@@ -166,11 +173,12 @@ def block_kernel(n):
         y = dead[0]
         assert y < y1
         quantise(y, e)
-        emit(f"    stmia r1!, {regs([y, y1, e])}")
+        emit(f"    {'stm r1' if fixed_state else 'stmia r1!'}, {regs([y, y1, e])}")
         v = (y, y1, y2)
     emit(f"    str {r(v[0])}, [r2], #4")
     emit(f"    sub r0, r0, #{20 * n}")
-    emit(f"    sub r1, r1, #{8 + 12 * n}")
+    if not fixed_state:
+        emit(f"    sub r1, r1, #{8 + 12 * n}")
     emit("    subs r3, r3, #1")
     emit(f"    bne .L{name}_loop")
     emit(f".L{name}_done:")
@@ -180,7 +188,8 @@ def block_kernel(n):
     emit("    pop {r4-r11, pc}")
     emit(f".L{name}_sat:")
     emit("    movs r4, #1")
-    emit(f"    strb r4, [r1, #{8 + 12 * n}]")
+    flag = 8 + 12 * n - (20 if n == 2 else 0)
+    emit(f"    strb r4, [r1, #{flag}]")
     emit("    pop {r4-r11, pc}")
     func_tail(name)
 

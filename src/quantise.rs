@@ -40,7 +40,7 @@ pub enum FixedForm {
     #[default]
     Normal,
     /// Direct-form-I sections with first-order error feedback, [`DirectPlan`] and
-    /// [`crate::fixed::direct::DirectCascade`]: about 34 instructions a sample for m = 4;
+    /// [`crate::fixed::direct::DirectCascade`]: about 33 instructions a sample for m = 4;
     /// limit cycles of a few codes not excluded, about 90 dB at fs/fn = 1000.
     Direct,
 }

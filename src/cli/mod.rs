@@ -148,7 +148,7 @@ pub struct InverseArgs {
     pub full_scale: Option<f64>,
     /// The fixed-point form: `normal` (coupled sections: no limit cycles, 100 dB at
     /// fs/fn = 1000, about 115 instructions a sample for m = 4 on a Cortex-M4) or `direct`
-    /// (direct form I with error feedback: about 34, limit cycles of a few codes possible,
+    /// (direct form I with error feedback: about 33, limit cycles of a few codes possible,
     /// about 90 dB at fs/fn = 1000). See BENCHMARKS.md, "Fixed point: the two forms".
     #[arg(long, value_enum, default_value_t = FixedFormArg::Normal)]
     pub fixed_form: FixedFormArg,

@@ -6,8 +6,9 @@
 //! seeded with the residual, SSAT of the high word, the new residual by BFC), so the same
 //! bits; `host-tests/firmware.rs` checks it in QEMU. The call kernel loads a section's
 //! coefficients with one LDM, its state with one more (the first section's together with the
-//! input history) and stores it with one STM; the block kernel does the same per sample with
-//! the pointers reset, two LDMs for the coefficients so that a section needs ten registers.
+//! input history) and stores it with one STM; the block kernel does the same per sample, with
+//! two LDMs for the coefficients so that a section needs ten registers, and for one or two
+//! sections a state pointer that stays put (LDMDB/STMDB reach the first section's state).
 //! Overflow is detected through the sticky Q flag, cleared on entry and read once on exit.
 //!
 //! Safety of the calls: the kernels read `N` `#[repr(C)]` [`DirectSection`]s (20 bytes each)

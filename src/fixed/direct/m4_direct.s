@@ -67,10 +67,9 @@ unlag_m4_direct_block_1:
     lsr r8, r12, #30
     orr r8, r8, lr, lsl #2
     bfc r12, #30, #2
-    stmia r1!, {r4, r5, r8, r10, r12}
+    stm r1, {r4, r5, r8, r10, r12}
     str r8, [r2], #4
     sub r0, r0, #20
-    sub r1, r1, #20
     subs r3, r3, #1
     bne .Lunlag_m4_direct_block_1_loop
 .Lunlag_m4_direct_block_1_done:
@@ -145,11 +144,12 @@ unlag_m4_direct_block_2:
     push {r4-r11, lr}
     mov lr, #0
     msr APSR_nzcvq, lr          @ clears Q (and the flags)
+    add r1, r1, #20              @ the second section's state
     cmp r3, #0
     beq .Lunlag_m4_direct_block_2_done
 .Lunlag_m4_direct_block_2_loop:
     ldr r4, [r2]
-    ldm r1, {r5, r6, r10, r11, r12}
+    ldmdb r1, {r5, r6, r10, r11, r12}
     ldm r0!, {r7, r8, r9}
     mov lr, #0
     smlal r12, lr, r7, r4
@@ -162,7 +162,7 @@ unlag_m4_direct_block_2:
     lsr r8, r12, #30
     orr r8, r8, lr, lsl #2
     bfc r12, #30, #2
-    stmia r1!, {r4, r5, r8, r10, r12}
+    stmdb r1, {r4, r5, r8, r10, r12}
     ldm r1, {r7, r9, r12}
     ldm r0!, {r4, r5, r6}
     mov lr, #0
@@ -176,10 +176,9 @@ unlag_m4_direct_block_2:
     lsr r4, r12, #30
     orr r4, r4, lr, lsl #2
     bfc r12, #30, #2
-    stmia r1!, {r4, r7, r12}
+    stm r1, {r4, r7, r12}
     str r4, [r2], #4
     sub r0, r0, #40
-    sub r1, r1, #32
     subs r3, r3, #1
     bne .Lunlag_m4_direct_block_2_loop
 .Lunlag_m4_direct_block_2_done:
@@ -189,7 +188,7 @@ unlag_m4_direct_block_2:
     pop {r4-r11, pc}
 .Lunlag_m4_direct_block_2_sat:
     movs r4, #1
-    strb r4, [r1, #32]
+    strb r4, [r1, #12]
     pop {r4-r11, pc}
     .p2align 2
     .size unlag_m4_direct_block_2, .-unlag_m4_direct_block_2

@@ -25,7 +25,9 @@ use crate::model::filter;
 #[must_use]
 pub fn allpole(a: &[f64], x: &[f64]) -> Vec<f64> {
     let mut y = vec![0.0; x.len()];
-    for k in 0..x.len() {
+    // From `a.len()` on every term exists: the same sums in the same order, without the tests.
+    let warm = a.len().max(1).min(x.len());
+    for k in 0..warm {
         let mut acc = x[k];
         for (i, ai) in a.iter().enumerate() {
             if let Some(j) = k.checked_sub(i + 1) {
@@ -33,6 +35,15 @@ pub fn allpole(a: &[f64], x: &[f64]) -> Vec<f64> {
             }
         }
         y[k] = acc;
+    }
+    // The critical path is the newest output alone (see `model::filter`).
+    let (a0, older) = a.split_first().map_or((0.0, &[][..]), |(a0, r)| (*a0, r));
+    for k in warm..x.len() {
+        let mut tail = 0.0;
+        for (ai, yj) in older.iter().zip(y[..k - 1].iter().rev()) {
+            tail += ai * yj;
+        }
+        y[k] = (x[k] - tail) - a0 * y[k - 1];
     }
     y
 }
@@ -46,6 +57,7 @@ fn stable(a: &[f64]) -> bool {
 
 /// A fall in the loss, in units of the residual variance, below which the iterations stop.
 const NEGLIGIBLE: f64 = 1e-3;
+const LAMBDA_FLOOR: f64 = 1e-20;
 
 /// Rows of the Jacobian reduced to its triangle at a time.
 const BLOCK: usize = 8192;
@@ -302,13 +314,19 @@ pub fn output_error(
             target[(r, 0)] = r_aug[(r, np)];
         }
         let mut improved = false;
-        for _ in 0..12 {
-            // Damping rows: sqrt(lambda) * diag(column norms).
+        // The first trial is the undamped Gauss-Newton step: near the optimum it converges
+        // quadratically, where any damping slows the weakly determined directions (a
+        // polynomial's coefficients are ill-conditioned at high sample rates) to a crawl.
+        for trial in 0..13 {
+            let damping = if trial == 0 { 0.0 } else { lambda };
+            // Damping rows: sqrt(damping) * diag(column norms).
             for (c, nrm) in norms.iter().enumerate() {
-                small[(np + c, c)] = lambda.sqrt() * nrm.max(1e-300);
+                small[(np + c, c)] = damping.sqrt() * nrm.max(1e-300);
             }
             let Ok(delta) = arx::lstsq(&small, &target, "output error") else {
-                lambda *= 10.0;
+                if trial > 0 {
+                    lambda *= 10.0;
+                }
                 continue;
             };
             let a_new: Vec<f64> = a.iter().zip(&delta[..m]).map(|(x, dx)| x + dx).collect();
@@ -320,7 +338,7 @@ pub fn output_error(
                     a = a_new;
                     b = b_new;
                     v = v_new;
-                    lambda = (lambda / 10.0).max(1e-12);
+                    lambda = (lambda / 10.0).max(LAMBDA_FLOOR);
                     // Stop once a step no longer matters statistically: its fall in the
                     // loss, in units of the residual variance `v / rows`, is below
                     // `NEGLIGIBLE` (the parameters then move far less than their
@@ -328,6 +346,9 @@ pub fn output_error(
                     improved = rel * rows as f64 > NEGLIGIBLE;
                     break;
                 }
+            }
+            if trial == 0 {
+                continue;
             }
             lambda *= 10.0;
             if lambda > 1e8 {

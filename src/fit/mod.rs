@@ -229,15 +229,12 @@ fn refine(whole: &[Data<'_>], model: &Model, method: Method) -> Result<(Vec<f64>
     let (d, m) = (model.delay, model.a.len());
     match method {
         Method::Arx | Method::Sm => fit_at(whole, m, d, method),
-        Method::Oe | Method::Bj => {
+        // The window's Box-Jenkins fit is a good start for the whole record's.
+        Method::Bj => box_jenkins(whole, (model.a.clone(), model.b.clone()), d),
+        Method::Oe => {
             let (b, short) = unpadded(&model.b);
             let (a, b) = oe::output_error(whole, (model.a.clone(), b), d, REFINE_ITERATIONS)?;
-            let b = padded(b, short);
-            if method == Method::Bj {
-                box_jenkins(whole, (a, b), d)
-            } else {
-                Ok((a, b))
-            }
+            Ok((a, padded(b, short)))
         }
     }
 }

@@ -57,7 +57,11 @@ fn stable(a: &[f64]) -> bool {
 
 /// A fall in the loss, in units of the residual variance, below which the iterations stop.
 const NEGLIGIBLE: f64 = 1e-3;
+/// The damping never falls below this (a guard; the undamped trial does the rest).
 const LAMBDA_FLOOR: f64 = 1e-20;
+
+/// Damping below which each iteration first tries the undamped step.
+const UNDAMPED_BELOW: f64 = 1e-6;
 
 /// Rows of the Jacobian reduced to its triangle at a time.
 const BLOCK: usize = 8192;
@@ -314,10 +318,13 @@ pub fn output_error(
             target[(r, 0)] = r_aug[(r, np)];
         }
         let mut improved = false;
-        // The first trial is the undamped Gauss-Newton step: near the optimum it converges
-        // quadratically, where any damping slows the weakly determined directions (a
-        // polynomial's coefficients are ill-conditioned at high sample rates) to a crawl.
-        for trial in 0..13 {
+        // Once the damping has fallen to `UNDAMPED_BELOW` (the iterate is near an optimum),
+        // the first trial is the undamped Gauss-Newton step: it converges quadratically where
+        // any damping slows the weakly determined directions (a polynomial's coefficients are
+        // ill-conditioned at high sample rates) to a crawl. Further away the damped steps keep
+        // the iterate in its basin.
+        let first = usize::from(lambda > UNDAMPED_BELOW);
+        for trial in first..13 {
             let damping = if trial == 0 { 0.0 } else { lambda };
             // Damping rows: sqrt(damping) * diag(column norms).
             for (c, nrm) in norms.iter().enumerate() {

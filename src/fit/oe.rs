@@ -278,6 +278,28 @@ pub fn output_error(
     d: usize,
     max_iterations: usize,
 ) -> Result<Params> {
+    output_error_from(sets, init, d, max_iterations, FRESH_DAMPING)
+}
+
+/// The first damping of a fit from an initial guess (Steiglitz-McBride's).
+pub const FRESH_DAMPING: f64 = 1e-4;
+
+/// The first damping of a refinement from an optimum of nearby data (the window's fit on the
+/// whole record, a Box-Jenkins round after the first): small enough that the first trial is
+/// the undamped step.
+pub const WARM_DAMPING: f64 = UNDAMPED_BELOW;
+
+/// [`output_error`] with the first damping `lambda`.
+///
+/// # Errors
+/// As [`arx::lstsq`].
+pub fn output_error_from(
+    sets: &[Data<'_>],
+    init: Params,
+    d: usize,
+    max_iterations: usize,
+    lambda: f64,
+) -> Result<Params> {
     let m = init.0.len();
     let np = m + init.1.len();
     let (mut a, mut b) = init;
@@ -286,7 +308,7 @@ pub fn output_error(
         return Ok((a, b));
     }
     let rows: usize = sets.iter().map(|s| s.y.len()).sum();
-    let mut lambda: f64 = 1e-4;
+    let mut lambda = lambda;
     // The Jacobian with the residual as its last column, reduced to its triangular factor R
     // block by block (R of [R_prev; next rows] is R of all rows so far): one QR pass per
     // iteration over a buffer of `BLOCK` rows, whatever the record's length. R gives the column

@@ -5,6 +5,7 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
+    one_malloc_arena();
     let cli = match unlag::cli::Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
@@ -52,3 +53,20 @@ fn main() -> ExitCode {
         }
     }
 }
+
+/// glibc gives each thread its own malloc arena and keeps what a thread freed there for that
+/// thread. The fit's worker threads (one order each) are short-lived and allocate window-sized
+/// buffers; with their arenas the fit of a million samples peaked about 40 MB higher than with
+/// the one arena (measured: 173 MB against 133 MB, the same time).
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+#[allow(unsafe_code)]
+fn one_malloc_arena() {
+    // SAFETY: `mallopt` only tunes the allocator; it runs before any other thread exists.
+    unsafe {
+        libc::mallopt(libc::M_ARENA_MAX, 1);
+    }
+}
+
+/// Other platforms' allocators are left as they are.
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn one_malloc_arena() {}

@@ -176,7 +176,9 @@ impl Model {
 #[must_use]
 pub fn filter(b: &[f64], a: &[f64], delay: usize, x: &[f64]) -> Vec<f64> {
     let mut y = vec![0.0; x.len()];
-    for k in 0..x.len() {
+    // From `warm` on every term exists: the same sums in the same order, without the tests.
+    let warm = (b.len() + delay).max(a.len()).max(1).min(x.len());
+    for k in 0..warm {
         let mut acc = 0.0;
         for (i, bi) in b.iter().enumerate() {
             if let Some(j) = k.checked_sub(i + delay) {
@@ -189,6 +191,20 @@ pub fn filter(b: &[f64], a: &[f64], delay: usize, x: &[f64]) -> Vec<f64> {
             }
         }
         y[k] = acc;
+    }
+    // The recursion's critical path is the newest output alone: the numerator's sum and the
+    // older outputs' terms do not wait for it.
+    let (a0, older) = a.split_first().map_or((0.0, &[][..]), |(a0, r)| (*a0, r));
+    for k in warm..x.len() {
+        let mut fir = 0.0;
+        for (bi, xj) in b.iter().zip(x[..=k - delay].iter().rev()) {
+            fir += bi * xj;
+        }
+        let mut tail = 0.0;
+        for (ai, yj) in older.iter().zip(y[..k - 1].iter().rev()) {
+            tail += ai * yj;
+        }
+        y[k] = (fir - tail) - a0 * y[k - 1];
     }
     y
 }

@@ -653,6 +653,16 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         MethodArg::Arx => Method::Arx,
     };
     let columns = args.columns.columns(true);
+    // Reading, fitting, designing, writing, and the report's stages.
+    let progress = report::Progress::start(
+        args.json,
+        4 + if args.report.is_some() {
+            report::REPORT_STAGES
+        } else {
+            0
+        },
+    );
+    progress.step("reading the tests");
     let traces = args
         .files
         .iter()
@@ -769,7 +779,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         effects.retain(|x| x.kind() != e.kind() || e.kind() == "mode");
         effects.push(e);
     }
-    let progress = report::Progress::start(args.json, "fitting");
+    progress.step("fitting (orders on a window, then the whole record)");
     let fitted =
         crate::effects::fit_with(est_test, val_tests, est.sample_rate_hz, &options, &effects)
             .map(|(f, fx)| {
@@ -872,6 +882,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         history,
         probe,
     };
+    progress.step("writing the model");
     file.save(&args.output)?;
     let report_bytes = match &args.report {
         Some(path) => Some(report::write_report(

@@ -261,7 +261,7 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
     let evidence = diagnose::evidence(&current, &tests);
     let across = diagnose::per_test(&current, &tests, &evidence);
     if let Some(path) = &args.report {
-        let progress = super::report::Progress::start(args.json, "report");
+        let progress = super::report::Progress::start(args.json, super::report::REPORT_STAGES);
         super::report::write_report(path, &name(&args.model), &l.file, &tests, &progress)?;
     }
     if args.json {

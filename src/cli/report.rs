@@ -43,22 +43,28 @@ pub struct ReportArgs {
 /// Seconds between two progress lines when stdout is not a terminal.
 const PROGRESS_LINE_SECONDS: u64 = 5;
 
-/// Progress on stderr for work that may take more than a second: on a terminal a spinner
-/// with the current step and the time taken, shown after a second; off a terminal (a log, a
-/// pipe) one line every few seconds, the first after that many. Never under `--json`.
+/// Progress on stderr for work that may take more than a second, in a known number of
+/// stages: on a terminal a bar of the stages done, the current one and the time taken, shown
+/// after a second; off a terminal (a log, a pipe) one line every few seconds, the first after
+/// that many. Never under `--json`.
 pub(crate) struct Progress {
     bar: Option<ProgressBar>,
     done: Arc<AtomicBool>,
     message: Arc<std::sync::Mutex<String>>,
+    stage: std::cell::Cell<u64>,
+    stages: u64,
 }
 
 impl Progress {
-    /// Starts the (hidden) spinner, or the line printer, with a first message.
-    pub(crate) fn start(json: bool, message: &str) -> Self {
+    /// Starts the (hidden) bar, or the line printer, for `stages` stages; each begins with
+    /// [`Progress::step`].
+    pub(crate) fn start(json: bool, stages: u64) -> Self {
         let mut progress = Self {
             bar: None,
             done: Arc::new(AtomicBool::new(false)),
-            message: Arc::new(std::sync::Mutex::new(message.to_string())),
+            message: Arc::new(std::sync::Mutex::new(String::new())),
+            stage: std::cell::Cell::new(0),
+            stages,
         };
         if json {
             return progress;
@@ -80,11 +86,10 @@ impl Progress {
             });
             return progress;
         }
-        let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
-        if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} ({elapsed})") {
+        let bar = ProgressBar::with_draw_target(Some(stages), ProgressDrawTarget::hidden());
+        if let Ok(style) = ProgressStyle::with_template("{bar:16} {msg} ({elapsed})") {
             bar.set_style(style);
         }
-        bar.set_message(message.to_string());
         let (shown, flag) = (bar.clone(), Arc::clone(&progress.done));
         std::thread::spawn(move || {
             std::thread::sleep(Duration::from_secs(1));
@@ -97,17 +102,21 @@ impl Progress {
         progress
     }
 
-    /// What is being done now.
+    /// The next stage begins: `[stage/stages] message`, the stages before it done.
     pub(crate) fn step(&self, message: &str) {
+        let stage = (self.stage.get() + 1).min(self.stages.max(1));
+        self.stage.set(stage);
+        let text = format!("[{stage}/{}] {message}", self.stages.max(stage));
         if let Some(b) = &self.bar {
-            b.set_message(message.to_string());
+            b.set_position(stage - 1);
+            b.set_message(text.clone());
         }
         if let Ok(mut m) = self.message.lock() {
-            message.clone_into(&mut m);
+            *m = text;
         }
     }
 
-    /// Removes the spinner (also on drop).
+    /// Removes the bar (also on drop).
     pub(crate) fn finish(&self) {
         self.done.store(true, Ordering::SeqCst);
         if let Some(b) = &self.bar {
@@ -121,6 +130,9 @@ impl Drop for Progress {
         self.finish();
     }
 }
+
+/// The stages [`write_report`] reports to its [`Progress`].
+pub(crate) const REPORT_STAGES: u64 = 3;
 
 /// Measures the evidence, runs the diagnosis and writes the report to `output`; returns the
 /// report's size in bytes.
@@ -170,6 +182,8 @@ pub(crate) fn write_report(
 pub fn run_report(args: &ReportArgs) -> Result<()> {
     let file = ModelFile::load(&args.model)?;
     let columns = args.columns.columns(true);
+    let progress = Progress::start(args.json, 1 + REPORT_STAGES);
+    progress.step("reading the tests");
     let traces = args
         .files
         .iter()
@@ -180,7 +194,6 @@ pub fn run_report(args: &ReportArgs) -> Result<()> {
     }
     let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
     let tests = super::as_tests(&traces, &names)?;
-    let progress = Progress::start(args.json, "report");
     let bytes = write_report(&args.output, &name(&args.model), &file, &tests, &progress)?;
     progress.finish();
     if args.json {

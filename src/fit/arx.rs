@@ -117,9 +117,74 @@ pub fn fit(sets: &[Data<'_>], m: usize, d: usize) -> Result<Params> {
 /// # Errors
 /// As [`fit`].
 pub fn fit_nb(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> Result<Params> {
-    let (x, t) = regression(sets, m, nb, d);
+    let cols = m + nb;
+    let (r, rows) = triangle(sets, m, nb, d);
+    if rows < cols {
+        return Err(Error::Numerical {
+            context: "arx".into(),
+            message: format!("{rows} equations for {cols} unknowns: the data are too short"),
+        });
+    }
+    // R's columns have X's norms and R^T R = X^T X, so the pivoted QR of R sees the same
+    // rank and gives the same solution as that of X.
+    let x = r.as_ref().submatrix(0, 0, cols, cols).to_owned();
+    let t = r.as_ref().submatrix(0, cols, cols, 1).to_owned();
     let theta = lstsq(&x, &t, "arx")?;
     Ok(split(&theta, m))
+}
+
+/// Rows of the regression reduced at a time: a block and the triangle so far stay in cache.
+const BLOCK_ROWS: usize = 2048;
+
+/// The triangular factor `R` of `[X t]`, the regression of [`regression`] with its target as
+/// the last column, reduced block by block (`R` of `[R_so_far; next rows]` is `R` of all rows
+/// so far), and the number of rows: the same least-squares problem in `(m + nb + 1)^2`
+/// numbers, without the whole matrix.
+#[must_use]
+pub fn triangle(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> (Mat<f64>, usize) {
+    let start = m.max(nb.saturating_sub(1)) + d;
+    let cols = m + nb;
+    let width = cols + 1;
+    let mut r_aug = Mat::<f64>::zeros(width, width);
+    let mut block = Mat::<f64>::zeros(width + BLOCK_ROWS, width);
+    let mut rows = 0;
+    for data in sets {
+        let len = data.y.len().min(data.u.len());
+        let mut k0 = start;
+        while k0 < len {
+            let k1 = (k0 + BLOCK_ROWS).min(len);
+            let n = k1 - k0;
+            for c in 0..width {
+                let Some(col) = block.col_mut(c).try_as_col_major_mut() else {
+                    continue;
+                };
+                let col = col.as_slice_mut();
+                // The triangle so far on top, then the block's rows.
+                for (r, v) in col[..width].iter_mut().enumerate() {
+                    *v = if r <= c { r_aug[(r, c)] } else { 0.0 };
+                }
+                let dst = &mut col[width..width + n];
+                if c < m {
+                    let src = &data.y[k0 - 1 - c..k1 - 1 - c];
+                    dst.iter_mut().zip(src).for_each(|(o, v)| *o = -v);
+                } else if c < cols {
+                    let lag = d + c - m;
+                    dst.copy_from_slice(&data.u[k0 - lag..k1 - lag]);
+                } else {
+                    dst.copy_from_slice(&data.y[k0..k1]);
+                }
+            }
+            r_aug = block
+                .as_ref()
+                .subrows(0, width + n)
+                .qr()
+                .thin_R()
+                .to_owned();
+            rows += n;
+            k0 = k1;
+        }
+    }
+    (r_aug, rows)
 }
 
 /// Splits `[a1..am, b0..bm]`.

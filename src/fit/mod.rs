@@ -229,15 +229,18 @@ fn refine(whole: &[Data<'_>], model: &Model, method: Method) -> Result<(Vec<f64>
     let (d, m) = (model.delay, model.a.len());
     match method {
         Method::Arx | Method::Sm => fit_at(whole, m, d, method),
-        Method::Oe | Method::Bj => {
+        // The window's Box-Jenkins fit is a good start for the whole record's.
+        Method::Bj => box_jenkins(whole, (model.a.clone(), model.b.clone()), d, true),
+        Method::Oe => {
             let (b, short) = unpadded(&model.b);
-            let (a, b) = oe::output_error(whole, (model.a.clone(), b), d, REFINE_ITERATIONS)?;
-            let b = padded(b, short);
-            if method == Method::Bj {
-                box_jenkins(whole, (a, b), d)
-            } else {
-                Ok((a, b))
-            }
+            let (a, b) = oe::output_error_from(
+                whole,
+                (model.a.clone(), b),
+                d,
+                REFINE_ITERATIONS,
+                oe::WARM_DAMPING,
+            )?;
+            Ok((a, padded(b, short)))
         }
     }
 }
@@ -358,10 +361,12 @@ const BJ_ROUNDS: usize = 4;
 /// residual and an output-error refit on the data whitened by it. `D (y - G u) = D y - G (D u)`
 /// for causal filters from rest, so the refit is an ordinary output-error fit of `(D u, D y)`.
 /// A numerator whose last coefficient is exactly zero (the short numerator) stays short.
+/// `warm`: `init` is the optimum of nearby data, so the first step tried is undamped.
 fn box_jenkins(
     sets: &[Data<'_>],
     init: (Vec<f64>, Vec<f64>),
     d: usize,
+    warm: bool,
 ) -> Result<(Vec<f64>, Vec<f64>)> {
     let (b, short) = unpadded(&init.1);
     let mut current = (init.0, b);
@@ -378,7 +383,14 @@ fn box_jenkins(
                 .all(|(x, y)| (x - y).abs() < 1e-3);
         let white = whitened(sets, &ar);
         let wsets: Vec<Data<'_>> = white.iter().map(|(u, y)| Data { u, y }).collect();
-        current = oe::output_error(&wsets, current, d, 60)?;
+        // `warm`: `init` is an optimum of nearby data (the window's), and so is each round's
+        // start.
+        let damping = if warm {
+            oe::WARM_DAMPING
+        } else {
+            oe::FRESH_DAMPING
+        };
+        current = oe::output_error_from(&wsets, current, d, 60, damping)?;
         if settled {
             break;
         }
@@ -451,7 +463,7 @@ fn fit_at(sets: &[Data<'_>], m: usize, d: usize, method: Method) -> Result<(Vec<
         Method::Sm => oe::steiglitz_mcbride(sets, m, d, 20),
         Method::Bj => {
             let init = fit_at(sets, m, d, Method::Oe)?;
-            box_jenkins(sets, init, d)
+            box_jenkins(sets, init, d, false)
         }
         Method::Oe => {
             // Two numerators: the paper's m + 1 coefficients, and m. A probe sampled through a

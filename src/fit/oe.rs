@@ -25,7 +25,9 @@ use crate::model::filter;
 #[must_use]
 pub fn allpole(a: &[f64], x: &[f64]) -> Vec<f64> {
     let mut y = vec![0.0; x.len()];
-    for k in 0..x.len() {
+    // From `a.len()` on every term exists: the same sums in the same order, without the tests.
+    let warm = a.len().max(1).min(x.len());
+    for k in 0..warm {
         let mut acc = x[k];
         for (i, ai) in a.iter().enumerate() {
             if let Some(j) = k.checked_sub(i + 1) {
@@ -33,6 +35,15 @@ pub fn allpole(a: &[f64], x: &[f64]) -> Vec<f64> {
             }
         }
         y[k] = acc;
+    }
+    // The critical path is the newest output alone (see `model::filter`).
+    let (a0, older) = a.split_first().map_or((0.0, &[][..]), |(a0, r)| (*a0, r));
+    for k in warm..x.len() {
+        let mut tail = 0.0;
+        for (ai, yj) in older.iter().zip(y[..k - 1].iter().rev()) {
+            tail += ai * yj;
+        }
+        y[k] = (x[k] - tail) - a0 * y[k - 1];
     }
     y
 }
@@ -46,6 +57,11 @@ fn stable(a: &[f64]) -> bool {
 
 /// A fall in the loss, in units of the residual variance, below which the iterations stop.
 const NEGLIGIBLE: f64 = 1e-3;
+/// The damping never falls below this (a guard; the undamped trial does the rest).
+const LAMBDA_FLOOR: f64 = 1e-20;
+
+/// Damping below which each iteration first tries the undamped step.
+const UNDAMPED_BELOW: f64 = 1e-6;
 
 /// Rows of the Jacobian reduced to its triangle at a time.
 const BLOCK: usize = 8192;
@@ -262,6 +278,28 @@ pub fn output_error(
     d: usize,
     max_iterations: usize,
 ) -> Result<Params> {
+    output_error_from(sets, init, d, max_iterations, FRESH_DAMPING)
+}
+
+/// The first damping of a fit from an initial guess (Steiglitz-McBride's).
+pub const FRESH_DAMPING: f64 = 1e-4;
+
+/// The first damping of a refinement from an optimum of nearby data (the window's fit on the
+/// whole record, a Box-Jenkins round after the first): small enough that the first trial is
+/// the undamped step.
+pub const WARM_DAMPING: f64 = UNDAMPED_BELOW;
+
+/// [`output_error`] with the first damping `lambda`.
+///
+/// # Errors
+/// As [`arx::lstsq`].
+pub fn output_error_from(
+    sets: &[Data<'_>],
+    init: Params,
+    d: usize,
+    max_iterations: usize,
+    lambda: f64,
+) -> Result<Params> {
     let m = init.0.len();
     let np = m + init.1.len();
     let (mut a, mut b) = init;
@@ -270,7 +308,7 @@ pub fn output_error(
         return Ok((a, b));
     }
     let rows: usize = sets.iter().map(|s| s.y.len()).sum();
-    let mut lambda: f64 = 1e-4;
+    let mut lambda = lambda;
     // The Jacobian with the residual as its last column, reduced to its triangular factor R
     // block by block (R of [R_prev; next rows] is R of all rows so far): one QR pass per
     // iteration over a buffer of `BLOCK` rows, whatever the record's length. R gives the column
@@ -302,13 +340,22 @@ pub fn output_error(
             target[(r, 0)] = r_aug[(r, np)];
         }
         let mut improved = false;
-        for _ in 0..12 {
-            // Damping rows: sqrt(lambda) * diag(column norms).
+        // Once the damping has fallen to `UNDAMPED_BELOW` (the iterate is near an optimum),
+        // the first trial is the undamped Gauss-Newton step: it converges quadratically where
+        // any damping slows the weakly determined directions (a polynomial's coefficients are
+        // ill-conditioned at high sample rates) to a crawl. Further away the damped steps keep
+        // the iterate in its basin.
+        let first = usize::from(lambda > UNDAMPED_BELOW);
+        for trial in first..13 {
+            let damping = if trial == 0 { 0.0 } else { lambda };
+            // Damping rows: sqrt(damping) * diag(column norms).
             for (c, nrm) in norms.iter().enumerate() {
-                small[(np + c, c)] = lambda.sqrt() * nrm.max(1e-300);
+                small[(np + c, c)] = damping.sqrt() * nrm.max(1e-300);
             }
             let Ok(delta) = arx::lstsq(&small, &target, "output error") else {
-                lambda *= 10.0;
+                if trial > 0 {
+                    lambda *= 10.0;
+                }
                 continue;
             };
             let a_new: Vec<f64> = a.iter().zip(&delta[..m]).map(|(x, dx)| x + dx).collect();
@@ -320,7 +367,7 @@ pub fn output_error(
                     a = a_new;
                     b = b_new;
                     v = v_new;
-                    lambda = (lambda / 10.0).max(1e-12);
+                    lambda = (lambda / 10.0).max(LAMBDA_FLOOR);
                     // Stop once a step no longer matters statistically: its fall in the
                     // loss, in units of the residual variance `v / rows`, is below
                     // `NEGLIGIBLE` (the parameters then move far less than their
@@ -328,6 +375,9 @@ pub fn output_error(
                     improved = rel * rows as f64 > NEGLIGIBLE;
                     break;
                 }
+            }
+            if trial == 0 {
+                continue;
             }
             lambda *= 10.0;
             if lambda > 1e8 {

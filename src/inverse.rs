@@ -16,7 +16,7 @@
 //!    trade between bandwidth and noise, judged on data, not on a rule of thumb).
 //! 3. **Sections.** Poles and zeros are paired into second-order sections (poles nearest the
 //!    unit circle first, each with its nearest zeros), as the board's
-//!    [`CascadeCoefficients`](crate::compensator::CascadeCoefficients) runs them.
+//!    [`CascadeCoefficients`] runs them.
 //! 4. **Numbers.** Corrected bandwidth (where the compensated response `H C` leaves +/-1 dB and
 //!    +/-5 degrees of a pure delay), noise gain (RMS output for unit white input noise),
 //!    latency, the worst in-band error against the target `LP / H`, and the pole margin.

@@ -22,7 +22,7 @@ pub const LUMPED_WOMERSLEY_LIMIT: f64 = 2.0;
 /// One mode as it is reported and compared.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ModeSummary {
-    /// Natural frequency [Hz].
+    /// Natural frequency \[Hz\].
     pub natural_frequency_hz: f64,
     /// Damping ratio [-].
     pub damping: f64,
@@ -48,7 +48,7 @@ pub struct Prediction {
     /// How far along the negative real axis they were searched [rad/s]
     /// ([`super::modes::ModeAnalysis::real_search_limit_rad_s`]).
     pub real_search_limit_rad_s: f64,
-    /// Front delay `ΣL/a` [s].
+    /// Front delay `ΣL/a` \[s\].
     pub delay_s: f64,
     /// The lumped second-order approximation, if the line has one.
     pub lumped: Option<Lumped>,
@@ -144,11 +144,11 @@ pub struct Comparison {
     pub natural_frequency_ratio: f64,
     /// `ζ_fitted / ζ_predicted` [-].
     pub damping_ratio: f64,
-    /// The fitted model's delay `d/f_s` [s].
+    /// The fitted model's delay `d/f_s` \[s\].
     pub fitted_delay_s: f64,
-    /// The predicted front delay `ΣL/a` [s].
+    /// The predicted front delay `ΣL/a` \[s\].
     pub predicted_delay_s: f64,
-    /// `fitted − predicted` delay [s].
+    /// `fitted − predicted` delay \[s\].
     pub delay_difference_s: f64,
     /// The fitted model's DC gain [-] against the predicted one.
     pub dc_gain_ratio: f64,

@@ -1,4 +1,4 @@
-//! FFT helpers for [`super::simulate`]: turning the (non-rational) frequency response of a
+//! FFT helpers for [`super::simulate`](mod@super::simulate): turning the (non-rational) frequency response of a
 //! line into an impulse response, and linear convolution with an excitation.
 //!
 //! The transforms are `rustfft`'s (the crate the residual spectra of the modelling loop use

@@ -15,16 +15,16 @@ pub const AIR_GAMMA: f64 = 1.4;
 pub const AIR_PRANDTL: f64 = 0.71;
 /// Sutherland reference viscosity of air [Pa s] at [`SUTHERLAND_T_REF`].
 pub const SUTHERLAND_MU_REF: f64 = 1.716e-5;
-/// Sutherland reference temperature [K].
+/// Sutherland reference temperature \[K\].
 pub const SUTHERLAND_T_REF: f64 = 273.15;
-/// Sutherland constant of air [K].
+/// Sutherland constant of air \[K\].
 pub const SUTHERLAND_S: f64 = 110.4;
-/// Standard atmosphere [Pa].
+/// Standard atmosphere \[Pa\].
 pub const STANDARD_PRESSURE: f64 = 101_325.0;
-/// 20 °C [K].
+/// 20 °C \[K\].
 pub const ROOM_TEMPERATURE: f64 = 293.15;
 
-/// Dynamic viscosity of air by Sutherland's law [Pa s] at temperature `temperature_k` [K]:
+/// Dynamic viscosity of air by Sutherland's law \[Pa s\] at temperature `temperature_k` \[K\]:
 /// `μ = μ_ref (T/T_ref)^{3/2} (T_ref + S)/(T + S)`.
 #[must_use]
 pub fn sutherland_viscosity(temperature_k: f64) -> f64 {
@@ -41,9 +41,9 @@ pub fn sutherland_viscosity(temperature_k: f64) -> f64 {
 /// `Pr = 0.707`). All fields are SI.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Gas {
-    /// Mean temperature [K].
+    /// Mean temperature \[K\].
     pub temperature_k: f64,
-    /// Mean (static) absolute pressure `p_s` [Pa].
+    /// Mean (static) absolute pressure `p_s` \[Pa\].
     pub pressure_pa: f64,
     /// Ratio of specific heats `γ` [-].
     pub gamma: f64,
@@ -56,7 +56,7 @@ pub struct Gas {
 }
 
 impl Gas {
-    /// Dry air at `temperature_k` [K] and mean absolute pressure `pressure_pa` [Pa], viscosity
+    /// Dry air at `temperature_k` \[K\] and mean absolute pressure `pressure_pa` \[Pa\], viscosity
     /// from [`sutherland_viscosity`].
     #[must_use]
     pub fn air(temperature_k: f64, pressure_pa: f64) -> Self {
@@ -91,7 +91,7 @@ impl Gas {
         Self { prandtl, ..self }
     }
 
-    /// The same gas at mean absolute pressure `pressure_pa` [Pa] (the viscosity is kept).
+    /// The same gas at mean absolute pressure `pressure_pa` \[Pa\] (the viscosity is kept).
     #[must_use]
     pub fn with_pressure(self, pressure_pa: f64) -> Self {
         Self {

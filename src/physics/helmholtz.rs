@@ -30,7 +30,7 @@ pub enum EndKind {
 }
 
 impl EndKind {
-    /// End correction `δ` [m] for a hole of radius `radius_m` [m].
+    /// End correction `δ` \[m\] for a hole of radius `radius_m` \[m\].
     #[must_use]
     pub fn correction_m(self, radius_m: f64) -> f64 {
         match self {
@@ -44,11 +44,11 @@ impl EndKind {
 /// A hole of length `hole_length_m` and diameter `hole_diameter_m` into a cavity.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HoleCavity {
-    /// Hole length `L` [m].
+    /// Hole length `L` \[m\].
     pub hole_length_m: f64,
-    /// Hole diameter `D` [m].
+    /// Hole diameter `D` \[m\].
     pub hole_diameter_m: f64,
-    /// Cavity volume `V` [m³].
+    /// Cavity volume `V` \[m³\].
     pub cavity_volume_m3: f64,
     /// The outer end (at the probe surface).
     pub outer_end: EndKind,
@@ -93,13 +93,13 @@ impl HoleCavity {
         0.5 * self.hole_diameter_m
     }
 
-    /// Hole cross-section `A = πD²/4` [m²].
+    /// Hole cross-section `A = πD²/4` \[m²\].
     #[must_use]
     pub fn area_m2(&self) -> f64 {
         core::f64::consts::PI * self.radius() * self.radius()
     }
 
-    /// Effective length `L_eff = L + δ_out + δ_in` [m].
+    /// Effective length `L_eff = L + δ_out + δ_in` \[m\].
     #[must_use]
     pub fn effective_length_m(&self) -> f64 {
         self.hole_length_m
@@ -113,7 +113,7 @@ impl HoleCavity {
         self.area_m2() * self.hole_length_m / self.cavity_volume_m3
     }
 
-    /// Closed-form Helmholtz frequency `f_H = (a/2π)√(A/(V L_eff))` [Hz].
+    /// Closed-form Helmholtz frequency `f_H = (a/2π)√(A/(V L_eff))` \[Hz\].
     #[must_use]
     pub fn helmholtz_frequency_hz(&self, gas: &Gas) -> f64 {
         gas.speed_of_sound() / (2.0 * core::f64::consts::PI)

@@ -3,7 +3,7 @@
 //! (the transducer, `p_end`).
 //!
 //! # Model
-//! Time dependence `e^{st}`; `p` is the pressure perturbation [Pa], `Q` the volume flow
+//! Time dependence `e^{st}`; `p` is the pressure perturbation \[Pa\], `Q` the volume flow
 //! [m³/s], positive towards the closed end. For a tube of radius `R`, area `A = πR²`,
 //! length `L` in a gas of density `ρ`, viscosity `μ`, `ν = μ/ρ`, mean pressure `p_s`:
 //!
@@ -38,32 +38,32 @@ use crate::error::{Error, Result};
 /// A circular tube of the line.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Tube {
-    /// Length `L` [m].
+    /// Length `L` \[m\].
     pub length_m: f64,
-    /// Inner radius `R` [m] (half the inner diameter).
+    /// Inner radius `R` \[m\] (half the inner diameter).
     pub radius_m: f64,
 }
 
 impl Tube {
-    /// A tube of length `length_m` [m] and inner radius `radius_m` [m].
+    /// A tube of length `length_m` \[m\] and inner radius `radius_m` \[m\].
     #[must_use]
     pub fn with_radius(length_m: f64, radius_m: f64) -> Self {
         Self { length_m, radius_m }
     }
 
-    /// A tube of length `length_m` [m] and inner diameter `diameter_m` [m].
+    /// A tube of length `length_m` \[m\] and inner diameter `diameter_m` \[m\].
     #[must_use]
     pub fn with_diameter(length_m: f64, diameter_m: f64) -> Self {
         Self::with_radius(length_m, 0.5 * diameter_m)
     }
 
-    /// Cross-section `A = πR²` [m²].
+    /// Cross-section `A = πR²` \[m²\].
     #[must_use]
     pub fn area_m2(&self) -> f64 {
         core::f64::consts::PI * self.radius_m * self.radius_m
     }
 
-    /// Internal volume `V_t = πR²L` [m³].
+    /// Internal volume `V_t = πR²L` \[m³\].
     #[must_use]
     pub fn volume_m3(&self) -> f64 {
         self.area_m2() * self.length_m
@@ -130,10 +130,10 @@ fn polytropic_factor_of(gas: &Gas, w_pr: Complex64) -> Complex64 {
 pub enum CavityThermal {
     /// A constant polytropic constant `k` [-] (BT: 1.4 isentropic or 1.0 isothermal).
     Polytropic(f64),
-    /// A cylindrical cavity of this radius [m] whose gas exchanges heat with the wall:
+    /// A cylindrical cavity of this radius \[m\] whose gas exchanges heat with the wall:
     /// `1/k` goes from 1 (slow) to `1/γ` (fast) as `1/n` of a tube of the same radius.
     Relaxing {
-        /// Cavity radius [m].
+        /// Cavity radius \[m\].
         radius_m: f64,
     },
 }
@@ -141,7 +141,7 @@ pub enum CavityThermal {
 /// A volume (cavity, transducer volume) at a junction or at the closed end.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Volume {
-    /// Volume `V` [m³].
+    /// Volume `V` \[m³\].
     pub volume_m3: f64,
     /// Diaphragm compliance `σ` [-]: `ΔV/V = σ Δp/p_s`; behaves as extra volume.
     pub sigma: f64,
@@ -152,7 +152,7 @@ pub struct Volume {
 }
 
 impl Volume {
-    /// An isentropic (`k = 1.4`), rigid (`σ = 0`), tight volume of `volume_m3` [m³].
+    /// An isentropic (`k = 1.4`), rigid (`σ = 0`), tight volume of `volume_m3` \[m³\].
     #[must_use]
     pub fn new(volume_m3: f64) -> Self {
         Self {
@@ -286,7 +286,7 @@ impl Line {
         Self::default()
     }
 
-    /// Appends a tube of length `length_m` [m] and inner radius `radius_m` [m].
+    /// Appends a tube of length `length_m` \[m\] and inner radius `radius_m` \[m\].
     #[must_use]
     pub fn tube(mut self, length_m: f64, radius_m: f64) -> Self {
         self.elements
@@ -294,7 +294,7 @@ impl Line {
         self
     }
 
-    /// Appends an isentropic, rigid, tight volume of `volume_m3` [m³] (see [`Volume::new`]).
+    /// Appends an isentropic, rigid, tight volume of `volume_m3` \[m³\] (see [`Volume::new`]).
     #[must_use]
     pub fn volume(mut self, volume_m3: f64) -> Self {
         self.elements.push(Element::Volume(Volume::new(volume_m3)));
@@ -372,7 +372,7 @@ impl Line {
         Ok(())
     }
 
-    /// Front delay `ΣL/a` [s]: the time the first wave front needs to reach the closed end.
+    /// Front delay `ΣL/a` \[s\]: the time the first wave front needs to reach the closed end.
     #[must_use]
     pub fn front_delay_s(&self, gas: &Gas) -> f64 {
         self.tubes().map(|t| t.length_m).sum::<f64>() / gas.speed_of_sound()
@@ -432,7 +432,7 @@ impl Line {
     }
 
     /// Frequency response `H(i 2π f)` [-] (amplitude ratio and phase, negative = lag) at
-    /// frequency `frequency_hz` [Hz].
+    /// frequency `frequency_hz` \[Hz\].
     #[must_use]
     pub fn frequency_response(&self, gas: &Gas, frequency_hz: f64) -> Complex64 {
         self.response(

@@ -34,15 +34,15 @@ pub const POISEUILLE_INERTANCE: f64 = 4.0 / 3.0;
 /// The lumped second-order approximation of a line.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Lumped {
-    /// Natural frequency `f_n` [Hz].
+    /// Natural frequency `f_n` \[Hz\].
     pub natural_frequency_hz: f64,
     /// Damping ratio `ζ` [-].
     pub damping: f64,
     /// Static gain `1/(1 + R_line G)` [-] (1 without leaks).
     pub dc_gain: f64,
-    /// First-order coefficient `a₁` [s] of `1 + a₁s + a₂s²` (normalised to DC gain 1).
+    /// First-order coefficient `a₁` \[s\] of `1 + a₁s + a₂s²` (normalised to DC gain 1).
     pub a1_s: f64,
-    /// Second-order coefficient `a₂` [s²].
+    /// Second-order coefficient `a₂` \[s²\].
     pub a2_s2: f64,
     /// Womersley number `R√(ω_n/ν)` [-] of the narrowest tube at `ω_n`: the approximation
     /// holds while this is below about 2.
@@ -169,7 +169,7 @@ pub fn lumped(line: &Line, gas: &Gas, c_i: f64) -> Result<Lumped> {
 }
 
 /// Doebelin's classical tube-volume formula `(ω_n [rad/s], ζ [-])` for a tube of radius
-/// `radius_m` [m] and length `length_m` [m] ending in a volume `volume_m3` [m³] (valid for
+/// `radius_m` \[m\] and length `length_m` \[m\] ending in a volume `volume_m3` \[m³\] (valid for
 /// `V ≫ V_t`, adiabatic gas): `ω_n = √(3πR²a²/(4LV))`, `ζ = (2√3 ν/(R³a))√(LV/π)`.
 #[must_use]
 pub fn doebelin(gas: &Gas, length_m: f64, radius_m: f64, volume_m3: f64) -> (f64, f64) {

@@ -7,15 +7,15 @@
 //! * [`gas`]: air properties versus temperature and mean pressure;
 //! * [`bessel`]: the complex Bessel ratio `J₂/J₀` of the viscothermal boundary layers;
 //! * [`fft`]: the radix-2 FFT behind the time-domain simulation;
-//! * [`line`]: the Bergh-Tijdeman (1965) response of tubes, volumes and series impedances,
+//! * [`line`](mod@line): the Bergh-Tijdeman (1965) response of tubes, volumes and series impedances,
 //!   as an ABCD chain (leaks, diaphragm compliance, thermally relaxing cavities);
-//! * [`lumped`]: the low-Womersley second-order approximation (natural frequency, damping);
+//! * [`lumped`](mod@lumped): the low-Womersley second-order approximation (natural frequency, damping);
 //! * [`modes`]: the exact poles of the Bergh-Tijdeman response and the front delay;
 //! * [`helmholtz`]: the hole-cavity resonator of a recessed sensor, with end corrections;
 //! * [`sensor`]: the transducer's diaphragm resonance and the DAQ anti-alias filter;
 //! * [`nonlinear`]: amplitude-dependent (quadratic orifice) losses, by describing function;
-//! * [`simulate`]: time-domain step tests (excitations, channels, noise, ADC, delay);
-//! * [`compare`]: the physical prediction of a probe, and how a fitted model disagrees with it.
+//! * [`simulate`](mod@simulate): time-domain step tests (excitations, channels, noise, ADC, delay);
+//! * [`compare`](mod@compare): the physical prediction of a probe, and how a fitted model disagrees with it.
 //!
 //! SI units throughout: m, m², m³, s, Hz, rad/s, Pa, K, kg/m³, Pa s. Time dependence is
 //! `e^{st}`; responses are `p_end/p_in`, phase negative for a lag. The formulas, their limits

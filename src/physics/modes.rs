@@ -31,7 +31,7 @@ use crate::error::{Error, Result};
 /// One mode (a pole pair) of the line.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Mode {
-    /// Natural frequency `f_n = ω_n/2π` [Hz].
+    /// Natural frequency `f_n = ω_n/2π` \[Hz\].
     pub natural_frequency_hz: f64,
     /// Damping ratio `ζ` [-] (≥ 1 for an overdamped pair of real poles).
     pub damping: f64,
@@ -43,7 +43,7 @@ pub struct Mode {
 }
 
 impl Mode {
-    /// Damped frequency `f_d = Im s / 2π` [Hz] (0 for an overdamped pair).
+    /// Damped frequency `f_d = Im s / 2π` \[Hz\] (0 for an overdamped pair).
     #[must_use]
     pub fn damped_frequency_hz(&self) -> f64 {
         self.pole.im / (2.0 * core::f64::consts::PI)
@@ -70,7 +70,7 @@ pub struct ModeAnalysis {
     /// The real axis is searched from `0` to `−σ_max` [rad/s]: `σ_max` is four times the
     /// highest mode searched (a real pole beyond it is not found).
     pub real_search_limit_rad_s: f64,
-    /// Front delay `ΣL/a` [s].
+    /// Front delay `ΣL/a` \[s\].
     pub delay_s: f64,
 }
 

@@ -5,7 +5,7 @@
 //! For a volume flow `Q = Q₀ sin ωt` through an area `A`, the quadratic loss dissipates per
 //! cycle what a linear resistance `R_eq = (4/(3π)) K ρ U/A` does, `U = Q₀/A`. A step of size
 //! `Δp` drives a peak flow `Q₀` that is found from the lumped second-order model of the line
-//! ([`super::lumped`]) *including* `R_eq`, by a fixed-point iteration (`R_eq` raises the
+//! ([`super::lumped`](mod@super::lumped)) *including* `R_eq`, by a fixed-point iteration (`R_eq` raises the
 //! damping, which lowers `Q₀`). `R_eq` is then placed as a series resistance at the inlet of
 //! the line, so every other model (exact modes, simulation) sees it.
 //!
@@ -35,7 +35,7 @@ pub const K_EXIT: f64 = 1.0;
 pub struct MinorLosses {
     /// Total loss coefficient `K` [-] per stroke (e.g. `K_ENTRY + K_EXIT = 1.5`).
     pub k: f64,
-    /// Step amplitude `|Δp|` [Pa] that sets the flow amplitude.
+    /// Step amplitude `|Δp|` \[Pa\] that sets the flow amplitude.
     pub step_amplitude_pa: f64,
 }
 

@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 /// A second-order diaphragm resonance.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Diaphragm {
-    /// Natural frequency `f_s` [Hz].
+    /// Natural frequency `f_s` \[Hz\].
     pub natural_frequency_hz: f64,
     /// Damping ratio `ζ_s` [-].
     pub damping: f64,
@@ -60,7 +60,7 @@ impl Diaphragm {
 /// An analog Butterworth low-pass (the DAQ's anti-alias filter).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Butterworth {
-    /// Corner (−3 dB) frequency [Hz].
+    /// Corner (−3 dB) frequency \[Hz\].
     pub corner_hz: f64,
     /// Order `n` [-] (1..=12).
     pub order: u32,

@@ -69,7 +69,7 @@ pub struct Probe {
     pub diaphragm: Option<Diaphragm>,
     /// Analog anti-alias filter of the acquisition (applied to both channels), if any.
     pub anti_alias: Option<Butterworth>,
-    /// Extra delay of the probe channel [s] (timing skew; may be any fraction of a sample).
+    /// Extra delay of the probe channel \[s\] (timing skew; may be any fraction of a sample).
     pub skew_s: f64,
 }
 
@@ -125,34 +125,34 @@ impl Probe {
     }
 }
 
-/// The pressure history of a facility at the measuring point, as a deviation [Pa] from the
-/// level before the event; `t` is the time since the event [s].
+/// The pressure history of a facility at the measuring point, as a deviation \[Pa\] from the
+/// level before the event; `t` is the time since the event \[s\].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Excitation {
     /// A shock-tube step: rises by `amplitude_pa` in `rise_s` (raised cosine), the shock's
     /// passage over the probe face.
     ShockTube {
-        /// Step size [Pa].
+        /// Step size \[Pa\].
         amplitude_pa: f64,
-        /// Rise time [s] (microseconds for a shock).
+        /// Rise time \[s\] (microseconds for a shock).
         rise_s: f64,
     },
     /// A burst balloon: the pressure starts `amplitude_pa` above the final level and falls to
     /// it in `fall_s` (about 700 µs; raised cosine).
     Balloon {
-        /// Initial over-pressure [Pa].
+        /// Initial over-pressure \[Pa\].
         amplitude_pa: f64,
-        /// Fall time [s].
+        /// Fall time \[s\].
         fall_s: f64,
     },
     /// A fast-opening valve into a chamber: rises by `amplitude_pa` in `opening_s` (raised
     /// cosine), optionally with a decaying chamber oscillation.
     Valve {
-        /// Step size [Pa].
+        /// Step size \[Pa\].
         amplitude_pa: f64,
-        /// Opening time [s].
+        /// Opening time \[s\].
         opening_s: f64,
-        /// Chamber oscillation frequency [Hz] (VKI report 850 Hz).
+        /// Chamber oscillation frequency \[Hz\] (VKI report 850 Hz).
         chamber_hz: f64,
         /// Chamber oscillation amplitude as a fraction of the step [-] (0: none).
         chamber_fraction: f64,
@@ -162,20 +162,20 @@ pub enum Excitation {
     /// deviation), on top of a tunnel oscillation (`tunnel_amplitude_pa` at `tunnel_hz`,
     /// 20 Hz in the VKI tests) that runs all the time.
     CascadeWake {
-        /// Depth of each wake [Pa].
+        /// Depth of each wake \[Pa\].
         wake_depth_pa: f64,
-        /// Wake passing frequency [Hz] (traverse speed / pitch).
+        /// Wake passing frequency \[Hz\] (traverse speed / pitch).
         wake_hz: f64,
         /// Wake width as a fraction of the pitch [-].
         wake_width: f64,
-        /// Amplitude of the tunnel oscillation [Pa].
+        /// Amplitude of the tunnel oscillation \[Pa\].
         tunnel_amplitude_pa: f64,
-        /// Frequency of the tunnel oscillation [Hz].
+        /// Frequency of the tunnel oscillation \[Hz\].
         tunnel_hz: f64,
     },
 }
 
-/// `∫_{-∞}^{t}` of [`raised_cosine`] [s].
+/// `∫_{-∞}^{t}` of [`raised_cosine`] \[s\].
 fn raised_cosine_integral(t: f64, duration: f64) -> f64 {
     if t <= 0.0 {
         0.0
@@ -308,8 +308,8 @@ impl Excitation {
         Ok(())
     }
 
-    /// The mean pressure deviation [Pa] over `[t − w/2, t + w/2]` (`t` after the event, `w`
-    /// [s] a sample interval). The simulation samples the excitation this way, so a step
+    /// The mean pressure deviation \[Pa\] over `[t − w/2, t + w/2]` (`t` after the event, `w`
+    /// \[s\] a sample interval). The simulation samples the excitation this way, so a step
     /// that falls inside an internal sample interval is placed at its exact time (to second
     /// order in the interval), not rounded to a sample: the ramps are integrated in closed form,
     /// the smooth parts by the midpoint rule.
@@ -347,7 +347,7 @@ impl Excitation {
         }
     }
 
-    /// The pressure deviation [Pa] at time `t` [s] after the event.
+    /// The pressure deviation \[Pa\] at time `t` \[s\] after the event.
     #[must_use]
     pub fn value(&self, t: f64) -> f64 {
         match *self {
@@ -402,11 +402,11 @@ impl Excitation {
 /// An ADC: `bits` over `[min_pa, max_pa]`, rounding to the nearest level and clipping.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Adc {
-    /// Resolution [bits] (1..=32).
+    /// Resolution \[bits\] (1..=32).
     pub bits: u32,
-    /// Lowest level [Pa].
+    /// Lowest level \[Pa\].
     pub min_pa: f64,
-    /// Highest level [Pa].
+    /// Highest level \[Pa\].
     pub max_pa: f64,
 }
 
@@ -430,13 +430,13 @@ impl Adc {
         Ok(())
     }
 
-    /// Step between levels [Pa].
+    /// Step between levels \[Pa\].
     #[must_use]
     pub fn lsb_pa(&self) -> f64 {
         (self.max_pa - self.min_pa) / 2f64.powi(i32::try_from(self.bits).unwrap_or(32))
     }
 
-    /// `x` [Pa] quantised and clipped to the range.
+    /// `x` \[Pa\] quantised and clipped to the range.
     #[must_use]
     pub fn quantise(&self, x: f64) -> f64 {
         let q = self.lsb_pa();
@@ -449,17 +449,17 @@ impl Adc {
 /// How the step test is recorded.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Acquisition {
-    /// Sample rate `f_s` [Hz].
+    /// Sample rate `f_s` \[Hz\].
     pub sample_rate_hz: f64,
-    /// Record length [s].
+    /// Record length \[s\].
     pub duration_s: f64,
-    /// Time of the event after the record starts [s] (need not be on a sample).
+    /// Time of the event after the record starts \[s\] (need not be on a sample).
     pub event_time_s: f64,
     /// Internal rate as a multiple of `f_s` (README: 32).
     pub oversample: usize,
-    /// Standard deviation of the white noise on the probe channel [Pa].
+    /// Standard deviation of the white noise on the probe channel \[Pa\].
     pub probe_noise_pa: f64,
-    /// Standard deviation of the white noise on the reference channel [Pa].
+    /// Standard deviation of the white noise on the reference channel \[Pa\].
     pub reference_noise_pa: f64,
     /// ADC of both channels, if quantised.
     pub adc: Option<Adc>,
@@ -469,9 +469,9 @@ pub struct Acquisition {
     pub seed: u64,
     /// Static gain error of the probe channel [-] (`y → (1 + e) y`; 0: none).
     pub probe_gain_error: f64,
-    /// Mains hum on the probe channel: amplitude [Pa] (0: none) ...
+    /// Mains hum on the probe channel: amplitude \[Pa\] (0: none) ...
     pub hum_pa: f64,
-    /// ... and frequency [Hz].
+    /// ... and frequency \[Hz\].
     pub hum_hz: f64,
     /// Zero drift of the probe channel after the event [Pa/s] (a ramp; 0: none).
     pub drift_pa_per_s: f64,
@@ -580,7 +580,7 @@ impl Acquisition {
 /// A sampled impulse response: `y[n] = Σ taps[k] u[n−k]` at `rate_hz`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImpulseResponse {
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub rate_hz: f64,
     /// Taps (the impulse response times the sample interval) [-].
     pub taps: Vec<f64>,
@@ -590,7 +590,7 @@ pub struct ImpulseResponse {
     pub tail_energy: f64,
     /// Energy in `[7N/8, N)` relative to the total: the taper's non-causal part, dropped.
     pub noncausal_energy: f64,
-    /// Start of the raised-cosine taper [Hz].
+    /// Start of the raised-cosine taper \[Hz\].
     pub taper_start_hz: f64,
 }
 
@@ -682,7 +682,7 @@ pub fn impulse_response(
     }
 }
 
-/// The unit step response of `probe` sampled at `rate_hz` [Hz], `n` samples from `t = 0`
+/// The unit step response of `probe` sampled at `rate_hz` \[Hz\], `n` samples from `t = 0`
 /// (the step at `t = 0`), by [`impulse_response`]. The step is sampled by cell averages, as in
 /// [`simulate`] (the first sample of the step is 1/2): `y[k] = Σ_{j<k} h[j] + h[k]/2`.
 ///
@@ -707,15 +707,15 @@ pub fn step_response(probe: &Probe, rate_hz: f64, n: usize) -> Result<Vec<f64>> 
 /// A simulated step test.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimulatedTest {
-    /// Sample times [s] from the record start.
+    /// Sample times \[s\] from the record start.
     pub t: Vec<f64>,
-    /// Reference channel [Pa] (the excitation through the reference sensor, with noise and ADC).
+    /// Reference channel \[Pa\] (the excitation through the reference sensor, with noise and ADC).
     pub reference: Vec<f64>,
-    /// Probe channel [Pa] (with noise and ADC).
+    /// Probe channel \[Pa\] (with noise and ADC).
     pub probe: Vec<f64>,
-    /// The excitation itself at the sample times [Pa].
+    /// The excitation itself at the sample times \[Pa\].
     pub excitation: Vec<f64>,
-    /// Probe channel without noise and ADC [Pa].
+    /// Probe channel without noise and ADC \[Pa\].
     pub probe_clean: Vec<f64>,
     /// The probe's impulse response used, with its error measures.
     pub impulse: ImpulseResponse,

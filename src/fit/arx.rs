@@ -133,6 +133,24 @@ pub fn fit_nb(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> Result<Params
     Ok(split(&theta, m))
 }
 
+/// One step of a blockwise QR: `R` of the triangle so far, `r_aug`, stacked on the `rows`
+/// rows below it in `block` (the triangle is written into `block`'s first rows here): `R` of
+/// all the rows so far, whatever their number, in one block's memory.
+pub(super) fn fold(block: &mut Mat<f64>, r_aug: &Mat<f64>, rows: usize) -> Mat<f64> {
+    let width = r_aug.nrows();
+    for c in 0..width {
+        for r in 0..width {
+            block[(r, c)] = if r <= c { r_aug[(r, c)] } else { 0.0 };
+        }
+    }
+    block
+        .as_ref()
+        .subrows(0, width + rows)
+        .qr()
+        .thin_R()
+        .to_owned()
+}
+
 /// Rows of the regression reduced at a time: a block and the triangle so far stay in cache.
 const BLOCK_ROWS: usize = 2048;
 
@@ -159,10 +177,7 @@ pub fn triangle(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> (Mat<f64>, 
                     continue;
                 };
                 let col = col.as_slice_mut();
-                // The triangle so far on top, then the block's rows.
-                for (r, v) in col[..width].iter_mut().enumerate() {
-                    *v = if r <= c { r_aug[(r, c)] } else { 0.0 };
-                }
+                // The block's rows below the triangle so far (put by `fold`).
                 let dst = &mut col[width..width + n];
                 if c < m {
                     let src = &data.y[k0 - 1 - c..k1 - 1 - c];
@@ -174,12 +189,7 @@ pub fn triangle(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> (Mat<f64>, 
                     dst.copy_from_slice(&data.y[k0..k1]);
                 }
             }
-            r_aug = block
-                .as_ref()
-                .subrows(0, width + n)
-                .qr()
-                .thin_R()
-                .to_owned();
+            r_aug = fold(&mut block, &r_aug, n);
             rows += n;
             k0 = k1;
         }

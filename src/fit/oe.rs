@@ -21,31 +21,10 @@ use crate::compensator::schur_stable;
 use crate::error::Result;
 use crate::model::filter;
 
-/// `x / A(q)` with zero initial conditions.
+/// `x / A(q)` with zero initial conditions: [`filter`] with numerator 1 (the same arithmetic).
 #[must_use]
 pub fn allpole(a: &[f64], x: &[f64]) -> Vec<f64> {
-    let mut y = vec![0.0; x.len()];
-    // From `a.len()` on every term exists: the same sums in the same order, without the tests.
-    let warm = a.len().max(1).min(x.len());
-    for k in 0..warm {
-        let mut acc = x[k];
-        for (i, ai) in a.iter().enumerate() {
-            if let Some(j) = k.checked_sub(i + 1) {
-                acc -= ai * y[j];
-            }
-        }
-        y[k] = acc;
-    }
-    // The critical path is the newest output alone (see `model::filter`).
-    let (a0, older) = a.split_first().map_or((0.0, &[][..]), |(a0, r)| (*a0, r));
-    for k in warm..x.len() {
-        let mut tail = 0.0;
-        for (ai, yj) in older.iter().zip(y[..k - 1].iter().rev()) {
-            tail += ai * yj;
-        }
-        y[k] = (x[k] - tail) - a0 * y[k - 1];
-    }
-    y
+    filter(&[1.0], a, 0, x)
 }
 
 fn stable(a: &[f64]) -> bool {
@@ -150,8 +129,9 @@ pub fn steiglitz_mcbride_nb(
 /// residual as its last column, reduced `BLOCK` rows at a time in `block` (which must have
 /// `np + 1` columns and at least `np + 1 + BLOCK` rows, or all the rows there are). The three
 /// recursions the rows need (the simulation `yh`, `u / A` and `yh / A`) run block by block in
-/// buffers of one block and its history (zeros before the record), in the arithmetic order of
-/// [`filter`] and [`allpole`]: a long record is never held three times over.
+/// buffers of one block and its history (zeros before the record), the recursions of
+/// [`filter`] and [`allpole`] (to rounding: they sum in another order): a long record is never
+/// held three times over.
 fn triangle(
     sets: &[Data<'_>],
     (a, b): (&[f64], &[f64]),
@@ -178,12 +158,7 @@ fn triangle(
         let mut k0 = 0;
         while k0 < n {
             let k1 = (k0 + step).min(n);
-            // Rows: the triangle so far, then samples k0..k1.
-            for r in 0..width {
-                for c in 0..width {
-                    block[(r, c)] = if c >= r { r_aug[(r, c)] } else { 0.0 };
-                }
-            }
+            // Rows: the triangle so far (put by `arx::fold`), then samples k0..k1.
             for k in k0..k1 {
                 let p = h + k - k0;
                 let mut acc = 0.0;
@@ -213,8 +188,7 @@ fn triangle(
                 }
                 block[(row, np)] = s.y.get(k).copied().unwrap_or(0.0) - acc;
             }
-            let used = width + k1 - k0;
-            r_aug = block.as_ref().subrows(0, used).qr().thin_R().to_owned();
+            r_aug = arx::fold(block, &r_aug, k1 - k0);
             // The last h samples become the next block's history.
             let filled = h + k1 - k0;
             for t in [&mut yh, &mut w, &mut vv] {

@@ -112,7 +112,11 @@ fn a_leak_is_inverted_from_fit_to_export() {
         c["nrmse_u_hat"].as_f64().unwrap(),
         c["nrmse_raw"].as_f64().unwrap(),
     );
-    assert!(u_hat * 3.0 < raw, "{c}");
+    // Before the leak was inverted where it is, u_hat was 2.7-4.3x worse than the raw probe.
+    // The design learns the noise and the prior from both steps (0 -> 1, and this smaller one
+    // down, 0.8 -> 0.1), no longer from the test it is judged on alone: 2.98x better, where
+    // that gave just over 3x.
+    assert!(u_hat * 2.5 < raw, "{c}");
     // The non-causal optimum on the recorded run: no latency, and no more error than the
     // board's compensator (it is the bound the causal design approaches).
     let o = json(&[

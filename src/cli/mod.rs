@@ -836,7 +836,6 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     };
     // With a sensor resonance the inverse is designed on the prefiltered tests, and the
     // prefilter runs in front of it.
-    let raw_judge = judge;
     let filtered = prefiltered_tests(judge, &effects, est.sample_rate_hz);
     let judge: Vec<Test<'_>> = filtered
         .iter()
@@ -844,6 +843,25 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         .map(|((u, y), t)| Test { name: t.name, u, y })
         .collect();
     let judge = judge.as_slice();
+    // The noise and the prior come from the step tests: the estimation test and the held-out
+    // ones that are clean steps with a quiet segment before them. A held-out run of another
+    // kind (a balloon, a traverse) is what the check judges on, not what the design learns
+    // from: a compensator learnt from the very run it is checked on passes its own check.
+    let raw_steps: Vec<Test<'_>> = std::iter::once(est_test)
+        .chain(
+            val_tests
+                .iter()
+                .filter(|t| fit::step::quiet_until(t.u) >= inverse::optimal::MIN_QUIET),
+        )
+        .copied()
+        .collect();
+    let raw_est = raw_steps.as_slice();
+    let steps_filtered = prefiltered_tests(raw_est, &effects, est.sample_rate_hz);
+    let designed: Vec<Test<'_>> = steps_filtered
+        .iter()
+        .zip(raw_est)
+        .map(|((u, y), t)| Test { name: t.name, u, y })
+        .collect();
     // The fit stands on its own: if no compensator can be designed, say why and keep the model.
     progress.step("designing the compensator");
     let design = match inverse::check::design_checked(
@@ -853,8 +871,8 @@ fn run_fit(args: &FitArgs) -> Result<()> {
             &fitted.model,
             &effects,
             &args.columns,
-            raw_judge,
-            judge,
+            raw_est,
+            &designed,
             None,
         )?,
         crate::effects::nonlinear_gain(&effects),
@@ -1461,7 +1479,7 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
             "verdict": error.map(|(e, raw, _)| if worse(e, raw) { "worse" } else { "better" }),
         });
         crate::outln!("{v}");
-        warn_if_worse(args, error);
+        warn_if_worse(args, design, error);
         return Ok(());
     }
     crate::outln!(
@@ -1479,21 +1497,43 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         );
     }
     crate::outln!("wrote {}", args.output.display());
-    warn_if_worse(args, error);
+    warn_if_worse(args, design, error);
     Ok(())
 }
 
-/// The compensated signal's error `e` is not below the raw probe's `raw` (a NaN counts as
-/// worse: it never passes silently).
+/// The compensated signal's error `e` is not below the raw probe's `raw`: a tie within f32
+/// rounding (the probe passed through) is not better, and a NaN counts as worse: neither
+/// passes silently.
 fn worse(e: f64, raw: f64) -> bool {
-    e.partial_cmp(&raw) != Some(std::cmp::Ordering::Less)
+    e.partial_cmp(&(raw * (1.0 - 1e-6))) != Some(std::cmp::Ordering::Less)
 }
 
 /// A compensated run further from its recorded reference than the raw probe is never passed
-/// over in silence: one line on stderr with both errors and the remedy.
-fn warn_if_worse(args: &CompensateArgs, error: Option<(f64, f64, usize)>) {
+/// over in silence: one line on stderr with both errors and the remedy. A design the fit's
+/// check already found no better than the raw probe (the delay alone, or the probe passed
+/// through) says so instead of a remedy.
+fn warn_if_worse(
+    args: &CompensateArgs,
+    design: Option<&inverse::Design>,
+    error: Option<(f64, f64, usize)>,
+) {
     let Some((e, raw, _)) = error else { return };
     if !worse(e, raw) {
+        return;
+    }
+    let not_better = design
+        .and_then(|d| d.check.as_ref())
+        .is_some_and(|c| c.verdict == inverse::check::Verdict::NotBetter);
+    if not_better {
+        crate::errln!(
+            "warning: on {} u_hat is no closer to the recorded reference than the raw probe ({} against {}): \
+             {}'s compensator is {}, stored marked not-better (no design beat the raw probe on the fit's tests)",
+            args.file.display(),
+            pct(e),
+            pct(raw),
+            args.model.display(),
+            design.map_or("", |d| d.method.split(':').next().unwrap_or(""))
+        );
         return;
     }
     crate::errln!(

@@ -167,6 +167,10 @@ pub struct Budget {
     pub reference: f64,
 }
 
+/// Fewest quiet samples before a step that the noise is measured on; a test with fewer (a
+/// traverse, a balloon burst at once) gives its noise from its highest frequencies.
+pub const MIN_QUIET: usize = 64;
+
 /// Measures both channels' noise on `tests`: before the step where there are at least 64 quiet
 /// samples (with an AR(1) part when the quiet segment is correlated), else from first
 /// differences of the record.
@@ -178,7 +182,7 @@ pub fn estimate_noise(tests: &[Test<'_>]) -> NoiseModel {
     let mut source = NoiseSource::PreStep;
     for t in tests {
         let onset = step::find_step(t.u).map(|s| s.onset).unwrap_or(0);
-        if onset >= 64 {
+        if onset >= MIN_QUIET {
             let (w, a) = quiet_noise(t.y.get(..onset).unwrap_or(&[]));
             white_var.push(w);
             ar.push(a);

@@ -136,10 +136,7 @@ mod private {
         }
     }
 
-    #[cfg(not(any(
-        all(target_arch = "arm", target_abi = "eabihf", target_os = "none"),
-        target_arch = "x86_64"
-    )))]
+    #[cfg(not(any(all(unlag_armv7m, target_abi = "eabihf"), target_arch = "x86_64")))]
     impl Sealed for f32 {}
 
     /// `Sealed` for a float on x86-64, where `scalar` is a value barrier. LLVM's SLP
@@ -173,7 +170,7 @@ mod private {
     sealed_with_value_barrier!(f32);
     #[cfg(target_arch = "x86_64")]
     sealed_with_value_barrier!(f64);
-    #[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+    #[cfg(all(unlag_armv7m, target_abi = "eabihf"))]
     impl Sealed for f32 {
         #[inline(always)]
         fn kernel_process<const N: usize>(
@@ -196,8 +193,9 @@ mod private {
     impl Sealed for f64 {}
 }
 
-/// The Cortex-M kernels of the `f32` cascade (Thumb-2 + single-precision VFP, hard-float ABI).
-#[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+/// The Cortex-M kernels of the `f32` cascade (Thumb-2 + single-precision VFP, hard-float ABI:
+/// `thumbv7em-none-eabihf`; see `build.rs` for `unlag_armv7m`).
+#[cfg(all(unlag_armv7m, target_abi = "eabihf"))]
 mod m4;
 
 /// The board's share of the `temperature` effect: coefficient sets by gas temperature.
@@ -205,16 +203,23 @@ pub mod bank;
 pub use bank::{BankChannel, BankError, TemperatureBank};
 
 /// `true` when this build runs the `f32` cascade of `N` sections through the hand-scheduled
-/// Cortex-M kernels (`N` = 1..=4 on a hard-float Arm bare-metal target), `false` when it runs
-/// the portable Rust code. Both compute the same bits.
+/// Cortex-M kernels (`N` = 1..=4 on `thumbv7em-none-eabihf`: Cortex-M4F and M7 with the FPU
+/// and the hard-float calling convention), `false` when it runs the portable Rust code (the
+/// host, `thumbv7m-none-eabi`, `thumbv7em-none-eabi`, any other target). Both compute the
+/// same bits.
+///
+/// ```
+/// use unlag::compensator::f32_cascade_uses_kernel;
+///
+/// // There are kernels for 1 to 4 sections only, and none on the host.
+/// assert!(!f32_cascade_uses_kernel(5));
+/// assert!(!f32_cascade_uses_kernel(0));
+/// # #[cfg(not(target_arch = "arm"))]
+/// assert!(!f32_cascade_uses_kernel(2));
+/// ```
 #[must_use]
 pub const fn f32_cascade_uses_kernel(sections: usize) -> bool {
-    cfg!(all(
-        target_arch = "arm",
-        target_abi = "eabihf",
-        target_os = "none"
-    )) && sections >= 1
-        && sections <= 4
+    cfg!(all(unlag_armv7m, target_abi = "eabihf")) && sections >= 1 && sections <= 4
 }
 
 /// Why a coefficient set was refused. Checked once, when the coefficients are built; a built
@@ -619,8 +624,8 @@ pub fn section_pole_radius(a1: f64, a2: f64) -> f64 {
 /// Cost on a Cortex-M4F: instructions counted in QEMU, see BENCHMARKS.md "Board (Cortex-M4,
 /// QEMU)".
 ///
-/// On Cortex-M with an FPU (`thumbv7em-none-eabihf` and the other hard-float bare-metal Arm
-/// targets) an `f32` cascade of 1 to 4 sections runs through hand-scheduled Thumb-2 kernels
+/// On Cortex-M4F and M7 with the hard-float calling convention (`thumbv7em-none-eabihf`) an
+/// `f32` cascade of 1 to 4 sections runs through hand-scheduled Thumb-2 kernels
 /// (module `m4`: one VLDM for all coefficients, VMLA/VMLS, no stack frame; in a block the
 /// coefficients and states stay in registers): 29 instructions per call (the caller's loop
 /// included) and 12.7 per sample in a block for two sections. VMLA and VMLS round the

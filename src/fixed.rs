@@ -269,17 +269,18 @@ impl<const N: usize> FixedCascade<N> {
     /// One ADC sample (Q1.31 of the design's full scale) through the cascade; the output is
     /// the reconstructed reference in the design's output format. Panic-free, allocation-free.
     ///
-    /// On hard-float bare-metal Arm targets (`thumbv7em-none-eabihf` and the like) this runs a
-    /// hand-written Thumb-2 kernel (SMULL/SMLAL, SSAT; module `m4`), elsewhere
+    /// On the Cortex-M3, M4 and M7 targets (`thumbv7m-none-eabi`, `thumbv7em-none-eabi`,
+    /// `thumbv7em-none-eabihf`) this runs a hand-written Thumb-2 kernel (SMULL/SMLAL, SSAT;
+    /// module `m4`, see [`uses_kernel`]), elsewhere
     /// [`Self::process_portable`]: the same integer arithmetic, the same bits
     /// (`host-tests/firmware.rs` checks it in QEMU).
     #[inline]
     pub fn process(&self, state: &mut FixedState<N>, input: i32) -> i32 {
-        #[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+        #[cfg(unlag_armv7m)]
         {
             m4::process(self, state, input)
         }
-        #[cfg(not(all(target_arch = "arm", target_abi = "eabihf", target_os = "none")))]
+        #[cfg(not(unlag_armv7m))]
         {
             self.process_portable(state, input)
         }
@@ -349,9 +350,24 @@ impl<const N: usize> FixedCascade<N> {
     }
 }
 
-/// The Cortex-M kernel of the fixed-point cascade.
-#[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+/// The Cortex-M kernel of the fixed-point cascade (ARMv7-M: Cortex-M3, M4, M7; see `build.rs`
+/// for `unlag_armv7m`).
+#[cfg(unlag_armv7m)]
 mod m4;
+
+/// `true` when this build runs [`FixedCascade::process`] through the Cortex-M kernel (on the
+/// ARMv7-M and ARMv7E-M targets `thumbv7m-none-eabi`, Cortex-M3, and
+/// `thumbv7em-none-eabi(hf)`, Cortex-M4 and M7, with or without an FPU), `false` when it runs
+/// [`FixedCascade::process_portable`]. Both compute the same bits.
+///
+/// ```
+/// # #[cfg(not(target_arch = "arm"))]
+/// assert!(!unlag::fixed::uses_kernel());
+/// ```
+#[must_use]
+pub const fn uses_kernel() -> bool {
+    cfg!(unlag_armv7m)
+}
 
 pub mod direct;
 

@@ -402,6 +402,28 @@ impl<T: Sample, const M: usize> InverseCoefficients<T, M> {
     /// # Errors
     /// [`InverseError`] when the order exceeds `M`, a coefficient is not finite, `b0` is zero,
     /// or `B(z)` has a zero on or outside the unit circle.
+    ///
+    /// ```
+    /// use unlag::compensator::{InverseCoefficients, InverseError, InverseState};
+    ///
+    /// // The probe y[k] = 0.5 u[k] + 0.5 y[k-1]: its inverse is u = 2 y[k] - y[k-1].
+    /// let c = InverseCoefficients::<f32, 2>::new(&[0.5], &[-0.5])?;
+    /// assert_eq!(c.dc_gain(), 1.0);
+    /// let mut state = InverseState::default();
+    /// let probe = [0.5f32, 0.75, 0.875]; // the probe's answer to a unit step
+    /// assert_eq!(probe.map(|y| c.process(&mut state, y)), [1.0, 1.0, 1.0]);
+    ///
+    /// // b0 = 0 cannot be inverted, nor can a zero outside the unit circle (b1 > b0).
+    /// assert_eq!(
+    ///     InverseCoefficients::<f32, 2>::new(&[0.0, 0.5], &[-0.5]),
+    ///     Err(InverseError::LeadingZero)
+    /// );
+    /// assert!(matches!(
+    ///     InverseCoefficients::<f32, 2>::new(&[0.2, 0.4], &[-0.4]),
+    ///     Err(InverseError::UnstableInverse { .. })
+    /// ));
+    /// # Ok::<(), InverseError>(())
+    /// ```
     pub fn new(b: &[f64], a: &[f64]) -> Result<Self, InverseError> {
         let order = a.len().max(b.len().saturating_sub(1));
         if a.len() > M || b.len() > M + 1 {
@@ -634,6 +656,35 @@ pub fn section_pole_radius(a1: f64, a2: f64) -> f64 {
 ///
 /// Memory layout (`#[repr(C)]`, read by the kernels): per section `[b0, b1, a1, a2]`, then
 /// `b2` of every section, contiguous.
+///
+/// ```
+/// use unlag::compensator::{CascadeCoefficients, CascadeState, InverseError};
+///
+/// // 0.5 / (1 - 0.5 z^-1): the gain 0.5 and one section [b0, b1, b2, a1, a2], a DC gain of
+/// // one. Room for two sections: the second stays an identity.
+/// let c = CascadeCoefficients::<f32, 2>::new(0.5, &[[1.0, 0.0, 0.0, -0.5, 0.0]])?;
+/// let mut state = CascadeState::default();
+/// let step = [1.0f32; 4].map(|x| c.process(&mut state, x));
+/// assert_eq!(step, [0.5, 0.75, 0.875, 0.9375]);
+///
+/// // A block gives the same bits as one call per sample.
+/// let mut state = CascadeState::default();
+/// let mut buf = [1.0f32; 4];
+/// c.process_in_place(&mut state, &mut buf);
+/// assert_eq!(buf, step);
+///
+/// // Started in equilibrium with a steady reading, there is no start-up transient.
+/// let mut state = c.equilibrium(3.0);
+/// assert_eq!(c.process(&mut state, 3.0), 3.0);
+///
+/// // A pole on the unit circle is refused when the coefficients are built.
+/// let integrator = [1.0, 0.0, 0.0, -1.0, 0.0];
+/// assert!(matches!(
+///     CascadeCoefficients::<f32, 2>::new(1.0, &[integrator]),
+///     Err(InverseError::UnstableSection { index: 0, .. })
+/// ));
+/// # Ok::<(), InverseError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C)]
 pub struct CascadeCoefficients<T, const N: usize> {

@@ -149,6 +149,34 @@ impl fmt::Display for FixedError {
 impl std::error::Error for FixedError {}
 
 /// Validated fixed-point coefficients of a cascade of up to `N` sections.
+///
+/// ```
+/// use unlag::fixed::{FixedCascade, FixedError, FixedSection, FixedState};
+///
+/// const HALF: i32 = 1 << 29; // 0.5 in Q2.30
+/// // A lag x' = Qt(0.5 x + 0.5 u), y = x (c in Q.30), then an exact halving y = Qr(0.5 u).
+/// let lag = FixedSection { a: [HALF, 0, 0, 0], b: [HALF, 0], c: [1 << 30, 0], d: 0, shift: 30 };
+/// let halve = FixedSection { d: HALF, ..FixedSection::IDENTITY };
+/// let c = FixedCascade::<3>::new(&[lag, halve])?; // the third section is an identity
+/// let mut state = FixedState::default();
+/// let y: Vec<i32> = (0..4).map(|_| c.process(&mut state, 1000)).collect();
+/// assert_eq!(y, [0, 250, 375, 438]); // 437.5 rounds half up
+/// assert!(!state.overflowed());
+///
+/// // Started in equilibrium with a steady reading, there is no start-up transient.
+/// let mut state = c.equilibrium(1000);
+/// assert_eq!(c.process(&mut state, 1000), 500);
+///
+/// // A pole on the unit circle, or a shift out of 1..=62, is refused.
+/// let integrator = FixedSection { a: [1 << 30, 0, 0, 0], ..lag };
+/// assert_eq!(
+///     FixedCascade::<3>::new(&[lag, integrator]),
+///     Err(FixedError::NotNormalForm { index: 1 })
+/// );
+/// let bad_shift = FixedSection { shift: 0, ..lag };
+/// assert_eq!(FixedCascade::<3>::new(&[bad_shift]), Err(FixedError::BadShift { index: 0 }));
+/// # Ok::<(), FixedError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FixedCascade<const N: usize> {
     sections: [FixedSection; N],

@@ -236,6 +236,31 @@ impl<const N: usize> DirectCascade<N> {
     ///
     /// # Errors
     /// A [`DirectError`] naming the section.
+    ///
+    /// ```
+    /// use unlag::fixed::direct::{DirectCascade, DirectError, DirectSection, DirectState};
+    ///
+    /// const HALF: i32 = 1 << 29; // 0.5 in Q2.30
+    /// // y[n] = 0.5 x[n] + 0.5 y[n-1], then an identity: a DC gain of one.
+    /// let lag = DirectSection { b: [HALF, 0, 0], neg_a: [HALF, 0] };
+    /// let c = DirectCascade::<2>::new(&[lag, DirectSection::IDENTITY])?;
+    /// let mut state = DirectState::default();
+    /// let mut buf = [1000i32; 40];
+    /// c.process_in_place(&mut state, &mut buf);
+    /// assert_eq!(buf[..4], [500, 750, 875, 937]);
+    /// // The truncation residual is carried over, so the output reaches the input exactly.
+    /// assert_eq!(buf[39], 1000);
+    /// assert_eq!(c.process(&mut state, 1000), 1000);
+    /// assert!(!state.overflowed());
+    ///
+    /// // Poles on or outside the unit circle (here a2 = 1) are refused.
+    /// let ring = DirectSection { b: [HALF, 0, 0], neg_a: [0, -(1 << 30)] };
+    /// assert!(matches!(
+    ///     DirectCascade::<2>::new(&[lag, ring]),
+    ///     Err(DirectError::Unstable { index: 1 })
+    /// ));
+    /// # Ok::<(), DirectError>(())
+    /// ```
     pub fn new(sections: &[DirectSection]) -> Result<Self, DirectError> {
         if sections.len() > N {
             return Err(DirectError::TooManySections {

@@ -327,7 +327,7 @@ fn check_board_replay(board: &Board) {
     let elf = build_example("board_replay", board.target);
     let (status, stdout) = run_in_qemu(&elf, board.machine);
     assert_eq!(status, Some(0), "{test} failed in QEMU:\n{stdout}");
-    let board: Vec<(usize, u32)> = stdout
+    let board_y: Vec<(usize, u32)> = stdout
         .lines()
         .filter_map(|l| l.strip_prefix("Y "))
         .map(|l| {
@@ -340,13 +340,13 @@ fn check_board_replay(board: &Board) {
         .collect();
     let host = host_outputs();
     assert_eq!(
-        board.len(),
+        board_y.len(),
         host.len(),
         "the board reported {} samples, the trace has {}",
-        board.len(),
+        board_y.len(),
         host.len()
     );
-    for (k, ((i, b), h)) in board.iter().zip(&host).enumerate() {
+    for (k, ((i, b), h)) in board_y.iter().zip(&host).enumerate() {
         assert_eq!(*i, k, "sample numbering");
         assert_eq!(
             b,

@@ -12,6 +12,8 @@
 # `unlag_m4_direct_block_N`), and from the blob parsers (`parse_blob`, `parse_direct_blob`), and
 # fails if any path reaches a panic symbol or an indirect call it cannot follow.
 #   bash .ci/no-panic.sh [ELF]     (default: builds the example first)
+# NO_PANIC_KERNELS="<symbol prefixes>" names the kernels the ELF must hold (default: the f32,
+# fixed and direct-form ones; an FPU-less build has no f32 kernel: "unlag_m4_fixed_ unlag_m4_direct_").
 # NO_PANIC_ROOTS=<regex on mangled names> checks other functions instead. As a negative control
 # the script first makes sure it sees direct calls into panic code somewhere in the ELF.
 set -euo pipefail
@@ -55,8 +57,10 @@ root_re = os.environ.get("NO_PANIC_ROOTS", r"\d((call|block)_(unlag|fixed|direct
 roots = sorted(f for f in edges if re.search(root_re, f))
 if not roots:
     sys.exit("no-panic: no call_unlag/block_unlag function in the ELF (inlined or renamed?)")
-if "NO_PANIC_ROOTS" not in os.environ and not any(r.startswith("unlag_m4_cascade_") for r in roots):
-    sys.exit("no-panic: no unlag_m4_cascade_* kernel in the ELF (the f32 cascade is not using them?)")
+kernels = os.environ.get("NO_PANIC_KERNELS", "unlag_m4_cascade_ unlag_m4_fixed_ unlag_m4_direct_").split()
+for k in kernels if "NO_PANIC_ROOTS" not in os.environ else []:
+    if not any(r.startswith(k) for r in roots):
+        sys.exit(f"no-panic: no {k}* kernel in the ELF (the compensator is not using it?)")
 # Negative control: calls into panic code must be visible to this parser, or it proves nothing.
 callers = sorted(f for f in edges if not panic.search(f) and any(panic.search(g) for g in edges[f]))
 if not callers:

@@ -4,6 +4,7 @@ cascade (`unlag::fixed::direct::DirectCascade::process` and `process_in_place`) 
 sections.
 
     python3 bench/gen_m4_direct.py      # rewrites the file; commit the result
+    python3 bench/gen_m4_direct.py OUT.s  # writes OUT.s instead (.ci/run diffs it against the file)
 
 Layouts (see src/fixed/direct.rs, both #[repr(C)]): coefficients = per section
 [b0, b1, b2, na1, na2] (i32, Q2.30, na = -a); state = [x1, x2], then per section [y1, y2, e],
@@ -19,6 +20,7 @@ order: a section's new [y1, y2, e] is stored from registers (y, old y1, e) in as
 which the register choice below guarantees.
 """
 import os
+import sys
 
 MAX_N = 4
 out = []
@@ -203,7 +205,8 @@ emit("")
 for n in range(1, MAX_N + 1):
     call_kernel(n)
     block_kernel(n)
-path = os.path.join(
+# The committed file, or the path given (CI regenerates into a temporary file and diffs).
+path = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
     os.path.dirname(os.path.abspath(__file__)), "..", "src", "fixed", "direct", "m4_direct.s"
 )
 with open(path, "w") as f:

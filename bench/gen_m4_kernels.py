@@ -3,6 +3,7 @@
 cascade (`CascadeCoefficients::process` and `process_in_place`) for 1..=4 sections.
 
     python3 bench/gen_m4_kernels.py      # rewrites the file; commit the result
+    python3 bench/gen_m4_kernels.py OUT.s  # writes OUT.s instead (.ci/run diffs it against the file)
 
 Layouts (see src/compensator.rs): coefficients `#[repr(C)]` = per section [b0, b1, a1, a2],
 then b2 of every section (5N floats); state `#[repr(C)]` = s2 of every section, then s1 of
@@ -10,6 +11,7 @@ every section (2N floats). Arithmetic: VMLA/VMLS (multiply, round, then add/subt
 not fused), in the order of the portable code, so the results are bit-identical to it.
 """
 import os
+import sys
 
 MAX_N = 4
 out = []
@@ -253,7 +255,10 @@ for n in range(1, MAX_N + 1):
         wide_block_kernel(n)
     else:
         block_kernel(n)
-path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src", "compensator", "m4_kernels.s")
+# The committed file, or the path given (CI regenerates into a temporary file and diffs).
+path = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
+    os.path.dirname(os.path.abspath(__file__)), "..", "src", "compensator", "m4_kernels.s"
+)
 with open(path, "w") as f:
     f.write("\n".join(out).rstrip("\n") + "\n")
 print(f"wrote {os.path.normpath(path)}")

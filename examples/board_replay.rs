@@ -5,6 +5,8 @@
 //! ```sh
 //! # In QEMU (Cortex-M4F, mps2-an386), through the runner in .cargo/config.toml:
 //! cargo run --release --target thumbv7em-none-eabihf --no-default-features --example board_replay
+//! # A Cortex-M3 without FPU (mps2-an385): the fixed-point kernels, the f32 code in software
+//! cargo run --release --target thumbv7m-none-eabi --no-default-features --example board_replay
 //! # The same computation on the host, same output:
 //! cargo run --release --example board_replay
 //! ```
@@ -70,6 +72,12 @@ fn replay_fixed(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
         writeln!(out, "ERROR fixed-point sections refused")?;
         return Ok(false);
     };
+    let kind = if unlag::fixed::uses_kernel() {
+        "asm"
+    } else {
+        "portable"
+    };
+    writeln!(out, "FKERNEL {kind}")?;
     let first = trace::TRACE.first().copied().unwrap_or(0.0);
     let mut state = c.equilibrium(code(first));
     for (k, &y) in trace::TRACE.iter().enumerate() {

@@ -1,11 +1,17 @@
 //! The board example in QEMU against the host, bit for bit.
 //!
-//! Builds `examples/board_replay.rs` for `thumbv7em-none-eabihf` (Cortex-M4F), boots it in
-//! `qemu-system-arm -M mps2-an386`, and checks that every reconstructed sample it reports over
+//! Builds `examples/board_replay.rs` for each Cortex-M target the crate has kernels for, boots
+//! it in `qemu-system-arm`, and checks that every reconstructed sample it reports over
 //! semihosting has exactly the bits the host gets from the same library code, the same
-//! exported blob and the same recorded trace. Skips with a message when `qemu-system-arm` or
-//! the Rust target is missing, unless `UNLAG_REQUIRE_QEMU=1` (CI sets it), which turns a
-//! missing tool into a failure.
+//! exported blob and the same recorded trace:
+//! * `thumbv7em-none-eabihf` on `mps2-an386` (Cortex-M4F): every kernel, `f32` and fixed point;
+//! * `thumbv7m-none-eabi` on `mps2-an385` (Cortex-M3, no FPU, no DSP extension): the
+//!   fixed-point kernels, the `f32` cascade in portable code with software floats;
+//! * `thumbv7em-none-eabi` on `mps2-an386` (Cortex-M4, soft-float calling convention): the
+//!   same as the M3.
+//!
+//! Skips with a message when `qemu-system-arm` or the Rust target is missing, unless
+//! `UNLAG_REQUIRE_QEMU=1` (CI sets it), which turns a missing tool into a failure.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use std::path::{Path, PathBuf};
@@ -18,15 +24,21 @@ mod trace {
     include!("../examples/data/board_trace.rs");
 }
 
-const TARGET: &str = "thumbv7em-none-eabihf";
+/// A Rust target, the QEMU machine that runs it, and whether its `f32` cascade has kernels.
+struct Board {
+    target: &'static str,
+    machine: &'static str,
+    f32_kernel: bool,
+}
+
 const BLOB: &[u8] = include_bytes!("../examples/data/board_coefficients.bin");
 
 fn required() -> bool {
     std::env::var("UNLAG_REQUIRE_QEMU").is_ok_and(|v| v == "1")
 }
 
-/// `Some(reason)` when the tools to run firmware are missing.
-fn missing_tools() -> Option<String> {
+/// `Some(reason)` when the tools to run firmware for `target` are missing.
+fn missing_tools(target: &str) -> Option<String> {
     let qemu = Command::new("qemu-system-arm")
         .arg("--version")
         .stdout(Stdio::null())
@@ -44,18 +56,18 @@ fn missing_tools() -> Option<String> {
         Ok(o)
             if String::from_utf8_lossy(&o.stdout)
                 .lines()
-                .any(|l| l.trim() == TARGET) =>
+                .any(|l| l.trim() == target) =>
         {
             None
         }
         _ => Some(format!(
-            "the Rust target {TARGET} is not installed (rustup target add {TARGET})"
+            "the Rust target {target} is not installed (rustup target add {target})"
         )),
     }
 }
 
-/// Builds a board example and returns its ELF.
-fn build_example(name: &str) -> PathBuf {
+/// Builds a board example for `target` and returns its ELF.
+fn build_example(name: &str, target: &str) -> PathBuf {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     // A target directory of its own: the outer `cargo test` may hold the main one's lock.
     let target_dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firmware");
@@ -67,7 +79,7 @@ fn build_example(name: &str) -> PathBuf {
             "--release",
             "--no-default-features",
             "--target",
-            TARGET,
+            target,
         ])
         .args(["--example", name, "--target-dir"])
         .arg(&target_dir)
@@ -76,22 +88,22 @@ fn build_example(name: &str) -> PathBuf {
         .expect("cargo runs");
     assert!(
         out.status.success(),
-        "building {name} for {TARGET} failed:\n{}",
+        "building {name} for {target} failed:\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
     target_dir
-        .join(TARGET)
+        .join(target)
         .join("release")
         .join("examples")
         .join(name)
 }
 
-/// Boots `elf` on mps2-an386 and returns (exit status, stdout).
-fn run_in_qemu(elf: &Path) -> (Option<i32>, String) {
+/// Boots `elf` on the QEMU machine `machine` and returns (exit status, stdout).
+fn run_in_qemu(elf: &Path, machine: &str) -> (Option<i32>, String) {
     let mut child = Command::new("qemu-system-arm")
         .args([
             "-M",
-            "mps2-an386",
+            machine,
             "-nographic",
             "-monitor",
             "none",
@@ -277,16 +289,45 @@ fn host_direct_lines() -> Vec<String> {
 
 #[test]
 fn board_replay_in_qemu_is_bit_identical_to_the_host() {
-    if let Some(reason) = missing_tools() {
+    check_board_replay(&Board {
+        target: "thumbv7em-none-eabihf",
+        machine: "mps2-an386",
+        f32_kernel: true,
+    });
+}
+
+#[test]
+fn board_replay_on_a_cortex_m3_is_bit_identical_to_the_host() {
+    check_board_replay(&Board {
+        target: "thumbv7m-none-eabi",
+        machine: "mps2-an385",
+        f32_kernel: false,
+    });
+}
+
+#[test]
+fn board_replay_on_a_soft_float_cortex_m4_is_bit_identical_to_the_host() {
+    check_board_replay(&Board {
+        target: "thumbv7em-none-eabi",
+        machine: "mps2-an386",
+        f32_kernel: false,
+    });
+}
+
+/// Builds and boots `examples/board_replay.rs` for `board` and checks all it reports against
+/// the host; every Cortex-M target runs the fixed-point kernels.
+fn check_board_replay(board: &Board) {
+    let test = format!("board_replay on {} ({})", board.target, board.machine);
+    if let Some(reason) = missing_tools(board.target) {
         assert!(!required(), "UNLAG_REQUIRE_QEMU=1 but {reason}");
-        println!("SKIPPED board_replay_in_qemu_is_bit_identical_to_the_host: {reason}");
-        eprintln!("SKIPPED board_replay_in_qemu_is_bit_identical_to_the_host: {reason}");
+        println!("SKIPPED {test}: {reason}");
+        eprintln!("SKIPPED {test}: {reason}");
         return;
     }
-    let elf = build_example("board_replay");
-    let (status, stdout) = run_in_qemu(&elf);
-    assert_eq!(status, Some(0), "board_replay failed in QEMU:\n{stdout}");
-    let board: Vec<(usize, u32)> = stdout
+    let elf = build_example("board_replay", board.target);
+    let (status, stdout) = run_in_qemu(&elf, board.machine);
+    assert_eq!(status, Some(0), "{test} failed in QEMU:\n{stdout}");
+    let board_y: Vec<(usize, u32)> = stdout
         .lines()
         .filter_map(|l| l.strip_prefix("Y "))
         .map(|l| {
@@ -299,23 +340,27 @@ fn board_replay_in_qemu_is_bit_identical_to_the_host() {
         .collect();
     let host = host_outputs();
     assert_eq!(
-        board.len(),
+        board_y.len(),
         host.len(),
         "the board reported {} samples, the trace has {}",
-        board.len(),
+        board_y.len(),
         host.len()
     );
-    for (k, ((i, b), h)) in board.iter().zip(&host).enumerate() {
+    for (k, ((i, b), h)) in board_y.iter().zip(&host).enumerate() {
         assert_eq!(*i, k, "sample numbering");
         assert_eq!(
             b,
             h,
-            "sample {k}: board {} ({b:#010x}) != host {} ({h:#010x})",
+            "{test}, sample {k}: board {} ({b:#010x}) != host {} ({h:#010x})",
             f32::from_bits(*b),
             f32::from_bits(*h)
         );
     }
-    // The fixed-point compensator, the same way.
+    // The fixed-point compensator, the same way, through its kernel.
+    assert!(
+        stdout.lines().any(|l| l == "FKERNEL asm"),
+        "{test}: the fixed-point cascade does not run its kernel:\n{stdout}"
+    );
     let board_fixed: Vec<u32> = stdout
         .lines()
         .filter_map(|l| l.strip_prefix("F "))
@@ -329,7 +374,7 @@ fn board_replay_in_qemu_is_bit_identical_to_the_host() {
     for (k, (b, h)) in board_fixed.iter().zip(&host_fixed).enumerate() {
         assert_eq!(
             b, h,
-            "fixed point, sample {k}: board {b:#010x} != host {h:#010x}"
+            "{test}, fixed point, sample {k}: board {b:#010x} != host {h:#010x}"
         );
     }
     assert!(stdout.contains("FIXED overflow=false"), "{stdout}");
@@ -338,7 +383,8 @@ fn board_replay_in_qemu_is_bit_identical_to_the_host() {
         "{stdout}"
     );
     // The Cortex-M kernels (1 to 4 sections, one call per sample and in blocks of every
-    // length modulo 3) against the host's portable code, bit for bit, through hashes.
+    // length modulo 3; the portable code where the target has no kernel) against the host's
+    // portable code, bit for bit, through hashes.
     let host_hashes = [
         fnv1a(host_sections::<1>().into_iter()),
         fnv1a(host_sections::<2>().into_iter()),
@@ -350,17 +396,20 @@ fn board_replay_in_qemu_is_bit_identical_to_the_host() {
         fnv1a(host.iter().copied()),
         "the blob and the Rust constants describe the same design"
     );
+    let f32_kind = if board.f32_kernel { "asm" } else { "portable" };
     for (k, h) in host_hashes.iter().enumerate() {
         let k = k + 1;
         assert!(
-            stdout.contains(&format!("KERNEL K={k} asm")),
-            "the board build does not run the Cortex-M kernel for {k} sections:\n{stdout}"
+            stdout
+                .lines()
+                .any(|l| l == format!("KERNEL K={k} {f32_kind}")),
+            "{test}: the f32 cascade of {k} sections should run the {f32_kind} code:\n{stdout}"
         );
         for mode in ["call", "block"] {
             let want = format!("H K={k} {mode} {h:016x}");
             assert!(
                 stdout.lines().any(|l| l == want),
-                "{k} sections, {mode}: the board's hash differs from the host's ({want}):\n{}",
+                "{test}, {k} sections, {mode}: the board's hash differs from the host's ({want}):\n{}",
                 stdout
                     .lines()
                     .filter(|l| l.starts_with("H ") || l.starts_with("KERNEL"))
@@ -382,7 +431,7 @@ fn board_replay_in_qemu_is_bit_identical_to_the_host() {
     let want = format!("STRESS {h:016x} overflows={overflows}");
     assert!(
         stdout.lines().any(|l| l == want),
-        "fixed-point stress: board and host differ (host: {want}):\n{}",
+        "{test}, fixed-point stress: board and host differ (host: {want}):\n{}",
         stdout
             .lines()
             .filter(|l| l.starts_with("STRESS"))
@@ -394,8 +443,10 @@ fn board_replay_in_qemu_is_bit_identical_to_the_host() {
     for k in 1..=4 {
         for name in ["trace", "stress"] {
             assert!(
-                stdout.contains(&format!("DKERNEL {name} K={k} asm")),
-                "the board build does not run the direct-form kernel for {k} sections:\n{stdout}"
+                stdout
+                    .lines()
+                    .any(|l| l == format!("DKERNEL {name} K={k} asm")),
+                "{test}: the direct-form kernel for {k} sections does not run:\n{stdout}"
             );
         }
     }
@@ -403,7 +454,7 @@ fn board_replay_in_qemu_is_bit_identical_to_the_host() {
     for want in &direct_lines {
         assert!(
             stdout.lines().any(|l| l == want),
-            "direct form: the board differs from the host (host: {want}):\n{}",
+            "{test}, direct form: the board differs from the host (host: {want}):\n{}",
             stdout
                 .lines()
                 .filter(|l| l.starts_with("DH "))

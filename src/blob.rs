@@ -403,6 +403,28 @@ impl<const N: usize> CoefficientSet<N> {
     ///
     /// # Errors
     /// See [`parse`].
+    ///
+    /// ```
+    /// use unlag::blob::{self, BlobError, CoefficientSet};
+    ///
+    /// let mut old = [0u8; blob::encoded_len(1)];
+    /// let n = blob::encode(&mut old, 10_000.0, 3, 1.0, &[[1.0, 0.0, 0.0, -0.5, 0.0]])?;
+    /// let mut set: CoefficientSet<2> = blob::parse(&old[..n])?;
+    ///
+    /// let mut new = [0u8; blob::encoded_len(1)];
+    /// let n = blob::encode(&mut new, 20_000.0, 5, 1.0, &[[1.0, 0.0, 0.0, -0.25, 0.0]])?;
+    /// // Damaged in transit: refused, and the running set is kept as it was.
+    /// let mut damaged = new;
+    /// damaged[40] ^= 0x01;
+    /// assert!(matches!(set.update(&damaged[..n]), Err(BlobError::CrcMismatch { .. })));
+    /// assert_eq!(set.sample_rate_hz, 10_000.0);
+    /// // Cut short: refused too.
+    /// assert!(set.update(&new[..n - 1]).is_err());
+    /// // Whole: swapped in.
+    /// set.update(&new[..n])?;
+    /// assert_eq!((set.sample_rate_hz, set.delay_samples), (20_000.0, 5));
+    /// # Ok::<(), BlobError>(())
+    /// ```
     pub fn update(&mut self, bytes: &[u8]) -> Result<(), BlobError> {
         *self = parse(bytes)?;
         Ok(())
@@ -645,6 +667,28 @@ impl<const N: usize> FixedCoefficientSet<N> {
 ///
 /// # Errors
 /// The first [`BlobError`] found; never panics, whatever the bytes.
+///
+/// ```
+/// use unlag::blob::{self, BlobError};
+/// use unlag::fixed::{FixedSection, FixedState};
+///
+/// let sections = [FixedSection::IDENTITY; 2];
+/// let mut buf = [0u8; blob::encoded_len_fixed(2)];
+/// let n = blob::encode_fixed(&mut buf, 10_000.0, 3, 2500.0, 0, &sections)?;
+/// let set = blob::parse_fixed::<4>(&buf[..n])?;
+/// assert_eq!((set.sections, set.full_scale), (2, 2500.0));
+/// let mut state = FixedState::default();
+/// assert_eq!(set.cascade.process(&mut state, -123_456), -123_456);
+/// // A board with room for one section only refuses it; an f32 blob is no fixed-point one.
+/// assert!(matches!(blob::parse_fixed::<1>(&buf[..n]), Err(BlobError::TooManySections { .. })));
+/// let mut f32_blob = [0u8; blob::encoded_len(1)];
+/// let m = blob::encode(&mut f32_blob, 10_000.0, 3, 1.0, &[[1.0, 0.0, 0.0, 0.0, 0.0]])?;
+/// assert!(matches!(
+///     blob::parse_fixed::<4>(&f32_blob[..m]),
+///     Err(BlobError::UnsupportedNumberFormat { .. })
+/// ));
+/// # Ok::<(), BlobError>(())
+/// ```
 pub fn parse_fixed<const N: usize>(bytes: &[u8]) -> Result<FixedCoefficientSet<N>, BlobError> {
     let mut h = header(bytes)?;
     let short = BlobError::Truncated {
@@ -744,6 +788,27 @@ impl<const N: usize> DirectCoefficientSet<N> {
 ///
 /// # Errors
 /// The first [`BlobError`] found; never panics, whatever the bytes.
+///
+/// ```
+/// use unlag::blob::{self, BlobError};
+/// use unlag::fixed::direct::{DirectSection, DirectState};
+///
+/// let lag = DirectSection { b: [1 << 29, 0, 0], neg_a: [1 << 29, 0] };
+/// let mut buf = [0u8; blob::encoded_len_direct(1)];
+/// let n = blob::encode_direct(&mut buf, 10_000.0, 3, 2500.0, 0, &[lag])?;
+/// let set = blob::parse_direct::<2>(&buf[..n])?;
+/// assert_eq!(set.cascade.sections()[0], lag);
+/// let mut state = DirectState::default();
+/// assert_eq!(set.cascade.process(&mut state, 1000), 500);
+/// // An unstable section is refused with the cascade's own error.
+/// let ring = DirectSection { b: [1 << 29, 0, 0], neg_a: [0, -(1 << 30)] };
+/// let n = blob::encode_direct(&mut buf, 10_000.0, 3, 2500.0, 0, &[ring])?;
+/// assert!(matches!(
+///     blob::parse_direct::<2>(&buf[..n]),
+///     Err(BlobError::InvalidDirectSections(_))
+/// ));
+/// # Ok::<(), BlobError>(())
+/// ```
 pub fn parse_direct<const N: usize>(bytes: &[u8]) -> Result<DirectCoefficientSet<N>, BlobError> {
     let mut h = header(bytes)?;
     let short = BlobError::Truncated {

@@ -136,10 +136,7 @@ mod private {
         }
     }
 
-    #[cfg(not(any(
-        all(target_arch = "arm", target_abi = "eabihf", target_os = "none"),
-        target_arch = "x86_64"
-    )))]
+    #[cfg(not(any(all(unlag_armv7m, target_abi = "eabihf"), target_arch = "x86_64")))]
     impl Sealed for f32 {}
 
     /// `Sealed` for a float on x86-64, where `scalar` is a value barrier. LLVM's SLP
@@ -173,7 +170,7 @@ mod private {
     sealed_with_value_barrier!(f32);
     #[cfg(target_arch = "x86_64")]
     sealed_with_value_barrier!(f64);
-    #[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+    #[cfg(all(unlag_armv7m, target_abi = "eabihf"))]
     impl Sealed for f32 {
         #[inline(always)]
         fn kernel_process<const N: usize>(
@@ -196,8 +193,9 @@ mod private {
     impl Sealed for f64 {}
 }
 
-/// The Cortex-M kernels of the `f32` cascade (Thumb-2 + single-precision VFP, hard-float ABI).
-#[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+/// The Cortex-M kernels of the `f32` cascade (Thumb-2 + single-precision VFP, hard-float ABI:
+/// `thumbv7em-none-eabihf`; see `build.rs` for `unlag_armv7m`).
+#[cfg(all(unlag_armv7m, target_abi = "eabihf"))]
 mod m4;
 
 /// The board's share of the `temperature` effect: coefficient sets by gas temperature.
@@ -205,16 +203,23 @@ pub mod bank;
 pub use bank::{BankChannel, BankError, TemperatureBank};
 
 /// `true` when this build runs the `f32` cascade of `N` sections through the hand-scheduled
-/// Cortex-M kernels (`N` = 1..=4 on a hard-float Arm bare-metal target), `false` when it runs
-/// the portable Rust code. Both compute the same bits.
+/// Cortex-M kernels (`N` = 1..=4 on `thumbv7em-none-eabihf`: Cortex-M4F and M7 with the FPU
+/// and the hard-float calling convention), `false` when it runs the portable Rust code (the
+/// host, `thumbv7m-none-eabi`, `thumbv7em-none-eabi`, any other target). Both compute the
+/// same bits.
+///
+/// ```
+/// use unlag::compensator::f32_cascade_uses_kernel;
+///
+/// // There are kernels for 1 to 4 sections only, and none on the host.
+/// assert!(!f32_cascade_uses_kernel(5));
+/// assert!(!f32_cascade_uses_kernel(0));
+/// # #[cfg(not(target_arch = "arm"))]
+/// assert!(!f32_cascade_uses_kernel(2));
+/// ```
 #[must_use]
 pub const fn f32_cascade_uses_kernel(sections: usize) -> bool {
-    cfg!(all(
-        target_arch = "arm",
-        target_abi = "eabihf",
-        target_os = "none"
-    )) && sections >= 1
-        && sections <= 4
+    cfg!(all(unlag_armv7m, target_abi = "eabihf")) && sections >= 1 && sections <= 4
 }
 
 /// Why a coefficient set was refused. Checked once, when the coefficients are built; a built
@@ -397,6 +402,28 @@ impl<T: Sample, const M: usize> InverseCoefficients<T, M> {
     /// # Errors
     /// [`InverseError`] when the order exceeds `M`, a coefficient is not finite, `b0` is zero,
     /// or `B(z)` has a zero on or outside the unit circle.
+    ///
+    /// ```
+    /// use unlag::compensator::{InverseCoefficients, InverseError, InverseState};
+    ///
+    /// // The probe y[k] = 0.5 u[k] + 0.5 y[k-1]: its inverse is u = 2 y[k] - y[k-1].
+    /// let c = InverseCoefficients::<f32, 2>::new(&[0.5], &[-0.5])?;
+    /// assert_eq!(c.dc_gain(), 1.0);
+    /// let mut state = InverseState::default();
+    /// let probe = [0.5f32, 0.75, 0.875]; // the probe's answer to a unit step
+    /// assert_eq!(probe.map(|y| c.process(&mut state, y)), [1.0, 1.0, 1.0]);
+    ///
+    /// // b0 = 0 cannot be inverted, nor can a zero outside the unit circle (b1 > b0).
+    /// assert_eq!(
+    ///     InverseCoefficients::<f32, 2>::new(&[0.0, 0.5], &[-0.5]),
+    ///     Err(InverseError::LeadingZero)
+    /// );
+    /// assert!(matches!(
+    ///     InverseCoefficients::<f32, 2>::new(&[0.2, 0.4], &[-0.4]),
+    ///     Err(InverseError::UnstableInverse { .. })
+    /// ));
+    /// # Ok::<(), InverseError>(())
+    /// ```
     pub fn new(b: &[f64], a: &[f64]) -> Result<Self, InverseError> {
         let order = a.len().max(b.len().saturating_sub(1));
         if a.len() > M || b.len() > M + 1 {
@@ -619,8 +646,8 @@ pub fn section_pole_radius(a1: f64, a2: f64) -> f64 {
 /// Cost on a Cortex-M4F: instructions counted in QEMU, see BENCHMARKS.md "Board (Cortex-M4,
 /// QEMU)".
 ///
-/// On Cortex-M with an FPU (`thumbv7em-none-eabihf` and the other hard-float bare-metal Arm
-/// targets) an `f32` cascade of 1 to 4 sections runs through hand-scheduled Thumb-2 kernels
+/// On Cortex-M4F and M7 with the hard-float calling convention (`thumbv7em-none-eabihf`) an
+/// `f32` cascade of 1 to 4 sections runs through hand-scheduled Thumb-2 kernels
 /// (module `m4`: one VLDM for all coefficients, VMLA/VMLS, no stack frame; in a block the
 /// coefficients and states stay in registers): 29 instructions per call (the caller's loop
 /// included) and 12.7 per sample in a block for two sections. VMLA and VMLS round the
@@ -629,6 +656,35 @@ pub fn section_pole_radius(a1: f64, a2: f64) -> f64 {
 ///
 /// Memory layout (`#[repr(C)]`, read by the kernels): per section `[b0, b1, a1, a2]`, then
 /// `b2` of every section, contiguous.
+///
+/// ```
+/// use unlag::compensator::{CascadeCoefficients, CascadeState, InverseError};
+///
+/// // 0.5 / (1 - 0.5 z^-1): the gain 0.5 and one section [b0, b1, b2, a1, a2], a DC gain of
+/// // one. Room for two sections: the second stays an identity.
+/// let c = CascadeCoefficients::<f32, 2>::new(0.5, &[[1.0, 0.0, 0.0, -0.5, 0.0]])?;
+/// let mut state = CascadeState::default();
+/// let step = [1.0f32; 4].map(|x| c.process(&mut state, x));
+/// assert_eq!(step, [0.5, 0.75, 0.875, 0.9375]);
+///
+/// // A block gives the same bits as one call per sample.
+/// let mut state = CascadeState::default();
+/// let mut buf = [1.0f32; 4];
+/// c.process_in_place(&mut state, &mut buf);
+/// assert_eq!(buf, step);
+///
+/// // Started in equilibrium with a steady reading, there is no start-up transient.
+/// let mut state = c.equilibrium(3.0);
+/// assert_eq!(c.process(&mut state, 3.0), 3.0);
+///
+/// // A pole on the unit circle is refused when the coefficients are built.
+/// let integrator = [1.0, 0.0, 0.0, -1.0, 0.0];
+/// assert!(matches!(
+///     CascadeCoefficients::<f32, 2>::new(1.0, &[integrator]),
+///     Err(InverseError::UnstableSection { index: 0, .. })
+/// ));
+/// # Ok::<(), InverseError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C)]
 pub struct CascadeCoefficients<T, const N: usize> {

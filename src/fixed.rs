@@ -149,6 +149,34 @@ impl fmt::Display for FixedError {
 impl std::error::Error for FixedError {}
 
 /// Validated fixed-point coefficients of a cascade of up to `N` sections.
+///
+/// ```
+/// use unlag::fixed::{FixedCascade, FixedError, FixedSection, FixedState};
+///
+/// const HALF: i32 = 1 << 29; // 0.5 in Q2.30
+/// // A lag x' = Qt(0.5 x + 0.5 u), y = x (c in Q.30), then an exact halving y = Qr(0.5 u).
+/// let lag = FixedSection { a: [HALF, 0, 0, 0], b: [HALF, 0], c: [1 << 30, 0], d: 0, shift: 30 };
+/// let halve = FixedSection { d: HALF, ..FixedSection::IDENTITY };
+/// let c = FixedCascade::<3>::new(&[lag, halve])?; // the third section is an identity
+/// let mut state = FixedState::default();
+/// let y: Vec<i32> = (0..4).map(|_| c.process(&mut state, 1000)).collect();
+/// assert_eq!(y, [0, 250, 375, 438]); // 437.5 rounds half up
+/// assert!(!state.overflowed());
+///
+/// // Started in equilibrium with a steady reading, there is no start-up transient.
+/// let mut state = c.equilibrium(1000);
+/// assert_eq!(c.process(&mut state, 1000), 500);
+///
+/// // A pole on the unit circle, or a shift out of 1..=62, is refused.
+/// let integrator = FixedSection { a: [1 << 30, 0, 0, 0], ..lag };
+/// assert_eq!(
+///     FixedCascade::<3>::new(&[lag, integrator]),
+///     Err(FixedError::NotNormalForm { index: 1 })
+/// );
+/// let bad_shift = FixedSection { shift: 0, ..lag };
+/// assert_eq!(FixedCascade::<3>::new(&[bad_shift]), Err(FixedError::BadShift { index: 0 }));
+/// # Ok::<(), FixedError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FixedCascade<const N: usize> {
     sections: [FixedSection; N],
@@ -269,17 +297,18 @@ impl<const N: usize> FixedCascade<N> {
     /// One ADC sample (Q1.31 of the design's full scale) through the cascade; the output is
     /// the reconstructed reference in the design's output format. Panic-free, allocation-free.
     ///
-    /// On hard-float bare-metal Arm targets (`thumbv7em-none-eabihf` and the like) this runs a
-    /// hand-written Thumb-2 kernel (SMULL/SMLAL, SSAT; module `m4`), elsewhere
+    /// On the Cortex-M3, M4 and M7 targets (`thumbv7m-none-eabi`, `thumbv7em-none-eabi`,
+    /// `thumbv7em-none-eabihf`) this runs a hand-written Thumb-2 kernel (SMULL/SMLAL, SSAT;
+    /// module `m4`, see [`uses_kernel`]), elsewhere
     /// [`Self::process_portable`]: the same integer arithmetic, the same bits
     /// (`host-tests/firmware.rs` checks it in QEMU).
     #[inline]
     pub fn process(&self, state: &mut FixedState<N>, input: i32) -> i32 {
-        #[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+        #[cfg(unlag_armv7m)]
         {
             m4::process(self, state, input)
         }
-        #[cfg(not(all(target_arch = "arm", target_abi = "eabihf", target_os = "none")))]
+        #[cfg(not(unlag_armv7m))]
         {
             self.process_portable(state, input)
         }
@@ -349,9 +378,24 @@ impl<const N: usize> FixedCascade<N> {
     }
 }
 
-/// The Cortex-M kernel of the fixed-point cascade.
-#[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+/// The Cortex-M kernel of the fixed-point cascade (ARMv7-M: Cortex-M3, M4, M7; see `build.rs`
+/// for `unlag_armv7m`).
+#[cfg(unlag_armv7m)]
 mod m4;
+
+/// `true` when this build runs [`FixedCascade::process`] through the Cortex-M kernel (on the
+/// ARMv7-M and ARMv7E-M targets `thumbv7m-none-eabi`, Cortex-M3, and
+/// `thumbv7em-none-eabi(hf)`, Cortex-M4 and M7, with or without an FPU), `false` when it runs
+/// [`FixedCascade::process_portable`]. Both compute the same bits.
+///
+/// ```
+/// # #[cfg(not(target_arch = "arm"))]
+/// assert!(!unlag::fixed::uses_kernel());
+/// ```
+#[must_use]
+pub const fn uses_kernel() -> bool {
+    cfg!(unlag_armv7m)
+}
 
 pub mod direct;
 

@@ -260,6 +260,29 @@ impl<T: Sample, const SETS: usize, const N: usize> TemperatureBank<T, SETS, N> {
     /// sets as temperatures, temperatures not finite,
     /// positive and strictly ascending, a hysteresis not in `[0, smallest step)`, sets of
     /// different section counts, or a set [`CascadeCoefficients::new`] refuses.
+    ///
+    /// ```
+    /// use unlag::compensator::{BankError, TemperatureBank};
+    ///
+    /// let sets = [[[0.5, 0.0, 0.0, -0.5, 0.0]], [[0.6, 0.0, 0.0, -0.4, 0.0]]];
+    /// let bank = TemperatureBank::<f32, 2, 1>::new(&[273.0, 313.0], &[1.0, 1.0], &sets, 20.0, 0);
+    /// assert!(bank.is_ok());
+    /// // Temperatures must ascend, and the hysteresis must be smaller than the step.
+    /// assert_eq!(
+    ///     TemperatureBank::<f32, 2, 1>::new(&[313.0, 273.0], &[1.0, 1.0], &sets, 20.0, 0).err(),
+    ///     Some(BankError::Temperatures { index: 1 })
+    /// );
+    /// assert_eq!(
+    ///     TemperatureBank::<f32, 2, 1>::new(&[273.0, 313.0], &[1.0, 1.0], &sets, 40.0, 0).err(),
+    ///     Some(BankError::Hysteresis)
+    /// );
+    /// // Each set's coefficients are checked as CascadeCoefficients::new checks them.
+    /// let unstable = [[[0.5, 0.0, 0.0, -0.5, 0.0]], [[1.0, 0.0, 0.0, -1.0, 0.0]]];
+    /// assert!(matches!(
+    ///     TemperatureBank::<f32, 2, 1>::new(&[273.0, 313.0], &[1.0, 1.0], &unstable, 20.0, 0),
+    ///     Err(BankError::Set { index: 1, .. })
+    /// ));
+    /// ```
     pub fn new<S: AsRef<[[f64; 5]]>>(
         temperatures_k: &[f64],
         gains: &[f64],

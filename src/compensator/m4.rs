@@ -2,9 +2,12 @@
 //! assembly (`m4_kernels.s`, written by `bench/gen_m4_kernels.py`) and the only `unsafe` code
 //! of the crate, the calls into it.
 //!
-//! Built on hard-float bare-metal Arm targets (`thumbv7em-none-eabihf` and the like: Thumb-2,
-//! a single-precision VFP with 32 S registers, the AAPCS-VFP calling convention). The kernels
-//! exist for 1..=4 sections; other capacities run the portable code.
+//! Built on `thumbv7em-none-eabihf` (`cfg(all(unlag_armv7m, target_abi = "eabihf"))`, see
+//! `build.rs`): Thumb-2, a single-precision VFP with 32 S registers, and the AAPCS-VFP calling
+//! convention that passes `f32` arguments in S registers. The soft-float targets
+//! (`thumbv7em-none-eabi`, `thumbv7m-none-eabi`) pass them in integer registers, and the M3 has
+//! no FPU: they run the portable code. The kernels exist for 1..=4 sections; other capacities
+//! run the portable code.
 //!
 //! Why assembly: LLVM loads every coefficient and state with its own VLDR, gives every Rust
 //! function a frame (the thumbv7em targets force frame pointers), keeps VMUL and VADD apart

@@ -236,6 +236,31 @@ impl<const N: usize> DirectCascade<N> {
     ///
     /// # Errors
     /// A [`DirectError`] naming the section.
+    ///
+    /// ```
+    /// use unlag::fixed::direct::{DirectCascade, DirectError, DirectSection, DirectState};
+    ///
+    /// const HALF: i32 = 1 << 29; // 0.5 in Q2.30
+    /// // y[n] = 0.5 x[n] + 0.5 y[n-1], then an identity: a DC gain of one.
+    /// let lag = DirectSection { b: [HALF, 0, 0], neg_a: [HALF, 0] };
+    /// let c = DirectCascade::<2>::new(&[lag, DirectSection::IDENTITY])?;
+    /// let mut state = DirectState::default();
+    /// let mut buf = [1000i32; 40];
+    /// c.process_in_place(&mut state, &mut buf);
+    /// assert_eq!(buf[..4], [500, 750, 875, 937]);
+    /// // The truncation residual is carried over, so the output reaches the input exactly.
+    /// assert_eq!(buf[39], 1000);
+    /// assert_eq!(c.process(&mut state, 1000), 1000);
+    /// assert!(!state.overflowed());
+    ///
+    /// // Poles on or outside the unit circle (here a2 = 1) are refused.
+    /// let ring = DirectSection { b: [HALF, 0, 0], neg_a: [0, -(1 << 30)] };
+    /// assert!(matches!(
+    ///     DirectCascade::<2>::new(&[lag, ring]),
+    ///     Err(DirectError::Unstable { index: 1 })
+    /// ));
+    /// # Ok::<(), DirectError>(())
+    /// ```
     pub fn new(sections: &[DirectSection]) -> Result<Self, DirectError> {
         if sections.len() > N {
             return Err(DirectError::TooManySections {
@@ -264,12 +289,13 @@ impl<const N: usize> DirectCascade<N> {
     /// One ADC code (Q1.31 of the design's full scale) through the cascade; the output is the
     /// reconstructed reference in the design's output format. Panic-free, allocation-free.
     ///
-    /// On hard-float bare-metal Arm targets (`thumbv7em-none-eabihf` and the like) with 1 to 4
-    /// sections this runs a hand-written Thumb-2 kernel (module `m4`), elsewhere
+    /// On the Cortex-M3, M4 and M7 targets (`thumbv7m-none-eabi`, `thumbv7em-none-eabi`,
+    /// `thumbv7em-none-eabihf`) with 1 to 4 sections this runs a hand-written Thumb-2 kernel
+    /// (module `m4`, see [`uses_kernel`]), elsewhere
     /// [`Self::process_portable`]: the same bits (`host-tests/firmware.rs` checks it in QEMU).
     #[inline]
     pub fn process(&self, state: &mut DirectState<N>, input: i32) -> i32 {
-        #[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+        #[cfg(unlag_armv7m)]
         {
             if let Some(y) = m4::process(self, state, input) {
                 return y;
@@ -308,7 +334,7 @@ impl<const N: usize> DirectCascade<N> {
     /// sample). On Cortex-M with 1 to 4 sections a block kernel keeps the loop in assembly.
     #[inline]
     pub fn process_in_place(&self, state: &mut DirectState<N>, buf: &mut [i32]) {
-        #[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+        #[cfg(unlag_armv7m)]
         {
             if m4::process_in_place(self, state, buf) {
                 return;
@@ -357,16 +383,21 @@ impl<const N: usize> DirectCascade<N> {
 
 /// `true` when this build runs [`DirectCascade::process`] and
 /// [`DirectCascade::process_in_place`] for `sections` sections through the Cortex-M kernels
-/// (`N` = 1..=4 on a hard-float Arm bare-metal target), `false` when it runs the portable Rust
-/// code. Both compute the same bits.
+/// (`N` = 1..=4 on the ARMv7-M and ARMv7E-M targets `thumbv7m-none-eabi`, Cortex-M3, and
+/// `thumbv7em-none-eabi(hf)`, Cortex-M4 and M7, with or without an FPU), `false` when it runs
+/// the portable Rust code. Both compute the same bits.
+///
+/// ```
+/// use unlag::fixed::direct::uses_kernel;
+///
+/// // There are kernels for 1 to 4 sections only, and none on the host.
+/// assert!(!uses_kernel(5));
+/// # #[cfg(not(target_arch = "arm"))]
+/// assert!(!uses_kernel(4));
+/// ```
 #[must_use]
 pub const fn uses_kernel(sections: usize) -> bool {
-    cfg!(all(
-        target_arch = "arm",
-        target_abi = "eabihf",
-        target_os = "none"
-    )) && sections >= 1
-        && sections <= 4
+    cfg!(unlag_armv7m) && sections >= 1 && sections <= 4
 }
 
 /// Poles strictly inside the unit circle: `|a2| < 1` and `|a1| < 1 + a2`, in Q2.30 integers.
@@ -377,8 +408,9 @@ fn stable(neg_a: [i32; 2]) -> bool {
     na2.abs() < one && na1.abs() < one.wrapping_sub(na2)
 }
 
-/// The Cortex-M kernels of the direct-form cascade.
-#[cfg(all(target_arch = "arm", target_abi = "eabihf", target_os = "none"))]
+/// The Cortex-M kernels of the direct-form cascade (ARMv7-M: Cortex-M3, M4, M7; see `build.rs`
+/// for `unlag_armv7m`).
+#[cfg(unlag_armv7m)]
 mod m4;
 
 #[cfg(test)]

@@ -1,6 +1,12 @@
 //! The Cortex-M kernel of the fixed-point cascade: this module owns the hand-written Thumb-2
 //! assembly `m4_fixed.s` and the `unsafe` call into it.
 //!
+//! Built on every ARMv7-M and ARMv7E-M bare-metal target (`cfg(unlag_armv7m)`, see `build.rs`):
+//! `thumbv7m-none-eabi` (Cortex-M3), `thumbv7em-none-eabi` and `thumbv7em-none-eabihf`
+//! (Cortex-M4 and M7). It uses only ARMv7-M instructions (SMULL, SMLAL, SSAT, RRX, LDRD/STRD),
+//! none of the DSP extension and no FPU, and takes only integer and pointer arguments, so the
+//! float calling convention does not matter.
+//!
 //! Same arithmetic as [`FixedCascade::process_portable`] (exact 64-bit accumulation, magnitude
 //! truncation of the states, rounding of the output, saturation with the overflow flag), so
 //! the same bits; `host-tests/firmware.rs` checks it in QEMU. What it saves over the compiled

@@ -2,6 +2,12 @@
 //! assembly `m4_direct.s` (written by `bench/gen_m4_direct.py`) and the `unsafe` calls into
 //! it. Kernels exist for 1..=4 sections; other capacities run the portable code.
 //!
+//! Built on every ARMv7-M and ARMv7E-M bare-metal target (`cfg(unlag_armv7m)`, see `build.rs`):
+//! `thumbv7m-none-eabi` (Cortex-M3), `thumbv7em-none-eabi` and `thumbv7em-none-eabihf`
+//! (Cortex-M4 and M7). It uses only ARMv7-M instructions (SMLAL, SSAT, BFC, LDM/STM, MRS/MSR of
+//! the APSR and its Q flag), none of the DSP extension and no FPU, and takes only integer and
+//! pointer arguments, so the float calling convention does not matter.
+//!
 //! Same arithmetic as [`DirectCascade::process_portable`] (exact 64-bit SMLAL accumulation
 //! seeded with the residual, SSAT of the high word, the new residual by BFC), so the same
 //! bits; `host-tests/firmware.rs` checks it in QEMU. The call kernel loads a section's

@@ -90,8 +90,8 @@ fn physical_limits_show_what_the_physics_predicts() {
             "sensor-resonance" => {
                 assert!(o.before < 1.5 * o.floor, "{}: {o:?}", case.name);
                 assert_eq!(
-                    o.named.first().map(String::as_str),
-                    Some("none"),
+                    o.named.first().copied(),
+                    Some(unlag::diagnose::Finding::Nothing),
                     "{}: {o:?}",
                     case.name
                 );
@@ -162,7 +162,7 @@ fn the_diagnosis_offers_the_damping_law_the_physics_has() {
                 .unwrap_or(f64::NAN)
         );
         // The kind is exactly what `--add` takes, the damping law with it.
-        assert_eq!(c.kind, add, "{name}: {c:?}");
+        assert_eq!(c.kind.as_str(), add, "{name}: {c:?}");
         assert_eq!(c.evidence["add"], add, "{name}: {c:?}");
         assert!(c.change.contains(&format!("--add {add} ")), "{}", c.change);
         assert!(c.nrmse_before / c.nrmse_after >= 3.0, "{name}: {c:?}");
@@ -305,7 +305,11 @@ fn nonlinear_damping_is_named_from_its_amplitude_signature() {
         assert!((k / k_true - 1.0).abs() < 0.25, "k {k} against {k_true}");
         let candidates = diagnose::diagnose(&current, &tests, &evidence).unwrap();
         let first = &candidates[0];
-        assert_eq!(first.kind, "nonlinear-damping", "{candidates:#?}");
+        assert_eq!(
+            first.kind,
+            unlag::effects::EffectKind::NonlinearDamping,
+            "{candidates:#?}"
+        );
         assert!(
             first.evidence["residual_exponent"].as_f64().unwrap() > 1.4,
             "{first:?}"

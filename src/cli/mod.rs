@@ -742,13 +742,13 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         let explicit_order = matches!(order, Order::Fixed(_));
         let dropped = if explicit_order {
             let before = effects.len();
-            effects.retain(|e| e.kind() != "mode");
+            effects.retain(|e| e.kind() != crate::effects::EffectKind::Mode);
             before - effects.len()
         } else {
             0
         };
         if !p.effects.is_empty() || !p.history.is_empty() {
-            let kept: Vec<&str> = effects.iter().map(crate::effects::Effect::kind).collect();
+            let kept: Vec<&str> = effects.iter().map(|e| e.kind().as_str()).collect();
             let msg = format!(
                 "continuing {}: keeping its effects [{}] and {} history row(s){} (--fresh starts over)",
                 args.output.display(),
@@ -770,13 +770,13 @@ fn run_fit(args: &FitArgs) -> Result<()> {
                 "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, sensor-resonance-prefilter[=HZ], temperature=K, temperature-viscous[=K]",
                 crate::effects::KINDS
                     .iter()
-                    .filter(|k| **k != "delay")
-                    .copied()
+                    .filter(|k| **k != crate::effects::EffectKind::Delay)
+                    .map(|k| k.as_str())
                     .collect::<Vec<_>>()
                     .join(", ")
             ),
         })?;
-        effects.retain(|x| x.kind() != e.kind() || e.kind() == "mode");
+        effects.retain(|x| x.kind() != e.kind() || e.kind() == crate::effects::EffectKind::Mode);
         effects.push(e);
     }
     progress.step("fitting (orders on a window, then the whole record)");

@@ -1195,10 +1195,9 @@ pub fn with_prefilter(
     design.latency_samples += delay;
     design.latency_s = design.latency_samples / fs;
     design.pole_margin = design.pole_margin.min(margin);
-    design.method = format!(
-        "sensor-resonance prefilter (Butterworth order {PREFILTER_ORDER} at {fc:.1} Hz), then {}",
-        design.method
-    );
+    design.method = design.method.clone().after_prefilter(&format!(
+        "sensor-resonance prefilter (Butterworth order {PREFILTER_ORDER} at {fc:.1} Hz)"
+    ));
     Ok(())
 }
 
@@ -1234,13 +1233,17 @@ pub fn at_temperature(
                 bandwidth_hz: Some((d.lowpass_hz * k).min(0.45 * fs)),
                 lowpass: d.lowpass,
                 lowpass_order: d.lowpass_order,
-                stabilise: !d.method.contains("direct inverse"),
+                stabilise: d.method.kind() != crate::inverse::MethodKind::DirectInverse,
             };
             let fc = options.bandwidth_hz.unwrap_or(d.lowpass_hz);
             // The optimum is designed anew from its noise and prior; a band-limited inverse
             // keeps its corner, scaled with the time scale.
             let mut nd = match (&d.noise, &d.prior) {
-                (Some(noise), Some(prior)) if d.method.starts_with("optimal") => {
+                // Not after a prefilter: such a design is redesigned as a band-limited
+                // inverse, as always.
+                (Some(noise), Some(prior))
+                    if !d.method.is_prefiltered() && d.method.kind().is_optimal() =>
+                {
                     crate::inverse::optimal::design(
                         &model,
                         noise,

@@ -1102,7 +1102,7 @@ fn print_inverse(d: &inverse::Design, fs: f64) {
             inverse::check::Verdict::Better | inverse::check::Verdict::Unchecked => {}
             inverse::check::Verdict::FellBack => crate::errln!(
                 "warning: fell back to {}: {}",
-                d.method.split(':').next().unwrap_or(""),
+                d.method.short(),
                 c.rejected.join("; ")
             ),
             inverse::check::Verdict::NotBetter => crate::errln!(

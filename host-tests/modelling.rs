@@ -239,6 +239,43 @@ fn the_readme_walkthrough_on_the_shipped_data() {
     assert!(err.contains("no-such-test.csv"), "{err}");
 }
 
+/// A diagnosis's `delay` is what `--add` takes (as every kind it names): the delay searched
+/// again, as the diagnosis did, and kept in the model file as a `delay` effect, so that a
+/// later refit keeps it.
+#[test]
+fn a_delay_named_by_the_diagnosis_is_added_with_add_delay() {
+    let dir = std::env::temp_dir().join(format!("unlag-add-delay-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model = dir.join("probe.toml");
+    let m = model.to_str().unwrap();
+    let t1 = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/data/step_test_1.csv");
+    let t2 = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/data/step_test_2.csv");
+    let searched = unlag_json(&["fit", t1, t2, "--order", "2", "--fresh", "-o", m, "--json"]);
+    let d_true = searched["delay"].as_u64().unwrap();
+    let wrong = (d_true + 8).to_string();
+    unlag_json(&[
+        "fit", t1, t2, "--order", "2", "--delay", &wrong, "--fresh", "-o", m, "--json",
+    ]);
+    let d = unlag_json(&["diagnose", m, t1, t2, "--json"]);
+    let named: Vec<&str> = d["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["kind"].as_str().unwrap())
+        .collect();
+    assert!(named.contains(&"delay"), "{d}");
+    let f = unlag_json(&[
+        "fit", t1, t2, "--order", "2", "--add", "delay", "-o", m, "--json",
+    ]);
+    assert_eq!(f["delay"].as_u64(), Some(d_true), "{f}");
+    assert_eq!(f["effects"][0]["kind"], "delay", "{f}");
+    assert_eq!(f["effects"][0]["samples"].as_u64(), Some(d_true), "{f}");
+    // The next refit keeps it.
+    let g = unlag_json(&["fit", t1, t2, "--order", "2", "-o", m, "--json"]);
+    assert_eq!(g["effects"], f["effects"], "{g}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The nonlinear-damping cases in detail: the signature across tests is in the evidence with
 /// its numbers (damping rising with the step, residual growing faster than the step), the
 /// refit finds the quadratic loss that was simulated, and no other case (their tests have

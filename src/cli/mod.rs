@@ -432,7 +432,8 @@ pub struct FitArgs {
     #[arg(long, value_name = "SAMPLES")]
     pub delay: Option<usize>,
     /// Add a physical effect to the model (repeatable): mode, leak, offset, drift,
-    /// coloured-noise, nonlinear-damping, delay=N, sensor-resonance (the transducers' modes;
+    /// coloured-noise, nonlinear-damping, delay (searched again, then kept) or delay=N,
+    /// sensor-resonance (the transducers' modes;
     /// frequency found in the reference) or sensor-resonance=HZ, sensor-resonance-prefilter[=HZ]
     /// (the paper's prefilter instead), temperature (reference 293.15 K) or temperature=K
     /// (the estimation test's gas temperature). Effects already in the output model file are
@@ -763,14 +764,21 @@ fn run_fit(args: &FitArgs) -> Result<()> {
             console::note(args.json, &msg);
         }
     }
+    // `--add delay` (what a diagnosis names `delay`): the delay searched again, as the
+    // diagnosis did, and kept as the model's from then on.
+    let mut search_delay = false;
     for kind in &args.add {
+        if kind.parse() == Ok(crate::effects::EffectKind::Delay) {
+            effects.retain(|x| x.kind() != crate::effects::EffectKind::Delay);
+            search_delay = true;
+            continue;
+        }
         let e = crate::effects::Effect::parse(kind).ok_or_else(|| Error::InvalidArgument {
             what: "--add",
             message: format!(
                 "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, sensor-resonance-prefilter[=HZ], temperature=K, temperature-viscous[=K]",
                 crate::effects::KINDS
                     .iter()
-                    .filter(|k| **k != crate::effects::EffectKind::Delay)
                     .map(|k| k.as_str())
                     .collect::<Vec<_>>()
                     .join(", ")
@@ -779,11 +787,20 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         effects.retain(|x| x.kind() != e.kind() || e.kind() == crate::effects::EffectKind::Mode);
         effects.push(e);
     }
+    // A later `delay=N` among the additions fixes it: nothing to search then.
+    search_delay &= !effects
+        .iter()
+        .any(|e| e.kind() == crate::effects::EffectKind::Delay);
     progress.step("fitting (orders on a window, then the whole record)");
     let fitted =
         crate::effects::fit_with(est_test, val_tests, est.sample_rate_hz, &options, &effects)
             .map(|(f, fx)| {
                 effects = fx;
+                if search_delay {
+                    effects.push(crate::effects::Effect::Delay {
+                        samples: f.model.delay,
+                    });
+                }
                 f
             })
             .map_err(|e| match e {

@@ -90,8 +90,8 @@ fn physical_limits_show_what_the_physics_predicts() {
             "sensor-resonance" => {
                 assert!(o.before < 1.5 * o.floor, "{}: {o:?}", case.name);
                 assert_eq!(
-                    o.named.first().map(String::as_str),
-                    Some("none"),
+                    o.named.first().copied(),
+                    Some(unlag::diagnose::Finding::Nothing),
                     "{}: {o:?}",
                     case.name
                 );
@@ -162,7 +162,7 @@ fn the_diagnosis_offers_the_damping_law_the_physics_has() {
                 .unwrap_or(f64::NAN)
         );
         // The kind is exactly what `--add` takes, the damping law with it.
-        assert_eq!(c.kind, add, "{name}: {c:?}");
+        assert_eq!(c.kind.as_str(), add, "{name}: {c:?}");
         assert_eq!(c.evidence["add"], add, "{name}: {c:?}");
         assert!(c.change.contains(&format!("--add {add} ")), "{}", c.change);
         assert!(c.nrmse_before / c.nrmse_after >= 3.0, "{name}: {c:?}");
@@ -239,6 +239,43 @@ fn the_readme_walkthrough_on_the_shipped_data() {
     assert!(err.contains("no-such-test.csv"), "{err}");
 }
 
+/// A diagnosis's `delay` is what `--add` takes (as every kind it names): the delay searched
+/// again, as the diagnosis did, and kept in the model file as a `delay` effect, so that a
+/// later refit keeps it.
+#[test]
+fn a_delay_named_by_the_diagnosis_is_added_with_add_delay() {
+    let dir = std::env::temp_dir().join(format!("unlag-add-delay-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model = dir.join("probe.toml");
+    let m = model.to_str().unwrap();
+    let t1 = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/data/step_test_1.csv");
+    let t2 = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/data/step_test_2.csv");
+    let searched = unlag_json(&["fit", t1, t2, "--order", "2", "--fresh", "-o", m, "--json"]);
+    let d_true = searched["delay"].as_u64().unwrap();
+    let wrong = (d_true + 8).to_string();
+    unlag_json(&[
+        "fit", t1, t2, "--order", "2", "--delay", &wrong, "--fresh", "-o", m, "--json",
+    ]);
+    let d = unlag_json(&["diagnose", m, t1, t2, "--json"]);
+    let named: Vec<&str> = d["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["kind"].as_str().unwrap())
+        .collect();
+    assert!(named.contains(&"delay"), "{d}");
+    let f = unlag_json(&[
+        "fit", t1, t2, "--order", "2", "--add", "delay", "-o", m, "--json",
+    ]);
+    assert_eq!(f["delay"].as_u64(), Some(d_true), "{f}");
+    assert_eq!(f["effects"][0]["kind"], "delay", "{f}");
+    assert_eq!(f["effects"][0]["samples"].as_u64(), Some(d_true), "{f}");
+    // The next refit keeps it.
+    let g = unlag_json(&["fit", t1, t2, "--order", "2", "-o", m, "--json"]);
+    assert_eq!(g["effects"], f["effects"], "{g}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The nonlinear-damping cases in detail: the signature across tests is in the evidence with
 /// its numbers (damping rising with the step, residual growing faster than the step), the
 /// refit finds the quadratic loss that was simulated, and no other case (their tests have
@@ -305,7 +342,11 @@ fn nonlinear_damping_is_named_from_its_amplitude_signature() {
         assert!((k / k_true - 1.0).abs() < 0.25, "k {k} against {k_true}");
         let candidates = diagnose::diagnose(&current, &tests, &evidence).unwrap();
         let first = &candidates[0];
-        assert_eq!(first.kind, "nonlinear-damping", "{candidates:#?}");
+        assert_eq!(
+            first.kind,
+            unlag::effects::EffectKind::NonlinearDamping,
+            "{candidates:#?}"
+        );
         assert!(
             first.evidence["residual_exponent"].as_f64().unwrap() > 1.4,
             "{first:?}"

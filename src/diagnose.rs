@@ -27,7 +27,7 @@
 use serde::Serialize;
 use serde_json::{json, Value};
 
-use crate::effects::{self, Effect, FitChanges};
+use crate::effects::{self, Effect, EffectKind, FitChanges};
 use crate::error::Result;
 use crate::evidence::TestEvidence;
 use crate::fit::{Method, Options, Order, Test};
@@ -44,25 +44,97 @@ pub const FLOOR_OVERRULED: f64 = 1.4;
 /// equally well, the simpler one ranks first (an offset before a drift, a leak before a mode).
 pub const PARAMETER_PENALTY: f64 = 0.03;
 
-/// Parameters each kind adds to the model.
-#[must_use]
-pub fn parameters(kind: &str) -> usize {
-    match kind {
-        "mode" => 4,
-        "leak" | "drift" => 2,
-        "offset" | "nonlinear-damping" | "temperature" | "temperature-viscous" => 1,
-        "sensor-resonance" => 4,
-        _ => 0,
+/// What a diagnosis names: a missing effect, nothing missing, or something missing that no
+/// effect of the catalogue explains. Its text is the candidate's `kind` in `--json`: the
+/// effect's name, exactly what `unlag fit --add` takes ([`EffectKind`]), or `none`, or
+/// `unexplained` (verdicts, not effects: there is nothing to add for them, so they are no
+/// [`EffectKind`]).
+///
+/// ```
+/// use unlag::diagnose::Finding;
+/// use unlag::effects::EffectKind;
+///
+/// assert_eq!(Finding::Missing(EffectKind::Leak).to_string(), "leak");
+/// assert_eq!(Finding::Nothing.to_string(), "none");
+/// assert_eq!("unexplained".parse(), Ok(Finding::Unexplained));
+/// assert_eq!(Finding::Missing(EffectKind::Mode).effect(), Some(EffectKind::Mode));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Finding {
+    /// This effect is missing: `unlag fit --add` it.
+    Missing(EffectKind),
+    /// `none`: the residual is what the noise leaves; nothing to add.
+    Nothing,
+    /// `unexplained`: the residual is above the noise floor and no effect's trial lowers it.
+    Unexplained,
+}
+
+impl Finding {
+    /// The effect to add, when one is named.
+    #[must_use]
+    pub const fn effect(self) -> Option<EffectKind> {
+        match self {
+            Self::Missing(k) => Some(k),
+            Self::Nothing | Self::Unexplained => None,
+        }
+    }
+
+    /// Its text: the effect's name, `none` or `unexplained`.
+    #[must_use]
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Self::Missing(k) => k.as_str(),
+            Self::Nothing => "none",
+            Self::Unexplained => "unexplained",
+        }
+    }
+}
+
+impl core::fmt::Display for Finding {
+    /// Its text ([`Finding::as_str`]), padded as the formatter asks.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.pad(self.as_str())
+    }
+}
+
+impl core::str::FromStr for Finding {
+    type Err = effects::UnknownKind;
+
+    fn from_str(s: &str) -> core::result::Result<Self, Self::Err> {
+        match s {
+            "none" => Ok(Self::Nothing),
+            "unexplained" => Ok(Self::Unexplained),
+            _ => s.parse().map(Self::Missing),
+        }
+    }
+}
+
+impl Serialize for Finding {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> core::result::Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Finding {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> core::result::Result<Self, D::Error> {
+        let s = std::borrow::Cow::<'de, str>::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+impl PartialEq<EffectKind> for Finding {
+    fn eq(&self, other: &EffectKind) -> bool {
+        *self == Self::Missing(*other)
     }
 }
 
 /// One ranked candidate.
 #[derive(Debug, Clone, Serialize)]
 pub struct Candidate {
-    /// Machine-readable kind, exactly what `unlag fit --add` takes (`mode`, `leak`, `offset`,
-    /// `drift`, `delay`, `coloured-noise`, `nonlinear-damping`, `sensor-resonance`,
-    /// `temperature`, `temperature-viscous`), or `none`.
-    pub kind: String,
+    /// What it names: an effect, exactly what `unlag fit --add` takes (`mode`, `leak`,
+    /// `offset`, `drift`, `delay`, `coloured-noise`, `nonlinear-damping`, `sensor-resonance`,
+    /// `temperature`, `temperature-viscous`), or `none` or `unexplained`.
+    pub kind: Finding,
     /// `ln(error before / error after)` of the trial, less [`PARAMETER_PENALTY`] per parameter
     /// the effect adds; larger is stronger.
     pub score: f64,
@@ -120,21 +192,26 @@ impl Candidate {
 /// would separate them.
 pub const CLOSE_MARGIN: f64 = 0.3;
 
-/// The test that tells effect `a` from effect `b`, by what each one's signature depends on.
+/// The test that tells what `a` names from what `b` names, by what each one's signature
+/// depends on.
 #[must_use]
-pub fn separating_test(a: &str, b: &str) -> String {
-    let pair = |x: &str, y: &str| (a == x && b == y) || (a == y && b == x);
-    let temperature = |k: &str| k.starts_with("temperature");
-    if pair("drift", "offset") || pair("leak", "drift") {
+pub fn separating_test(a: Finding, b: Finding) -> String {
+    use EffectKind::{ColouredNoise, Drift, Leak, Mode, NonlinearDamping, Offset, SensorResonance};
+    let pair = |x: EffectKind, y: EffectKind| (a == x && b == y) || (a == y && b == x);
+    let temperature = |k: Finding| {
+        k.effect()
+            .is_some_and(|k| k.family() == EffectKind::Temperature)
+    };
+    if pair(Drift, Offset) || pair(Leak, Drift) {
         "a longer record after the step (a drift keeps growing, an offset stays, a leak settles)"
             .into()
-    } else if pair("coloured-noise", "drift") || pair("coloured-noise", "offset") {
+    } else if pair(ColouredNoise, Drift) || pair(ColouredNoise, Offset) {
         "a record with no step, the pressure steady (the noise alone: it wanders both ways, a drift one way)".into()
     } else if temperature(a) || temperature(b) {
         "a test at another gas temperature, or the same temperature as the estimation test (a temperature moves every natural frequency by one factor)".into()
-    } else if a == "nonlinear-damping" || b == "nonlinear-damping" {
+    } else if a == NonlinearDamping || b == NonlinearDamping {
         "steps of other sizes (amplitude-dependent losses change with the step, a linear effect does not)".into()
-    } else if pair("mode", "sensor-resonance") {
+    } else if pair(Mode, SensorResonance) {
         "the reference transducer alone on a step (a diaphragm rings in it, a line mode does not)"
             .into()
     } else {
@@ -553,29 +630,30 @@ pub fn diagnose(
     let white = evidence.iter().all(|e| e.autocorrelation.p_value > 0.01);
     let at_floor = evidence.iter().all(TestEvidence::at_noise_floor);
     let mut out: Vec<Candidate> = Vec::new();
-    let mut offer = |kind: &str, after: f64, evidence: Value, reading: String, change: String| {
-        let ratio = before / after;
-        if after.is_finite() && ratio >= MIN_IMPROVEMENT {
-            out.push(Candidate {
-                kind: kind.into(),
-                score: ratio.ln() - PARAMETER_PENALTY * parameters(kind) as f64,
-                evidence,
-                reading,
-                change,
-                nrmse_before: before,
-                nrmse_after: after,
-                margin: 0.0,
-                separated_by: None,
-                uncertainty_before: current.uncertainty.cloned(),
-                uncertainty_after: stated
-                    .borrow()
-                    .iter()
-                    .rev()
-                    .find(|(e, _)| e.to_bits() == after.to_bits())
-                    .and_then(|(_, u)| u.clone()),
-            });
-        }
-    };
+    let mut offer =
+        |kind: EffectKind, after: f64, evidence: Value, reading: String, change: String| {
+            let ratio = before / after;
+            if after.is_finite() && ratio >= MIN_IMPROVEMENT {
+                out.push(Candidate {
+                    kind: Finding::Missing(kind),
+                    score: ratio.ln() - PARAMETER_PENALTY * kind.parameters() as f64,
+                    evidence,
+                    reading,
+                    change,
+                    nrmse_before: before,
+                    nrmse_after: after,
+                    margin: 0.0,
+                    separated_by: None,
+                    uncertainty_before: current.uncertainty.cloned(),
+                    uncertainty_after: stated
+                        .borrow()
+                        .iter()
+                        .rev()
+                        .find(|(e, _)| e.to_bits() == after.to_bits())
+                        .and_then(|(_, u)| u.clone()),
+                });
+            }
+        };
 
     // mode: the trial (two more poles and zeros), read with the highest peak of the
     // model-error spectrum (where the measured response rises above the model's), or its rise
@@ -641,7 +719,7 @@ pub fn diagnose(
         };
         let _ = fx;
         offer(
-            "mode",
+            EffectKind::Mode,
             after,
             ev,
             reading,
@@ -664,7 +742,7 @@ pub fn diagnose(
         if let Some((after, fx)) = trial(Effect::Offset { value: 0.0 }, &base) {
             let value = effects::Additive::of(&fx).offset;
             offer(
-                "offset",
+                EffectKind::Offset,
                 after,
                 json!({"pre_step_mean_in_standard_errors": offset, "offset": value}),
                 format!(
@@ -696,7 +774,7 @@ pub fn diagnose(
             let rate = effects::Additive::of(&fx).rate_per_s;
             let pre = mean(evidence.iter().map(|e| e.trend.pre_slope_per_s));
             offer(
-                "drift",
+                EffectKind::Drift,
                 after,
                 json!({"ramp_in_standard_errors": drift, "rate_per_s": rate,
                        "pre_step_slope_per_s": pre}),
@@ -716,7 +794,7 @@ pub fn diagnose(
         .fold(0.0f64, |m, v| if v.abs() > m.abs() { v } else { m });
     if let Some((after, _)) = trial(Effect::Leak, &base) {
         offer(
-            "leak",
+            EffectKind::Leak,
             after,
             json!({"late_residual_over_step": creep, "dc_gain": current.model.dc_gain()}),
             format!(
@@ -766,7 +844,7 @@ pub fn diagnose(
             if let Some((after, _)) = trial(added, &base) {
                 sensor_matched = true;
                 offer(
-                    "sensor-resonance",
+                    EffectKind::SensorResonance,
                     after,
                     json!({"reference_peak_hz": f, "reference_above_floor_db": rp.above_floor_db,
                            "reference_q": rp.q, "reference_test": e.file,
@@ -883,7 +961,7 @@ pub fn diagnose(
             if d != current.model.delay {
                 if let Some((after, _)) = trial(Effect::Delay { samples: d }, &base) {
                     offer(
-                        "delay",
+                        EffectKind::Delay,
                         after,
                         json!({"model_delay": current.model.delay, "best_delay": d,
                                "residual_input_xcorr_peak_lag": xc}),
@@ -919,7 +997,7 @@ pub fn diagnose(
                     sig.damping.last().copied().unwrap_or(0.0),
                 );
                 offer(
-                    "nonlinear-damping",
+                    EffectKind::NonlinearDamping,
                     after,
                     json!({"amplitudes": sig.amplitudes, "damping": sig.damping,
                            "residual_per_step": sig.residual_per_step,
@@ -962,7 +1040,7 @@ pub fn diagnose(
             .and_then(|e| e.autocorrelation.values.first().copied())
             .unwrap_or(0.0);
         offer(
-            "coloured-noise",
+            EffectKind::ColouredNoise,
             after,
             json!({"ljung_box_p": p, "lag1_autocorrelation": rho1, "fit": how}),
             format!(
@@ -981,8 +1059,10 @@ pub fn diagnose(
     // A resonance that shows in the reference as well is the transducers', not the line's:
     // the sensor resonance goes before a mode that would only model it.
     if sensor_matched {
-        let s = out.iter().position(|c| c.kind == "sensor-resonance");
-        let m = out.iter().position(|c| c.kind == "mode");
+        let s = out
+            .iter()
+            .position(|c| c.kind == EffectKind::SensorResonance);
+        let m = out.iter().position(|c| c.kind == EffectKind::Mode);
         if let (Some(s), Some(m)) = (s, m) {
             if m < s {
                 let c = out.remove(s);
@@ -993,11 +1073,14 @@ pub fn diagnose(
     // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
     // too: when an effect in the dynamics scores within CLOSE_MARGIN of it, the physics goes
     // first and the noise model is the last resort.
-    if out.first().is_some_and(|c| c.kind == "coloured-noise") {
+    if out
+        .first()
+        .is_some_and(|c| c.kind == EffectKind::ColouredNoise)
+    {
         let top = out.first().map_or(0.0, |c| c.score);
         if let Some(i) = out
             .iter()
-            .position(|c| c.kind != "coloured-noise" && c.score >= top - CLOSE_MARGIN)
+            .position(|c| c.kind != EffectKind::ColouredNoise && c.score >= top - CLOSE_MARGIN)
         {
             let c = out.remove(0);
             out.insert(i, c);
@@ -1013,7 +1096,7 @@ pub fn diagnose(
             .map(|e| e.nrmse / e.noise_floor.max(f64::MIN_POSITIVE))
             .fold(0.0f64, f64::max);
         out.push(Candidate {
-            kind: "unexplained".into(),
+            kind: Finding::Unexplained,
             score: 0.0,
             evidence: json!({"nrmse": before, "noise_floor": floor, "white": white,
                              "worst_over_floor": worst}),
@@ -1045,7 +1128,7 @@ pub fn diagnose(
         .fold(0.0f64, f64::max);
     if at_floor && ((white && best_fall < FLOOR_OVERRULED) || out.is_empty()) {
         let none = Candidate {
-            kind: "none".into(),
+            kind: Finding::Nothing,
             score: 0.0,
             evidence: json!({"nrmse": before, "noise_floor": floor, "white": white}),
             reading: format!(
@@ -1065,13 +1148,13 @@ pub fn diagnose(
         };
         out.insert(0, none);
     }
-    let scores: Vec<(f64, String)> = out.iter().map(|c| (c.score, c.kind.clone())).collect();
+    let scores: Vec<(f64, Finding)> = out.iter().map(|c| (c.score, c.kind)).collect();
     for (i, c) in out.iter_mut().enumerate() {
         let next = scores.get(i + 1);
         c.margin = c.score - next.map_or(0.0, |n| n.0);
         c.separated_by = next
             .filter(|_| c.margin < CLOSE_MARGIN)
-            .map(|n| separating_test(&c.kind, &n.1));
+            .map(|n| separating_test(c.kind, n.1));
     }
     Ok(out)
 }

@@ -183,10 +183,10 @@ impl TemperatureDamping {
 
     /// The `--add` spelling of a `temperature` effect with this law.
     #[must_use]
-    pub fn spelling(self) -> &'static str {
+    pub fn spelling(self) -> EffectKind {
         match self {
-            Self::Constant => "temperature",
-            Self::Viscous => "temperature-viscous",
+            Self::Constant => EffectKind::Temperature,
+            Self::Viscous => EffectKind::TemperatureViscous,
         }
     }
 }
@@ -226,70 +226,241 @@ pub const PREFILTER_ORDER: usize = 4;
 /// times the reference).
 pub const SCALE_RANGE: (f64, f64) = (0.7, 1.4);
 
-/// The machine-readable kinds, in catalogue order.
-pub const KINDS: [&str; 9] = [
-    "mode",
-    "leak",
-    "offset",
-    "drift",
-    "delay",
-    "coloured-noise",
-    "nonlinear-damping",
-    "sensor-resonance",
-    "temperature",
-];
+/// The name of an effect: what `unlag fit --add` takes (without a `=VALUE`), what a
+/// diagnosis names ([`crate::diagnose::Finding`]), and, for the nine kinds of [`Effect`]'s
+/// variants, the `kind` of an effect in the model file.
+///
+/// Two names are not kinds of their own in the model file: `sensor-resonance-prefilter` is a
+/// `sensor-resonance` with the paper's prefilter as its remedy ([`SensorRemedy`]), and
+/// `temperature-viscous` a `temperature` with the viscous damping law
+/// ([`TemperatureDamping`]); [`EffectKind::family`] gives the kind they are stored as, which
+/// is what [`Effect::kind`] returns.
+///
+/// The text forms ([`Display`](core::fmt::Display), [`FromStr`](core::str::FromStr) and
+/// serde's) are the same strings everywhere: model files, `--json` output, `--add`.
+///
+/// ```
+/// use unlag::effects::EffectKind;
+///
+/// let k: EffectKind = "temperature-viscous".parse().unwrap();
+/// assert_eq!(k, EffectKind::TemperatureViscous);
+/// assert_eq!(k.to_string(), "temperature-viscous");
+/// assert_eq!(k.family(), EffectKind::Temperature);
+/// assert_eq!(EffectKind::Mode.parameters(), 4);
+/// assert!("gremlins".parse::<EffectKind>().is_err());
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum EffectKind {
+    /// `mode`: an unmodelled resonance ([`Effect::Mode`]).
+    Mode,
+    /// `leak`: a leaking cavity ([`Effect::Leak`]).
+    Leak,
+    /// `offset`: a zero offset ([`Effect::Offset`]).
+    Offset,
+    /// `drift`: a drift in time ([`Effect::Drift`]).
+    Drift,
+    /// `delay`: the delay corrected ([`Effect::Delay`]).
+    Delay,
+    /// `coloured-noise`: a noise model beside the dynamics ([`Effect::ColouredNoise`]).
+    ColouredNoise,
+    /// `nonlinear-damping`: quadratic losses ([`Effect::NonlinearDamping`]).
+    NonlinearDamping,
+    /// `sensor-resonance`: the transducers' modes in the model ([`Effect::SensorResonance`]
+    /// with [`SensorRemedy::Modes`]).
+    SensorResonance,
+    /// `sensor-resonance-prefilter`: the same resonance filtered out instead
+    /// ([`SensorRemedy::Prefilter`]); stored as a `sensor-resonance`.
+    SensorResonancePrefilter,
+    /// `temperature`: the model scaled with the gas temperature, damping kept
+    /// ([`Effect::Temperature`] with [`TemperatureDamping::Constant`]).
+    Temperature,
+    /// `temperature-viscous`: the same with the viscous damping law
+    /// ([`TemperatureDamping::Viscous`]); stored as a `temperature`.
+    TemperatureViscous,
+}
 
-impl Effect {
-    /// Its machine-readable kind.
+/// Text that names no [`EffectKind`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown effect kind '{0}'")]
+pub struct UnknownKind(pub String);
+
+impl EffectKind {
+    /// Every name, in catalogue order (each family's variants after it).
+    pub const ALL: [Self; 11] = [
+        Self::Mode,
+        Self::Leak,
+        Self::Offset,
+        Self::Drift,
+        Self::Delay,
+        Self::ColouredNoise,
+        Self::NonlinearDamping,
+        Self::SensorResonance,
+        Self::SensorResonancePrefilter,
+        Self::Temperature,
+        Self::TemperatureViscous,
+    ];
+
+    /// Its text: `mode`, `coloured-noise`, `temperature-viscous`, ...
     #[must_use]
-    pub fn kind(&self) -> &'static str {
+    pub const fn as_str(self) -> &'static str {
         match self {
-            Self::Mode { .. } => "mode",
+            Self::Mode => "mode",
             Self::Leak => "leak",
-            Self::Offset { .. } => "offset",
-            Self::Drift { .. } => "drift",
-            Self::Delay { .. } => "delay",
-            Self::ColouredNoise { .. } => "coloured-noise",
-            Self::NonlinearDamping { .. } => "nonlinear-damping",
-            Self::SensorResonance { .. } => "sensor-resonance",
-            Self::Temperature { .. } => "temperature",
+            Self::Offset => "offset",
+            Self::Drift => "drift",
+            Self::Delay => "delay",
+            Self::ColouredNoise => "coloured-noise",
+            Self::NonlinearDamping => "nonlinear-damping",
+            Self::SensorResonance => "sensor-resonance",
+            Self::SensorResonancePrefilter => "sensor-resonance-prefilter",
+            Self::Temperature => "temperature",
+            Self::TemperatureViscous => "temperature-viscous",
         }
     }
 
-    /// A fresh effect of `kind` (parameters to be fitted), or `None` for an unknown kind.
+    /// The kind it is stored as in the model file (one per [`Effect`] variant):
+    /// `sensor-resonance` for `sensor-resonance-prefilter`, `temperature` for
+    /// `temperature-viscous`, itself for the others.
     #[must_use]
-    pub fn parse(kind: &str) -> Option<Self> {
+    pub const fn family(self) -> Self {
+        match self {
+            Self::SensorResonancePrefilter => Self::SensorResonance,
+            Self::TemperatureViscous => Self::Temperature,
+            k => k,
+        }
+    }
+
+    /// Parameters it adds to the model, as the diagnosis charges them
+    /// ([`crate::diagnose::PARAMETER_PENALTY`] each): a section's four for a mode or the
+    /// transducers' modes, a pole and a zero for a leak, offset and rate for a drift, one
+    /// coefficient for an offset, a quadratic loss or a temperature (its reference). None for
+    /// a delay (it replaces the fitted one), a prefilter (fixed by the resonance's frequency)
+    /// or a noise model (beside the dynamics: it changes no prediction of the probe).
+    #[must_use]
+    pub const fn parameters(self) -> usize {
+        match self {
+            Self::Mode | Self::SensorResonance => 4,
+            Self::Leak | Self::Drift => 2,
+            Self::Offset
+            | Self::NonlinearDamping
+            | Self::Temperature
+            | Self::TemperatureViscous => 1,
+            Self::Delay | Self::ColouredNoise | Self::SensorResonancePrefilter => 0,
+        }
+    }
+}
+
+impl core::fmt::Display for EffectKind {
+    /// Its text ([`EffectKind::as_str`]), padded as the formatter asks.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.pad(self.as_str())
+    }
+}
+
+impl core::str::FromStr for EffectKind {
+    type Err = UnknownKind;
+
+    fn from_str(s: &str) -> core::result::Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|k| k.as_str() == s)
+            .ok_or_else(|| UnknownKind(s.to_string()))
+    }
+}
+
+impl Serialize for EffectKind {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> core::result::Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+impl<'de> Deserialize<'de> for EffectKind {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> core::result::Result<Self, D::Error> {
+        let s = std::borrow::Cow::<'de, str>::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// The kinds of the model file (one per [`Effect`] variant), in catalogue order.
+pub const KINDS: [EffectKind; 9] = [
+    EffectKind::Mode,
+    EffectKind::Leak,
+    EffectKind::Offset,
+    EffectKind::Drift,
+    EffectKind::Delay,
+    EffectKind::ColouredNoise,
+    EffectKind::NonlinearDamping,
+    EffectKind::SensorResonance,
+    EffectKind::Temperature,
+];
+
+impl Effect {
+    /// Its kind as the model file names it ([`EffectKind::family`]: a prefiltered sensor
+    /// resonance is a `sensor-resonance`, a viscous temperature a `temperature`).
+    #[must_use]
+    pub fn kind(&self) -> EffectKind {
+        match self {
+            Self::Mode { .. } => EffectKind::Mode,
+            Self::Leak => EffectKind::Leak,
+            Self::Offset { .. } => EffectKind::Offset,
+            Self::Drift { .. } => EffectKind::Drift,
+            Self::Delay { .. } => EffectKind::Delay,
+            Self::ColouredNoise { .. } => EffectKind::ColouredNoise,
+            Self::NonlinearDamping { .. } => EffectKind::NonlinearDamping,
+            Self::SensorResonance { .. } => EffectKind::SensorResonance,
+            Self::Temperature { .. } => EffectKind::Temperature,
+        }
+    }
+
+    /// A fresh effect of `kind` (parameters to be fitted; a sensor resonance's frequency
+    /// found in the reference's spectrum), or `None` for [`EffectKind::Delay`], which has no
+    /// value to start from.
+    #[must_use]
+    pub fn fresh(kind: EffectKind) -> Option<Self> {
         Some(match kind {
-            "mode" => Self::Mode { near_hz: None },
-            "leak" => Self::Leak,
-            "offset" => Self::Offset { value: 0.0 },
-            "drift" => Self::Drift {
+            EffectKind::Mode => Self::Mode { near_hz: None },
+            EffectKind::Leak => Self::Leak,
+            EffectKind::Offset => Self::Offset { value: 0.0 },
+            EffectKind::Drift => Self::Drift {
                 value: 0.0,
                 rate_per_s: 0.0,
             },
-            "coloured-noise" => Self::ColouredNoise {
+            EffectKind::Delay => return None,
+            EffectKind::ColouredNoise => Self::ColouredNoise {
                 ar: Vec::new(),
                 innovation_std: 0.0,
             },
-            "nonlinear-damping" => Self::NonlinearDamping { gain: 0.0 },
-            "sensor-resonance" => Self::SensorResonance {
+            EffectKind::NonlinearDamping => Self::NonlinearDamping { gain: 0.0 },
+            EffectKind::SensorResonance => Self::SensorResonance {
                 natural_frequency_hz: 0.0,
                 prefilter_hz: 0.0,
                 remedy: SensorRemedy::Modes,
             },
-            "sensor-resonance-prefilter" => Self::SensorResonance {
+            EffectKind::SensorResonancePrefilter => Self::SensorResonance {
                 natural_frequency_hz: 0.0,
                 prefilter_hz: 0.0,
                 remedy: SensorRemedy::Prefilter,
             },
-            "temperature" => Self::Temperature {
+            EffectKind::Temperature => Self::Temperature {
                 reference_k: DEFAULT_REFERENCE_K,
                 damping: TemperatureDamping::Constant,
             },
-            "temperature-viscous" => Self::Temperature {
+            EffectKind::TemperatureViscous => Self::Temperature {
                 reference_k: DEFAULT_REFERENCE_K,
                 damping: TemperatureDamping::Viscous,
             },
+        })
+    }
+
+    /// The effect `unlag fit --add` names: a bare kind ([`Effect::fresh`]) or one with its
+    /// value (`delay=N`, `sensor-resonance[-prefilter]=HZ`, `temperature[-viscous]=K`);
+    /// `None` for an unknown kind, a value that is not a positive number, or a bare `delay`.
+    #[must_use]
+    pub fn parse(kind: &str) -> Option<Self> {
+        if let Ok(k) = kind.parse::<EffectKind>() {
+            return Self::fresh(k);
+        }
+        Some(match kind {
             _ if kind.starts_with("sensor-resonance") => {
                 let (remedy, f) = if let Some(f) = kind.strip_prefix("sensor-resonance=") {
                     (SensorRemedy::Modes, f)
@@ -1024,10 +1195,9 @@ pub fn with_prefilter(
     design.latency_samples += delay;
     design.latency_s = design.latency_samples / fs;
     design.pole_margin = design.pole_margin.min(margin);
-    design.method = format!(
-        "sensor-resonance prefilter (Butterworth order {PREFILTER_ORDER} at {fc:.1} Hz), then {}",
-        design.method
-    );
+    design.method = design.method.clone().after_prefilter(&format!(
+        "sensor-resonance prefilter (Butterworth order {PREFILTER_ORDER} at {fc:.1} Hz)"
+    ));
     Ok(())
 }
 
@@ -1063,13 +1233,17 @@ pub fn at_temperature(
                 bandwidth_hz: Some((d.lowpass_hz * k).min(0.45 * fs)),
                 lowpass: d.lowpass,
                 lowpass_order: d.lowpass_order,
-                stabilise: !d.method.contains("direct inverse"),
+                stabilise: d.method.kind() != crate::inverse::MethodKind::DirectInverse,
             };
             let fc = options.bandwidth_hz.unwrap_or(d.lowpass_hz);
             // The optimum is designed anew from its noise and prior; a band-limited inverse
             // keeps its corner, scaled with the time scale.
             let mut nd = match (&d.noise, &d.prior) {
-                (Some(noise), Some(prior)) if d.method.starts_with("optimal") => {
+                // Not after a prefilter: such a design is redesigned as a band-limited
+                // inverse, as always.
+                (Some(noise), Some(prior))
+                    if !d.method.is_prefiltered() && d.method.kind().is_optimal() =>
+                {
                     crate::inverse::optimal::design(
                         &model,
                         noise,
@@ -1461,6 +1635,50 @@ mod tests {
     use super::*;
 
     #[test]
+    fn every_kind_has_the_text_of_before_in_every_form() {
+        // The strings of model files, `--json` and `--add` before the kinds were typed.
+        let texts = [
+            "mode",
+            "leak",
+            "offset",
+            "drift",
+            "delay",
+            "coloured-noise",
+            "nonlinear-damping",
+            "sensor-resonance",
+            "sensor-resonance-prefilter",
+            "temperature",
+            "temperature-viscous",
+        ];
+        for (k, t) in EffectKind::ALL.into_iter().zip(texts) {
+            assert_eq!(k.to_string(), t);
+            assert_eq!(t.parse::<EffectKind>(), Ok(k));
+            assert_eq!(serde_json::to_string(&k).unwrap(), format!("\"{t}\""));
+            assert_eq!(
+                serde_json::from_str::<EffectKind>(&format!("\"{t}\"")).unwrap(),
+                k
+            );
+            // The kind of the effect it adds is its family, the model file's `kind`.
+            if let Some(e) = Effect::fresh(k) {
+                assert_eq!(e.kind(), k.family());
+                let text = toml::to_string(&e).unwrap();
+                assert!(
+                    text.contains(&format!("kind = \"{}\"", k.family())),
+                    "{text}"
+                );
+            }
+        }
+        assert_eq!(format!("{:<8}|", EffectKind::Leak), "leak    |");
+        assert_eq!(
+            "temperature=300".parse::<EffectKind>(),
+            Err(UnknownKind("temperature=300".into()))
+        );
+        // The parameters charged are those of before, per name.
+        let charged: Vec<usize> = EffectKind::ALL.map(EffectKind::parameters).to_vec();
+        assert_eq!(charged, [4, 2, 1, 2, 0, 0, 1, 4, 0, 1, 1]);
+    }
+
+    #[test]
     fn kinds_round_trip_through_toml() {
         #[derive(Serialize, Deserialize)]
         struct W {
@@ -1490,14 +1708,15 @@ mod tests {
         let back: W = toml::from_str(&text).unwrap();
         assert_eq!(back.effects, w.effects);
         for k in KINDS {
-            let e = if k == "delay" {
+            let e = if k == EffectKind::Delay {
                 Effect::parse("delay=3")
             } else {
-                Effect::parse(k)
+                Effect::parse(k.as_str())
             };
             assert_eq!(e.map(|e| e.kind()), Some(k));
         }
         assert!(Effect::parse("gremlins").is_none());
+        assert!(Effect::parse("delay").is_none());
     }
 
     #[test]
@@ -1828,7 +2047,7 @@ mod tests {
             temperature_law(&back.effects),
             Some((310.0, TemperatureDamping::Viscous))
         );
-        assert_eq!(back.effects[0].kind(), "temperature");
+        assert_eq!(back.effects[0].kind(), EffectKind::Temperature);
         assert!(Effect::parse("temperature-viscous=-1").is_none());
         assert!(Effect::parse("temperature-sticky").is_none());
     }

@@ -32,7 +32,10 @@ use crate::model::Model;
 use crate::poly::{self, Complex};
 
 pub mod check;
+pub mod method;
 pub mod optimal;
+
+pub use method::{DesignMethod, MethodKind};
 
 /// Largest radius a zero of `B` may keep in the stable inverse (it becomes a pole of the
 /// compensator); zeros between this and the unit circle are pulled in to it. A zero inside it
@@ -114,8 +117,8 @@ pub struct Reconstruction {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Design {
-    /// How it was built.
-    pub method: String,
+    /// How it was built (the words the CLI prints and the model file stores).
+    pub method: DesignMethod,
     /// Low-pass family.
     pub lowpass: LowpassKind,
     /// Low-pass order.
@@ -580,12 +583,12 @@ pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
         worst_deg = worst_deg.max(err.abs());
     }
     let method = if options.stabilise {
-        "stable inverse (zeros of B outside the unit circle reflected, near it pulled in) times low-pass"
+        MethodKind::StableInverse
     } else {
-        "the paper's direct inverse A/B times low-pass"
+        MethodKind::DirectInverse
     };
     Ok(Design {
-        method: method.into(),
+        method: DesignMethod::of(method),
         lowpass: options.lowpass,
         lowpass_order: options.lowpass_order,
         lowpass_hz: fc,
@@ -616,7 +619,8 @@ impl Design {
     /// Whether this is the fixed-lag Kalman smoother (which has no low-pass of its own).
     #[must_use]
     pub fn is_smoother(&self) -> bool {
-        self.method.starts_with("optimal: fixed-lag")
+        // Not after a prefilter: the smoother's band is then told as a low-pass's, as always.
+        !self.method.is_prefiltered() && self.method.kind() == MethodKind::Smoother
     }
 
     /// Its band in words: `Bessel low-pass at 300 Hz`, or the smoother's -3 dB band.

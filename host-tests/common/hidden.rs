@@ -806,7 +806,7 @@ pub fn physical_cases() -> Vec<Case> {
 #[derive(Debug, Clone)]
 pub struct Outcome {
     /// The kinds named, best first.
-    pub named: Vec<String>,
+    pub named: Vec<unlag::diagnose::Finding>,
     /// Validation error of the plain model.
     pub before: f64,
     /// Validation error after adding the first candidate and refitting.
@@ -821,13 +821,22 @@ pub struct Outcome {
 impl Outcome {
     /// The loop worked: the hidden kind named first, and adding it cut the error 3x or to
     /// within 1.5x of the noise floor (for `none`: nothing to add).
+    ///
+    /// # Panics
+    /// When `kind` names nothing a diagnosis can name.
     #[must_use]
     pub fn passed(&self, kind: &str) -> bool {
-        let first = self.named.first().map(String::as_str);
+        use unlag::diagnose::Finding;
+        use unlag::effects::EffectKind;
+        let kind: Finding = kind.parse().expect("a kind a diagnosis names");
+        let first = self.named.first().copied();
         // `temperature` and `temperature-viscous` are one effect with two damping laws.
         let same = first == Some(kind)
-            || (kind == "temperature" && first.is_some_and(|f| f.starts_with("temperature")));
-        same && (kind == "none"
+            || (kind == EffectKind::Temperature
+                && first
+                    .and_then(Finding::effect)
+                    .is_some_and(|f| f.family() == EffectKind::Temperature));
+        same && (kind == Finding::Nothing
             || self.before / self.after >= 3.0
             || self.after <= 1.5 * self.floor)
     }
@@ -839,8 +848,8 @@ impl Outcome {
 /// When the plain fit fails (a broken case).
 #[must_use]
 pub fn run(case: &Case, seed: u64) -> Outcome {
-    use unlag::diagnose::{self, Current};
-    use unlag::effects::{self, Effect};
+    use unlag::diagnose::{self, Current, Finding};
+    use unlag::effects::{self, Effect, EffectKind};
     use unlag::fit::Test;
     let data = case.tests(seed);
     let names = ["estimation", "validation", "validation 2", "validation 3"];
@@ -861,20 +870,20 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
     };
     let evidence = diagnose::evidence(&current, &tests);
     let candidates = diagnose::diagnose(&current, &tests, &evidence).expect("diagnosis");
-    let named: Vec<String> = candidates.iter().map(|c| c.kind.clone()).collect();
+    let named: Vec<Finding> = candidates.iter().map(|c| c.kind).collect();
     let signature = diagnose::amplitude_signature(&diagnose::per_test(&current, &tests, &evidence));
     let before = evidence[1].nrmse;
     let floor = evidence[1].noise_floor;
     let after = match candidates.first() {
         // Nothing to add for `none`, nothing named for `unexplained`.
-        Some(c) if !matches!(c.kind.as_str(), "none" | "unexplained") => {
-            let effect = if c.kind == "delay" {
+        Some(c) if c.kind.effect().is_some() => {
+            let effect = if c.kind == EffectKind::Delay {
                 let d = c.evidence["best_delay"].as_u64().unwrap_or(0) as usize;
                 Effect::Delay { samples: d }
             } else {
-                // The `--add` spelling when the candidate gives one (`temperature-viscous`).
-                let add = c.evidence["add"].as_str().unwrap_or(&c.kind);
-                Effect::parse(add).expect("a known kind")
+                // The `--add` spelling (`temperature-viscous` with its damping law).
+                let add = c.kind.effect().expect("an effect");
+                Effect::fresh(add).expect("a kind with no value to give")
             };
             match effects::fit_with(&tests[0], &tests[1..], case.fs, &options, &[effect]) {
                 // The error the remedy is judged by: the one-step-ahead prediction error

@@ -432,7 +432,8 @@ pub struct FitArgs {
     #[arg(long, value_name = "SAMPLES")]
     pub delay: Option<usize>,
     /// Add a physical effect to the model (repeatable): mode, leak, offset, drift,
-    /// coloured-noise, nonlinear-damping, delay=N, sensor-resonance (the transducers' modes;
+    /// coloured-noise, nonlinear-damping, delay (searched again, then kept) or delay=N,
+    /// sensor-resonance (the transducers' modes;
     /// frequency found in the reference) or sensor-resonance=HZ, sensor-resonance-prefilter[=HZ]
     /// (the paper's prefilter instead), temperature (reference 293.15 K) or temperature=K
     /// (the estimation test's gas temperature). Effects already in the output model file are
@@ -742,13 +743,13 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         let explicit_order = matches!(order, Order::Fixed(_));
         let dropped = if explicit_order {
             let before = effects.len();
-            effects.retain(|e| e.kind() != "mode");
+            effects.retain(|e| e.kind() != crate::effects::EffectKind::Mode);
             before - effects.len()
         } else {
             0
         };
         if !p.effects.is_empty() || !p.history.is_empty() {
-            let kept: Vec<&str> = effects.iter().map(crate::effects::Effect::kind).collect();
+            let kept: Vec<&str> = effects.iter().map(|e| e.kind().as_str()).collect();
             let msg = format!(
                 "continuing {}: keeping its effects [{}] and {} history row(s){} (--fresh starts over)",
                 args.output.display(),
@@ -763,27 +764,43 @@ fn run_fit(args: &FitArgs) -> Result<()> {
             console::note(args.json, &msg);
         }
     }
+    // `--add delay` (what a diagnosis names `delay`): the delay searched again, as the
+    // diagnosis did, and kept as the model's from then on.
+    let mut search_delay = false;
     for kind in &args.add {
+        if kind.parse() == Ok(crate::effects::EffectKind::Delay) {
+            effects.retain(|x| x.kind() != crate::effects::EffectKind::Delay);
+            search_delay = true;
+            continue;
+        }
         let e = crate::effects::Effect::parse(kind).ok_or_else(|| Error::InvalidArgument {
             what: "--add",
             message: format!(
                 "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, sensor-resonance-prefilter[=HZ], temperature=K, temperature-viscous[=K]",
                 crate::effects::KINDS
                     .iter()
-                    .filter(|k| **k != "delay")
-                    .copied()
+                    .map(|k| k.as_str())
                     .collect::<Vec<_>>()
                     .join(", ")
             ),
         })?;
-        effects.retain(|x| x.kind() != e.kind() || e.kind() == "mode");
+        effects.retain(|x| x.kind() != e.kind() || e.kind() == crate::effects::EffectKind::Mode);
         effects.push(e);
     }
+    // A later `delay=N` among the additions fixes it: nothing to search then.
+    search_delay &= !effects
+        .iter()
+        .any(|e| e.kind() == crate::effects::EffectKind::Delay);
     progress.step("fitting (orders on a window, then the whole record)");
     let fitted =
         crate::effects::fit_with(est_test, val_tests, est.sample_rate_hz, &options, &effects)
             .map(|(f, fx)| {
                 effects = fx;
+                if search_delay {
+                    effects.push(crate::effects::Effect::Delay {
+                        samples: f.model.delay,
+                    });
+                }
                 f
             })
             .map_err(|e| match e {
@@ -1120,7 +1137,7 @@ fn print_inverse(d: &inverse::Design, fs: f64) {
             inverse::check::Verdict::Better | inverse::check::Verdict::Unchecked => {}
             inverse::check::Verdict::FellBack => crate::errln!(
                 "warning: fell back to {}: {}",
-                d.method.split(':').next().unwrap_or(""),
+                d.method.short(),
                 c.rejected.join("; ")
             ),
             inverse::check::Verdict::NotBetter => crate::errln!(
@@ -1532,7 +1549,7 @@ fn warn_if_worse(
             pct(e),
             pct(raw),
             args.model.display(),
-            design.map_or("", |d| d.method.split(':').next().unwrap_or(""))
+            design.map_or("", |d| d.method.short())
         );
         return;
     }

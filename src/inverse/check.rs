@@ -84,7 +84,7 @@ pub fn delay_only(model: &Model) -> Result<Design> {
         .dc_group_delay()
         .map_or(model.delay as f64, |t| t.max(model.delay as f64));
     Ok(Design {
-        method: "delay only: the probe signal over the model's DC gain".into(),
+        method: super::DesignMethod::of(super::MethodKind::DelayOnly),
         lowpass: super::LowpassKind::Bessel,
         lowpass_order: 1,
         lowpass_hz: 0.5 * model.fs,
@@ -118,7 +118,7 @@ pub fn delay_only(model: &Model) -> Result<Design> {
 /// As [`delay_only`].
 pub fn pass_through(model: &Model) -> Result<Design> {
     let mut d = delay_only(model)?;
-    d.method = "pass-through: the probe signal unchanged".into();
+    d.method = super::DesignMethod::of(super::MethodKind::PassThrough);
     d.gain = 1.0;
     d.noise_gain = 1.0;
     Ok(d)
@@ -269,13 +269,13 @@ fn describe(d: &Design, recon: &[Reconstruction]) -> String {
     match worst {
         Some(r) => format!(
             "{} (-3 dB band {:.1} Hz): u_hat {:.3} % against the raw probe's {:.3} % on {}",
-            d.method.split(':').next().unwrap_or(""),
+            d.method.short(),
             d.lowpass_hz,
             100.0 * r.nrmse_u_hat,
             100.0 * r.nrmse_raw,
             r.file
         ),
-        None => d.method.clone(),
+        None => d.method.to_string(),
     }
 }
 
@@ -327,7 +327,12 @@ mod tests {
         let check = d.check.unwrap();
         assert_ne!(check.verdict, Verdict::Better);
         assert!(!check.rejected.is_empty());
-        assert!(d.method.starts_with("pass-through"), "{}", d.method);
+        assert_eq!(
+            d.method.kind(),
+            crate::inverse::MethodKind::PassThrough,
+            "{}",
+            d.method
+        );
     }
 
     #[test]
@@ -357,7 +362,12 @@ mod tests {
             ..Options::default()
         });
         let d = design_checked(&m, &tests, &request, 0.0).unwrap();
-        assert!(d.method.starts_with("pass-through"), "{}", d.method);
+        assert_eq!(
+            d.method.kind(),
+            crate::inverse::MethodKind::PassThrough,
+            "{}",
+            d.method
+        );
         assert_eq!(d.gain, 1.0);
         let check = d.check.unwrap();
         assert_eq!(check.verdict, Verdict::NotBetter);

@@ -1129,15 +1129,15 @@ fn design_for(
         if b.total <= REDUCED_TOLERANCE * full_budget.total
             && reduced.sections.len() < sections.len()
         {
-            reduced.method = format!(
-                "optimal, reduced order: a stable inverse times a {:?} low-pass at the corner of least predicted error, {:.2}x the fixed-lag Kalman smoother's error ({} sections against {}, predicted {:.4} against {:.4})",
+            reduced.method = super::DesignMethod::new(super::MethodKind::ReducedOptimal, &format!(
+                "a stable inverse times a {:?} low-pass at the corner of least predicted error, {:.2}x the fixed-lag Kalman smoother's error ({} sections against {}, predicted {:.4} against {:.4})",
                 options.lowpass,
                 b.total / full_budget.total,
                 reduced.sections.len(),
                 sections.len(),
                 b.total,
                 full_budget.total
-            );
+            ));
             reduced.bandwidth_selection =
                 "the corner of least predicted error (noise and band limit)".into();
             reduced.noise = Some(*noise);
@@ -1170,11 +1170,11 @@ fn design_for(
         });
     }
     Ok(super::Design {
-        method: format!(
-            "optimal: fixed-lag Kalman smoother, lag {lag} samples ({} prior, measured probe noise{})",
+        method: super::DesignMethod::new(super::MethodKind::Smoother, &format!(
+            "fixed-lag Kalman smoother, lag {lag} samples ({} prior, measured probe noise{})",
             if prior.increment_pole > 0.0 { "steps-and-ramps" } else { "random-walk" },
             if noise.probe_ar_std > 0.0 { " with its AR(1) part" } else { "" }
-        ),
+        )),
         lowpass: options.lowpass,
         lowpass_order: options.lowpass_order,
         lowpass_hz: band,

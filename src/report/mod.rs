@@ -162,7 +162,7 @@ pub fn render(inputs: &Inputs<'_>) -> Result<String> {
          <title>{}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n",
         escape(&title)
     );
-    let effects: Vec<&str> = file.effects.iter().map(effects::Effect::kind).collect();
+    let effects: Vec<&str> = file.effects.iter().map(|e| e.kind().as_str()).collect();
     let effects = if effects.is_empty() {
         "no effects added".to_string()
     } else {
@@ -214,7 +214,7 @@ fn top_effect<'a>(inputs: &Inputs<'a>) -> Option<&'a Candidate> {
 
 fn verdict(h: &mut String, inputs: &Inputs<'_>) {
     match top_effect(inputs) {
-        Some(c) if c.kind == "none" => {
+        Some(c) if c.kind == crate::diagnose::Finding::Nothing => {
             let _ = writeln!(
                 h,
                 "<div class=\"verdict ok\"><b>Diagnosis: none.</b> {}</div>",
@@ -226,7 +226,7 @@ fn verdict(h: &mut String, inputs: &Inputs<'_>) {
                 h,
                 "<div class=\"verdict\"><b>Diagnosis: <span class=\"effect\">{}</span></b> \
                  (held-out error {} &rarr; {} in a trial refit). {}<br>Change: <code>{}</code></div>",
-                escape(&c.kind),
+                escape(c.kind.as_str()),
                 pct(c.nrmse_before),
                 pct(c.nrmse_after),
                 escape(&c.reading),
@@ -602,9 +602,10 @@ fn spectrum(h: &mut String, inputs: &Inputs<'_>, number: usize, ev: &TestEvidenc
             .collect()
     };
     let (expected, significance) = (along(0.0), along(crate::evidence::PEAK_DB));
-    let effect = top_effect(inputs).map_or("not diagnosed", |c| c.kind.as_str());
+    let top = top_effect(inputs).map(|c| c.kind);
+    let effect = top.map_or("not diagnosed", crate::diagnose::Finding::as_str);
     let label_of = |f: f64| {
-        if effect == "none" {
+        if top == Some(crate::diagnose::Finding::Nothing) {
             format!("{f:.0} Hz")
         } else {
             format!("{f:.0} Hz: {effect}")
@@ -1311,7 +1312,7 @@ fn candidates(h: &mut String, inputs: &Inputs<'_>) {
              <td class=\"num\">{} &rarr; {}</td><td>{}{}<br><small><code>{}</code></small></td>\
              <td><code>{}</code></td></tr>",
             i + 1,
-            escape(&c.kind),
+            escape(c.kind.as_str()),
             c.score,
             pct(c.nrmse_before),
             pct(c.nrmse_after),
@@ -1424,7 +1425,7 @@ mod tests {
             &ym,
         )];
         let c = Candidate {
-            kind: "leak".into(),
+            kind: crate::diagnose::Finding::Missing(crate::effects::EffectKind::Leak),
             score: 0.5,
             evidence: serde_json::json!({"x": 1}),
             reading: "a slow creep & more".into(),

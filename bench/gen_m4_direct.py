@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
-"""Writes src/fixed/direct/m4_direct.s: the Thumb-2 kernels of the direct-form fixed-point
+"""Writes src/board/fixed/direct/m4_direct.s: the Thumb-2 kernels of the direct-form fixed-point
 cascade (`unlag::fixed::direct::DirectCascade::process` and `process_in_place`) for 1..=4
 sections.
 
     python3 bench/gen_m4_direct.py      # rewrites the file; commit the result
     python3 bench/gen_m4_direct.py OUT.s  # writes OUT.s instead (.ci/run diffs it against the file)
 
-Layouts (see src/fixed/direct.rs, both #[repr(C)]): coefficients = per section
+Layouts (see src/board/fixed/direct.rs, both #[repr(C)]): coefficients = per section
 [b0, b1, b2, na1, na2] (i32, Q2.30, na = -a); state = [x1, x2], then per section [y1, y2, e],
 then the overflow flag (a byte). Arithmetic, per section, exactly as the portable code:
 
@@ -207,7 +207,7 @@ for n in range(1, MAX_N + 1):
     block_kernel(n)
 # The committed file, or the path given (CI regenerates into a temporary file and diffs).
 path = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
-    os.path.dirname(os.path.abspath(__file__)), "..", "src", "fixed", "direct", "m4_direct.s"
+    os.path.dirname(os.path.abspath(__file__)), "..", "src", "board", "fixed", "direct", "m4_direct.s"
 )
 with open(path, "w") as f:
     f.write("\n".join(out).rstrip("\n") + "\n")

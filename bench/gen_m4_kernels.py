@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""Writes src/compensator/m4_kernels.s: the hand-scheduled Thumb-2/VFP kernels of the f32
+"""Writes src/board/compensator/m4_kernels.s: the hand-scheduled Thumb-2/VFP kernels of the f32
 cascade (`CascadeCoefficients::process` and `process_in_place`) for 1..=4 sections.
 
     python3 bench/gen_m4_kernels.py      # rewrites the file; commit the result
     python3 bench/gen_m4_kernels.py OUT.s  # writes OUT.s instead (.ci/run diffs it against the file)
 
-Layouts (see src/compensator.rs): coefficients `#[repr(C)]` = per section [b0, b1, a1, a2],
+Layouts (see src/board/compensator.rs): coefficients `#[repr(C)]` = per section [b0, b1, a1, a2],
 then b2 of every section (5N floats); state `#[repr(C)]` = s2 of every section, then s1 of
 every section (2N floats). Arithmetic: VMLA/VMLS (multiply, round, then add/subtract, round:
 not fused), in the order of the portable code, so the results are bit-identical to it.
@@ -257,7 +257,7 @@ for n in range(1, MAX_N + 1):
         block_kernel(n)
 # The committed file, or the path given (CI regenerates into a temporary file and diffs).
 path = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
-    os.path.dirname(os.path.abspath(__file__)), "..", "src", "compensator", "m4_kernels.s"
+    os.path.dirname(os.path.abspath(__file__)), "..", "src", "board", "compensator", "m4_kernels.s"
 )
 with open(path, "w") as f:
     f.write("\n".join(out).rstrip("\n") + "\n")

@@ -2,12 +2,11 @@
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![warn(missing_docs)]
 
-// Data flow: trace -> fit -> model -> (inverse) -> compensator (board).
-// Everything but `compensator` is host side, behind the `std` feature.
+// Data flow: trace -> fit -> model -> (inverse) -> export -> board.
+// Everything but `board` is host side, behind the `std` feature.
 
-pub mod blob;
-pub mod compensator;
-pub mod fixed;
+pub mod board;
+pub use board::{blob, compensator, fixed};
 
 #[cfg(feature = "std")]
 pub mod analysis;

@@ -8,8 +8,10 @@
 //!   correction and the per-temperature bank);
 //! - [`fixed`]: the same cascade in 32-bit integers, normal form and direct form, for boards
 //!   without an FPU;
-//! - [`blob`]: the binary coefficient image a running board parses to update its set.
+//! - [`blob`]: the binary coefficient image a running board parses to update its set;
+//! - [`process`]: the compensators as `dsp_process` processors, composing with `idsp`.
 
 pub mod blob;
 pub mod compensator;
 pub mod fixed;
+pub mod process;

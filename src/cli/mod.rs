@@ -846,39 +846,32 @@ fn run_fit(args: &FitArgs) -> Result<()> {
             })
             .collect(),
     });
-    let judge = if val_tests.is_empty() {
-        std::slice::from_ref(est_test)
-    } else {
-        val_tests
-    };
     // With a sensor resonance the inverse is designed on the prefiltered tests, and the
-    // prefilter runs in front of it.
-    let filtered = prefiltered_tests(judge, &effects, est.sample_rate_hz);
-    let judge: Vec<Test<'_>> = filtered
+    // prefilter runs in front of it: each test prefiltered once.
+    let filtered = prefiltered_tests(&tests, &effects, est.sample_rate_hz);
+    let filtered: Vec<Test<'_>> = filtered
         .iter()
-        .zip(judge)
+        .zip(&tests)
         .map(|((u, y), t)| Test { name: t.name, u, y })
         .collect();
-    let judge = judge.as_slice();
+    let (est_filtered, val_filtered) = filtered.split_at(1.min(filtered.len()));
+    // The check judges on the held-out tests, or the estimation test when it is alone.
+    let judge = if val_filtered.is_empty() {
+        est_filtered
+    } else {
+        val_filtered
+    };
     // The noise and the prior come from the step tests: the estimation test and the held-out
     // ones that are clean steps with a quiet segment before them. A held-out run of another
     // kind (a balloon, a traverse) is what the check judges on, not what the design learns
     // from: a compensator learnt from the very run it is checked on passes its own check.
-    let raw_steps: Vec<Test<'_>> = std::iter::once(est_test)
-        .chain(
-            val_tests
-                .iter()
-                .filter(|t| fit::step::quiet_until(t.u) >= inverse::optimal::MIN_QUIET),
-        )
-        .copied()
-        .collect();
-    let raw_est = raw_steps.as_slice();
-    let steps_filtered = prefiltered_tests(raw_est, &effects, est.sample_rate_hz);
-    let designed: Vec<Test<'_>> = steps_filtered
+    let is_step: Vec<bool> = tests
         .iter()
-        .zip(raw_est)
-        .map(|((u, y), t)| Test { name: t.name, u, y })
+        .enumerate()
+        .map(|(i, t)| i == 0 || fit::step::quiet_until(t.u) >= inverse::optimal::MIN_QUIET)
         .collect();
+    let raw_steps = kept(&tests, &is_step);
+    let designed = kept(&filtered, &is_step);
     // The fit stands on its own: if no compensator can be designed, say why and keep the model.
     progress.step("designing the compensator");
     let design = match inverse::check::design_checked(
@@ -888,7 +881,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
             &fitted.model,
             &effects,
             &args.columns,
-            raw_est,
+            &raw_steps,
             &designed,
             None,
         )?,
@@ -957,6 +950,15 @@ fn run_fit(args: &FitArgs) -> Result<()> {
 
 /// Both channels of each test through the sensor-resonance prefilter of `effects` (unchanged
 /// without one).
+/// The tests whose `keep` flag is set.
+fn kept<'t>(tests: &[Test<'t>], keep: &[bool]) -> Vec<Test<'t>> {
+    tests
+        .iter()
+        .zip(keep)
+        .filter_map(|(t, k)| k.then_some(*t))
+        .collect()
+}
+
 fn prefiltered_tests(
     tests: &[Test<'_>],
     effects: &[crate::effects::Effect],

@@ -293,6 +293,21 @@ mod tests {
         }
     }
 
+    /// A unit step at sample 500 of 2000.
+    fn step() -> Vec<f64> {
+        (0..2000).map(|k| if k < 500 { 0.0 } else { 1.0 }).collect()
+    }
+
+    /// The band-limited inverse at 200 Hz of `m`, checked on the one test `(u, y)`.
+    fn checked_on(m: &Model, u: &[f64], y: &[f64]) -> Design {
+        let tests = [Test { name: "t", u, y }];
+        let request = Request::BandLimited(Options {
+            bandwidth_hz: Some(200.0),
+            ..Options::default()
+        });
+        design_checked(m, &tests, &request, 0.0).unwrap()
+    }
+
     #[test]
     fn delay_only_passes_the_probe_over_its_dc_gain() {
         let m = leaky_line();
@@ -312,18 +327,8 @@ mod tests {
             a: vec![-0.9],
             b: vec![0.1],
         };
-        let u: Vec<f64> = (0..2000).map(|k| if k < 500 { 0.0 } else { 1.0 }).collect();
-        let y = u.clone();
-        let tests = [Test {
-            name: "t",
-            u: &u,
-            y: &y,
-        }];
-        let request = Request::BandLimited(Options {
-            bandwidth_hz: Some(200.0),
-            ..Options::default()
-        });
-        let d = design_checked(&m, &tests, &request, 0.0).unwrap();
+        let u = step();
+        let d = checked_on(&m, &u, &u);
         let check = d.check.unwrap();
         assert_ne!(check.verdict, Verdict::Better);
         assert!(!check.rejected.is_empty());
@@ -345,23 +350,14 @@ mod tests {
             a: vec![-0.9],
             b: vec![0.08],
         };
-        let u: Vec<f64> = (0..2000).map(|k| if k < 500 { 0.0 } else { 1.0 }).collect();
+        let u = step();
         // A little deterministic noise on the probe, so that the raw probe's error is not 0.
         let y: Vec<f64> = u
             .iter()
             .enumerate()
             .map(|(k, v)| v + 1e-3 * ((k * 7919 % 13) as f64 - 6.0))
             .collect();
-        let tests = [Test {
-            name: "t",
-            u: &u,
-            y: &y,
-        }];
-        let request = Request::BandLimited(Options {
-            bandwidth_hz: Some(200.0),
-            ..Options::default()
-        });
-        let d = design_checked(&m, &tests, &request, 0.0).unwrap();
+        let d = checked_on(&m, &u, &y);
         assert_eq!(
             d.method.kind(),
             crate::inverse::MethodKind::PassThrough,

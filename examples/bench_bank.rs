@@ -220,8 +220,8 @@ fn against_clean(clean: &[f64], out: &Path, alignment: usize) -> Result<(f64, f6
     let (y, u_hat) = (&trace.y, trace.u.as_deref().unwrap_or_default());
     let raw_lags = 0..=alignment + 4 * alignment.max(10);
     let lags = alignment.saturating_sub(4)..=alignment + 4;
-    let (raw, _) = unlag::inverse::aligned_error(clean, y, raw_lags);
-    let (comp, _) = unlag::inverse::aligned_error(clean, u_hat, lags);
+    let (raw, _) = unlag::design::inverse::aligned_error(clean, y, raw_lags);
+    let (comp, _) = unlag::design::inverse::aligned_error(clean, u_hat, lags);
     Ok((raw, comp))
 }
 

@@ -47,12 +47,12 @@ mod board {
     mod trace {
         include!("data/board_trace.rs");
     }
-    /// Fixed-point sections of the same design (`unlag::quantise::FixedPlan`, made by
+    /// Fixed-point sections of the same design (`unlag::design::quantise::FixedPlan`, made by
     /// host-tests/export.rs).
     mod fixed {
         include!("data/board_fixed.rs");
     }
-    /// Direct-form sections of the same design (`unlag::quantise::DirectPlan`, made by
+    /// Direct-form sections of the same design (`unlag::design::quantise::DirectPlan`, made by
     /// host-tests/export.rs).
     mod direct {
         include!("data/board_direct.rs");

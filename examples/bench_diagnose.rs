@@ -72,7 +72,7 @@ fn main() {
         );
     }
     println!();
-    println!("Residual against amplitude across tests (each test fitted alone; nonlinear damping needs a damping rise >= {:.0} % and an exponent >= {}):", 100.0 * unlag::diagnose::MIN_DAMPING_RISE, unlag::diagnose::MIN_RESIDUAL_EXPONENT);
+    println!("Residual against amplitude across tests (each test fitted alone; nonlinear damping needs a damping rise >= {:.0} % and an exponent >= {}):", 100.0 * unlag::modelling::diagnose::MIN_DAMPING_RISE, unlag::modelling::diagnose::MIN_RESIDUAL_EXPONENT);
     println!();
     println!("| case | steps | damping | damping rise | residual exponent | signature |");
     println!("|---|---|---|---|---|---|");

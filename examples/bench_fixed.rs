@@ -15,11 +15,11 @@
 use std::f64::consts::PI;
 
 use unlag::compensator::{CascadeCoefficients, CascadeState};
+use unlag::design::inverse::{self, Design, Options};
+use unlag::design::quantise::{DirectPlan, FixedPlan};
+use unlag::fit::model::{filter, Model};
 use unlag::fixed::direct::{DirectCascade, DirectState};
 use unlag::fixed::{FixedCascade, FixedState};
-use unlag::inverse::{self, Design, Options};
-use unlag::model::{filter, Model};
-use unlag::quantise::{DirectPlan, FixedPlan};
 
 /// ADC full scale of the simulated probe signals.
 const FULL_SCALE: f64 = 2.0;

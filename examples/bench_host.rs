@@ -39,10 +39,10 @@ use std::time::{Duration, Instant};
 use unlag::compensator::{
     CascadeCoefficients, CascadeState, InverseCoefficients, InverseState, Sample,
 };
+use unlag::design::inverse;
 use unlag::fit::arx::{self, Data};
+use unlag::fit::model::Model;
 use unlag::fit::{self, Method, Options, Order, Test};
-use unlag::inverse;
-use unlag::model::Model;
 
 /// Samples in the step test.
 const N: usize = 1_000_000;

@@ -14,8 +14,8 @@
 mod common;
 
 use common::{add_noise, continuous_line, Rng};
+use unlag::design::inverse::{self, aligned_error};
 use unlag::fit::{self, Options, Order, Test};
-use unlag::inverse::{self, aligned_error};
 
 struct Case {
     name: &'static str,

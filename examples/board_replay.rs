@@ -39,7 +39,7 @@ mod coefficients {
     include!("data/board_coefficients.rs");
 }
 
-/// The fixed-point compensator of the same design (`unlag::quantise::FixedPlan`); only the
+/// The fixed-point compensator of the same design (`unlag::design::quantise::FixedPlan`); only the
 /// full design (m = 8) is replayed here.
 #[allow(dead_code)]
 mod fixed {
@@ -48,7 +48,7 @@ mod fixed {
 
 static BLOB: &[u8] = include_bytes!("data/board_coefficients.bin");
 
-/// The direct-form fixed-point compensator of the same design (`unlag::quantise::DirectPlan`).
+/// The direct-form fixed-point compensator of the same design (`unlag::design::quantise::DirectPlan`).
 #[allow(dead_code)]
 mod direct {
     include!("data/board_direct.rs");

@@ -11,8 +11,8 @@ use std::f64::consts::PI;
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
-use unlag::analysis::frequency_response;
-use unlag::model::{filter, Model};
+use unlag::fit::analysis::frequency_response;
+use unlag::fit::model::{filter, Model};
 
 /// `(re, im)` of `sum_n h[n] e^{-j 2 pi k n / N}`, by direct summation with the angle reduced
 /// modulo `N` (exact in integers) so that large `k n` lose no accuracy.

@@ -9,8 +9,8 @@ mod common;
 
 use common::{add_noise, arx_filter, continuous_line, step, Rng};
 use proptest::prelude::*;
+use unlag::fit::model::Model;
 use unlag::fit::{self, Method, Options, Order, Test};
-use unlag::model::Model;
 
 const FS: f64 = 10_000.0;
 

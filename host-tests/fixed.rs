@@ -10,10 +10,10 @@ use std::f64::consts::PI;
 use std::process::Command;
 
 use proptest::prelude::*;
+use unlag::design::inverse::{self, Options};
+use unlag::design::quantise::FixedPlan;
+use unlag::fit::model::Model;
 use unlag::fixed::{FixedCascade, FixedSection, FixedState};
-use unlag::inverse::{self, Options};
-use unlag::model::Model;
-use unlag::quantise::FixedPlan;
 
 /// A probe model from pole pairs `(radius, angle)` and zeros inside or outside the circle.
 fn model(poles: &[(f64, f64)], zeros: &[f64], fs: f64) -> Model {
@@ -263,7 +263,7 @@ fn compensate_with_fixed_arithmetic_runs_the_planned_integers() {
     let (a, b) = (std::fs::read(&out1).unwrap(), std::fs::read(&out2).unwrap());
     assert_eq!(a, b, "two runs differ");
     // The CLI's u_hat is the library's plan run on the same trace.
-    let file = unlag::model::ModelFile::load(&model).unwrap();
+    let file = unlag::file::ModelFile::load(&model).unwrap();
     let plan = file.inverse.unwrap().fixed.unwrap();
     assert_eq!(plan.full_scale, 4.0);
     let trace =
@@ -288,8 +288,8 @@ fn compensate_with_fixed_arithmetic_runs_the_planned_integers() {
 
 // ---- The direct form (issue 16 item 4): DF-I sections with first-order error feedback.
 
+use unlag::design::quantise::DirectPlan;
 use unlag::fixed::direct::{DirectCascade, DirectSection, DirectState};
-use unlag::quantise::DirectPlan;
 
 /// The direct form's documented arithmetic, written independently: `i128`, floor division,
 /// the residual carried, the high word clamped to 30 bits (the output then within 3 codes of
@@ -542,7 +542,7 @@ fn the_direct_form_is_chosen_on_the_command_line_and_runs_bit_exact() {
         printed.contains("direct form with error feedback"),
         "{printed}"
     );
-    let file = unlag::model::ModelFile::load(&model).unwrap();
+    let file = unlag::file::ModelFile::load(&model).unwrap();
     let design = file.inverse.unwrap();
     assert!(design.fixed.is_none());
     let plan = design.fixed_direct.unwrap();

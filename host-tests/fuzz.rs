@@ -11,7 +11,7 @@ use std::path::Path;
 
 use proptest::prelude::*;
 use unlag::blob;
-use unlag::model::ModelFile;
+use unlag::file::ModelFile;
 use unlag::trace::{Columns, Trace};
 
 fn cases() -> u32 {
@@ -125,7 +125,7 @@ proptest! {
             if let Ok(m) = ModelFile::parse(Path::new("fuzz.toml"), &text) {
                 // What loads is usable: finite, stable, a delay within the limit.
                 prop_assert!(m.model.fs.is_finite() && m.model.fs > 0.0);
-                prop_assert!(m.model.delay <= unlag::model::MAX_DELAY);
+                prop_assert!(m.model.delay <= unlag::file::MAX_DELAY);
                 prop_assert!(m.model.a.iter().chain(&m.model.b).all(|c| c.is_finite()));
             }
         }

@@ -11,9 +11,9 @@ use std::f64::consts::PI;
 use common::{add_noise, continuous_line, Rng};
 use proptest::prelude::*;
 use unlag::compensator::CascadeCoefficients;
+use unlag::design::inverse::{self, aligned_error, cascade_response, model_response};
+use unlag::fit::model::Model;
 use unlag::fit::{self, Options, Order, Test};
-use unlag::inverse::{self, aligned_error, cascade_response, model_response};
-use unlag::model::Model;
 use unlag::poly::Complex;
 
 fn unit(f: f64, fs: f64) -> Complex {

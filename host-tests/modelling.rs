@@ -91,7 +91,7 @@ fn physical_limits_show_what_the_physics_predicts() {
                 assert!(o.before < 1.5 * o.floor, "{}: {o:?}", case.name);
                 assert_eq!(
                     o.named.first().copied(),
-                    Some(unlag::diagnose::Finding::Nothing),
+                    Some(unlag::modelling::diagnose::Finding::Nothing),
                     "{}: {o:?}",
                     case.name
                 );
@@ -99,7 +99,7 @@ fn physical_limits_show_what_the_physics_predicts() {
             "nonlinear-damping" => {
                 let s = o.signature.as_ref().unwrap();
                 assert!(
-                    s.damping_rise >= unlag::diagnose::MIN_DAMPING_RISE,
+                    s.damping_rise >= unlag::modelling::diagnose::MIN_DAMPING_RISE,
                     "{}: {s:?}",
                     case.name
                 );
@@ -120,9 +120,9 @@ fn physical_limits_show_what_the_physics_predicts() {
 /// trial's held-out error with it is at least 3x below the plain model's.
 #[test]
 fn the_diagnosis_offers_the_damping_law_the_physics_has() {
-    use unlag::diagnose::{self, Current};
-    use unlag::effects;
     use unlag::fit::Test;
+    use unlag::modelling::diagnose::{self, Current};
+    use unlag::modelling::effects;
     let wanted = [
         ("temperature: validation at 343 K", "temperature"),
         (
@@ -283,9 +283,9 @@ fn a_delay_named_by_the_diagnosis_is_added_with_add_delay() {
 /// the signature.
 #[test]
 fn nonlinear_damping_is_named_from_its_amplitude_signature() {
-    use unlag::diagnose::{self, Current};
-    use unlag::effects::{self, Effect};
     use unlag::fit::Test;
+    use unlag::modelling::diagnose::{self, Current};
+    use unlag::modelling::effects::{self, Effect};
     for case in cases() {
         let data = case.tests(5);
         let tests: Vec<Test<'_>> = data.iter().map(|(u, y)| Test { name: "t", u, y }).collect();
@@ -344,7 +344,7 @@ fn nonlinear_damping_is_named_from_its_amplitude_signature() {
         let first = &candidates[0];
         assert_eq!(
             first.kind,
-            unlag::effects::EffectKind::NonlinearDamping,
+            unlag::modelling::effects::EffectKind::NonlinearDamping,
             "{candidates:#?}"
         );
         assert!(
@@ -456,8 +456,8 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
         ],
     );
     run(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    let file = unlag::model::ModelFile::load(std::path::Path::new(&model)).unwrap();
-    let gain = unlag::effects::nonlinear_gain(&file.effects);
+    let file = unlag::file::ModelFile::load(std::path::Path::new(&model)).unwrap();
+    let gain = unlag::modelling::effects::nonlinear_gain(&file.effects);
     let w = 2.0 * std::f64::consts::PI * case.mode.0;
     assert!((gain * w * w / k - 1.0).abs() < 0.25, "gain {gain}");
     let args = with(&["compare", &model], &["--json"]);
@@ -619,7 +619,7 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
     assert!(err.contains("nonlinear damping"), "{err}");
     assert!(!std::path::Path::new(&out).exists());
     let path = std::path::Path::new(&model);
-    let file = unlag::model::ModelFile::load(path).unwrap();
+    let file = unlag::file::ModelFile::load(path).unwrap();
     assert!(matches!(
         unlag::export::FixedBoardCoefficients::from_model_file(&file, path, Some(4.0)),
         Err(unlag::error::Error::UnsupportedOnBoard { .. })
@@ -978,7 +978,7 @@ fn temperature_bank_picks_the_set_for_the_measured_temperature() {
     }
 
     // The same library call the exporter makes: the Rust file holds exactly these numbers.
-    let file = unlag::model::ModelFile::load(std::path::Path::new(m)).unwrap();
+    let file = unlag::file::ModelFile::load(std::path::Path::new(m)).unwrap();
     let range = TemperatureRange::parse("253:353:10").unwrap();
     let exported = BoardBank::from_model_file(&file, std::path::Path::new(m), &range).unwrap();
     assert_eq!(
@@ -1004,7 +1004,7 @@ fn temperature_bank_picks_the_set_for_the_measured_temperature() {
             .collect();
         (out, ch.selected(), swaps)
     };
-    let error = |out: &[f64]| unlag::inverse::aligned_error(u, out, 0..=60);
+    let error = |out: &[f64]| unlag::design::inverse::aligned_error(u, out, 0..=60);
     let (hot, hot_set, _) = run(&|_| t_val as f32);
     let (cold, cold_set, _) = run(&|_| reference_k as f32);
     assert_eq!(bank.temperatures_k()[hot_set], 343.0);
@@ -1021,10 +1021,7 @@ fn temperature_bank_picks_the_set_for_the_measured_temperature() {
     // error is the model's mismatch (and the noise): there the true temperature's set wins
     // clearly.
     let ideal = |t: f64| {
-        let d = unlag::effects::at_temperature(&file, t)
-            .unwrap()
-            .inverse
-            .unwrap();
+        let d = file.at_temperature(t).unwrap().inverse.unwrap();
         let (g, lp) = d.lowpass_sections(case.fs).unwrap();
         let c = unlag::compensator::CascadeCoefficients::<f64, 8>::new(g, &lp).unwrap();
         let mut st = c.equilibrium(u[0]);
@@ -1034,7 +1031,7 @@ fn temperature_bank_picks_the_set_for_the_measured_temperature() {
     };
     let mismatch = |out: &[f64], set: usize| {
         let t = f64::from(bank.temperatures_k()[set]);
-        unlag::inverse::aligned_error(&ideal(t), out, 0..=60).0
+        unlag::design::inverse::aligned_error(&ideal(t), out, 0..=60).0
     };
     let (m_hot, m_cold) = (mismatch(&hot, hot_set), mismatch(&cold, cold_set));
     eprintln!(

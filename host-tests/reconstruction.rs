@@ -15,8 +15,8 @@ use std::process::Command;
 
 use common::{arx_filter, continuous_line, step, write_csv, Rng};
 use proptest::prelude::*;
-use unlag::inverse::optimal::{self, NoiseModel, NoiseSource, PriorSource, SignalPrior};
-use unlag::model::Model;
+use unlag::design::inverse::optimal::{self, NoiseModel, NoiseSource, PriorSource, SignalPrior};
+use unlag::fit::model::Model;
 
 const FS: f64 = 10_000.0;
 

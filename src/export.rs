@@ -12,8 +12,8 @@
 //!
 //! All three carry the same `f32` values, so a board gets bit-identical coefficients whichever
 //! way they arrive. With [`NumberFormat::Fixed`] the same three forms carry the fixed-point
-//! compensator of [`crate::fixed`] (the integers of [`crate::quantise::FixedPlan`]), and with
-//! [`NumberFormat::FixedDirect`] its direct form ([`crate::quantise::DirectPlan`]). The output file is written atomically. Every section is
+//! compensator of [`crate::fixed`] (the integers of [`crate::design::quantise::FixedPlan`]), and with
+//! [`NumberFormat::FixedDirect`] its direct form ([`crate::design::quantise::DirectPlan`]). The output file is written atomically. Every section is
 //! `[b0, b1, b2, a1, a2]` in the crate's sign convention (see [`crate::compensator`]);
 //! CMSIS-DSP's biquad functions want `a1`, `a2` negated, which the C header says.
 //!
@@ -28,15 +28,15 @@ pub mod verify;
 
 use crate::blob;
 use crate::compensator::{CascadeCoefficients, NonlinearDampingCoefficients};
+use crate::design::quantise::{DirectPlan, FixedPlan};
 use crate::error::{Error, Result};
+use crate::file::ModelFile;
 use crate::fixed::direct::{DirectCascade, DirectSection};
 use crate::fixed::{FixedCascade, FixedSection};
-use crate::model::ModelFile;
-use crate::quantise::{DirectPlan, FixedPlan};
 use crate::trace::write_atomically;
 
-/// Largest section count `unlag export` writes (a 32nd-order compensator).
-pub const MAX_EXPORT_SECTIONS: usize = 16;
+/// Largest section count `unlag export` writes: as many as a design may have.
+pub const MAX_EXPORT_SECTIONS: usize = crate::design::inverse::optimal::MAX_SECTIONS;
 
 /// What `unlag export` writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -82,7 +82,7 @@ pub struct BoardNonlinear {
 /// Refuses a model the fixed-point compensator cannot run (the nonlinear-damping correction
 /// is `f32` only).
 fn check_fixed_point(file: &ModelFile, path: &Path) -> Result<()> {
-    if crate::effects::nonlinear_gain(&file.effects) != 0.0 {
+    if crate::modelling::effects::nonlinear_gain(&file.effects) != 0.0 {
         return Err(Error::UnsupportedOnBoard {
             path: path.to_path_buf(),
             effect: "nonlinear damping",
@@ -141,7 +141,7 @@ impl BoardCoefficients {
         let widened: Vec<[f64; 5]> = sections.iter().map(|s| s.map(f64::from)).collect();
         CascadeCoefficients::<f32, MAX_EXPORT_SECTIONS>::new(f64::from(gain), &widened)
             .map_err(|e| bad(format!("the compensator rounded to f32 is not valid: {e}")))?;
-        let loss = crate::effects::nonlinear_gain(&file.effects);
+        let loss = crate::modelling::effects::nonlinear_gain(&file.effects);
         let nonlinear = if loss == 0.0 {
             None
         } else {
@@ -410,7 +410,7 @@ impl BoardCoefficients {
 }
 
 /// The board's fixed-point compensator as exported (number format `fixed`): the integer
-/// sections of [`crate::quantise::FixedPlan`], validated as the board validates them.
+/// sections of [`crate::design::quantise::FixedPlan`], validated as the board validates them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FixedBoardCoefficients {
     /// Sample rate in Hz the coefficients belong to.
@@ -638,7 +638,7 @@ impl FixedBoardCoefficients {
 }
 
 /// The board's direct-form fixed-point compensator as exported (`--number-format fixed
-/// --fixed-form direct`): the integer sections of [`crate::quantise::DirectPlan`], validated as
+/// --fixed-form direct`): the integer sections of [`crate::design::quantise::DirectPlan`], validated as
 /// the board validates them; as Rust, C, or the blob's number format 2.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DirectBoardCoefficients {

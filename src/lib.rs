@@ -2,40 +2,33 @@
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![warn(missing_docs)]
 
-// Data flow: trace -> fit -> model -> (inverse) -> export -> board.
-// Everything but `board` is host side, behind the `std` feature.
+// Data flow, one room per stage, each importing only the rooms above it in this list:
+// trace -> fit -> design -> export -> board. The modelling loop reads what fit and design
+// produce; `file` composes the stage outputs into the model file; the report reads them all;
+// the CLI parses, asks the library and prints. Everything but `board` is host side, behind
+// the `std` feature.
 
 pub mod board;
 pub use board::{blob, compensator, fixed};
 
 #[cfg(feature = "std")]
-pub mod analysis;
-#[cfg(feature = "std")]
 pub mod cli;
 #[cfg(feature = "std")]
-pub mod continuous;
-#[cfg(feature = "std")]
-pub mod diagnose;
-#[cfg(feature = "std")]
-pub mod effects;
+pub mod design;
 #[cfg(feature = "std")]
 pub mod error;
 #[cfg(feature = "std")]
-pub mod evidence;
-#[cfg(feature = "std")]
 pub mod export;
+#[cfg(feature = "std")]
+pub mod file;
 #[cfg(feature = "std")]
 pub mod fit;
 #[cfg(feature = "std")]
-pub mod inverse;
-#[cfg(feature = "std")]
-pub mod model;
+pub mod modelling;
 #[cfg(feature = "std")]
 pub mod physics;
 #[cfg(feature = "std")]
 pub mod poly;
-#[cfg(feature = "std")]
-pub mod quantise;
 #[cfg(feature = "std")]
 pub mod report;
 #[cfg(feature = "std")]

@@ -17,6 +17,9 @@ use sha2::{Digest, Sha256};
 
 use crate::error::{Error, Result};
 
+/// Highest sample rate a record or a model file may carry (1 GHz).
+pub const MAX_SAMPLE_RATE_HZ: f64 = 1e9;
+
 /// Rows read before the signals' buffers are sized from the file's length.
 const SIZING_ROWS: usize = 64;
 
@@ -176,12 +179,12 @@ impl Trace {
     fn parse_reader<R: Read>(path: &Path, reader: R, size: u64, columns: &Columns) -> Result<Self> {
         let p = || path.to_path_buf();
         if let Some(fs) = columns.sample_rate_hz {
-            if !(fs.is_finite() && fs > 0.0 && fs <= crate::model::MAX_SAMPLE_RATE_HZ) {
+            if !(fs.is_finite() && fs > 0.0 && fs <= MAX_SAMPLE_RATE_HZ) {
                 return Err(Error::InvalidArgument {
                     what: "--fs",
                     message: format!(
                         "the sample rate must be a positive number of Hz up to {:e}, not {fs:?}",
-                        crate::model::MAX_SAMPLE_RATE_HZ
+                        MAX_SAMPLE_RATE_HZ
                     ),
                 });
             }
@@ -291,14 +294,14 @@ impl Trace {
             (None, Some(ti)) => check_time(path, &t, &lines, ti + 1, &columns.time)?,
             (None, None) => unreachable_fs(path)?,
         };
-        if sample_rate_hz.is_nan() || sample_rate_hz > crate::model::MAX_SAMPLE_RATE_HZ {
+        if sample_rate_hz.is_nan() || sample_rate_hz > MAX_SAMPLE_RATE_HZ {
             return Err(Error::Malformed {
                 path: p(),
                 line: 3,
                 message: format!(
                     "the time column's step gives a sample rate of {sample_rate_hz:e} Hz, above \
                      the {:e} Hz a model may carry: is the time in seconds?",
-                    crate::model::MAX_SAMPLE_RATE_HZ
+                    MAX_SAMPLE_RATE_HZ
                 ),
             });
         }

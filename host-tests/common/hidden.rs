@@ -806,7 +806,7 @@ pub fn physical_cases() -> Vec<Case> {
 #[derive(Debug, Clone)]
 pub struct Outcome {
     /// The kinds named, best first.
-    pub named: Vec<unlag::diagnose::Finding>,
+    pub named: Vec<unlag::modelling::diagnose::Finding>,
     /// Validation error of the plain model.
     pub before: f64,
     /// Validation error after adding the first candidate and refitting.
@@ -815,7 +815,7 @@ pub struct Outcome {
     pub floor: f64,
     /// Residual against amplitude across the tests (the plain model's structure fitted to
     /// each alone).
-    pub signature: Option<unlag::diagnose::AmplitudeSignature>,
+    pub signature: Option<unlag::modelling::diagnose::AmplitudeSignature>,
 }
 
 impl Outcome {
@@ -826,8 +826,8 @@ impl Outcome {
     /// When `kind` names nothing a diagnosis can name.
     #[must_use]
     pub fn passed(&self, kind: &str) -> bool {
-        use unlag::diagnose::Finding;
-        use unlag::effects::EffectKind;
+        use unlag::modelling::diagnose::Finding;
+        use unlag::modelling::effects::EffectKind;
         let kind: Finding = kind.parse().expect("a kind a diagnosis names");
         let first = self.named.first().copied();
         // `temperature` and `temperature-viscous` are one effect with two damping laws.
@@ -848,9 +848,9 @@ impl Outcome {
 /// When the plain fit fails (a broken case).
 #[must_use]
 pub fn run(case: &Case, seed: u64) -> Outcome {
-    use unlag::diagnose::{self, Current, Finding};
-    use unlag::effects::{self, Effect, EffectKind};
     use unlag::fit::Test;
+    use unlag::modelling::diagnose::{self, Current, Finding};
+    use unlag::modelling::effects::{self, Effect, EffectKind};
     let data = case.tests(seed);
     let names = ["estimation", "validation", "validation 2", "validation 3"];
     let tests: Vec<Test<'_>> = data

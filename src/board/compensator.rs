@@ -29,7 +29,7 @@
 //! samples; [`Compensator`] bundles the two for the common one-channel case.
 //!
 //! A board that measures the gas temperature runs a table of cascades, one per temperature,
-//! through [`bank::TemperatureBank`] (the `temperature` effect of [`crate::effects`]).
+//! through [`bank::TemperatureBank`] (the `temperature` effect of [`crate::modelling::effects`]).
 //!
 //! # Capacity
 //!
@@ -842,7 +842,7 @@ impl<T: Sample, const N: usize> CascadeCoefficients<T, N> {
     }
 }
 
-/// The board's share of the `nonlinear-damping` effect (see [`crate::effects`]): the
+/// The board's share of the `nonlinear-damping` effect (see [`crate::modelling::effects`]): the
 /// correction `gain * lowpass(|dy| dy)`, `dy = y[k] - y[k-1]`, to add to the linear
 /// compensator's output ([`CascadeCoefficients`]) for the same sample.
 ///

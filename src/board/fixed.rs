@@ -2,7 +2,7 @@
 //! for boards without an FPU and for MHz sample rates.
 //!
 //! This module owns the per-sample integer arithmetic and nothing else: coefficients are
-//! realised, scaled and quantised on the host (`crate::quantise`, `unlag invert`), and arrive
+//! realised, scaled and quantised on the host (`crate::design::quantise`, `unlag invert`), and arrive
 //! here as plain integers that are validated once, in [`FixedCascade::new`].
 //!
 //! # The form: normal (coupled) state-space sections

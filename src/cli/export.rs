@@ -103,7 +103,7 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
             message: "only applies to --number-format fixed".into(),
         });
     }
-    let file = crate::model::ModelFile::load(&args.model)?;
+    let file = crate::file::ModelFile::load(&args.model)?;
     let number_format = match (number_format, args.fixed_form) {
         (NumberFormat::Fixed { full_scale }, Some(super::FixedFormArg::Direct)) => {
             NumberFormat::FixedDirect { full_scale }
@@ -119,7 +119,7 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
         (n, _) => n,
     };
     if let Some(check) = file.inverse.as_ref().and_then(|d| d.check.as_ref()) {
-        if check.verdict == crate::inverse::check::Verdict::NotBetter && !args.force {
+        if check.verdict == crate::design::inverse::check::Verdict::NotBetter && !args.force {
             return Err(Error::InvalidArgument {
                 what: "compensator",
                 message: format!(
@@ -135,7 +135,7 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
     }
     let c = match args.temperature {
         Some(t) => {
-            let file = crate::effects::at_temperature(&file, t)?;
+            let file = file.at_temperature(t)?;
             export::export_file(&file, &args.model, format, number_format, &args.output)?
         }
         None => export::export_file(&file, &args.model, format, number_format, &args.output)?,

@@ -1,7 +1,7 @@
 //! `unlag inspect` and `unlag resample`: what a model file says about the probe, and the same
 //! model at another sample rate.
 //!
-//! Owns the printing of [`crate::analysis::Analysis`] and [`crate::continuous::Continuous`]
+//! Owns the printing of [`crate::fit::analysis::Analysis`] and [`crate::fit::continuous::Continuous`]
 //! (tables for people, one JSON object with `--json`); the numbers come from those modules.
 
 use std::path::PathBuf;
@@ -9,10 +9,11 @@ use std::path::PathBuf;
 use clap::Args;
 use serde_json::json;
 
-use crate::analysis::{self, Analysis};
-use crate::continuous::{self, Continuous};
 use crate::error::{Error, Result};
-use crate::model::{Model, ModelFile};
+use crate::file::ModelFile;
+use crate::fit::analysis::{self, Analysis};
+use crate::fit::continuous::{self, Continuous};
+use crate::fit::model::Model;
 use crate::poly::{self, Complex};
 
 /// Arguments of `unlag inspect`.
@@ -285,12 +286,12 @@ fn print_continuous(ct: &Result<Continuous>, fs: f64) {
 /// The model file's errors, an invalid `--fs`, a model without a continuous-time equivalent
 /// (named by its pole), or the output file's.
 pub fn run_resample(args: &ResampleArgs) -> Result<()> {
-    if !(args.fs.is_finite() && args.fs > 0.0 && args.fs <= crate::model::MAX_SAMPLE_RATE_HZ) {
+    if !(args.fs.is_finite() && args.fs > 0.0 && args.fs <= crate::trace::MAX_SAMPLE_RATE_HZ) {
         return Err(Error::InvalidArgument {
             what: "--fs",
             message: format!(
                 "must be a sample rate in Hz above 0 and at most {:e}, not {:?}",
-                crate::model::MAX_SAMPLE_RATE_HZ,
+                crate::trace::MAX_SAMPLE_RATE_HZ,
                 args.fs
             ),
         });

@@ -9,10 +9,11 @@ use std::path::{Path, PathBuf};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use serde_json::json;
 
+use crate::design::inverse;
 use crate::error::{Error, Result};
+use crate::file::{ModelFile, FORMAT_VERSION};
+use crate::fit::model::Source;
 use crate::fit::{self, Method, Options, Order, Test};
-use crate::inverse;
-use crate::model::{ModelFile, Source, FORMAT_VERSION};
 use crate::trace::{Columns, Trace};
 
 pub mod console;
@@ -163,7 +164,7 @@ pub enum FixedFormArg {
     Direct,
 }
 
-impl From<FixedFormArg> for crate::quantise::FixedForm {
+impl From<FixedFormArg> for crate::design::quantise::FixedForm {
     fn from(v: FixedFormArg) -> Self {
         match v {
             FixedFormArg::Normal => Self::Normal,
@@ -200,12 +201,13 @@ impl InverseArgs {
                 }
             }
         };
-        let planned = match crate::quantise::FixedForm::from(self.fixed_form) {
-            crate::quantise::FixedForm::Normal => {
-                crate::quantise::FixedPlan::new(design, full_scale).map(|p| design.fixed = Some(p))
+        let planned = match crate::design::quantise::FixedForm::from(self.fixed_form) {
+            crate::design::quantise::FixedForm::Normal => {
+                crate::design::quantise::FixedPlan::new(design, full_scale)
+                    .map(|p| design.fixed = Some(p))
             }
-            crate::quantise::FixedForm::Direct => {
-                crate::quantise::DirectPlan::new(design, full_scale)
+            crate::design::quantise::FixedForm::Direct => {
+                crate::design::quantise::DirectPlan::new(design, full_scale)
                     .map(|p| design.fixed_direct = Some(p))
             }
         };
@@ -224,8 +226,8 @@ impl InverseArgs {
     /// ones (prefiltered where the model has a prefilter).
     fn request(
         &self,
-        model: &crate::model::Model,
-        effects: &[crate::effects::Effect],
+        model: &crate::fit::model::Model,
+        effects: &[crate::modelling::effects::Effect],
         columns: &ColumnArgs,
         raw: &[Test<'_>],
         designed: &[Test<'_>],
@@ -247,8 +249,8 @@ impl InverseArgs {
                 // A record with no quiet segment shows no coloured probe noise by itself: the
                 // noise model fitted beside the dynamics (`coloured-noise`) supplies it.
                 if noise.probe_ar_std == 0.0 {
-                    if let Some(ar) = crate::effects::noise_model(effects) {
-                        noise.take_ar_part(ar, crate::effects::innovation_std(effects));
+                    if let Some(ar) = crate::modelling::effects::noise_model(effects) {
+                        noise.take_ar_part(ar, crate::modelling::effects::innovation_std(effects));
                     }
                 }
                 self.optimal(model.fs, noise, prior)
@@ -270,7 +272,7 @@ impl InverseArgs {
     /// model's last design.
     fn noise_and_prior(
         &self,
-        model: &crate::model::Model,
+        model: &crate::fit::model::Model,
         columns: &ColumnArgs,
         raw: &[Test<'_>],
         designed: &[Test<'_>],
@@ -628,23 +630,23 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         }
     } else {
         match args.order.parse::<usize>() {
-            Ok(m) if (1..=crate::model::MAX_ORDER).contains(&m) => Order::Fixed(m),
+            Ok(m) if (1..=crate::fit::model::MAX_ORDER).contains(&m) => Order::Fixed(m),
             _ => {
                 return Err(Error::InvalidArgument {
                     what: "--order",
                     message: format!(
                         "expected 'auto' or a number 1..={}, got '{}'",
-                        crate::model::MAX_ORDER,
+                        crate::fit::model::MAX_ORDER,
                         args.order
                     ),
                 })
             }
         }
     };
-    if args.max_order == 0 || args.max_order > crate::model::MAX_ORDER {
+    if args.max_order == 0 || args.max_order > crate::fit::model::MAX_ORDER {
         return Err(Error::InvalidArgument {
             what: "--max-order",
-            message: format!("must be 1..={}", crate::model::MAX_ORDER),
+            message: format!("must be 1..={}", crate::fit::model::MAX_ORDER),
         });
     }
     let method = match args.method {
@@ -733,7 +735,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
             })?,
         )
     };
-    let mut effects: Vec<crate::effects::Effect> = previous
+    let mut effects: Vec<crate::modelling::effects::Effect> = previous
         .as_ref()
         .map(|p| p.effects.clone())
         .unwrap_or_default();
@@ -743,7 +745,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         let explicit_order = matches!(order, Order::Fixed(_));
         let dropped = if explicit_order {
             let before = effects.len();
-            effects.retain(|e| e.kind() != crate::effects::EffectKind::Mode);
+            effects.retain(|e| e.kind() != crate::modelling::effects::EffectKind::Mode);
             before - effects.len()
         } else {
             0
@@ -768,51 +770,58 @@ fn run_fit(args: &FitArgs) -> Result<()> {
     // diagnosis did, and kept as the model's from then on.
     let mut search_delay = false;
     for kind in &args.add {
-        if kind.parse() == Ok(crate::effects::EffectKind::Delay) {
-            effects.retain(|x| x.kind() != crate::effects::EffectKind::Delay);
+        if kind.parse() == Ok(crate::modelling::effects::EffectKind::Delay) {
+            effects.retain(|x| x.kind() != crate::modelling::effects::EffectKind::Delay);
             search_delay = true;
             continue;
         }
-        let e = crate::effects::Effect::parse(kind).ok_or_else(|| Error::InvalidArgument {
+        let e = crate::modelling::effects::Effect::parse(kind).ok_or_else(|| Error::InvalidArgument {
             what: "--add",
             message: format!(
                 "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, sensor-resonance-prefilter[=HZ], temperature=K, temperature-viscous[=K]",
-                crate::effects::KINDS
+                crate::modelling::effects::KINDS
                     .iter()
                     .map(|k| k.as_str())
                     .collect::<Vec<_>>()
                     .join(", ")
             ),
         })?;
-        effects.retain(|x| x.kind() != e.kind() || e.kind() == crate::effects::EffectKind::Mode);
+        effects.retain(|x| {
+            x.kind() != e.kind() || e.kind() == crate::modelling::effects::EffectKind::Mode
+        });
         effects.push(e);
     }
     // A later `delay=N` among the additions fixes it: nothing to search then.
     search_delay &= !effects
         .iter()
-        .any(|e| e.kind() == crate::effects::EffectKind::Delay);
+        .any(|e| e.kind() == crate::modelling::effects::EffectKind::Delay);
     progress.step("fitting (orders on a window, then the whole record)");
-    let fitted =
-        crate::effects::fit_with(est_test, val_tests, est.sample_rate_hz, &options, &effects)
-            .map(|(f, fx)| {
-                effects = fx;
-                if search_delay {
-                    effects.push(crate::effects::Effect::Delay {
-                        samples: f.model.delay,
-                    });
-                }
-                f
-            })
-            .map_err(|e| match e {
-                // The library does not know the column's position in the file; the trace does.
-                Error::NoStep { path, reason, .. } => Error::NoStep {
-                    column: est.u_column.unwrap_or(0),
-                    name: columns.input.clone(),
-                    path,
-                    reason,
-                },
-                e => e,
-            })?;
+    let fitted = crate::modelling::effects::fit_with(
+        est_test,
+        val_tests,
+        est.sample_rate_hz,
+        &options,
+        &effects,
+    )
+    .map(|(f, fx)| {
+        effects = fx;
+        if search_delay {
+            effects.push(crate::modelling::effects::Effect::Delay {
+                samples: f.model.delay,
+            });
+        }
+        f
+    })
+    .map_err(|e| match e {
+        // The library does not know the column's position in the file; the trace does.
+        Error::NoStep { path, reason, .. } => Error::NoStep {
+            column: est.u_column.unwrap_or(0),
+            name: columns.input.clone(),
+            path,
+            reason,
+        },
+        e => e,
+    })?;
     // Errors with the effects included (an offset or a drift is estimated on each test).
     let mut sources = Vec::new();
     for (i, (t, test)) in traces.iter().zip(&tests).enumerate() {
@@ -822,7 +831,7 @@ fn run_fit(args: &FitArgs) -> Result<()> {
             sha256: t.sha256.clone(),
             role: if i == 0 { "estimation" } else { "validation" }.into(),
             // With a noise model, the one-step-ahead prediction error (said when printed).
-            nrmse: crate::effects::judged_nrmse(&fitted.model, &effects, test.u, test.y),
+            nrmse: crate::modelling::effects::judged_nrmse(&fitted.model, &effects, test.u, test.y),
             noise_floor: fit::noise_floor(&t.y, quiet),
         });
     }
@@ -833,13 +842,13 @@ fn run_fit(args: &FitArgs) -> Result<()> {
         previous.as_ref().and_then(|p| p.probe.clone())
     };
     let mut history = previous.map(|p| p.history).unwrap_or_default();
-    history.push(crate::model::HistoryRow {
+    history.push(crate::file::HistoryRow {
         effects: effects.iter().map(|e| e.kind().to_string()).collect(),
         order: fitted.model.order(),
         delay: fitted.model.delay,
         tests: sources
             .iter()
-            .map(|s| crate::model::HistoryTest {
+            .map(|s| crate::file::HistoryTest {
                 file: s.file.clone(),
                 role: s.role.clone(),
                 nrmse: s.nrmse,
@@ -885,10 +894,10 @@ fn run_fit(args: &FitArgs) -> Result<()> {
             &designed,
             None,
         )?,
-        crate::effects::nonlinear_gain(&effects),
+        crate::modelling::effects::nonlinear_gain(&effects),
     )
     .and_then(|mut d| {
-        crate::effects::with_prefilter(&mut d, &effects, est.sample_rate_hz)?;
+        crate::modelling::effects::with_prefilter(&mut d, &effects, est.sample_rate_hz)?;
         Ok(d)
     }) {
         Ok(mut d) => {
@@ -961,15 +970,15 @@ fn kept<'t>(tests: &[Test<'t>], keep: &[bool]) -> Vec<Test<'t>> {
 
 fn prefiltered_tests(
     tests: &[Test<'_>],
-    effects: &[crate::effects::Effect],
+    effects: &[crate::modelling::effects::Effect],
     fs: f64,
 ) -> Vec<(Vec<f64>, Vec<f64>)> {
     tests
         .iter()
         .map(|t| {
             (
-                crate::effects::prefiltered(effects, fs, t.u),
-                crate::effects::prefiltered(effects, fs, t.y),
+                crate::modelling::effects::prefiltered(effects, fs, t.u),
+                crate::modelling::effects::prefiltered(effects, fs, t.y),
             )
         })
         .collect()
@@ -1181,9 +1190,9 @@ fn run_invert(args: &InvertArgs) -> Result<()> {
             &tests,
             file.inverse.as_ref(),
         )?,
-        crate::effects::nonlinear_gain(&file.effects),
+        crate::modelling::effects::nonlinear_gain(&file.effects),
     )?;
-    crate::effects::with_prefilter(&mut design, &file.effects, file.model.fs)?;
+    crate::modelling::effects::with_prefilter(&mut design, &file.effects, file.model.fs)?;
     design.check_exportable()?;
     args.inverse.plan_fixed(&mut design, &tests)?;
     let out = ModelFile {
@@ -1299,7 +1308,9 @@ fn print_fit(file: &ModelFile, est: &Trace) {
         }
     }
     match file.effects.iter().find_map(|e| match e {
-        crate::effects::Effect::ColouredNoise { ar, innovation_std } => Some((ar, innovation_std)),
+        crate::modelling::effects::Effect::ColouredNoise { ar, innovation_std } => {
+            Some((ar, innovation_std))
+        }
         _ => None,
     }) {
         Some((ar, innovation)) => {
@@ -1333,14 +1344,14 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
     let file = ModelFile::load(&args.model)?;
     // A board given the gas temperature runs the coefficient set rescaled to it.
     let file = match args.temperature {
-        Some(t) => crate::effects::at_temperature(&file, t)?,
+        Some(t) => file.at_temperature(t)?,
         None => file,
     };
     let trace = Trace::read(&args.file, &args.columns.columns(false))?;
     check_rate(&file, &trace)?;
     let m = &file.model;
     // Offset and drift are the probe's, not the pressure's: removed before compensation.
-    let additive = crate::effects::Additive::of(&file.effects);
+    let additive = crate::modelling::effects::Additive::of(&file.effects);
     let y_probe = additive.removed_from(&trace.y, m.fs);
     let design = if args.direct {
         None
@@ -1348,7 +1359,7 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         file.inverse.as_ref()
     };
     // Quadratic losses: the board adds gain * lowpass(|dy| dy) to the linear inverse.
-    let nonlinear = crate::effects::nonlinear_gain(&file.effects);
+    let nonlinear = crate::modelling::effects::nonlinear_gain(&file.effects);
     if args.offline && design.is_none() {
         return Err(Error::InvalidArgument {
             what: "--offline",
@@ -1369,10 +1380,10 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
                     ),
                 });
             };
-            let y_in = crate::effects::prefiltered(&file.effects, m.fs, &y_probe);
+            let y_in = crate::modelling::effects::prefiltered(&file.effects, m.fs, &y_probe);
             (
                 inverse::optimal::offline(m, noise, prior, &y_in)?,
-                crate::effects::prefilter_delay(&file.effects, m.fs),
+                crate::modelling::effects::prefilter_delay(&file.effects, m.fs),
                 "the non-causal optimum (offline, host only)",
             )
         }
@@ -1407,7 +1418,7 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         None => {
             m.check_invertible(&name(&args.model))?;
             // The direct inverse of a model fitted below a sensor resonance gets the prefilter.
-            let y_probe = crate::effects::prefiltered(&file.effects, m.fs, &y_probe);
+            let y_probe = crate::modelling::effects::prefiltered(&file.effects, m.fs, &y_probe);
             let u_hat = match args.arithmetic {
                 Arithmetic::F32 => m.compensate::<f32>(&y_probe)?,
                 Arithmetic::F64 => m.compensate::<f64>(&y_probe)?,
@@ -1457,9 +1468,9 @@ fn run_compensate(args: &CompensateArgs) -> Result<()> {
         console::note(args.json, &msg);
     }
     let error = trace.u.as_ref().filter(|_| !still).map(|u| {
-        let u = &crate::effects::observed(&file.effects, m.fs, u);
+        let u = &crate::modelling::effects::observed(&file.effects, m.fs, u);
         let prefilter = if design.is_some() {
-            crate::effects::prefilter_delay(&file.effects, m.fs)
+            crate::modelling::effects::prefilter_delay(&file.effects, m.fs)
         } else {
             0.0
         };
@@ -1627,8 +1638,11 @@ fn run_simulate(args: &SimulateArgs) -> Result<()> {
     check_rate(&file, &trace)?;
     let u = trace.input()?;
     // The whole model: dynamics plus effects (an offset or drift estimated on this test).
-    let scale = match (args.temperature, crate::effects::reference_k(&file.effects)) {
-        (Some(t), Some(reference)) => Some(crate::effects::scale_for(t, reference)?),
+    let scale = match (
+        args.temperature,
+        crate::modelling::effects::reference_k(&file.effects),
+    ) {
+        (Some(t), Some(reference)) => Some(crate::modelling::effects::scale_for(t, reference)?),
         (Some(_), None) => {
             return Err(Error::InvalidArgument {
                 what: "--temperature",
@@ -1639,8 +1653,9 @@ fn run_simulate(args: &SimulateArgs) -> Result<()> {
         }
         (None, _) => None,
     };
-    let y_model = crate::effects::predict_with(&file.model, &file.effects, u, &trace.y, scale);
-    let observed = crate::effects::observed(&file.effects, file.model.fs, &trace.y);
+    let y_model =
+        crate::modelling::effects::predict_with(&file.model, &file.effects, u, &trace.y, scale);
+    let observed = crate::modelling::effects::observed(&file.effects, file.model.fs, &trace.y);
     let error = fit::nrmse_of(&observed, &y_model);
     crate::trace::write_atomically_with(&args.output, |out| {
         trace.write_csv_with(out, &[("y_model", &y_model)])

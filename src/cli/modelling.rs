@@ -6,11 +6,11 @@ use clap::Args;
 use serde_json::json;
 
 use super::{json_err, name, pct, ColumnArgs};
-use crate::diagnose::{self, Candidate, Current};
 use crate::error::{Error, Result};
-use crate::evidence::TestEvidence;
+use crate::file::ModelFile;
 use crate::fit::{Method, Test};
-use crate::model::ModelFile;
+use crate::modelling::diagnose::{self, Candidate, Current};
+use crate::modelling::evidence::TestEvidence;
 use crate::trace::Trace;
 
 /// Arguments of `unlag compare` and `unlag diagnose`.
@@ -105,10 +105,10 @@ fn print_evidence(evidence: &[TestEvidence]) {
             x.probe_std,
             x.reference_std,
             match x.source {
-                crate::inverse::optimal::NoiseSource::PreStep => "before the step",
-                crate::inverse::optimal::NoiseSource::HighFrequency =>
+                crate::design::inverse::optimal::NoiseSource::PreStep => "before the step",
+                crate::design::inverse::optimal::NoiseSource::HighFrequency =>
                     "from the record's highest frequencies (no quiet segment)",
-                crate::inverse::optimal::NoiseSource::Given => "as given",
+                crate::design::inverse::optimal::NoiseSource::Given => "as given",
             }
         );
         crate::outln!(
@@ -129,7 +129,7 @@ fn print_evidence(evidence: &[TestEvidence]) {
         if e.spectrum.peaks.is_empty() {
             crate::outln!(
                 "  residual spectrum after the step: no peak {} dB above the floor",
-                crate::evidence::PEAK_DB
+                crate::modelling::evidence::PEAK_DB
             );
         } else {
             let peaks: Vec<String> = e

@@ -12,7 +12,7 @@ use clap::{Args, ValueEnum};
 use serde_json::{json, Value};
 
 use crate::error::{Error, Result};
-use crate::model::ModelFile;
+use crate::file::ModelFile;
 use crate::physics::gas::Gas;
 use crate::physics::helmholtz::{EndKind, HoleCavity};
 use crate::physics::line::{CavityThermal, Element, Line, Tube, Volume};

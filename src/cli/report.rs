@@ -13,10 +13,10 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::json;
 
 use super::{name, ColumnArgs};
-use crate::diagnose::{self, Current};
 use crate::error::{Error, Result};
+use crate::file::ModelFile;
 use crate::fit::Test;
-use crate::model::ModelFile;
+use crate::modelling::diagnose::{self, Current};
 use crate::report::{self, Inputs};
 
 /// Arguments of `unlag report`.

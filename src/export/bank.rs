@@ -3,7 +3,7 @@
 //! the set itself ([`crate::compensator::TemperatureBank`]).
 //!
 //! This module owns the temperature grid ([`TemperatureRange`]), the sets (each designed by
-//! [`crate::effects::at_temperature`] and checked as [`BoardCoefficients::from_model_file`]
+//! [`ModelFile::at_temperature`](crate::file::ModelFile::at_temperature) and checked as [`BoardCoefficients::from_model_file`]
 //! checks one, then the whole table as the board's [`TemperatureBank::new`] checks it) and
 //! their rendering as Rust `const` tables or a C header. Every set must have the same number
 //! of sections. The binary blob of [`crate::blob`] carries one set, so a bank is not written
@@ -15,7 +15,7 @@ use std::path::Path;
 use crate::compensator::TemperatureBank;
 use crate::error::{Error, Result};
 use crate::export::{BoardCoefficients, Format, MAX_EXPORT_SECTIONS};
-use crate::model::ModelFile;
+use crate::file::ModelFile;
 use crate::trace::write_atomically;
 
 /// Most sets one bank may hold.
@@ -121,7 +121,7 @@ pub struct BoardBank {
 
 impl BoardBank {
     /// Designs one set per temperature of `range` from `file` (read from `path`), each with
-    /// [`crate::effects::at_temperature`], and checks the table as the board will.
+    /// [`ModelFile::at_temperature`](crate::file::ModelFile::at_temperature), and checks the table as the board will.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] when the model has no `temperature` effect;
@@ -134,14 +134,14 @@ impl BoardBank {
         path: &Path,
         range: &TemperatureRange,
     ) -> Result<Self> {
-        let Some(reference) = crate::effects::reference_k(&file.effects) else {
+        let Some(reference) = crate::modelling::effects::reference_k(&file.effects) else {
             return Err(bad_range(
                 "the model file has no temperature effect, so no reference temperature to scale \
                  from: refit with `unlag fit ... --add temperature`"
                     .into(),
             ));
         };
-        if crate::effects::nonlinear_gain(&file.effects) != 0.0 {
+        if crate::modelling::effects::nonlinear_gain(&file.effects) != 0.0 {
             return Err(Error::UnsupportedOnBoard {
                 path: path.to_path_buf(),
                 effect: "nonlinear damping",
@@ -156,7 +156,7 @@ impl BoardBank {
         let temperatures_k = range.temperatures();
         let mut sets: Vec<BoardCoefficients> = Vec::with_capacity(temperatures_k.len());
         for &t in &temperatures_k {
-            let scaled = crate::effects::at_temperature(file, t)?;
+            let scaled = file.at_temperature(t)?;
             let set = BoardCoefficients::from_model_file(&scaled, path).map_err(|e| {
                 bad(format!(
                     "at {t} K (model at {reference} K): {}",

@@ -206,7 +206,7 @@ pub fn split(theta: &[f64], m: usize) -> Params {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::filter;
+    use crate::fit::model::filter;
 
     #[test]
     fn recovers_a_noise_free_model_exactly() {

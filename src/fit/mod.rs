@@ -16,13 +16,18 @@
 //! Signals are fitted as deviations from their pre-step levels, which matches a model that
 //! starts in equilibrium.
 
+pub mod analysis;
 pub mod arx;
+pub mod continuous;
+pub mod model;
 pub mod noise;
 pub mod oe;
 pub mod step;
 
+pub use model::Model;
+
 use crate::error::{Error, Result};
-use crate::model::{DelayRow, FitReport, Model, OrderRow, ResonanceUncertainty, Uncertainty};
+use crate::fit::model::{DelayRow, FitReport, OrderRow, ResonanceUncertainty, Uncertainty};
 use arx::Data;
 
 /// Identification method.
@@ -263,7 +268,7 @@ fn level_part(p: &Prepared, dc_gain: f64) -> f64 {
 
 /// The resonances of a model, lowest natural frequency first, and its DC gain.
 fn features(model: &Model) -> Option<(f64, Vec<(f64, f64)>)> {
-    let mut r = crate::analysis::Analysis::new(model)
+    let mut r = crate::fit::analysis::Analysis::new(model)
         .ok()?
         .resonance_pairs();
     r.sort_by(|x, y| x.0.total_cmp(&y.0));
@@ -439,7 +444,7 @@ fn whitened(sets: &[Data<'_>], ar: &[f64]) -> Vec<(Vec<f64>, Vec<f64>)> {
 fn residuals(sets: &[Data<'_>], (a, b): (&[f64], &[f64]), d: usize) -> Vec<Vec<f64>> {
     sets.iter()
         .map(|s| {
-            let yh = crate::model::filter(b, a, d, s.u);
+            let yh = crate::fit::model::filter(b, a, d, s.u);
             s.y.iter().zip(&yh).map(|(y, h)| y - h).collect()
         })
         .collect()
@@ -614,11 +619,14 @@ pub fn fit(
     // Each order's delay search and fit are independent: they run on the cores there are,
     // and are taken in order, so the choice is the same as one after the other.
     let results = in_parallel(&orders, |&m| -> std::result::Result<_, (Error, bool)> {
-        if m == 0 || m > crate::model::MAX_ORDER {
+        if m == 0 || m > crate::fit::model::MAX_ORDER {
             return Err((
                 Error::InvalidArgument {
                     what: "--order",
-                    message: format!("the order must be 1..={}, not {m}", crate::model::MAX_ORDER),
+                    message: format!(
+                        "the order must be 1..={}, not {m}",
+                        crate::fit::model::MAX_ORDER
+                    ),
                 },
                 true,
             ));

@@ -91,16 +91,93 @@ pub fn fit(v: &[f64], max_order: usize) -> ArNoise {
 #[must_use]
 pub fn whiten(ar: &[f64], x: &[f64]) -> Vec<f64> {
     let d: Vec<f64> = std::iter::once(1.0).chain(ar.iter().copied()).collect();
-    crate::model::filter(&d, &[], 0, x)
+    crate::fit::model::filter(&d, &[], 0, x)
 }
 
 fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|a| a * a).sum::<f64>() / v.len().max(1) as f64).sqrt()
 }
 
+/// `Σ_i (a[i] − ma)(b[i+k] − mb)` over `i < a.len()`, `i + k < b.len()` for `k` in `0..lags`
+/// (for signals of one length `n`: over `i + k < n`), by FFT block by
+/// block (overlap-save): each block of `a` against the stretch of `b` it reaches, in one
+/// transform size, so the work is `O(n log lags)` and the memory `O(lags)` beside the signals,
+/// not `O(n lags)` as the direct sums are.
+pub(crate) fn lagged_products(a: &[f64], b: &[f64], (ma, mb): (f64, f64), lags: usize) -> Vec<f64> {
+    // `a` is taken whole, `b` as far as it goes (the sum stops at `i + k < b.len()`).
+    let (n, nb) = (a.len(), b.len());
+    let mut out = vec![0.0; lags];
+    if lags == 0 || n == 0 {
+        return out;
+    }
+    let nfft = (4 * lags).max(4096).next_power_of_two();
+    let block = nfft - lags;
+    let mut planner = rustfft::FftPlanner::new();
+    let (forward, inverse) = (
+        planner.plan_fft_forward(nfft),
+        planner.plan_fft_inverse(nfft),
+    );
+    let mut x = vec![rustfft::num_complex::Complex64::new(0.0, 0.0); nfft];
+    let mut spectrum = vec![rustfft::num_complex::Complex64::new(0.0, 0.0); nfft];
+    let mut start = 0;
+    while start < n {
+        let end = (start + block).min(n);
+        let reach = (start + nfft).min(nb);
+        // a's block in the real part, b's stretch in the imaginary part: one transform.
+        for (j, v) in x.iter_mut().enumerate() {
+            let i = start + j;
+            let re = if i < end { a[i] - ma } else { 0.0 };
+            let im = if i < reach { b[i] - mb } else { 0.0 };
+            *v = rustfft::num_complex::Complex64::new(re, im);
+        }
+        forward.process(&mut x);
+        // A = (X_k + conj X_{-k})/2, B = (X_k − conj X_{-k})/(2i); conj(A)·B.
+        for (k, s) in spectrum.iter_mut().enumerate() {
+            let (xk, xm) = (x[k], x[(nfft - k) % nfft].conj());
+            let fa = 0.5 * (xk + xm);
+            let fb = rustfft::num_complex::Complex64::new(0.0, -0.5) * (xk - xm);
+            *s = fa.conj() * fb;
+        }
+        inverse.process(&mut spectrum);
+        let scale = 1.0 / nfft as f64;
+        for (o, c) in out.iter_mut().zip(&spectrum) {
+            *o += c.re * scale;
+        }
+        start = end;
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn lagged_products_by_blocks_are_the_direct_sums() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for (n, lags) in [(50_001usize, 2000usize), (9_000, 7), (100, 100), (3, 1)] {
+            let a: Vec<f64> = (0..n).map(|_| next()).collect();
+            let b: Vec<f64> = (0..n)
+                .map(|i| next() + 0.3 * a[i.saturating_sub(5)])
+                .collect();
+            let (ma, mb) = (0.01, -0.02);
+            let fast = lagged_products(&a, &b, (ma, mb), lags);
+            assert_eq!(fast.len(), lags);
+            for (k, f) in fast.iter().enumerate() {
+                let direct: f64 = (0..n - k).map(|i| (a[i] - ma) * (b[i + k] - mb)).sum();
+                assert!(
+                    (f - direct).abs() < 1e-9 * (n as f64),
+                    "n {n} lag {k}: {f} against {direct}"
+                );
+            }
+        }
+    }
 
     fn white(n: usize, seed: u64) -> Vec<f64> {
         crate::testing::gaussian(n, seed)

@@ -19,7 +19,7 @@ use faer::Mat;
 use super::arx::{self, Data, Params};
 use crate::compensator::schur_stable;
 use crate::error::Result;
-use crate::model::filter;
+use crate::fit::model::filter;
 
 /// `x / A(q)` with zero initial conditions: [`filter`] with numerator 1 (the same arithmetic).
 #[must_use]

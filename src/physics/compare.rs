@@ -14,7 +14,7 @@ use super::line::Line;
 use super::lumped::{lumped, Lumped, POISEUILLE_INERTANCE};
 use super::modes::{find_modes, Mode};
 use crate::error::{Error, Result};
-use crate::model::Model;
+use crate::fit::model::Model;
 
 /// Womersley number below which the lumped approximation is trusted (README 1.3).
 pub const LUMPED_WOMERSLEY_LIMIT: f64 = 2.0;

@@ -8,21 +8,21 @@
 //! input cross-correlation with their 99 % bands, the Bode plot of the model, the compensator
 //! and their product (with the physical prediction when the model file has a `[probe]`
 //! geometry), the pole-zero map, the modes table, the error history and the ranked candidates.
-//! It presents; the numbers come from [`crate::evidence`], [`crate::diagnose`],
-//! [`crate::analysis`] and [`crate::inverse`]. The charts are in [`plot`].
+//! It presents; the numbers come from [`crate::modelling::evidence`], [`crate::modelling::diagnose`],
+//! [`crate::fit::analysis`] and [`crate::design::inverse`]. The charts are in [`plot`].
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 use plotters::prelude::SeriesLabelPosition;
 
-use crate::analysis::{self, Analysis, ModeKind};
-use crate::diagnose::Candidate;
-use crate::effects;
 use crate::error::Result;
-use crate::evidence::TestEvidence;
+use crate::file::{ModelFile, ProbeGeometry};
+use crate::fit::analysis::{self, Analysis, ModeKind};
 use crate::fit::Test;
-use crate::model::{ModelFile, ProbeGeometry};
+use crate::modelling::diagnose::Candidate;
+use crate::modelling::effects;
+use crate::modelling::evidence::TestEvidence;
 use crate::poly::Complex;
 
 pub mod plot;
@@ -39,9 +39,9 @@ pub struct Inputs<'a> {
     pub file: &'a ModelFile,
     /// The step tests; the first is the estimation test.
     pub tests: &'a [Test<'a>],
-    /// The residual evidence per test ([`crate::diagnose::evidence`]).
+    /// The residual evidence per test ([`crate::modelling::diagnose::evidence`]).
     pub evidence: &'a [TestEvidence],
-    /// The ranked candidates ([`crate::diagnose::diagnose`]).
+    /// The ranked candidates ([`crate::modelling::diagnose::diagnose`]).
     pub candidates: &'a [Candidate],
 }
 
@@ -214,7 +214,7 @@ fn top_effect<'a>(inputs: &Inputs<'a>) -> Option<&'a Candidate> {
 
 fn verdict(h: &mut String, inputs: &Inputs<'_>) {
     match top_effect(inputs) {
-        Some(c) if c.kind == crate::diagnose::Finding::Nothing => {
+        Some(c) if c.kind == crate::modelling::diagnose::Finding::Nothing => {
             let _ = writeln!(
                 h,
                 "<div class=\"verdict ok\"><b>Diagnosis: none.</b> {}</div>",
@@ -455,14 +455,14 @@ struct Compensated {
     /// Error of `u_hat` against the reference at that lag (RMS / range).
     error: f64,
     /// Error of the raw probe against the reference at its best alignment (as
-    /// [`crate::inverse::reconstruct`] measures it).
+    /// [`crate::design::inverse::reconstruct`] measures it).
     raw_error: f64,
 }
 
 fn compensated_signal(inputs: &Inputs<'_>, test: &Test<'_>) -> Option<Compensated> {
     let (u_hat, lag, how) = compensate(inputs, test)?;
-    let (error, _) = crate::inverse::aligned_error(test.u, &u_hat, lag..=lag);
-    let (raw_error, _) = crate::inverse::aligned_error(
+    let (error, _) = crate::design::inverse::aligned_error(test.u, &u_hat, lag..=lag);
+    let (raw_error, _) = crate::design::inverse::aligned_error(
         test.u,
         test.y,
         0..=inputs.file.model.delay + 4 * lag.max(10),
@@ -601,11 +601,11 @@ fn spectrum(h: &mut String, inputs: &Inputs<'_>, number: usize, ev: &TestEvidenc
             .map(|(i, v)| (i as f64 * s.resolution_hz, v + shift))
             .collect()
     };
-    let (expected, significance) = (along(0.0), along(crate::evidence::PEAK_DB));
+    let (expected, significance) = (along(0.0), along(crate::modelling::evidence::PEAK_DB));
     let top = top_effect(inputs).map(|c| c.kind);
-    let effect = top.map_or("not diagnosed", crate::diagnose::Finding::as_str);
+    let effect = top.map_or("not diagnosed", crate::modelling::diagnose::Finding::as_str);
     let label_of = |f: f64| {
-        if top == Some(crate::diagnose::Finding::Nothing) {
+        if top == Some(crate::modelling::diagnose::Finding::Nothing) {
             format!("{f:.0} Hz")
         } else {
             format!("{f:.0} Hz: {effect}")
@@ -624,7 +624,10 @@ fn spectrum(h: &mut String, inputs: &Inputs<'_>, number: usize, ev: &TestEvidenc
                 1,
             ),
             Series::line(
-                &format!("significance: {} dB above it", crate::evidence::PEAK_DB),
+                &format!(
+                    "significance: {} dB above it",
+                    crate::modelling::evidence::PEAK_DB
+                ),
                 &significance,
                 colour::GUIDE,
                 1,
@@ -662,7 +665,7 @@ fn spectrum(h: &mut String, inputs: &Inputs<'_>, number: usize, ev: &TestEvidenc
     let peaks = if s.peaks.is_empty() {
         format!(
             "no peak stands {} dB above the floor",
-            crate::evidence::PEAK_DB
+            crate::modelling::evidence::PEAK_DB
         )
     } else {
         s.peaks
@@ -839,7 +842,7 @@ fn bode(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
     if let Some(d) = &file.inverse {
         let c: Vec<Complex> = freqs
             .iter()
-            .map(|f| crate::inverse::cascade_response(d.gain, &d.sections, unit(*f)))
+            .map(|f| crate::design::inverse::cascade_response(d.gain, &d.sections, unit(*f)))
             .collect();
         let product: Vec<Complex> = freqs
             .iter()
@@ -1328,11 +1331,11 @@ fn candidates(h: &mut String, inputs: &Inputs<'_>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::Model;
+    use crate::fit::model::Model;
 
     fn file(model: Model) -> ModelFile {
         ModelFile {
-            format_version: crate::model::FORMAT_VERSION,
+            format_version: crate::file::FORMAT_VERSION,
             model,
             fit: None,
             sources: Vec::new(),
@@ -1369,13 +1372,13 @@ mod tests {
         let m = model();
         let (u, y) = step_test(100_000, &m);
         let mut f = file(m.clone());
-        let options = crate::inverse::Options {
+        let options = crate::design::inverse::Options {
             bandwidth_hz: Some(500.0),
-            lowpass: crate::inverse::LowpassKind::Bessel,
+            lowpass: crate::design::inverse::LowpassKind::Bessel,
             lowpass_order: 4,
             stabilise: true,
         };
-        f.inverse = Some(crate::inverse::design(&m, 500.0, &options).unwrap());
+        f.inverse = Some(crate::design::inverse::design(&m, 500.0, &options).unwrap());
         let tests = [Test {
             name: "long.csv",
             u: &u,
@@ -1425,7 +1428,9 @@ mod tests {
             &ym,
         )];
         let c = Candidate {
-            kind: crate::diagnose::Finding::Missing(crate::effects::EffectKind::Leak),
+            kind: crate::modelling::diagnose::Finding::Missing(
+                crate::modelling::effects::EffectKind::Leak,
+            ),
             score: 0.5,
             evidence: serde_json::json!({"x": 1}),
             reading: "a slow creep & more".into(),

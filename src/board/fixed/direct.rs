@@ -4,7 +4,7 @@
 //! the normal-form [`crate::fixed::FixedCascade`] that costs about a third of its instructions
 //! on a Cortex-M4 and gives up part of its guarantees (see "What it guarantees" below, and the
 //! trade table in BENCHMARKS.md). Coefficients are planned on the host
-//! (`crate::quantise::DirectPlan`) and validated once, in [`DirectCascade::new`].
+//! (`crate::design::quantise::DirectPlan`) and validated once, in [`DirectCascade::new`].
 //!
 //! # The form
 //!

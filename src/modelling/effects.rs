@@ -3,7 +3,7 @@
 //! This module owns [`Effect`] (stored in the model file as `effects = [...]`), how a fit
 //! honours each effect ([`FitChanges`]), and how the model's prediction and the compensator's
 //! input are corrected for the additive ones ([`Additive`]). Finding which effect is missing is
-//! [`crate::diagnose`]'s job; measuring the residual is [`crate::evidence`]'s.
+//! [`crate::modelling::diagnose`]'s job; measuring the residual is [`crate::modelling::evidence`]'s.
 //!
 //! | kind | change to the model | on the board |
 //! |---|---|---|
@@ -40,10 +40,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::continuous::Continuous;
 use crate::error::Result;
+use crate::fit::continuous::Continuous;
+use crate::fit::model::Model;
 use crate::fit::{Fitted, Method, Options, Order, Test};
-use crate::model::Model;
 use crate::poly::Complex;
 
 /// One effect added to the model, with its parameters once fitted.
@@ -227,7 +227,7 @@ pub const PREFILTER_ORDER: usize = 4;
 pub const SCALE_RANGE: (f64, f64) = (0.7, 1.4);
 
 /// The name of an effect: what `unlag fit --add` takes (without a `=VALUE`), what a
-/// diagnosis names ([`crate::diagnose::Finding`]), and, for the nine kinds of [`Effect`]'s
+/// diagnosis names ([`crate::modelling::diagnose::Finding`]), and, for the nine kinds of [`Effect`]'s
 /// variants, the `kind` of an effect in the model file.
 ///
 /// Two names are not kinds of their own in the model file: `sensor-resonance-prefilter` is a
@@ -240,7 +240,7 @@ pub const SCALE_RANGE: (f64, f64) = (0.7, 1.4);
 /// serde's) are the same strings everywhere: model files, `--json` output, `--add`.
 ///
 /// ```
-/// use unlag::effects::EffectKind;
+/// use unlag::modelling::effects::EffectKind;
 ///
 /// let k: EffectKind = "temperature-viscous".parse().unwrap();
 /// assert_eq!(k, EffectKind::TemperatureViscous);
@@ -331,7 +331,7 @@ impl EffectKind {
     }
 
     /// Parameters it adds to the model, as the diagnosis charges them
-    /// ([`crate::diagnose::PARAMETER_PENALTY`] each): a section's four for a mode or the
+    /// ([`crate::modelling::diagnose::PARAMETER_PENALTY`] each): a section's four for a mode or the
     /// transducers' modes, a pole and a zero for a leak, offset and rate for a drift, one
     /// coefficient for an offset, a quadratic loss or a temperature (its reference). None for
     /// a delay (it replaces the fitted one), a prefilter (fixed by the resonance's frequency)
@@ -662,12 +662,12 @@ pub fn quadratic_rate(y: &[f64], fs: f64) -> Vec<f64> {
 }
 
 /// The model's output with quadratic damping `gain` (see the module docs), started in
-/// equilibrium with its resting level ([`crate::model::resting_level`]): `A y = B (q^-d u - gain N(y))`. The term of `b0`, which needs
+/// equilibrium with its resting level ([`crate::fit::model::resting_level`]): `A y = B (q^-d u - gain N(y))`. The term of `b0`, which needs
 /// `N[k]` of the sample being computed, is solved exactly (a quadratic in the step
 /// `y[k] - y[k-1]`); with `gain = 0` this is [`Model::simulate`].
 #[must_use]
 pub fn simulate_nonlinear(model: &Model, gain: f64, u: &[f64]) -> Vec<f64> {
-    let u0 = crate::model::resting_level(u);
+    let u0 = crate::fit::model::resting_level(u);
     let y0 = model.dc_gain() * u0;
     let fs2 = model.fs * model.fs;
     let n = u.len();
@@ -899,25 +899,25 @@ pub fn prefilter_hz(effects: &[Effect]) -> Option<f64> {
 /// [`crate::error::Error::InvalidArgument`] when the corner is not below half the sample
 /// rate.
 pub fn prefilter_sections(corner_hz: f64, fs: f64) -> Result<(f64, Vec<[f64; 5]>)> {
-    let zpk = crate::inverse::lowpass(
-        crate::inverse::LowpassKind::Butterworth,
+    let zpk = crate::design::inverse::lowpass(
+        crate::design::inverse::LowpassKind::Butterworth,
         PREFILTER_ORDER,
         corner_hz,
         fs,
     )?;
-    Ok(crate::inverse::to_sections(&zpk))
+    Ok(crate::design::inverse::to_sections(&zpk))
 }
 
 /// `x` through the prefilter of `effects`, started in equilibrium with its resting level
-/// ([`crate::model::resting_level`]); `x` unchanged when there is none.
+/// ([`crate::fit::model::resting_level`]); `x` unchanged when there is none.
 #[must_use]
 pub fn prefiltered(effects: &[Effect], fs: f64, x: &[f64]) -> Vec<f64> {
     match prefilter_hz(effects).and_then(|fc| prefilter_sections(fc, fs).ok()) {
         Some((gain, sections)) => {
-            let x0 = crate::model::resting_level(x);
+            let x0 = crate::fit::model::resting_level(x);
             let mut v: Vec<f64> = x.iter().map(|a| a - x0).collect();
             for s in &sections {
-                v = crate::model::filter(&s[..3], &s[3..], 0, &v);
+                v = crate::fit::model::filter(&s[..3], &s[3..], 0, &v);
             }
             v.iter().map(|a| gain * a + x0).collect()
         }
@@ -1030,10 +1030,13 @@ fn scale_continuous(ct: &Continuous, k: f64, damping_factor: f64, fs: f64) -> Re
             ),
         });
     }
-    out.poles = new.into_iter().map(crate::analysis::Root::from).collect();
+    out.poles = new
+        .into_iter()
+        .map(crate::fit::analysis::Root::from)
+        .collect();
     out.residues = residues
         .into_iter()
-        .map(crate::analysis::Root::from)
+        .map(crate::fit::analysis::Root::from)
         .collect();
     out.feedthrough = ct.feedthrough * c.re;
     out.delay_s /= k;
@@ -1151,7 +1154,7 @@ pub fn prefilter_delay(effects: &[Effect], fs: f64) -> f64 {
     };
     // From the phase at a low frequency (the prefilter's phase is linear there).
     let w: f64 = 1e-4;
-    let h = crate::inverse::cascade_response(
+    let h = crate::design::inverse::cascade_response(
         gain,
         &sections,
         crate::poly::Complex::new(w.cos(), w.sin()),
@@ -1167,7 +1170,7 @@ pub fn prefilter_delay(effects: &[Effect], fs: f64) -> f64 {
 /// # Errors
 /// As [`prefilter_sections`].
 pub fn with_prefilter(
-    design: &mut crate::inverse::Design,
+    design: &mut crate::design::inverse::Design,
     effects: &[Effect],
     fs: f64,
 ) -> Result<()> {
@@ -1201,97 +1204,6 @@ pub fn with_prefilter(
     Ok(())
 }
 
-/// The model file at gas temperature `temperature_k`: the model scaled by
-/// `sqrt(T / reference_k)`, its damping by the effect's law ([`scaled_with`]), its compensator designed anew for it (same low-pass
-/// family and order, corner scaled by the same factor, the sensor prefilter kept, the
-/// fixed-point plan redone for the same full scale), and its `temperature` effect now at `T`.
-/// This is the coefficient set a board is given for that temperature.
-///
-/// # Errors
-/// [`crate::error::Error::InvalidArgument`] when the file has no `temperature` effect (no
-/// reference temperature) or `T` is not a positive number of kelvin; the scaling's and the
-/// design's errors.
-pub fn at_temperature(
-    file: &crate::model::ModelFile,
-    temperature_k: f64,
-) -> Result<crate::model::ModelFile> {
-    let (reference, damping) =
-        temperature_law(&file.effects).ok_or_else(|| crate::error::Error::InvalidArgument {
-            what: "--temperature",
-            message:
-                "the model file has no temperature effect, so no reference temperature: refit \
-                  with `unlag fit ... --add temperature` (or add effects = [{ kind = \
-                  \"temperature\", reference_k = K }])"
-                    .into(),
-        })?;
-    let k = scale_for(temperature_k, reference)?;
-    let model = scaled_with(&file.model, k, damping.factor(k, reference))?;
-    let fs = model.fs;
-    let inverse = match &file.inverse {
-        Some(d) => {
-            let options = crate::inverse::Options {
-                bandwidth_hz: Some((d.lowpass_hz * k).min(0.45 * fs)),
-                lowpass: d.lowpass,
-                lowpass_order: d.lowpass_order,
-                stabilise: d.method.kind() != crate::inverse::MethodKind::DirectInverse,
-            };
-            let fc = options.bandwidth_hz.unwrap_or(d.lowpass_hz);
-            // The optimum is designed anew from its noise and prior; a band-limited inverse
-            // keeps its corner, scaled with the time scale.
-            let mut nd = match (&d.noise, &d.prior) {
-                // Not after a prefilter: such a design is redesigned as a band-limited
-                // inverse, as always.
-                (Some(noise), Some(prior))
-                    if !d.method.is_prefiltered() && d.method.kind().is_optimal() =>
-                {
-                    crate::inverse::optimal::design(
-                        &model,
-                        noise,
-                        prior,
-                        &crate::inverse::optimal::OptimalOptions {
-                            max_latency_samples: None,
-                            max_band_hz: None,
-                            lowpass: d.lowpass,
-                            lowpass_order: d.lowpass_order,
-                        },
-                    )?
-                }
-                _ => crate::inverse::design(&model, fc, &options)?,
-            };
-            nd.bandwidth_selection = format!(
-                "{} at the reference temperature, scaled by {k:.4} to {temperature_k} K",
-                d.bandwidth_selection
-            );
-            with_prefilter(&mut nd, &file.effects, fs)?;
-            if let Some(p) = &d.fixed {
-                nd.fixed = Some(crate::quantise::FixedPlan::new(&nd, p.full_scale)?);
-            }
-            if let Some(p) = &d.fixed_direct {
-                nd.fixed_direct = Some(crate::quantise::DirectPlan::new(&nd, p.full_scale)?);
-            }
-            Some(nd)
-        }
-        None => None,
-    };
-    let effects = file
-        .effects
-        .iter()
-        .map(|e| match e {
-            Effect::Temperature { damping, .. } => Effect::Temperature {
-                reference_k: temperature_k,
-                damping: *damping,
-            },
-            other => other.clone(),
-        })
-        .collect();
-    Ok(crate::model::ModelFile {
-        model,
-        inverse,
-        effects,
-        ..file.clone()
-    })
-}
-
 /// The effects with their frequency-domain parameters resolved on the estimation test: a
 /// sensor resonance without a frequency takes the reference's ringing peak, and its prefilter
 /// half of it.
@@ -1311,7 +1223,7 @@ pub fn resolve(effects: &[Effect], u: &[f64], fs: f64) -> Result<Vec<Effect>> {
                 let f = if *natural_frequency_hz > 0.0 {
                     *natural_frequency_hz
                 } else {
-                    crate::evidence::reference_ringing(u, fs)
+                    crate::modelling::evidence::reference_ringing(u, fs)
                         .map(|p| p.frequency_hz)
                         .ok_or_else(|| crate::error::Error::InvalidArgument {
                             what: "sensor-resonance",
@@ -1831,8 +1743,8 @@ mod tests {
         // And back: scaling by 1/k returns the model's step response.
         let back = scaled(&scaled_model, 1.0 / k).unwrap();
         let (s0, s1) = (
-            crate::continuous::step_response(&m, 400),
-            crate::continuous::step_response(&back, 400),
+            crate::fit::continuous::step_response(&m, 400),
+            crate::fit::continuous::step_response(&back, 400),
         );
         let worst = s0
             .iter()
@@ -1923,7 +1835,7 @@ mod tests {
         assert!((got.dc_gain() - 1.0).abs() < 1e-9, "{}", got.dc_gain());
         // More damping: a smaller overshoot of the step response than the frequency-only scaling.
         let peak = |m: &Model| {
-            crate::continuous::step_response(m, 600)
+            crate::fit::continuous::step_response(m, 600)
                 .into_iter()
                 .fold(f64::NEG_INFINITY, f64::max)
         };
@@ -1972,54 +1884,6 @@ mod tests {
             e_viscous < 0.3 * e_constant,
             "{e_viscous} against {e_constant}"
         );
-    }
-
-    #[test]
-    fn a_coefficient_set_for_a_temperature_follows_the_damping_law() {
-        let fs = 10_000.0;
-        let (m, s) = second_order(95.0, 0.3, fs, 17);
-        let design =
-            crate::inverse::design(&m, 800.0, &crate::inverse::Options::default()).unwrap();
-        let file = |spelling: &str| crate::model::ModelFile {
-            format_version: crate::model::FORMAT_VERSION,
-            model: m.clone(),
-            fit: None,
-            sources: Vec::new(),
-            inverse: Some(design.clone()),
-            effects: vec![Effect::parse(spelling).unwrap()],
-            history: Vec::new(),
-            probe: None,
-        };
-        let (k, f) = (
-            (343.15f64 / 293.15).sqrt(),
-            viscous_damping_factor(343.15, 293.15).unwrap(),
-        );
-        let w = s.norm();
-        let pole_at = |zeta: f64| {
-            (Complex::new(-zeta * k * w, k * w * (1.0 - zeta * zeta).sqrt()) / fs).exp()
-        };
-        for (spelling, zeta, law) in [
-            ("temperature", 0.3, TemperatureDamping::Constant),
-            ("temperature-viscous", 0.3 * f, TemperatureDamping::Viscous),
-        ] {
-            let hot = at_temperature(&file(spelling), 343.15).unwrap();
-            let want = pole_at(zeta);
-            let poles = hot.model.poles().unwrap();
-            assert!(
-                poles.iter().any(|p| (*p - want).norm() < 1e-9),
-                "{spelling}: {poles:?} against {want:?}"
-            );
-            assert_eq!(temperature_law(&hot.effects), Some((343.15, law)));
-            assert!(hot.inverse.is_some());
-            // Back to the reference from the new file: the law composes.
-            let back = at_temperature(&hot, 293.15).unwrap();
-            let worst = crate::continuous::step_response(&m, 600)
-                .iter()
-                .zip(crate::continuous::step_response(&back.model, 600))
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
-            assert!(worst < 1e-6, "{spelling}: {worst}");
-        }
     }
 
     #[test]
@@ -2093,7 +1957,9 @@ mod tests {
         .is_err());
         // On the board: the prefilter's sections run first.
         let (m, _) = second_order(95.0, 0.3, fs, 17);
-        let mut d = crate::inverse::design(&m, 800.0, &crate::inverse::Options::default()).unwrap();
+        let mut d =
+            crate::design::inverse::design(&m, 800.0, &crate::design::inverse::Options::default())
+                .unwrap();
         let (n, latency) = (d.sections.len(), d.latency_samples);
         with_prefilter(&mut d, &e, fs).unwrap();
         assert_eq!(d.sections.len(), n + PREFILTER_ORDER / 2);

@@ -12,8 +12,8 @@ use serde::{Deserialize, Serialize};
 use super::optimal::{self, NoiseModel, OptimalOptions, SignalPrior};
 use super::{design_auto_with, reconstruct_with, Design, Options, Reconstruction};
 use crate::error::{Error, Result};
+use crate::fit::model::Model;
 use crate::fit::Test;
-use crate::model::Model;
 
 /// A design is kept only when its error is below this fraction of the raw probe's on every
 /// test; otherwise the probe passes unchanged. A gain of a few per cent on one run is within
@@ -334,7 +334,7 @@ mod tests {
         assert!(!check.rejected.is_empty());
         assert_eq!(
             d.method.kind(),
-            crate::inverse::MethodKind::PassThrough,
+            crate::design::inverse::MethodKind::PassThrough,
             "{}",
             d.method
         );
@@ -360,7 +360,7 @@ mod tests {
         let d = checked_on(&m, &u, &y);
         assert_eq!(
             d.method.kind(),
-            crate::inverse::MethodKind::PassThrough,
+            crate::design::inverse::MethodKind::PassThrough,
             "{}",
             d.method
         );

@@ -42,9 +42,9 @@ use serde::{Deserialize, Serialize};
 
 use super::{cascade_response, model_response, to_sections, Zpk};
 use crate::error::{Error, Result};
+use crate::fit::model::Model;
 use crate::fit::step::{self, detrend};
 use crate::fit::Test;
-use crate::model::Model;
 use crate::poly::{self, Complex};
 
 pub use crate::fit::step::NoiseSource;
@@ -870,8 +870,9 @@ pub fn budget(
     }
 }
 
-/// Largest number of sections a realisation may have (the board's export limit).
-pub const MAX_SECTIONS: usize = crate::export::MAX_EXPORT_SECTIONS;
+/// Largest number of sections a realisation may have (a 32nd-order compensator; `unlag
+/// export` writes at most this many).
+pub const MAX_SECTIONS: usize = 16;
 
 /// A reduced-order realisation is preferred when its predicted error is within this factor of
 /// the full smoother's.

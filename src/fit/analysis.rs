@@ -4,7 +4,7 @@
 //! This module owns [`Analysis`] (everything computed once from a [`Model`], serialisable to
 //! JSON for `unlag inspect --json`) and [`frequency_response`]. It does not own the
 //! continuous-time equivalent with its residues and fractional delay: that is
-//! [`crate::continuous`].
+//! [`crate::fit::continuous`].
 //!
 //! # Conventions
 //!
@@ -18,7 +18,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::model::Model;
+use crate::fit::model::Model;
 use crate::poly::{self, Complex};
 
 /// Poles closer to the origin than this are reported as poles at `z = 0` (a pure FIR part).

@@ -21,9 +21,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::design::inverse::Design;
 use crate::error::{Error, Result};
 use crate::fixed::{FixedCascade, FixedSection, FixedState, MAX_COEFFICIENT, STATE_BITS};
-use crate::inverse::Design;
 
 mod direct;
 pub use direct::{DirectPlan, DirectPlanSection};
@@ -455,8 +455,8 @@ impl FixedPlan {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::inverse::{self, Options};
-    use crate::model::Model;
+    use crate::design::inverse::{self, Options};
+    use crate::fit::model::Model;
 
     fn line_design(fs: f64, fn_hz: f64, zeta: f64, bandwidth: f64) -> Design {
         let wn = 2.0 * std::f64::consts::PI * fn_hz / fs;

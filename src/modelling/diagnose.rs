@@ -4,7 +4,7 @@
 //! effects ([`Candidate`]), each with the numbers behind it, a physical reading, and the exact
 //! change that adds it. Two kinds of evidence are combined:
 //!
-//! 1. the residual's signature on each test ([`crate::evidence`]): a narrow spectral peak for
+//! 1. the residual's signature on each test ([`crate::modelling::evidence`]): a narrow spectral peak for
 //!    a mode, a level before the step for an offset, a ramp for a drift, a slow creep after
 //!    the step for a leak, correlation in time without a cause in the input for coloured
 //!    noise, a peak in the reference's own increments at the frequency where the probe's
@@ -12,12 +12,12 @@
 //!    reference, so a matched sensor resonance goes before `mode`), and natural frequencies of
 //!    the tests fitted alone that all move by one common factor against the model's, with the
 //!    damping about the same, for a temperature ([`temperature_evidence`]; both damping laws
-//!    of [`crate::effects::TemperatureDamping`] are tried and the better offered, its `change`
+//!    of [`crate::modelling::effects::TemperatureDamping`] are tried and the better offered, its `change`
 //!    `--add temperature` or `--add temperature-viscous`); and across tests
 //!    ([`amplitude_signature`]), a damping that rises with the step's amplitude and a residual
 //!    that grows faster than the step, for nonlinear damping;
 //! 2. a trial: the model is refitted on the estimation test with the effect added
-//!    ([`crate::effects::fit_with`]) and judged on the held-out tests. A candidate whose
+//!    ([`crate::modelling::effects::fit_with`]) and judged on the held-out tests. A candidate whose
 //!    signature is present but whose trial does not lower the held-out error is not offered.
 //!
 //! The score is `ln(error before / error after)` on the held-out tests (the estimation test
@@ -27,11 +27,11 @@
 use serde::Serialize;
 use serde_json::{json, Value};
 
-use crate::effects::{self, Effect, EffectKind, FitChanges};
 use crate::error::Result;
-use crate::evidence::TestEvidence;
+use crate::fit::model::{Model, Uncertainty};
 use crate::fit::{Method, Options, Order, Test};
-use crate::model::{Model, Uncertainty};
+use crate::modelling::effects::{self, Effect, EffectKind, FitChanges};
+use crate::modelling::evidence::TestEvidence;
 
 /// A trial must lower the held-out error by at least this factor to be offered.
 pub const MIN_IMPROVEMENT: f64 = 1.15;
@@ -51,8 +51,8 @@ pub const PARAMETER_PENALTY: f64 = 0.03;
 /// [`EffectKind`]).
 ///
 /// ```
-/// use unlag::diagnose::Finding;
-/// use unlag::effects::EffectKind;
+/// use unlag::modelling::diagnose::Finding;
+/// use unlag::modelling::effects::EffectKind;
 ///
 /// assert_eq!(Finding::Missing(EffectKind::Leak).to_string(), "leak");
 /// assert_eq!(Finding::Nothing.to_string(), "none");
@@ -446,7 +446,7 @@ pub fn temperature_evidence(
     tests: &[Test<'_>],
     evidence: &[TestEvidence],
 ) -> Option<TemperatureEvidence> {
-    let model_modes = crate::analysis::Analysis::new(current.model)
+    let model_modes = crate::fit::analysis::Analysis::new(current.model)
         .ok()?
         .resonance_pairs();
     if model_modes.is_empty() {
@@ -545,7 +545,7 @@ pub fn per_test(
             let excess = (own_rms * own_rms - noise2).max(0.01 * noise2).sqrt();
             let mut resonances: Vec<(f64, f64)> = own
                 .as_ref()
-                .and_then(|f| crate::analysis::Analysis::new(&f.model).ok())
+                .and_then(|f| crate::fit::analysis::Analysis::new(&f.model).ok())
                 .map(|a| a.resonance_pairs())
                 .unwrap_or_default();
             resonances.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -666,7 +666,7 @@ pub fn diagnose(
         .iter()
         .filter_map(|e| {
             let last = e.model_error.db.last().copied()?;
-            (last > crate::evidence::MODEL_ERROR_PEAK_DB).then_some((e, last))
+            (last > crate::modelling::evidence::MODEL_ERROR_PEAK_DB).then_some((e, last))
         })
         .max_by(|a, b| a.1.total_cmp(&b.1));
     let residual_peak = evidence

@@ -37,9 +37,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::analysis::{self, Root, ORIGIN_RADIUS, REAL_AXIS_TOLERANCE};
 use crate::error::{Error, Result};
-use crate::model::{filter, Model};
+use crate::fit::analysis::{self, Root, ORIGIN_RADIUS, REAL_AXIS_TOLERANCE};
+use crate::fit::model::{filter, Model};
 use crate::poly::{self, Complex};
 
 /// Two poles closer than this (relative to the larger magnitude) are refused as repeated.
@@ -699,8 +699,8 @@ mod tests {
             );
         }
         // And so is the analysis of the discrete model.
-        let an = crate::analysis::Analysis::new(&m).unwrap();
-        let crate::analysis::ModeKind::Resonance {
+        let an = crate::fit::analysis::Analysis::new(&m).unwrap();
+        let crate::fit::analysis::ModeKind::Resonance {
             natural_frequency_hz,
             damping,
             ..

@@ -27,8 +27,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::compensator::{CascadeCoefficients, CascadeState, Sample, MIN_POLE_MARGIN};
 use crate::error::{Error, Result};
+use crate::fit::model::Model;
 use crate::fit::Test;
-use crate::model::Model;
 use crate::poly::{self, Complex};
 
 pub mod check;
@@ -164,10 +164,10 @@ pub struct Design {
     /// The fixed-point version for the board (`--arithmetic fixed`): integer coefficients,
     /// scaling and headroom for the ADC's full scale.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub fixed: Option<crate::quantise::FixedPlan>,
+    pub fixed: Option<crate::design::quantise::FixedPlan>,
     /// The direct-form fixed-point version (`--fixed-form direct`), instead of `fixed`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub fixed_direct: Option<crate::quantise::DirectPlan>,
+    pub fixed_direct: Option<crate::design::quantise::DirectPlan>,
     /// The noise both channels showed, as the design used it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise: Option<optimal::NoiseModel>,
@@ -674,7 +674,7 @@ impl Design {
     }
 
     /// The nonlinear-damping correction `gain fs^2 lowpass(|dy| dy)` for the probe signal `y`
-    /// (quadratic loss `gain` in s^2 per probe unit, see [`crate::effects`]), in arithmetic
+    /// (quadratic loss `gain` in s^2 per probe unit, see [`crate::modelling::effects`]), in arithmetic
     /// `T` with the board's code, starting in equilibrium with `y[0]`: what the board adds to
     /// [`Design::run`]'s output.
     ///
@@ -814,7 +814,7 @@ fn aligned_error_by_fft(
         return (f64::INFINITY, lo);
     };
     // Σ_j e[j] r[s + j] for s = hi − lag, s in 0..=hi − lo.
-    let cross = crate::evidence::lagged_products(e, r, (0.0, 0.0), hi - lo + 1);
+    let cross = crate::fit::noise::lagged_products(e, r, (0.0, 0.0), hi - lo + 1);
     let ee: f64 = e.iter().map(|v| v * v).sum();
     // Σ r[s..s + len]² for s = 0, 1, ...: a sliding window.
     let len = e.len();
@@ -851,7 +851,7 @@ pub fn reconstruct(design: &Design, model: &Model, test: &Test<'_>) -> Result<Re
 
 /// [`reconstruct`] for a model with the `nonlinear-damping` effect: the compensator's output
 /// plus the board's correction for the quadratic loss `nonlinear_gain` (s^2 per probe unit,
-/// see [`crate::effects`]); with `nonlinear_gain = 0` exactly [`reconstruct`].
+/// see [`crate::modelling::effects`]); with `nonlinear_gain = 0` exactly [`reconstruct`].
 ///
 /// # Errors
 /// As [`Design::run`] and [`Design::run_nonlinear_correction`].

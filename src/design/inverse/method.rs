@@ -85,7 +85,7 @@ pub struct UnknownMethod(pub String);
 /// give.
 ///
 /// ```
-/// use unlag::inverse::{DesignMethod, MethodKind};
+/// use unlag::design::inverse::{DesignMethod, MethodKind};
 ///
 /// let m = DesignMethod::new(MethodKind::Smoother, "fixed-lag Kalman smoother, lag 4 samples")
 ///     .after_prefilter("sensor-resonance prefilter (Butterworth order 4 at 900.0 Hz)");

@@ -18,11 +18,11 @@
 use serde::{Deserialize, Serialize};
 
 use super::{plan_error, MAX_IMPULSE, TARGET};
+use crate::design::inverse::Design;
 use crate::error::{Error, Result};
 use crate::fixed::direct::{
     DirectCascade, DirectSection, DirectState, COEFFICIENT_BITS, MAX_COEFFICIENT_SUM,
 };
-use crate::inverse::Design;
 
 /// One section of a direct-form plan: the board's integers and the bounds behind them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

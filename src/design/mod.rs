@@ -1,0 +1,11 @@
+//! The design stage: from a fitted model to the compensator the board runs.
+//!
+//! [`inverse`] designs it in f64 (band-limited inverse, optimal reconstruction, the check
+//! against the raw probe); [`quantise`] realises a design for the board's fixed-point
+//! kernels. This room reads the fit stage's [`Model`](crate::fit::Model) and the board's
+//! types, nothing above.
+
+pub mod inverse;
+pub mod quantise;
+
+pub use inverse::Design;

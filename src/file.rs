@@ -1,0 +1,586 @@
+//! The model file: the stage outputs (model, fit report, design, effects, history) composed
+//! into one versioned, human-readable TOML file, read and written.
+//!
+//! [`ModelFile`] is what `unlag fit` writes and every later command reads. It sits above the
+//! stages it composes: the fit stage's [`Model`] and [`FitReport`], the design stage's
+//! [`Design`](crate::design::Design), the modelling loop's
+//! [`Effect`](crate::modelling::effects::Effect)s.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::fit::model::{FitReport, Model, Source, Uncertainty, MAX_ORDER};
+use crate::modelling::effects::{self, Effect};
+use crate::trace::MAX_SAMPLE_RATE_HZ;
+
+/// Model file format version written by this crate.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// The model file: the model, how it was fitted and from what.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(from = "RawModelFile")]
+pub struct ModelFile {
+    /// Format version ([`FORMAT_VERSION`]).
+    pub format_version: u32,
+    /// The model itself (flattened: `fs`, `delay`, `a`, `b` at the top of the file).
+    #[serde(flatten)]
+    pub model: Model,
+    /// How it was fitted.
+    pub fit: Option<FitReport>,
+    /// The traces it came from and the errors on each.
+    #[serde(default)]
+    pub sources: Vec<Source>,
+    /// The compensator designed for the board (stable, band-limited inverse), if any.
+    #[serde(default)]
+    pub inverse: Option<crate::design::inverse::Design>,
+    /// Physical effects added in the modelling loop (`unlag fit --add KIND`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<crate::modelling::effects::Effect>,
+    /// Every fit of this file, with its errors per test: the error falling as effects are
+    /// added.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub history: Vec<HistoryRow>,
+    /// The probe's physical geometry, when the user writes it into the file (`[probe]`): the
+    /// report then draws the physical prediction beside the fitted model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe: Option<ProbeGeometry>,
+}
+
+/// [`ModelFile`] as the file spells it, the model's fields at the top: read field by field
+/// (no flattening), so that every error keeps its line and column and an unknown field is
+/// refused where it stands.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawModelFile {
+    format_version: u32,
+    fs: f64,
+    delay: usize,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    fit: Option<FitReport>,
+    #[serde(default)]
+    sources: Vec<Source>,
+    #[serde(default)]
+    inverse: Option<crate::design::inverse::Design>,
+    #[serde(default)]
+    effects: Vec<crate::modelling::effects::Effect>,
+    #[serde(default)]
+    history: Vec<HistoryRow>,
+    #[serde(default)]
+    probe: Option<ProbeGeometry>,
+}
+
+impl From<RawModelFile> for ModelFile {
+    fn from(r: RawModelFile) -> Self {
+        Self {
+            format_version: r.format_version,
+            model: Model {
+                fs: r.fs,
+                delay: r.delay,
+                a: r.a,
+                b: r.b,
+            },
+            fit: r.fit,
+            sources: r.sources,
+            inverse: r.inverse,
+            effects: r.effects,
+            history: r.history,
+            probe: r.probe,
+        }
+    }
+}
+
+/// A probe's geometry in a model file: tubes in series from the measuring point on, then the
+/// transducer volume (the `unlag predict --line L,D --volume V` description).
+///
+/// ```toml
+/// [probe]
+/// lines = [[0.6, 1.1e-3]]   # [length, inner diameter] in m, from the measuring point on
+/// volume_m3 = 20e-9
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeGeometry {
+    /// Tubes as `[length_m, diameter_m]`, from the measuring point on.
+    pub lines: Vec<[f64; 2]>,
+    /// Volume at the closed end in m^3.
+    pub volume_m3: f64,
+    /// Mean gas temperature in K (air).
+    #[serde(default = "default_temperature_k")]
+    pub temperature_k: f64,
+    /// Mean absolute pressure in Pa.
+    #[serde(default = "default_pressure_pa")]
+    pub pressure_pa: f64,
+}
+
+fn default_temperature_k() -> f64 {
+    293.15
+}
+
+fn default_pressure_pa() -> f64 {
+    101_325.0
+}
+
+/// One fit in a model file's history.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HistoryRow {
+    /// The effects the fit had (kinds), in the order added.
+    pub effects: Vec<String>,
+    /// Model order.
+    pub order: usize,
+    /// Delay (samples).
+    pub delay: usize,
+    /// Simulation error per test.
+    pub tests: Vec<HistoryTest>,
+}
+
+/// One test's error in a history row.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HistoryTest {
+    /// File name.
+    pub file: String,
+    /// `estimation` or `validation`.
+    pub role: String,
+    /// Normalised RMS simulation error (effects included).
+    pub nrmse: f64,
+}
+
+const HEADER: &str = "\
+# unlag probe model.
+# y[k] = sum_{i=0..m} b[i] u[k-i-delay] - sum_{i=1..m} a[i] y[k-i]
+# fs in Hz, delay in samples; a = [a1..am], b = [b0..bm].
+";
+
+impl ModelFile {
+    /// The model file at gas temperature `temperature_k`: the model scaled by
+    /// `sqrt(T / reference_k)`, its damping by the effect's law ([`effects::scaled_with`]), its compensator designed anew for it (same low-pass
+    /// family and order, corner scaled by the same factor, the sensor prefilter kept, the
+    /// fixed-point plan redone for the same full scale), and its `temperature` effect now at `T`.
+    /// This is the coefficient set a board is given for that temperature.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] when the file has no `temperature` effect (no
+    /// reference temperature) or `T` is not a positive number of kelvin; the scaling's and the
+    /// design's errors.
+    pub fn at_temperature(&self, temperature_k: f64) -> Result<ModelFile> {
+        let (reference, damping) =
+            effects::temperature_law(&self.effects).ok_or_else(|| Error::InvalidArgument {
+                what: "--temperature",
+                message:
+                    "the model file has no temperature effect, so no reference temperature: refit \
+                      with `unlag fit ... --add temperature` (or add effects = [{ kind = \
+                      \"temperature\", reference_k = K }])"
+                        .into(),
+            })?;
+        let k = effects::scale_for(temperature_k, reference)?;
+        let model = effects::scaled_with(&self.model, k, damping.factor(k, reference))?;
+        let fs = model.fs;
+        let inverse = match &self.inverse {
+            Some(d) => {
+                let options = crate::design::inverse::Options {
+                    bandwidth_hz: Some((d.lowpass_hz * k).min(0.45 * fs)),
+                    lowpass: d.lowpass,
+                    lowpass_order: d.lowpass_order,
+                    stabilise: d.method.kind() != crate::design::inverse::MethodKind::DirectInverse,
+                };
+                let fc = options.bandwidth_hz.unwrap_or(d.lowpass_hz);
+                // The optimum is designed anew from its noise and prior; a band-limited inverse
+                // keeps its corner, scaled with the time scale.
+                let mut nd = match (&d.noise, &d.prior) {
+                    // Not after a prefilter: such a design is redesigned as a band-limited
+                    // inverse, as always.
+                    (Some(noise), Some(prior))
+                        if !d.method.is_prefiltered() && d.method.kind().is_optimal() =>
+                    {
+                        crate::design::inverse::optimal::design(
+                            &model,
+                            noise,
+                            prior,
+                            &crate::design::inverse::optimal::OptimalOptions {
+                                max_latency_samples: None,
+                                max_band_hz: None,
+                                lowpass: d.lowpass,
+                                lowpass_order: d.lowpass_order,
+                            },
+                        )?
+                    }
+                    _ => crate::design::inverse::design(&model, fc, &options)?,
+                };
+                nd.bandwidth_selection = format!(
+                    "{} at the reference temperature, scaled by {k:.4} to {temperature_k} K",
+                    d.bandwidth_selection
+                );
+                effects::with_prefilter(&mut nd, &self.effects, fs)?;
+                if let Some(p) = &d.fixed {
+                    nd.fixed = Some(crate::design::quantise::FixedPlan::new(&nd, p.full_scale)?);
+                }
+                if let Some(p) = &d.fixed_direct {
+                    nd.fixed_direct =
+                        Some(crate::design::quantise::DirectPlan::new(&nd, p.full_scale)?);
+                }
+                Some(nd)
+            }
+            None => None,
+        };
+        let effects = self
+            .effects
+            .iter()
+            .map(|e| match e {
+                Effect::Temperature { damping, .. } => Effect::Temperature {
+                    reference_k: temperature_k,
+                    damping: *damping,
+                },
+                other => other.clone(),
+            })
+            .collect();
+        Ok(ModelFile {
+            model,
+            inverse,
+            effects,
+            ..self.clone()
+        })
+    }
+
+    /// The fit's stated uncertainty, when the file records one.
+    #[must_use]
+    pub fn uncertainty(&self) -> Option<&Uncertainty> {
+        self.fit.as_ref()?.uncertainty.as_ref()
+    }
+
+    /// Renders the file as TOML.
+    ///
+    /// # Errors
+    /// [`Error::Numerical`] if serialisation fails (it does not for finite values).
+    pub fn to_toml(&self) -> Result<String> {
+        let body = toml::to_string(self).map_err(|e| Error::Numerical {
+            context: "model file".into(),
+            message: e.to_string(),
+        })?;
+        Ok(format!("{HEADER}{body}"))
+    }
+
+    /// Writes the file atomically, after reading the text back as [`ModelFile::load`] will:
+    /// a file the loader would refuse is never written.
+    ///
+    /// # Errors
+    /// [`Error::Model`] for a model out of the file's limits, [`Error::Io`] when it cannot
+    /// be written.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        let text = self.to_toml()?;
+        Self::parse(path, &text).map_err(|e| Error::Model {
+            path: path.to_path_buf(),
+            message: format!("not written: the model would not load again ({e})"),
+        })?;
+        crate::trace::write_atomically(path, text.as_bytes())
+    }
+
+    /// Reads and checks a model file: its syntax, every field's type and name (an unknown or
+    /// misspelt field is refused with the nearest known name), and the limits of what the
+    /// numbers may be: version, sample rate, delay, order, finite coefficients, a stable
+    /// model, and a stable, finite stored compensator. Every error names the line and column
+    /// of the field.
+    ///
+    /// # Errors
+    /// [`Error::ModelAt`] (or [`Error::Io`] when the file cannot be read).
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            action: "cannot read",
+            source,
+        })?;
+        Self::parse(path, &text)
+    }
+
+    /// [`ModelFile::load`] on text already read (`path` names it in messages).
+    ///
+    /// # Errors
+    /// As [`ModelFile::load`].
+    pub fn parse(path: &Path, text: &str) -> Result<Self> {
+        let at = |offset: usize, message: String| {
+            let (line, column) = line_col(text, offset);
+            Error::ModelAt {
+                path: path.to_path_buf(),
+                line,
+                column,
+                message,
+            }
+        };
+        let file: Self = toml::from_str(text).map_err(|e| {
+            let first = e.message().lines().next().unwrap_or("invalid TOML");
+            at(
+                e.span().map_or(0, |s| s.start),
+                format!("{first}{}", nearest_field_hint(first)),
+            )
+        })?;
+        let field = |keys: &[&str], message: String| at(offset_of(text, keys), message);
+        if file.format_version != FORMAT_VERSION {
+            return Err(field(
+                &["format_version"],
+                format!(
+                    "format_version {} is not supported (this unlag reads version {FORMAT_VERSION})",
+                    file.format_version
+                ),
+            ));
+        }
+        let m = &file.model;
+        if !(m.fs.is_finite() && m.fs > 0.0 && m.fs <= MAX_SAMPLE_RATE_HZ) {
+            return Err(field(
+                &["fs"],
+                format!(
+                    "fs must be a sample rate in Hz above 0 and at most {MAX_SAMPLE_RATE_HZ:e}, not {}",
+                    m.fs
+                ),
+            ));
+        }
+        if m.delay > MAX_DELAY {
+            return Err(field(
+                &["delay"],
+                format!(
+                    "delay {} samples ({:.3} s at fs = {} Hz) exceeds the largest supported delay, {MAX_DELAY} samples",
+                    m.delay,
+                    m.delay as f64 / m.fs,
+                    m.fs
+                ),
+            ));
+        }
+        if m.b.is_empty() {
+            return Err(field(
+                &["b"],
+                "b is empty: a model needs b0 at least".into(),
+            ));
+        }
+        for (key, coefficients) in [("a", &m.a), ("b", &m.b)] {
+            if let Some(i) = coefficients.iter().position(|c| !c.is_finite()) {
+                return Err(field(&[key], format!("{key}[{i}] is not a finite number")));
+            }
+        }
+        if m.b.iter().all(|c| *c == 0.0) {
+            return Err(field(
+                &["b"],
+                "b is all zeros: the model passes nothing".into(),
+            ));
+        }
+        if m.order() > MAX_ORDER {
+            return Err(field(
+                &["a"],
+                format!(
+                    "order {} exceeds the largest supported order {MAX_ORDER}",
+                    m.order()
+                ),
+            ));
+        }
+        if let Some(p) = m.poles()?.first() {
+            if p.norm() >= 1.0 {
+                return Err(field(
+                    &["a"],
+                    format!(
+                        "the model is unstable: pole {p:.6} has |z| = {:.6} >= 1",
+                        p.norm()
+                    ),
+                ));
+            }
+        }
+        if let Some(d) = &file.inverse {
+            for (key, value) in [
+                ("gain", d.gain),
+                ("latency_samples", d.latency_samples),
+                ("latency_s", d.latency_s),
+                ("lowpass_hz", d.lowpass_hz),
+            ] {
+                if !value.is_finite() {
+                    return Err(field(
+                        &["inverse", key],
+                        format!("inverse.{key} = {value} is not a finite number"),
+                    ));
+                }
+            }
+            if let Err(e) = crate::compensator::CascadeCoefficients::<
+                f64,
+                { crate::compensator::MAX_TEST_ORDER },
+            >::new(d.gain, &d.sections)
+            {
+                return Err(field(
+                    &["inverse", "sections"],
+                    format!("the stored compensator cannot run: {e}"),
+                ));
+            }
+        }
+        if let Some(g) = &file.probe {
+            let lines_ok =
+                !g.lines.is_empty() && g.lines.iter().flatten().all(|x| x.is_finite() && *x > 0.0);
+            if !lines_ok {
+                return Err(field(
+                    &["probe", "lines"],
+                    "probe.lines must be [length_m, diameter_m] pairs, all above 0".into(),
+                ));
+            }
+            for (key, value) in [
+                ("volume_m3", g.volume_m3),
+                ("temperature_k", g.temperature_k),
+                ("pressure_pa", g.pressure_pa),
+            ] {
+                if !(value.is_finite() && (value > 0.0 || key == "volume_m3" && value == 0.0)) {
+                    return Err(field(
+                        &["probe", key],
+                        format!("probe.{key} = {value} must be a positive number"),
+                    ));
+                }
+            }
+        }
+        Ok(file)
+    }
+}
+
+/// Longest delay a model file may carry, in samples (0.2 s at 5 MHz; a 68 m line at 340 m/s).
+pub const MAX_DELAY: usize = 1 << 20;
+
+/// Byte offset of the value (or key) at `keys` in a TOML text, as deep as the path goes;
+/// 0 when the text does not parse.
+fn offset_of(text: &str, keys: &[&str]) -> usize {
+    let Ok(doc) = toml_edit::ImDocument::parse(text) else {
+        return 0;
+    };
+    let mut table: &dyn toml_edit::TableLike = doc.as_table();
+    let mut offset = 0;
+    for key in keys {
+        let Some((k, item)) = table.get_key_value(key) else {
+            break;
+        };
+        if let Some(span) = item.span().or_else(|| k.span()) {
+            offset = span.start;
+        }
+        match item.as_table_like() {
+            Some(t) => table = t,
+            None => break,
+        }
+    }
+    offset
+}
+
+/// `; did you mean `x`?` for serde's "unknown field `y`, expected one of ..." message.
+fn nearest_field_hint(message: &str) -> String {
+    let Some(rest) = message.strip_prefix("unknown field `") else {
+        return String::new();
+    };
+    let Some((unknown, expected)) = rest.split_once('`') else {
+        return String::new();
+    };
+    expected
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .map(|known| (strsim::damerau_levenshtein(unknown, known), known))
+        .filter(|(d, known)| *d <= 2.max(known.len() / 3))
+        .min()
+        .map_or_else(String::new, |(_, known)| {
+            format!("; did you mean `{known}`?")
+        })
+}
+
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = text.get(..offset).unwrap_or(text);
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn second_order(f: f64, zeta: f64, fs: f64, delay: usize) -> (Model, crate::poly::Complex) {
+        let w = 2.0 * std::f64::consts::PI * f;
+        let s = crate::poly::Complex::new(-zeta * w, w * (1.0 - zeta * zeta).sqrt());
+        let z = (s / fs).exp();
+        let a = vec![-2.0 * z.re, z.norm_sqr()];
+        let g = 1.0 + a[0] + a[1];
+        let model = Model {
+            fs,
+            delay,
+            a,
+            b: vec![0.0, 0.6 * g, 0.4 * g],
+        };
+        (model, s)
+    }
+
+    #[test]
+    fn a_coefficient_set_for_a_temperature_follows_the_damping_law() {
+        let fs = 10_000.0;
+        let (m, s) = second_order(95.0, 0.3, fs, 17);
+        let design =
+            crate::design::inverse::design(&m, 800.0, &crate::design::inverse::Options::default())
+                .unwrap();
+        let file = |spelling: &str| ModelFile {
+            format_version: FORMAT_VERSION,
+            model: m.clone(),
+            fit: None,
+            sources: Vec::new(),
+            inverse: Some(design.clone()),
+            effects: vec![Effect::parse(spelling).unwrap()],
+            history: Vec::new(),
+            probe: None,
+        };
+        let (k, f) = (
+            (343.15f64 / 293.15).sqrt(),
+            effects::viscous_damping_factor(343.15, 293.15).unwrap(),
+        );
+        let w = s.norm();
+        let pole_at = |zeta: f64| {
+            (crate::poly::Complex::new(-zeta * k * w, k * w * (1.0 - zeta * zeta).sqrt()) / fs)
+                .exp()
+        };
+        for (spelling, zeta, law) in [
+            ("temperature", 0.3, effects::TemperatureDamping::Constant),
+            (
+                "temperature-viscous",
+                0.3 * f,
+                effects::TemperatureDamping::Viscous,
+            ),
+        ] {
+            let hot = file(spelling).at_temperature(343.15).unwrap();
+            let want = pole_at(zeta);
+            let poles = hot.model.poles().unwrap();
+            assert!(
+                poles.iter().any(|p| (*p - want).norm() < 1e-9),
+                "{spelling}: {poles:?} against {want:?}"
+            );
+            assert_eq!(effects::temperature_law(&hot.effects), Some((343.15, law)));
+            assert!(hot.inverse.is_some());
+            // Back to the reference from the new file: the law composes.
+            let back = hot.at_temperature(293.15).unwrap();
+            let worst = crate::fit::continuous::step_response(&m, 600)
+                .iter()
+                .zip(crate::fit::continuous::step_response(&back.model, 600))
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 1e-6, "{spelling}: {worst}");
+        }
+    }
+
+    #[test]
+    fn file_round_trip() {
+        let f = ModelFile {
+            format_version: FORMAT_VERSION,
+            model: Model {
+                fs: 1000.0,
+                delay: 3,
+                a: vec![-1.5, 0.7],
+                b: vec![0.1, 0.08, 0.02],
+            },
+            fit: None,
+            sources: vec![],
+            inverse: None,
+            effects: Vec::new(),
+            history: Vec::new(),
+            probe: None,
+        };
+        let text = f.to_toml().unwrap();
+        assert!(text.contains("delay = 3"), "{text}");
+        let back: ModelFile = toml::from_str(&text).unwrap();
+        assert_eq!(back, f);
+    }
+}

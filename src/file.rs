@@ -4,7 +4,7 @@
 //! [`ModelFile`] is what `unlag fit` writes and every later command reads. It sits above the
 //! stages it composes: the fit stage's [`Model`] and [`FitReport`], the design stage's
 //! [`Design`](crate::design::Design), the modelling loop's
-//! [`Effect`](crate::modelling::effects::Effect)s.
+//! [`Effect`]s.
 
 use std::path::Path;
 

@@ -2,8 +2,8 @@
 //!
 //! This module owns [`Model`] (sample rate, delay, `a`, `b` in the crate's one sign convention,
 //! see [`crate::compensator`]), what can be computed from it on the host (simulation from the
-//! reference, DC gain, poles and zeros, compensation through the board's code), and the model
-//! file: TOML, human readable and versioned ([`ModelFile`]).
+//! reference, DC gain, poles and zeros, compensation through the board's code), and the fit's
+//! report ([`FitReport`]); the model file that stores them is [`crate::file`].
 
 use serde::{Deserialize, Serialize};
 

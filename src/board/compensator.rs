@@ -225,6 +225,7 @@ pub const fn f32_cascade_uses_kernel(sections: usize) -> bool {
 /// Why a coefficient set was refused. Checked once, when the coefficients are built; a built
 /// [`InverseCoefficients`] is valid and the per-sample path cannot fail.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum InverseError {
     /// `a` has more than `M` entries or `b` more than `M + 1`.
@@ -294,34 +295,6 @@ impl fmt::Display for InverseError {
 }
 
 impl core::error::Error for InverseError {}
-
-#[cfg(feature = "defmt")]
-impl defmt::Format for InverseError {
-    fn format(&self, f: defmt::Formatter) {
-        match self {
-            Self::OrderTooHigh { order, capacity } => {
-                defmt::write!(f, "OrderTooHigh({=usize} > {=usize})", order, capacity)
-            }
-            Self::EmptyNumerator => defmt::write!(f, "EmptyNumerator"),
-            Self::NonFinite => defmt::write!(f, "NonFinite"),
-            Self::LeadingZero => defmt::write!(f, "LeadingZero"),
-            Self::UnstableInverse { reflection } => {
-                defmt::write!(f, "UnstableInverse(k={=f64})", reflection)
-            }
-            Self::TooManySections { sections, capacity } => {
-                defmt::write!(
-                    f,
-                    "TooManySections({=usize} > {=usize})",
-                    sections,
-                    capacity
-                )
-            }
-            Self::UnstableSection { index, radius } => {
-                defmt::write!(f, "UnstableSection({=usize}, r={=f64})", index, radius)
-            }
-        }
-    }
-}
 
 /// Largest order the Schur-Cohn test handles without allocation.
 pub const MAX_TEST_ORDER: usize = 32;

@@ -145,8 +145,7 @@ impl fmt::Display for FixedError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for FixedError {}
+impl core::error::Error for FixedError {}
 
 /// Validated fixed-point coefficients of a cascade of up to `N` sections.
 ///

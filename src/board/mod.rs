@@ -2,7 +2,7 @@
 //! and panic-free, and imports nothing of the host.
 //!
 //! The host reads this room (to run the same arithmetic in `unlag compensate`, and to write
-//! the images the board parses), never the reverse. Its three parts, re-exported at the crate
+//! the images the board parses), never the reverse. Its four parts, re-exported at the crate
 //! root under the same names:
 //! - [`compensator`]: the f32 cascade, run per ADC sample (with the nonlinear-damping
 //!   correction and the per-temperature bank);
@@ -10,6 +10,10 @@
 //!   without an FPU;
 //! - [`blob`]: the binary coefficient image a running board parses to update its set;
 //! - [`process`]: the compensators as `dsp_process` processors, composing with `idsp`.
+//!
+//! Every error type here is one style: `core::error::Error`, a hand-written `Display` (the
+//! board has no derive for it; `thiserror` is a host dependency), and `defmt::Format` derived
+//! behind the `defmt` feature.
 
 pub mod blob;
 pub mod compensator;

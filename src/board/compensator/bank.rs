@@ -70,6 +70,7 @@ use super::{CascadeCoefficients, CascadeState, InverseError, Sample};
 /// Why a temperature bank was refused. Checked once, when the bank is built; a built
 /// [`TemperatureBank`] is valid and neither selection nor processing can fail.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum BankError {
     /// No temperature given, or more than the capacity `SETS`.
@@ -152,42 +153,6 @@ impl fmt::Display for BankError {
 }
 
 impl core::error::Error for BankError {}
-
-#[cfg(feature = "defmt")]
-impl defmt::Format for BankError {
-    fn format(&self, f: defmt::Formatter) {
-        match self {
-            Self::SetCount { given, capacity } => {
-                defmt::write!(f, "SetCount({=usize} > {=usize})", given, capacity)
-            }
-            Self::LengthMismatch {
-                temperatures,
-                gains,
-                sets,
-            } => defmt::write!(
-                f,
-                "LengthMismatch({=usize}, {=usize}, {=usize})",
-                temperatures,
-                gains,
-                sets
-            ),
-            Self::Temperatures { index } => defmt::write!(f, "Temperatures({=usize})", index),
-            Self::Hysteresis => defmt::write!(f, "Hysteresis"),
-            Self::SectionCount {
-                index,
-                sections,
-                first,
-            } => defmt::write!(
-                f,
-                "SectionCount({=usize}: {=usize} != {=usize})",
-                index,
-                sections,
-                first
-            ),
-            Self::Set { index, error } => defmt::write!(f, "Set({=usize}, {})", index, error),
-        }
-    }
-}
 
 /// Up to `SETS` compensators of up to `N` sections (capacities), each for one gas
 /// temperature, ascending.

@@ -134,8 +134,7 @@ impl fmt::Display for DirectError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for DirectError {}
+impl core::error::Error for DirectError {}
 
 /// Validated direct-form coefficients of a cascade of up to `N` sections.
 ///

@@ -1226,49 +1226,13 @@ pub fn at_temperature(
         })?;
     let k = scale_for(temperature_k, reference)?;
     let model = scaled_with(&file.model, k, damping.factor(k, reference))?;
-    let fs = model.fs;
     let inverse = match &file.inverse {
         Some(d) => {
-            let options = crate::inverse::Options {
-                bandwidth_hz: Some((d.lowpass_hz * k).min(0.45 * fs)),
-                lowpass: d.lowpass,
-                lowpass_order: d.lowpass_order,
-                stabilise: d.method.kind() != crate::inverse::MethodKind::DirectInverse,
-            };
-            let fc = options.bandwidth_hz.unwrap_or(d.lowpass_hz);
-            // The optimum is designed anew from its noise and prior; a band-limited inverse
-            // keeps its corner, scaled with the time scale.
-            let mut nd = match (&d.noise, &d.prior) {
-                // Not after a prefilter: such a design is redesigned as a band-limited
-                // inverse, as always.
-                (Some(noise), Some(prior))
-                    if !d.method.is_prefiltered() && d.method.kind().is_optimal() =>
-                {
-                    crate::inverse::optimal::design(
-                        &model,
-                        noise,
-                        prior,
-                        &crate::inverse::optimal::OptimalOptions {
-                            max_latency_samples: None,
-                            max_band_hz: None,
-                            lowpass: d.lowpass,
-                            lowpass_order: d.lowpass_order,
-                        },
-                    )?
-                }
-                _ => crate::inverse::design(&model, fc, &options)?,
-            };
+            let mut nd = crate::pipeline::retarget(d, &model, &file.effects, k)?;
             nd.bandwidth_selection = format!(
                 "{} at the reference temperature, scaled by {k:.4} to {temperature_k} K",
                 d.bandwidth_selection
             );
-            with_prefilter(&mut nd, &file.effects, fs)?;
-            if let Some(p) = &d.fixed {
-                nd.fixed = Some(crate::quantise::FixedPlan::new(&nd, p.full_scale)?);
-            }
-            if let Some(p) = &d.fixed_direct {
-                nd.fixed_direct = Some(crate::quantise::DirectPlan::new(&nd, p.full_scale)?);
-            }
             Some(nd)
         }
         None => None,

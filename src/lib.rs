@@ -2,7 +2,8 @@
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![warn(missing_docs)]
 
-// Data flow: trace -> fit -> model -> (inverse) -> export -> board.
+// Data flow: trace -> fit -> model -> (inverse) -> export -> board; `pipeline` runs these
+// steps in order for the CLI.
 // Everything but `board` is host side, behind the `std` feature.
 
 pub mod board;
@@ -32,6 +33,8 @@ pub mod inverse;
 pub mod model;
 #[cfg(feature = "std")]
 pub mod physics;
+#[cfg(feature = "std")]
+pub mod pipeline;
 #[cfg(feature = "std")]
 pub mod poly;
 #[cfg(feature = "std")]

@@ -25,6 +25,7 @@ pub mod inspect;
 pub mod invert;
 pub mod modelling;
 pub mod physics;
+pub mod predict;
 pub mod report;
 pub mod simulate;
 
@@ -69,13 +70,12 @@ pub enum Command {
     /// Name the missing physical effect: candidates ranked by evidence and a trial refit, each
     /// with the change that adds it (`unlag fit --add KIND`).
     Diagnose(modelling::LoopArgs),
-    // physics subcommands (issue 6)
     /// Simulate a step test of a physical probe (Bergh-Tijdeman lines, hole, cavity,
     /// diaphragm, leak, minor losses) under a facility's excitation; writes t,u,y as CSV.
     SimulateTest(Box<physics::SimulateTestArgs>),
     /// Predict a physical probe's exact first modes, front delay and lumped approximation,
     /// and compare them with a fitted model (--model).
-    Predict(physics::PredictArgs),
+    Predict(predict::PredictArgs),
     /// Write an HTML report of a model against step tests: traces, residuals, spectra,
     /// correlations, Bode and pole-zero plots, error history and the ranked candidates.
     Report(report::ReportArgs),
@@ -126,7 +126,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Diagnose(a) => modelling::run_diagnose(&a),
         Command::Resample(a) => inspect::run_resample(&a),
         Command::SimulateTest(a) => physics::run_simulate_test(&a),
-        Command::Predict(a) => physics::run_predict(&a),
+        Command::Predict(a) => predict::run_predict(&a),
         Command::Export(a) => export::run_export(&a),
         Command::Report(a) => report::run_report(&a),
     }

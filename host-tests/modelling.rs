@@ -1021,7 +1021,10 @@ fn temperature_bank_picks_the_set_for_the_measured_temperature() {
     // error is the model's mismatch (and the noise): there the true temperature's set wins
     // clearly.
     let ideal = |t: f64| {
-        let d = file.at_temperature(t).unwrap().inverse.unwrap();
+        let d = unlag::pipeline::at_temperature(&file, t)
+            .unwrap()
+            .inverse
+            .unwrap();
         let (g, lp) = d.lowpass_sections(case.fs).unwrap();
         let c = unlag::compensator::CascadeCoefficients::<f64, 8>::new(g, &lp).unwrap();
         let mut st = c.equilibrium(u[0]);

@@ -4,7 +4,7 @@
 //! [`ModelFile`] is what `unlag fit` writes and every later command reads. It sits above the
 //! stages it composes: the fit stage's [`Model`] and [`FitReport`], the design stage's
 //! [`Design`](crate::design::Design), the modelling loop's
-//! [`Effect`]s.
+//! [`Effect`](crate::modelling::effects::Effect)s.
 
 use std::path::Path;
 
@@ -12,7 +12,6 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::fit::model::{FitReport, Model, Source, Uncertainty, MAX_ORDER};
-use crate::modelling::effects::{self, Effect};
 use crate::trace::MAX_SAMPLE_RATE_HZ;
 
 /// Model file format version written by this crate.
@@ -156,95 +155,6 @@ const HEADER: &str = "\
 ";
 
 impl ModelFile {
-    /// The model file at gas temperature `temperature_k`: the model scaled by
-    /// `sqrt(T / reference_k)`, its damping by the effect's law ([`effects::scaled_with`]), its compensator designed anew for it (same low-pass
-    /// family and order, corner scaled by the same factor, the sensor prefilter kept, the
-    /// fixed-point plan redone for the same full scale), and its `temperature` effect now at `T`.
-    /// This is the coefficient set a board is given for that temperature.
-    ///
-    /// # Errors
-    /// [`Error::InvalidArgument`] when the file has no `temperature` effect (no
-    /// reference temperature) or `T` is not a positive number of kelvin; the scaling's and the
-    /// design's errors.
-    pub fn at_temperature(&self, temperature_k: f64) -> Result<ModelFile> {
-        let (reference, damping) =
-            effects::temperature_law(&self.effects).ok_or_else(|| Error::InvalidArgument {
-                what: "--temperature",
-                message:
-                    "the model file has no temperature effect, so no reference temperature: refit \
-                      with `unlag fit ... --add temperature` (or add effects = [{ kind = \
-                      \"temperature\", reference_k = K }])"
-                        .into(),
-            })?;
-        let k = effects::scale_for(temperature_k, reference)?;
-        let model = effects::scaled_with(&self.model, k, damping.factor(k, reference))?;
-        let fs = model.fs;
-        let inverse = match &self.inverse {
-            Some(d) => {
-                let options = crate::design::inverse::Options {
-                    bandwidth_hz: Some((d.lowpass_hz * k).min(0.45 * fs)),
-                    lowpass: d.lowpass,
-                    lowpass_order: d.lowpass_order,
-                    stabilise: d.method.kind() != crate::design::inverse::MethodKind::DirectInverse,
-                };
-                let fc = options.bandwidth_hz.unwrap_or(d.lowpass_hz);
-                // The optimum is designed anew from its noise and prior; a band-limited inverse
-                // keeps its corner, scaled with the time scale.
-                let mut nd = match (&d.noise, &d.prior) {
-                    // Not after a prefilter: such a design is redesigned as a band-limited
-                    // inverse, as always.
-                    (Some(noise), Some(prior))
-                        if !d.method.is_prefiltered() && d.method.kind().is_optimal() =>
-                    {
-                        crate::design::inverse::optimal::design(
-                            &model,
-                            noise,
-                            prior,
-                            &crate::design::inverse::optimal::OptimalOptions {
-                                max_latency_samples: None,
-                                max_band_hz: None,
-                                lowpass: d.lowpass,
-                                lowpass_order: d.lowpass_order,
-                            },
-                        )?
-                    }
-                    _ => crate::design::inverse::design(&model, fc, &options)?,
-                };
-                nd.bandwidth_selection = format!(
-                    "{} at the reference temperature, scaled by {k:.4} to {temperature_k} K",
-                    d.bandwidth_selection
-                );
-                effects::with_prefilter(&mut nd, &self.effects, fs)?;
-                if let Some(p) = &d.fixed {
-                    nd.fixed = Some(crate::design::quantise::FixedPlan::new(&nd, p.full_scale)?);
-                }
-                if let Some(p) = &d.fixed_direct {
-                    nd.fixed_direct =
-                        Some(crate::design::quantise::DirectPlan::new(&nd, p.full_scale)?);
-                }
-                Some(nd)
-            }
-            None => None,
-        };
-        let effects = self
-            .effects
-            .iter()
-            .map(|e| match e {
-                Effect::Temperature { damping, .. } => Effect::Temperature {
-                    reference_k: temperature_k,
-                    damping: *damping,
-                },
-                other => other.clone(),
-            })
-            .collect();
-        Ok(ModelFile {
-            model,
-            inverse,
-            effects,
-            ..self.clone()
-        })
-    }
-
     /// The fit's stated uncertainty, when the file records one.
     #[must_use]
     pub fn uncertainty(&self) -> Option<&Uncertainty> {
@@ -491,75 +401,6 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn second_order(f: f64, zeta: f64, fs: f64, delay: usize) -> (Model, crate::poly::Complex) {
-        let w = 2.0 * std::f64::consts::PI * f;
-        let s = crate::poly::Complex::new(-zeta * w, w * (1.0 - zeta * zeta).sqrt());
-        let z = (s / fs).exp();
-        let a = vec![-2.0 * z.re, z.norm_sqr()];
-        let g = 1.0 + a[0] + a[1];
-        let model = Model {
-            fs,
-            delay,
-            a,
-            b: vec![0.0, 0.6 * g, 0.4 * g],
-        };
-        (model, s)
-    }
-
-    #[test]
-    fn a_coefficient_set_for_a_temperature_follows_the_damping_law() {
-        let fs = 10_000.0;
-        let (m, s) = second_order(95.0, 0.3, fs, 17);
-        let design =
-            crate::design::inverse::design(&m, 800.0, &crate::design::inverse::Options::default())
-                .unwrap();
-        let file = |spelling: &str| ModelFile {
-            format_version: FORMAT_VERSION,
-            model: m.clone(),
-            fit: None,
-            sources: Vec::new(),
-            inverse: Some(design.clone()),
-            effects: vec![Effect::parse(spelling).unwrap()],
-            history: Vec::new(),
-            probe: None,
-        };
-        let (k, f) = (
-            (343.15f64 / 293.15).sqrt(),
-            effects::viscous_damping_factor(343.15, 293.15).unwrap(),
-        );
-        let w = s.norm();
-        let pole_at = |zeta: f64| {
-            (crate::poly::Complex::new(-zeta * k * w, k * w * (1.0 - zeta * zeta).sqrt()) / fs)
-                .exp()
-        };
-        for (spelling, zeta, law) in [
-            ("temperature", 0.3, effects::TemperatureDamping::Constant),
-            (
-                "temperature-viscous",
-                0.3 * f,
-                effects::TemperatureDamping::Viscous,
-            ),
-        ] {
-            let hot = file(spelling).at_temperature(343.15).unwrap();
-            let want = pole_at(zeta);
-            let poles = hot.model.poles().unwrap();
-            assert!(
-                poles.iter().any(|p| (*p - want).norm() < 1e-9),
-                "{spelling}: {poles:?} against {want:?}"
-            );
-            assert_eq!(effects::temperature_law(&hot.effects), Some((343.15, law)));
-            assert!(hot.inverse.is_some());
-            // Back to the reference from the new file: the law composes.
-            let back = hot.at_temperature(293.15).unwrap();
-            let worst = crate::fit::continuous::step_response(&m, 600)
-                .iter()
-                .zip(crate::fit::continuous::step_response(&back.model, 600))
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
-            assert!(worst < 1e-6, "{spelling}: {worst}");
-        }
-    }
 
     #[test]
     fn file_round_trip() {

@@ -4,9 +4,10 @@
 
 // Data flow, one room per stage, each importing only the rooms above it in this list:
 // trace -> fit -> design -> export -> board. The modelling loop reads what fit and design
-// produce; `file` composes the stage outputs into the model file; the report reads them all;
-// the CLI parses, asks the library and prints. Everything but `board` is host side, behind
-// the `std` feature.
+// produce; `file` composes the stage outputs into the model file; `pipeline` runs the stages
+// in order (fit a probe, design its compensator, retarget it, compensate a record); export
+// and the report read them; the CLI parses, asks the pipeline and prints.
+// Everything but `board` is host side, behind the `std` feature.
 
 pub mod board;
 pub use board::{blob, compensator, fixed};
@@ -27,6 +28,8 @@ pub mod fit;
 pub mod modelling;
 #[cfg(feature = "std")]
 pub mod physics;
+#[cfg(feature = "std")]
+pub mod pipeline;
 #[cfg(feature = "std")]
 pub mod poly;
 #[cfg(feature = "std")]

@@ -135,7 +135,7 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
     }
     let c = match args.temperature {
         Some(t) => {
-            let file = file.at_temperature(t)?;
+            let file = crate::pipeline::at_temperature(&file, t)?;
             export::export_file(&file, &args.model, format, number_format, &args.output)?
         }
         None => export::export_file(&file, &args.model, format, number_format, &args.output)?,

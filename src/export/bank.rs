@@ -3,7 +3,7 @@
 //! the set itself ([`crate::compensator::TemperatureBank`]).
 //!
 //! This module owns the temperature grid ([`TemperatureRange`]) and the sets (each designed by
-//! [`ModelFile::at_temperature`](crate::file::ModelFile::at_temperature) and checked as [`BoardCoefficients::from_model_file`]
+//! [`crate::pipeline::at_temperature`] and checked as [`BoardCoefficients::from_model_file`]
 //! checks one, then the whole table as the board's [`TemperatureBank::new`] checks it); the
 //! bank is written, as [`BoardImage::Bank`], by the image's Rust and C writers. Every set must
 //! have the same number of sections. The binary blob of [`crate::blob`] carries one set, so a
@@ -130,7 +130,7 @@ pub struct BoardBank {
 
 impl BoardBank {
     /// Designs one set per temperature of `range` from `file` (read from `path`), each with
-    /// [`ModelFile::at_temperature`](crate::file::ModelFile::at_temperature), and checks the table as the board will.
+    /// [`crate::pipeline::at_temperature`], and checks the table as the board will.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] when the model has no `temperature` effect;
@@ -165,7 +165,7 @@ impl BoardBank {
         let temperatures_k = range.temperatures();
         let mut sets: Vec<BoardCoefficients> = Vec::with_capacity(temperatures_k.len());
         for &t in &temperatures_k {
-            let scaled = file.at_temperature(t)?;
+            let scaled = crate::pipeline::at_temperature(file, t)?;
             let set = BoardCoefficients::from_model_file(&scaled, path).map_err(|e| {
                 bad(format!(
                     "at {t} K (model at {reference} K): {}",

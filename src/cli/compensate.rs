@@ -1,0 +1,208 @@
+//! `unlag compensate`: its arguments, the recording compensated through the library's pipeline,
+//! its error against the recorded reference printed, and the warnings that keep a worse run or a
+//! clamped input from passing in silence.
+
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+use serde_json::json;
+
+use super::{check_rate, console, name, pct, ColumnArgs};
+use crate::design::inverse;
+use crate::error::Result;
+use crate::file::ModelFile;
+use crate::pipeline::{self, CompensateRequest, Compensation, ReferenceError};
+use crate::trace::Trace;
+
+/// Arithmetic of the compensator run on the host.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Arithmetic {
+    /// 32-bit float, as on a Cortex-M4F board (default).
+    F32,
+    /// 64-bit float.
+    F64,
+    /// 32-bit fixed point, bit for bit what a board without an FPU computes (the model file's
+    /// fixed-point plan, from `unlag invert` or `unlag fit`).
+    Fixed,
+}
+
+/// Arguments of `unlag compensate`.
+#[derive(Debug, Args)]
+pub struct CompensateArgs {
+    /// The model file.
+    #[arg(value_name = "MODEL.toml")]
+    pub model: PathBuf,
+    /// The probe recording (CSV).
+    #[arg(value_name = "FILE")]
+    pub file: PathBuf,
+    /// Output CSV: the input columns plus `u_hat`.
+    #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
+    pub output: PathBuf,
+    /// Arithmetic of the compensator.
+    #[arg(long, value_enum, default_value_t = Arithmetic::F32)]
+    pub arithmetic: Arithmetic,
+    /// Use the paper's direct inverse (eq. 7) even when the model file has a compensator.
+    #[arg(long)]
+    pub direct: bool,
+    /// Host only: the non-causal optimum on the whole recorded run (no latency, the least
+    /// error a linear filter can reach), from the model and the noise and prior stored with
+    /// its optimal compensator. A board cannot run it.
+    #[arg(long, conflicts_with_all = ["direct", "arithmetic"])]
+    pub offline: bool,
+    /// Gas temperature of the recording (K): the model (with a `temperature` effect) is scaled
+    /// to it and its compensator designed anew, as a board given that temperature runs it.
+    #[arg(long, value_name = "K")]
+    pub temperature: Option<f64>,
+    /// Column names.
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl From<Arithmetic> for pipeline::Arithmetic {
+    fn from(a: Arithmetic) -> Self {
+        match a {
+            Arithmetic::F32 => Self::F32,
+            Arithmetic::F64 => Self::F64,
+            Arithmetic::Fixed => Self::Fixed,
+        }
+    }
+}
+
+/// `unlag compensate`.
+///
+/// # Errors
+/// The model file's, the trace's and the compensator's errors.
+pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
+    let file = ModelFile::load(&args.model)?;
+    // A board given the gas temperature runs the coefficient set rescaled to it.
+    let file = match args.temperature {
+        Some(t) => crate::pipeline::at_temperature(&file, t)?,
+        None => file,
+    };
+    let trace = Trace::read(&args.file, &args.columns.columns(false))?;
+    check_rate(&file, &trace)?;
+    let compensation = if args.offline {
+        Compensation::Offline
+    } else if args.direct {
+        Compensation::Direct(args.arithmetic.into())
+    } else {
+        Compensation::Designed(args.arithmetic.into())
+    };
+    let c = pipeline::compensate(&CompensateRequest {
+        file: &file,
+        model_path: &args.model,
+        trace: &trace,
+        compensation,
+    })?;
+    // A clamped input or a saturation is never hidden.
+    if let Some(f) = &c.fixed {
+        if f.clamped_inputs > 0 {
+            crate::errln!(
+                "warning: {} samples of {} lie outside the fixed-point full scale +-{} and were clamped",
+                f.clamped_inputs,
+                trace.path.display(),
+                f.full_scale
+            );
+        }
+        if f.overflowed {
+            crate::errln!("warning: the fixed-point compensator saturated (overflow flag set)");
+        }
+    }
+    if c.still_reference {
+        let msg = format!(
+            "note: the reference of {} does not move above its noise: no error against it is reported",
+            name(&args.file)
+        );
+        console::note(args.json, &msg);
+    }
+    let (latency, what, error) = (c.latency_samples, c.compensator, c.error);
+    let design = file.inverse.as_ref().filter(|_| c.designed);
+    crate::trace::write_atomically_with(&args.output, |out| {
+        trace.write_csv_with(out, &[("u_hat", &c.u_hat)])
+    })?;
+    let arith = match args.arithmetic {
+        _ if args.offline => "f64",
+        Arithmetic::F32 => "f32",
+        Arithmetic::F64 => "f64",
+        Arithmetic::Fixed => "32-bit fixed point",
+    };
+    let fs = file.model.fs;
+    if args.json {
+        let v = json!({
+            "output": name(&args.output),
+            "samples": trace.len(),
+            "compensator": what,
+            "latency_samples": latency,
+            "latency_s": latency / fs,
+            "arithmetic": arith,
+            "nrmse_u_hat": error.map(|e| e.u_hat),
+            "nrmse_raw": error.map(|e| e.raw),
+            "alignment_samples": error.map(|e| e.lag),
+            "verdict": error.map(|e| if e.worse() { "worse" } else { "better" }),
+        });
+        crate::outln!("{v}");
+        warn_if_worse(args, design, error);
+        return Ok(());
+    }
+    crate::outln!(
+        "compensated {} samples of {} with {what} ({arith}); u_hat lags the true pressure by {:.2} samples ({:.6} s)",
+        trace.len(),
+        trace.path.display(),
+        latency,
+        latency / fs
+    );
+    if let Some(e) = error {
+        crate::outln!(
+            "error against the recorded reference (RMS / range, best alignment): u_hat {} (at {} samples), raw probe {}",
+            pct(e.u_hat),
+            e.lag,
+            pct(e.raw)
+        );
+    }
+    crate::outln!("wrote {}", args.output.display());
+    warn_if_worse(args, design, error);
+    Ok(())
+}
+
+/// A compensated run further from its recorded reference than the raw probe is never passed
+/// over in silence: one line on stderr with both errors and the remedy. A design the fit's
+/// check already found no better than the raw probe (the delay alone, or the probe passed
+/// through) says so instead of a remedy.
+fn warn_if_worse(
+    args: &CompensateArgs,
+    design: Option<&inverse::Design>,
+    error: Option<ReferenceError>,
+) {
+    let Some(error) = error.filter(ReferenceError::worse) else {
+        return;
+    };
+    let (e, raw) = (error.u_hat, error.raw);
+    let not_better = design
+        .and_then(|d| d.check.as_ref())
+        .is_some_and(|c| c.verdict == inverse::check::Verdict::NotBetter);
+    if not_better {
+        crate::errln!(
+            "warning: on {} u_hat is no closer to the recorded reference than the raw probe ({} against {}): \
+             {}'s compensator is {}, stored marked not-better (no design beat the raw probe on the fit's tests)",
+            args.file.display(),
+            pct(e),
+            pct(raw),
+            args.model.display(),
+            design.map_or("", |d| d.method.short())
+        );
+        return;
+    }
+    crate::errln!(
+        "warning: on {} u_hat is further from the recorded reference than the raw probe ({} against {}): \
+         the compensator makes this run worse. Its design assumed signals like its tests'; \
+         for runs like this one, learn the signal from them: `unlag invert {} TEST.csv --signal {} -o ...`",
+        args.file.display(),
+        pct(e),
+        pct(raw),
+        args.model.display(),
+        args.file.display()
+    );
+}

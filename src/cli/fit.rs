@@ -1,0 +1,437 @@
+//! `unlag fit`: its arguments, the fit and its compensator through the library's pipeline, and
+//! the fit printed.
+
+use std::path::{Path, PathBuf};
+
+use clap::{Args, ValueEnum};
+use serde_json::json;
+
+use super::invert::{print_inverse, warn_unplanned, InverseArgs};
+use super::{as_tests, console, json_err, name, number, pct, read_test, report, ColumnArgs};
+use crate::error::{Error, Result};
+use crate::file::ModelFile;
+use crate::fit::{Method, Options, Order};
+use crate::pipeline::{self, CompensatorRequest, FitRequest, Roles};
+use crate::trace::Trace;
+
+/// Identification method on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// Output error (default): unbiased under measurement noise.
+    Oe,
+    /// Box-Jenkins: output error with an autoregressive noise model, for coloured probe noise.
+    Bj,
+    /// Steiglitz-McBride iterations.
+    Sm,
+    /// The paper's direct least squares (biased by noise).
+    Arx,
+}
+
+/// Arguments of `unlag fit`.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Step-test CSV files: estimation first, then validation tests.
+    #[arg(required = true, value_name = "FILE")]
+    pub files: Vec<PathBuf>,
+    /// Where to write the model (TOML).
+    #[arg(short = 'o', long = "output", value_name = "MODEL.toml")]
+    pub output: PathBuf,
+    /// Model order: a number, or `auto` to choose.
+    #[arg(long, default_value = "auto", value_name = "N|auto")]
+    pub order: String,
+    /// Largest order tried by `--order auto`.
+    #[arg(long, default_value_t = 6, value_name = "N")]
+    pub max_order: usize,
+    /// Identification method.
+    #[arg(long, value_enum, default_value_t = MethodArg::Bj)]
+    pub method: MethodArg,
+    /// Known delay in samples (skips the delay search).
+    #[arg(long, value_name = "SAMPLES")]
+    pub delay: Option<usize>,
+    /// Add a physical effect to the model (repeatable): mode, leak, offset, drift,
+    /// coloured-noise, nonlinear-damping, delay (searched again, then kept) or delay=N,
+    /// sensor-resonance (the transducers' modes;
+    /// frequency found in the reference) or sensor-resonance=HZ, sensor-resonance-prefilter[=HZ]
+    /// (the paper's prefilter instead), temperature (reference 293.15 K) or temperature=K
+    /// (the estimation test's gas temperature). Effects already in the output model file are
+    /// kept.
+    #[arg(long = "add", value_name = "KIND")]
+    pub add: Vec<String>,
+    /// Start afresh: ignore the effects and history of an existing output model file.
+    #[arg(long)]
+    pub fresh: bool,
+    /// Also write the HTML report of the fitted model against the tests (as `unlag report`).
+    #[arg(long, value_name = "REPORT.html")]
+    pub report: Option<PathBuf>,
+    /// Compensator design (on the validation tests, or the estimation test if there are none).
+    #[command(flatten)]
+    pub inverse: InverseArgs,
+    /// Column names.
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+    /// Print one JSON object instead of tables.
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl FitArgs {
+    /// Method, order and delay.
+    fn options(&self) -> Result<Options> {
+        let order = if self.order == "auto" {
+            Order::Auto {
+                max: self.max_order,
+            }
+        } else {
+            match self.order.parse::<usize>() {
+                Ok(m) if (1..=crate::fit::model::MAX_ORDER).contains(&m) => Order::Fixed(m),
+                _ => {
+                    return Err(Error::InvalidArgument {
+                        what: "--order",
+                        message: format!(
+                            "expected 'auto' or a number 1..={}, got '{}'",
+                            crate::fit::model::MAX_ORDER,
+                            self.order
+                        ),
+                    })
+                }
+            }
+        };
+        if self.max_order == 0 || self.max_order > crate::fit::model::MAX_ORDER {
+            return Err(Error::InvalidArgument {
+                what: "--max-order",
+                message: format!("must be 1..={}", crate::fit::model::MAX_ORDER),
+            });
+        }
+        let method = match self.method {
+            MethodArg::Oe => Method::Oe,
+            MethodArg::Bj => Method::Bj,
+            MethodArg::Sm => Method::Sm,
+            MethodArg::Arx => Method::Arx,
+        };
+        Ok(Options {
+            method,
+            order,
+            delay: self.delay,
+        })
+    }
+
+    /// The model the fit continues: the output file's, unless `--fresh` or there is none. A
+    /// file in the way that is not a model is never replaced silently; `--fresh` replaces a
+    /// model (even a broken one), never a file that is not TOML at all (a recorded test).
+    fn previous(&self) -> Result<Option<ModelFile>> {
+        if self.fresh && self.output.is_file() {
+            let text = std::fs::read(&self.output).unwrap_or_default();
+            let is_toml = std::str::from_utf8(&text)
+                .ok()
+                .is_some_and(|t| t.parse::<toml::Table>().is_ok());
+            if !is_toml {
+                return Err(Error::InvalidArgument {
+                    what: "output",
+                    message: format!(
+                        "{} exists and is not a model file (not TOML): refusing to replace it; \
+                         give another path",
+                        self.output.display()
+                    ),
+                });
+            }
+        }
+        if self.fresh || self.output == Path::new("-") || !self.output.exists() {
+            return Ok(None);
+        }
+        ModelFile::load(&self.output)
+            .map(Some)
+            .map_err(|e| Error::InvalidArgument {
+                what: "output",
+                message: format!(
+                    "{} exists and is not a model this fit can continue ({e}); give another path, \
+                 or --fresh to replace it",
+                    self.output.display()
+                ),
+            })
+    }
+}
+
+/// Refuses held-out tests sampled at another rate than the estimation test.
+fn same_rate(est: &Trace, val: &[Trace]) -> Result<()> {
+    for t in val {
+        let rel = (t.sample_rate_hz - est.sample_rate_hz).abs() / est.sample_rate_hz;
+        if rel > crate::trace::MAX_JITTER {
+            return Err(Error::Mismatch {
+                path: t.path.clone(),
+                message: format!(
+                    "sampled at {:.6} Hz but the estimation test {} at {:.6} Hz: resample one of them",
+                    t.sample_rate_hz,
+                    est.path.display(),
+                    est.sample_rate_hz
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// `unlag fit`: the model fitted to the tests (continuing the output model file's modelling
+/// loop), its compensator designed, the model file written, and the optional report.
+///
+/// # Errors
+/// The arguments', the traces', the fit's and the files' errors; a compensator that cannot be
+/// designed is a warning (the fit stands on its own).
+pub fn run_fit(args: &FitArgs) -> Result<()> {
+    let options = args.options()?;
+    let columns = args.columns.columns(true);
+    // Reading, fitting, designing, writing, and the report's stages.
+    let progress = report::Progress::start(
+        args.json,
+        4 + if args.report.is_some() {
+            report::REPORT_STAGES
+        } else {
+            0
+        },
+    );
+    progress.step("reading the tests");
+    let traces = args
+        .files
+        .iter()
+        .map(|f| read_test(f, &columns))
+        .collect::<Result<Vec<_>>>()?;
+    let Some((est, val)) = traces.split_first() else {
+        return Err(Error::InvalidArgument {
+            what: "FILE",
+            message: "give at least one step test".into(),
+        });
+    };
+    same_rate(est, val)?;
+    let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
+    let tests = as_tests(&traces, &names)?;
+    // The modelling loop: the output file's effects and history carry over.
+    let previous = args.previous()?;
+    let (mut effects, dropped) = pipeline::carried_effects(
+        previous.as_ref().map_or(&[], |p| p.effects.as_slice()),
+        options.order,
+    );
+    if let Some(p) = previous
+        .as_ref()
+        .filter(|p| !p.effects.is_empty() || !p.history.is_empty())
+    {
+        let kept: Vec<&str> = effects.iter().map(|e| e.kind().as_str()).collect();
+        let msg = format!(
+            "continuing {}: keeping its effects [{}] and {} history row(s){} (--fresh starts over)",
+            args.output.display(),
+            kept.join(", "),
+            p.history.len(),
+            if dropped > 0 {
+                format!("; {dropped} mode effect(s) dropped because --order is given")
+            } else {
+                String::new()
+            }
+        );
+        console::note(args.json, &msg);
+    }
+    let search_delay = pipeline::add_effects(&mut effects, &args.add)?;
+    progress.step("fitting (orders on a window, then the whole record)");
+    // The probe's geometry describes the hardware, not the fit: kept even with --fresh.
+    let probe = if args.fresh {
+        ModelFile::load(&args.output).ok().and_then(|p| p.probe)
+    } else {
+        previous.as_ref().and_then(|p| p.probe.clone())
+    };
+    let digests: Vec<String> = traces.iter().map(|t| t.sha256.clone()).collect();
+    let mut file = pipeline::fit_probe(&FitRequest {
+        tests: &tests,
+        digests: &digests,
+        fs: est.sample_rate_hz,
+        options,
+        effects,
+        search_delay,
+        history: previous.map(|p| p.history).unwrap_or_default(),
+        probe,
+    })
+    .map_err(|e| match e {
+        // The library does not know the column's position in the file; the trace does.
+        Error::NoStep { path, reason, .. } => Error::NoStep {
+            column: est.u_column.unwrap_or(0),
+            name: columns.input.clone(),
+            path,
+            reason,
+        },
+        e => e,
+    })?;
+    // The fit stands on its own: if no compensator can be designed, say why and keep the model.
+    progress.step("designing the compensator");
+    let spec = args.inverse.spec(&args.columns, file.model.fs)?;
+    let compensator = pipeline::design_compensator(&CompensatorRequest {
+        model: &file.model,
+        effects: &file.effects,
+        tests: &tests,
+        roles: Roles::Fit,
+        stored: None,
+        spec: &spec,
+        exportable: false,
+    })?;
+    file.inverse = match compensator.design {
+        Ok(d) => Some(d),
+        Err(e) => {
+            crate::errln!("warning: no compensator designed: {e}");
+            None
+        }
+    };
+    warn_unplanned(&compensator.unplanned);
+    progress.step("writing the model");
+    file.save(&args.output)?;
+    let report_bytes = match &args.report {
+        Some(path) => Some(report::write_report(
+            path,
+            &name(&args.output),
+            &file,
+            &tests,
+            &progress,
+        )?),
+        None => None,
+    };
+    progress.finish();
+    if args.json {
+        let mut v = serde_json::to_value(&file).map_err(json_err)?;
+        v["output"] = json!(name(&args.output));
+        v["dc_gain"] = json!(file.model.dc_gain());
+        if let Some(path) = &args.report {
+            v["report"] = json!(name(path));
+        }
+        crate::outln!("{v}");
+        return Ok(());
+    }
+    print_fit(&file, est);
+    if let Some(d) = &file.inverse {
+        print_inverse(d, file.model.fs);
+    }
+    crate::outln!("wrote {}", args.output.display());
+    if let (Some(path), Some(bytes)) = (&args.report, report_bytes) {
+        crate::outln!(
+            "wrote the report {} ({:.0} kB): open it in a browser",
+            path.display(),
+            bytes as f64 / 1e3
+        );
+    }
+    Ok(())
+}
+
+/// The fit as `unlag fit` prints it: the step, the delay and order searches, the model, its
+/// uncertainty and noise model, and the errors on each test.
+fn print_fit(file: &ModelFile, est: &Trace) {
+    let m = &file.model;
+    let Some(r) = &file.fit else { return };
+    crate::outln!(
+        "estimation test {}: {} samples at {} Hz, step onset at sample {} (t = {:.6} s)",
+        est.path.display(),
+        est.len(),
+        est.sample_rate_hz,
+        r.step_onset,
+        r.step_onset as f64 / est.sample_rate_hz
+    );
+    for note in &r.notes {
+        crate::outln!("note: {note}");
+    }
+    if !r.delay_candidates.is_empty() {
+        crate::outln!(
+            "delay search, simulation nrmse per candidate delay ({}):",
+            r.delay_selection
+        );
+        for row in r.delay_candidates.chunks(6) {
+            let cells: Vec<String> = row
+                .iter()
+                .map(|c| {
+                    let mark = if c.delay == m.delay { '*' } else { ' ' };
+                    format!("{mark}{:>4} {:>8}", c.delay, pct(c.nrmse))
+                })
+                .collect();
+            crate::outln!("  {}", cells.join("  "));
+        }
+    }
+    crate::outln!("order selection ({}):", r.order_selection);
+    crate::outln!(
+        "  {:>5} {:>6} {:>14} {:>14} {:>7}",
+        "order",
+        "delay",
+        "nrmse (est)",
+        "criterion",
+        "stable"
+    );
+    for o in &r.orders {
+        let crit = if r.order_selection.contains("held-out") {
+            pct(o.criterion)
+        } else {
+            number(o.criterion)
+        };
+        let mark = if o.order == m.order() {
+            "  <- chosen"
+        } else {
+            ""
+        };
+        crate::outln!(
+            "  {:>5} {:>6} {:>14} {:>14} {:>7}{mark}",
+            o.order,
+            o.delay,
+            pct(o.nrmse_estimation),
+            crit,
+            if o.stable { "yes" } else { "no" }
+        );
+    }
+    crate::outln!(
+        "model: order {}, delay {} samples ({:.6} s), method {}",
+        m.order(),
+        m.delay,
+        m.delay as f64 / m.fs,
+        r.method
+    );
+    crate::outln!("  a = {:?}", m.a);
+    crate::outln!("  b = {:?}", m.b);
+    crate::outln!("  DC gain {:.6} (1 for a calibrated probe)", m.dc_gain());
+    if let Some(u) = &r.uncertainty {
+        crate::outln!(
+            "  uncertainty (1 sigma, from {}): {}",
+            u.noise_text(),
+            u.summary()
+        );
+    }
+    if let Ok(z) = m.zeros() {
+        if let Some(z) = z.first() {
+            if z.norm() >= 1.0 {
+                crate::outln!(
+                    "  note: zero {} of B is outside the unit circle (|z| = {:.4}); the direct inverse is unstable",
+                    crate::poly::format_root(*z),
+                    z.norm()
+                );
+            }
+        }
+    }
+    match file.effects.iter().find_map(|e| match e {
+        crate::modelling::effects::Effect::ColouredNoise { ar, innovation_std } => {
+            Some((ar, innovation_std))
+        }
+        _ => None,
+    }) {
+        Some((ar, innovation)) => {
+            crate::outln!(
+                "noise model beside the dynamics: AR({}) D = [1, {}], innovation std {:.4e}",
+                ar.len(),
+                ar.iter()
+                    .map(|d| format!("{d:.4}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                innovation
+            );
+            crate::outln!(
+                "errors (one-step-ahead prediction D(q)(y - G u), RMS / range of y; the simulation error is in `unlag compare`):"
+            );
+        }
+        None => crate::outln!("errors (simulation, RMS / range of y):"),
+    }
+    for s in &file.sources {
+        crate::outln!(
+            "  {:<11} {:<40} nrmse {:>10}   noise floor {:>10}",
+            s.role,
+            s.file,
+            pct(s.nrmse),
+            pct(s.noise_floor)
+        );
+    }
+}

@@ -1,0 +1,427 @@
+//! `unlag invert` and the compensator arguments it shares with `unlag fit`: what is asked of the
+//! design on the command line, and the design printed.
+
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+use serde_json::json;
+
+use super::{as_tests, check_rate, json_err, name, pct, read_test, ColumnArgs};
+use crate::design::inverse;
+use crate::error::{Error, Result};
+use crate::file::ModelFile;
+use crate::pipeline::{self, CompensatorRequest, CompensatorSpec, Roles, Shape};
+use crate::trace::Trace;
+
+/// How to design the compensator (shared by `fit` and `invert`).
+#[derive(Debug, Clone, Args)]
+pub struct InverseArgs {
+    /// Instead of the noise-aware optimum (the default), a stable inverse times a low-pass at
+    /// this corner in Hz, or `auto`: the corner that reconstructs the tests' references best.
+    #[arg(long, value_name = "HZ|auto")]
+    pub bandwidth: Option<String>,
+    /// Longest latency of `u_hat` behind the true pressure the optimum may take (the model's
+    /// delay included): `3ms`, `250us`, `0.002s` or a number of samples. Default: the
+    /// shortest within 2 % of the best error the board's 16 sections allow.
+    #[arg(long, value_name = "TIME|SAMPLES")]
+    pub max_latency: Option<String>,
+    /// Largest -3 dB band in Hz the optimum may take (a quieter prior narrows it to this).
+    #[arg(long, value_name = "HZ")]
+    pub max_band: Option<f64>,
+    /// The user's own recorded runs (CSV, repeatable) to learn the pressure's prior from,
+    /// instead of the step tests: from their reference column the increments' level and
+    /// correlation (steps and ramps), else a random walk's level from the probe signal.
+    #[arg(long = "signal", value_name = "RUN.csv")]
+    pub signal: Vec<PathBuf>,
+    /// Low-pass family of the band limit.
+    #[arg(long, value_enum, default_value_t = LowpassArg::Bessel)]
+    pub lowpass: LowpassArg,
+    /// Low-pass order.
+    #[arg(long, default_value_t = 4, value_name = "N")]
+    pub lowpass_order: usize,
+    /// Use the paper's direct inverse A/B (times the low-pass) instead of the stable one; fails
+    /// for a non-minimum-phase model.
+    #[arg(long)]
+    pub direct: bool,
+    /// The ADC's full scale in the probe's units (inputs within +-FS never overflow the
+    /// fixed-point compensator). Default: the largest |y| of the tests, plus 25 %.
+    #[arg(long, value_name = "FS")]
+    pub full_scale: Option<f64>,
+    /// The fixed-point form: `normal` (coupled sections: no limit cycles, 100 dB at
+    /// fs/fn = 1000, about 115 instructions a sample for m = 4 on a Cortex-M4) or `direct`
+    /// (direct form I with error feedback: about 33, limit cycles of a few codes possible,
+    /// about 90 dB at fs/fn = 1000). See BENCHMARKS.md, "Fixed point: the two forms".
+    #[arg(long, value_enum, default_value_t = FixedFormArg::Normal)]
+    pub fixed_form: FixedFormArg,
+}
+
+/// Fixed-point form on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FixedFormArg {
+    /// Normal (coupled) state-space sections (`unlag::fixed::FixedCascade`).
+    Normal,
+    /// Direct-form-I sections with error feedback (`unlag::fixed::direct::DirectCascade`).
+    Direct,
+}
+
+impl From<FixedFormArg> for crate::design::quantise::FixedForm {
+    fn from(v: FixedFormArg) -> Self {
+        match v {
+            FixedFormArg::Normal => Self::Normal,
+            FixedFormArg::Direct => Self::Direct,
+        }
+    }
+}
+
+/// Low-pass family on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum LowpassArg {
+    /// Bessel: maximally flat delay, a step barely overshoots.
+    Bessel,
+    /// Butterworth: maximally flat magnitude.
+    Butterworth,
+}
+
+impl InverseArgs {
+    /// The compensator asked for: the noise-aware optimum unless `--bandwidth` or `--direct`
+    /// asks for the band-limited inverse; the optimum's `--signal` runs read, its caps checked
+    /// and its latency in samples at `fs`.
+    ///
+    /// # Errors
+    /// The runs' read errors; [`Error::InvalidArgument`] for a `--bandwidth`, `--max-band` or
+    /// `--max-latency` that is not what it should be.
+    pub(crate) fn spec(&self, columns: &ColumnArgs, fs: f64) -> Result<CompensatorSpec> {
+        let band_limited = |bandwidth_hz| Shape::BandLimited {
+            bandwidth_hz,
+            stabilise: !self.direct,
+        };
+        let (shape, signal) = match self.bandwidth.as_deref() {
+            None if !self.direct => {
+                let signal = self
+                    .signal
+                    .iter()
+                    .map(|f| Trace::read(f, &columns.columns(false)))
+                    .collect::<Result<Vec<_>>>()?;
+                let max_band_hz = match self.max_band {
+                    Some(f) if !(f.is_finite() && f > 0.0) => {
+                        return Err(Error::InvalidArgument {
+                            what: "--max-band",
+                            message: format!("expected a frequency in Hz, got {f}"),
+                        })
+                    }
+                    other => other,
+                };
+                let max_latency_samples = self
+                    .max_latency
+                    .as_deref()
+                    .map(|v| parse_latency(v, fs))
+                    .transpose()?;
+                let shape = Shape::Optimal {
+                    max_latency_samples,
+                    max_band_hz,
+                };
+                (shape, signal)
+            }
+            None | Some("auto") => (band_limited(None), Vec::new()),
+            Some(text) => match text.parse::<f64>() {
+                Ok(f) if f.is_finite() && f > 0.0 => (band_limited(Some(f)), Vec::new()),
+                _ => {
+                    return Err(Error::InvalidArgument {
+                        what: "--bandwidth",
+                        message: format!("expected 'auto' or a frequency in Hz, got '{text}'"),
+                    })
+                }
+            },
+        };
+        Ok(CompensatorSpec {
+            shape,
+            lowpass: match self.lowpass {
+                LowpassArg::Bessel => inverse::LowpassKind::Bessel,
+                LowpassArg::Butterworth => inverse::LowpassKind::Butterworth,
+            },
+            lowpass_order: self.lowpass_order,
+            signal,
+            fixed_form: self.fixed_form.into(),
+            full_scale: self.full_scale,
+        })
+    }
+}
+
+/// Tells each fixed-point plan that could not be made: the f32 compensator does not depend on
+/// it.
+pub(super) fn warn_unplanned(unplanned: &[Error]) {
+    for e in unplanned {
+        crate::errln!("warning: no fixed-point compensator: {e}");
+    }
+}
+
+/// `3ms`, `250us`, `0.002s` or a number of samples, as samples at `fs`.
+fn parse_latency(text: &str, fs: f64) -> Result<usize> {
+    let t = text.trim();
+    let seconds = |v: &str, unit: f64| v.trim().parse::<f64>().ok().map(|x| x * unit * fs);
+    let samples = if let Some(v) = t.strip_suffix("ms") {
+        seconds(v, 1e-3)
+    } else if let Some(v) = t.strip_suffix("us") {
+        seconds(v, 1e-6)
+    } else if let Some(v) = t.strip_suffix('s') {
+        seconds(v, 1.0)
+    } else {
+        t.parse::<f64>().ok()
+    };
+    match samples {
+        Some(n) if (0.0..1e9).contains(&n) => Ok(n.floor() as usize),
+        _ => Err(Error::InvalidArgument {
+            what: "--max-latency",
+            message: format!(
+                "expected a time such as 3ms, 250us or 0.002s, or a number of samples, got '{text}'"
+            ),
+        }),
+    }
+}
+
+/// Arguments of `unlag invert`.
+#[derive(Debug, Args)]
+pub struct InvertArgs {
+    /// The model file.
+    #[arg(value_name = "MODEL.toml")]
+    pub model: PathBuf,
+    /// Tests with a reference, to choose the bandwidth on and to report the reconstruction.
+    #[arg(value_name = "FILE")]
+    pub files: Vec<PathBuf>,
+    /// Where to write the model with its compensator (may be MODEL.toml itself).
+    #[arg(short = 'o', long = "output", value_name = "OUT.toml")]
+    pub output: PathBuf,
+    /// Compensator design.
+    #[command(flatten)]
+    pub inverse: InverseArgs,
+    /// Column names.
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The design as `unlag fit` and `unlag invert` print it: its method, band, noise, latency,
+/// fixed-point plans, error budget, reconstructions and the check's verdict.
+pub(super) fn print_inverse(d: &inverse::Design, fs: f64) {
+    crate::outln!("compensator: {}", d.method);
+    if !d.reflected_zeros.is_empty() {
+        crate::outln!(
+            "  zeros of B reflected into the unit circle: {}",
+            d.reflected_zeros.join(", ")
+        );
+    }
+    if !d.pulled_zeros.is_empty() {
+        crate::outln!(
+            "  zeros of B pulled in to |z| = {}: {}",
+            inverse::ZERO_RADIUS_MAX,
+            d.pulled_zeros.join(", ")
+        );
+    }
+    if !d.candidates.is_empty() {
+        crate::outln!("  bandwidth search ({}):", d.bandwidth_selection);
+        for row in d.candidates.chunks(3) {
+            let cells: Vec<String> = row
+                .iter()
+                .map(|c| {
+                    let mark = if (c.lowpass_hz - d.lowpass_hz).abs() < 1e-9 {
+                        '*'
+                    } else {
+                        ' '
+                    };
+                    format!(
+                        "{mark}{:>9.1} Hz {:>9} (noise x{:<8.3})",
+                        c.lowpass_hz,
+                        pct(c.nrmse),
+                        c.noise_gain
+                    )
+                })
+                .collect();
+            crate::outln!("   {}", cells.join(" "));
+        }
+    }
+    // The smoother has no low-pass of its own: its band is where H C falls by 3 dB.
+    let smoother = d.is_smoother();
+    if smoother {
+        crate::outln!(
+            "  -3 dB band of the corrected probe {:.1} Hz; {} sections",
+            d.lowpass_hz,
+            d.sections.len()
+        );
+    } else {
+        crate::outln!(
+            "  {:?} low-pass, order {}, corner {:.1} Hz; {} sections",
+            d.lowpass,
+            d.lowpass_order,
+            d.lowpass_hz,
+            d.sections.len()
+        );
+    }
+    crate::outln!(
+        "  corrected bandwidth {:.1} Hz (+/-1 dB, +/-5 deg); noise gain {:.3}; latency {:.2} samples ({:.6} s)",
+        d.corrected_bandwidth_hz, d.noise_gain, d.latency_samples, d.latency_s
+    );
+    crate::outln!(
+        "  in band ({}): worst magnitude error {:.3} dB, worst phase error {:.2} deg; pole margin {:.4}",
+        if smoother {
+            "to half the -3 dB band, against a pure delay"
+        } else {
+            "to the corner"
+        },
+        d.in_band_magnitude_error_db,
+        d.in_band_phase_error_deg,
+        d.pole_margin
+    );
+    if let Some(p) = &d.fixed {
+        let forms: Vec<&str> = p.sections.iter().map(|s| s.form.as_str()).collect();
+        crate::outln!(
+            "  fixed point: inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {:.3}; headroom {:.2} bits by the L1 bound (no overflow possible); sections {}",
+            p.full_scale,
+            p.full_scale,
+            p.output_exponent,
+            p.l1_gain,
+            p.headroom_bits,
+            forms.join(", ")
+        );
+    }
+    if let Some(p) = &d.fixed_direct {
+        crate::outln!(
+            "  fixed point (direct form with error feedback): inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {:.3}; headroom {:.2} bits by the L1 bound (no overflow possible); {} sections",
+            p.full_scale,
+            p.full_scale,
+            p.output_exponent,
+            p.l1_gain,
+            p.headroom_bits,
+            p.sections.len()
+        );
+    }
+    if let Some(b) = &d.budget {
+        crate::outln!(
+            "  predicted error of u_hat (RMS, pressure units): {:.4} = noise {:.4} + band limit {:.4} (in quadrature); a noisy reference adds {:.4}",
+            b.total, b.noise, b.band_limit, b.reference
+        );
+    }
+    if let Some(n) = &d.noise {
+        crate::outln!(
+            "  noise ({:?}): probe {:.3e} white{}, reference {:.3e}",
+            n.source,
+            n.probe_white_std,
+            if n.probe_ar_std > 0.0 {
+                format!(
+                    " + {:.3e} AR(1) pole {:.4}",
+                    n.probe_ar_std, n.probe_ar_pole
+                )
+            } else {
+                String::new()
+            },
+            n.reference_std
+        );
+    }
+    if let Some(p) = &d.prior {
+        let from = match p.source {
+            inverse::optimal::PriorSource::StepTests => "the step tests' references",
+            inverse::optimal::PriorSource::Runs => "the --signal runs",
+            inverse::optimal::PriorSource::Given => "given",
+        };
+        if p.increment_pole > 0.0 {
+            // The increments' pole as a corner: rho = exp(-2 pi f / fs).
+            let corner = -p.increment_pole.ln() * fs / (2.0 * std::f64::consts::PI);
+            crate::outln!(
+                "  signal prior (from {from}): steps and ramps, increments correlated {:.4} (its spectrum falls as 1/f^4 above {corner:.1} Hz), innovation {:.3e}",
+                p.increment_pole, p.increment_std
+            );
+        } else {
+            crate::outln!(
+                "  signal prior (from {from}): steps, a random walk of increment {:.3e} per sample (its spectrum falls as 1/f^2)",
+                p.increment_std
+            );
+        }
+    }
+    crate::outln!(
+        "  realised as {} sections: about {} multiply-adds per sample",
+        d.sections.len(),
+        5 * d.sections.len() + 1
+    );
+    for r in &d.reconstruction {
+        let expected = match (&d.budget, r.range) {
+            (Some(b), Some(range)) if range > 0.0 => format!(
+                "; expected {} from noise and band limit{}",
+                pct(b.total.hypot(b.reference) / range),
+                match r.model_part {
+                    Some(m) => format!(", the rest ({}) is the model's", pct(m)),
+                    None => String::new(),
+                }
+            ),
+            _ => String::new(),
+        };
+        crate::outln!(
+            "  reconstruction of {}: u_hat {} against the reference, raw probe {} ({:.1}x better){expected}",
+            r.file,
+            pct(r.nrmse_u_hat),
+            pct(r.nrmse_raw),
+            r.nrmse_raw / r.nrmse_u_hat
+        );
+    }
+    if let Some(c) = &d.check {
+        match c.verdict {
+            inverse::check::Verdict::Better | inverse::check::Verdict::Unchecked => {}
+            inverse::check::Verdict::FellBack => crate::errln!(
+                "warning: fell back to {}: {}",
+                d.method.short(),
+                c.rejected.join("; ")
+            ),
+            inverse::check::Verdict::NotBetter => crate::errln!(
+                "warning: no compensator is better than the raw probe on these tests ({}); stored marked not-better, `unlag export` refuses it without --force",
+                c.rejected.join("; ")
+            ),
+        }
+    }
+}
+
+/// `unlag invert`: the model file's compensator designed anew on the tests given.
+///
+/// # Errors
+/// The model file's, the traces' and the design's errors.
+pub fn run_invert(args: &InvertArgs) -> Result<()> {
+    let file = ModelFile::load(&args.model)?;
+    let columns = args.columns.columns(true);
+    let traces = args
+        .files
+        .iter()
+        .map(|f| read_test(f, &columns))
+        .collect::<Result<Vec<_>>>()?;
+    for t in &traces {
+        check_rate(&file, t)?;
+    }
+    let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
+    let tests = as_tests(&traces, &names)?;
+    let spec = args.inverse.spec(&args.columns, file.model.fs)?;
+    let compensator = pipeline::design_compensator(&CompensatorRequest {
+        model: &file.model,
+        effects: &file.effects,
+        tests: &tests,
+        roles: Roles::Alike,
+        stored: file.inverse.as_ref(),
+        spec: &spec,
+        exportable: true,
+    })?;
+    let design = compensator.design?;
+    warn_unplanned(&compensator.unplanned);
+    let out = ModelFile {
+        inverse: Some(design),
+        ..file
+    };
+    out.save(&args.output)?;
+    if args.json {
+        let mut v = serde_json::to_value(&out.inverse).map_err(json_err)?;
+        v["output"] = json!(name(&args.output));
+        crate::outln!("{v}");
+        return Ok(());
+    }
+    if let Some(d) = &out.inverse {
+        print_inverse(d, out.model.fs);
+    }
+    crate::outln!("wrote {}", args.output.display());
+    Ok(())
+}

@@ -1,0 +1,453 @@
+//! A recording compensated with a model file: the board's compensator (or the paper's direct
+//! inverse, or the offline optimum) run on the probe signal with the model's effects, and the
+//! error of its output against the recorded reference beside the raw probe's.
+
+use std::path::Path;
+
+use crate::design::inverse::{self, Design};
+use crate::error::{Error, Result};
+use crate::file::ModelFile;
+use crate::fit;
+use crate::modelling::effects;
+use crate::trace::Trace;
+
+/// Arithmetic of a compensator run on the host.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Arithmetic {
+    /// 32-bit float, as on a Cortex-M4F board.
+    F32,
+    /// 64-bit float.
+    F64,
+    /// 32-bit fixed point, bit for bit what a board without an FPU computes (the design's
+    /// fixed-point plan).
+    Fixed,
+}
+
+/// Which compensator runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Compensation {
+    /// The model file's compensator as the board runs it (the paper's direct inverse when the
+    /// file has none).
+    Designed(Arithmetic),
+    /// The paper's direct inverse (eq. 7), even when the model file has a compensator.
+    Direct(Arithmetic),
+    /// The non-causal optimum on the whole record (no latency, the least error a linear
+    /// filter can reach), from the noise and prior stored with the file's optimal design; in
+    /// f64, on the host only.
+    Offline,
+}
+
+/// A recording to compensate with a model file.
+#[derive(Debug, Clone, Copy)]
+pub struct CompensateRequest<'a> {
+    /// The model file (at the recording's gas temperature, if it has a temperature effect:
+    /// [`at_temperature`](super::at_temperature)).
+    pub file: &'a ModelFile,
+    /// Where the model file was read from, for messages.
+    pub model_path: &'a Path,
+    /// The recording: the probe signal, and the reference when it has one.
+    pub trace: &'a Trace,
+    /// Which compensator.
+    pub compensation: Compensation,
+}
+
+/// The error of `u_hat` against the recorded reference, beside the raw probe's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReferenceError {
+    /// `u_hat`'s RMS error over the reference's range, at its best alignment.
+    pub u_hat: f64,
+    /// The raw probe's, at its best alignment.
+    pub raw: f64,
+    /// The lag of `u_hat` behind the reference at its best alignment (samples).
+    pub lag: usize,
+}
+
+impl ReferenceError {
+    /// Whether `u_hat` is not closer to the reference than the raw probe: a tie within f32
+    /// rounding (the probe passed through) is not better, and a NaN counts as worse, so that
+    /// neither passes silently.
+    #[must_use]
+    pub fn worse(&self) -> bool {
+        self.u_hat.partial_cmp(&(self.raw * (1.0 - 1e-6))) != Some(std::cmp::Ordering::Less)
+    }
+}
+
+/// What a fixed-point run clamped and saturated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FixedRunSummary {
+    /// Samples of the probe signal outside the full scale, clamped.
+    pub clamped_inputs: usize,
+    /// The plan's full scale.
+    pub full_scale: f64,
+    /// A state or the output saturated (the overflow flag).
+    pub overflowed: bool,
+}
+
+/// A compensated recording.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Compensated {
+    /// The reconstructed reference, one sample per sample of the recording.
+    pub u_hat: Vec<f64>,
+    /// Its latency behind the true pressure (samples).
+    pub latency_samples: f64,
+    /// Which compensator ran, in words.
+    pub compensator: &'static str,
+    /// Whether it was the model file's design (or the offline optimum from it) rather than
+    /// the direct inverse.
+    pub designed: bool,
+    /// The error against the recorded reference: `None` without a reference, or with one
+    /// that does not move above its noise ([`Compensated::still_reference`]).
+    pub error: Option<ReferenceError>,
+    /// The reference does not move above its noise: it says nothing about `u_hat`.
+    pub still_reference: bool,
+    /// The fixed-point run's clamps and saturation, when the fixed-point compensator ran.
+    pub fixed: Option<FixedRunSummary>,
+}
+
+/// Compensates the recording: the model's offset and drift removed from the probe signal
+/// first (they are the probe's, not the pressure's), the compensator asked for run on it, a
+/// nonlinear damping's correction added; then the error against the recorded reference at the
+/// best alignment near the latency (with a sensor resonance, the reference below it: the
+/// compensator does not and should not reproduce the reference transducer's own ringing).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for the offline optimum without a stored optimal design, or
+/// fixed point without a plan or for the direct inverse; [`Error::UnsupportedOnBoard`] for
+/// fixed point with nonlinear damping; the model's and the compensator's refusals (a
+/// non-invertible model, a design the board cannot run).
+pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
+    let CompensateRequest {
+        file,
+        model_path,
+        trace,
+        compensation,
+    } = *request;
+    let m = &file.model;
+    let additive = effects::Additive::of(&file.effects);
+    let y_probe = additive.removed_from(&trace.y, m.fs);
+    let (design, arithmetic, offline) = match compensation {
+        Compensation::Designed(a) => (file.inverse.as_ref(), a, false),
+        Compensation::Direct(a) => (None, a, false),
+        Compensation::Offline => (file.inverse.as_ref(), Arithmetic::F64, true),
+    };
+    // Quadratic losses: the board adds gain * lowpass(|dy| dy) to the linear inverse.
+    let nonlinear = effects::nonlinear_gain(&file.effects);
+    if offline && design.is_none() {
+        return Err(Error::InvalidArgument {
+            what: "--offline",
+            message: format!(
+                "{} has no compensator design to take the noise and prior from: run `unlag invert`",
+                model_path.display()
+            ),
+        });
+    }
+    let mut fixed = None;
+    let (mut u_hat, latency, compensator) = match design {
+        Some(d) if offline => {
+            let (Some(noise), Some(prior)) = (&d.noise, &d.prior) else {
+                return Err(Error::InvalidArgument {
+                    what: "--offline",
+                    message: format!(
+                        "{} has no stored noise and prior: design its compensator with `unlag invert` (without --bandwidth)",
+                        model_path.display()
+                    ),
+                });
+            };
+            let y_in = effects::prefiltered(&file.effects, m.fs, &y_probe);
+            (
+                inverse::optimal::offline(m, noise, prior, &y_in)?,
+                effects::prefilter_delay(&file.effects, m.fs),
+                "the non-causal optimum (offline, host only)",
+            )
+        }
+        Some(d) => {
+            d.check_exportable()?;
+            let mut u_hat = match arithmetic {
+                Arithmetic::F32 => d.run::<f32>(&y_probe)?,
+                Arithmetic::F64 => d.run::<f64>(&y_probe)?,
+                Arithmetic::Fixed if nonlinear != 0.0 => {
+                    return Err(Error::UnsupportedOnBoard {
+                        path: model_path.to_path_buf(),
+                        effect: "nonlinear damping",
+                        arithmetic: "fixed-point",
+                        hint: "use --arithmetic f32",
+                    })
+                }
+                Arithmetic::Fixed => {
+                    let (u_hat, summary) = run_fixed(d, model_path, &y_probe)?;
+                    fixed = Some(summary);
+                    u_hat
+                }
+            };
+            if nonlinear != 0.0 {
+                let correction = match arithmetic {
+                    Arithmetic::F64 => {
+                        d.run_nonlinear_correction::<f64>(m.fs, nonlinear, &y_probe)?
+                    }
+                    _ => d.run_nonlinear_correction::<f32>(m.fs, nonlinear, &y_probe)?,
+                };
+                for (u, c) in u_hat.iter_mut().zip(correction) {
+                    *u += c;
+                }
+            }
+            (u_hat, d.latency_samples, "the model file's compensator")
+        }
+        None => {
+            m.check_invertible(&model_path.display().to_string())?;
+            // The direct inverse of a model fitted below a sensor resonance gets the prefilter.
+            let y_probe = effects::prefiltered(&file.effects, m.fs, &y_probe);
+            let u_hat = match arithmetic {
+                Arithmetic::F32 => m.compensate::<f32>(&y_probe)?,
+                Arithmetic::F64 => m.compensate::<f64>(&y_probe)?,
+                Arithmetic::Fixed => {
+                    return Err(Error::InvalidArgument {
+                        what: "--arithmetic",
+                        message: "fixed point runs the designed compensator in sections, not \
+                                  the paper's direct inverse: drop --direct, or run `unlag invert`"
+                            .into(),
+                    })
+                }
+            };
+            (u_hat, m.delay as f64, "the paper's direct inverse (eq. 7)")
+        }
+    };
+    if design.is_none() && nonlinear != 0.0 {
+        // The direct inverse has no band limit: the correction is not filtered either.
+        let c = crate::compensator::NonlinearDampingCoefficients::<f64, 1>::new(
+            nonlinear * m.fs * m.fs,
+            1.0,
+            &[],
+        )
+        .map_err(|e| Error::Numerical {
+            context: "nonlinear-damping correction".into(),
+            message: e.to_string(),
+        })?;
+        let mut st = c.equilibrium(y_probe.first().copied().unwrap_or(0.0));
+        for (u, y) in u_hat.iter_mut().zip(&y_probe) {
+            *u += c.process(&mut st, *y);
+        }
+    }
+    // A reference that does not move above its noise says nothing about u_hat: no error, no
+    // verdict (a run without a step is compensated all the same).
+    let still_reference = trace
+        .u
+        .as_ref()
+        .filter(|u| fit::step::excitation(u) < fit::step::MIN_EXCITATION)
+        .is_some();
+    let error = trace.u.as_ref().filter(|_| !still_reference).map(|u| {
+        let u = &effects::observed(&file.effects, m.fs, u);
+        let prefilter = if design.is_some() {
+            effects::prefilter_delay(&file.effects, m.fs)
+        } else {
+            0.0
+        };
+        let nominal = (latency - prefilter).round().max(0.0) as usize;
+        // The raw probe is searched over the same lags whatever the compensator's latency
+        // (the offline optimum has none), so that its error does not depend on it.
+        let causal = design
+            .map_or(latency, |d| d.latency_samples)
+            .round()
+            .max(0.0) as usize;
+        let (lags, raw_lags) = inverse::comparison_lags(design, nominal, causal, m.delay);
+        let (e, lag) = inverse::aligned_error(u, &u_hat, lags);
+        let (raw, _) = inverse::aligned_error(u, &trace.y, raw_lags);
+        ReferenceError { u_hat: e, raw, lag }
+    });
+    Ok(Compensated {
+        u_hat,
+        latency_samples: latency,
+        compensator,
+        designed: design.is_some(),
+        error,
+        still_reference,
+        fixed,
+    })
+}
+
+/// The fixed-point compensator (the direct form's plan if the design has one, else the normal
+/// form's) on the probe signal `y`.
+fn run_fixed(d: &Design, model: &Path, y: &[f64]) -> Result<(Vec<f64>, FixedRunSummary)> {
+    let (run, full_scale) = if let Some(plan) = &d.fixed_direct {
+        (plan.run(y)?, plan.full_scale)
+    } else {
+        let plan = d.fixed.as_ref().ok_or_else(|| Error::InvalidArgument {
+            what: "--arithmetic",
+            message: format!(
+                "{} has no fixed-point plan: run `unlag invert {} --full-scale FS -o ...`",
+                model.display(),
+                model.display()
+            ),
+        })?;
+        (plan.run(y)?, plan.full_scale)
+    };
+    let summary = FixedRunSummary {
+        clamped_inputs: run.clipped_inputs,
+        full_scale,
+        overflowed: run.overflowed,
+    };
+    Ok((run.u_hat, summary))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testing::{probe, step_test};
+    use super::*;
+    use crate::design::quantise::FixedPlan;
+    use crate::file::FORMAT_VERSION;
+    use crate::modelling::effects::Effect;
+    use crate::trace::Columns;
+
+    /// A recording of `u` and `y` at 10 kHz, as read from a CSV file.
+    fn trace(u: &[f64], y: &[f64]) -> Trace {
+        let mut csv = String::from("t,u,y\n");
+        for (k, (u, y)) in u.iter().zip(y).enumerate() {
+            csv.push_str(&format!("{:.6},{u:e},{y:e}\n", k as f64 / 10_000.0));
+        }
+        let columns = Columns {
+            time: "t".into(),
+            input: "u".into(),
+            output: "y".into(),
+            sample_rate_hz: None,
+            require_input: false,
+        };
+        Trace::parse(Path::new("run.csv"), csv.as_bytes(), &columns).unwrap()
+    }
+
+    /// The probe's model file with a band-limited compensator at 300 Hz, planned in fixed
+    /// point for inputs within +-`full_scale`.
+    fn file(full_scale: f64) -> ModelFile {
+        let m = probe();
+        let options = inverse::Options {
+            bandwidth_hz: Some(300.0),
+            ..inverse::Options::default()
+        };
+        let mut d = inverse::design(&m, 300.0, &options).unwrap();
+        d.fixed = Some(FixedPlan::new(&d, full_scale).unwrap());
+        ModelFile {
+            format_version: FORMAT_VERSION,
+            model: m,
+            fit: None,
+            sources: Vec::new(),
+            inverse: Some(d),
+            effects: Vec::new(),
+            history: Vec::new(),
+            probe: None,
+        }
+    }
+
+    fn run(file: &ModelFile, trace: &Trace, compensation: Compensation) -> Result<Compensated> {
+        compensate(&CompensateRequest {
+            file,
+            model_path: Path::new("probe.toml"),
+            trace,
+            compensation,
+        })
+    }
+
+    #[test]
+    fn the_compensator_beats_the_raw_probe_and_fixed_point_tells_its_clamps() {
+        let (u, y) = step_test(1.0, 7);
+        let t = trace(&u, &y);
+        let f = file(2.0);
+        let c = run(&f, &t, Compensation::Designed(Arithmetic::F64)).unwrap();
+        assert_eq!(c.u_hat.len(), y.len());
+        assert!(c.designed && c.fixed.is_none() && !c.still_reference);
+        let e = c.error.unwrap();
+        assert!(e.u_hat < 0.7 * e.raw, "{e:?}");
+        assert!(!e.worse());
+        let latency = f.inverse.as_ref().unwrap().latency_samples;
+        assert_eq!(c.latency_samples, latency);
+        assert!(
+            e.lag.abs_diff(latency.round() as usize) <= 4,
+            "{e:?} {latency}"
+        );
+
+        let fixed = run(&f, &t, Compensation::Designed(Arithmetic::Fixed)).unwrap();
+        assert_eq!(
+            fixed.fixed,
+            Some(FixedRunSummary {
+                clamped_inputs: 0,
+                full_scale: 2.0,
+                overflowed: false
+            })
+        );
+        // Within a few codes of the f64 run.
+        let worst = fixed
+            .u_hat
+            .iter()
+            .zip(&c.u_hat)
+            .fold(0.0f64, |w, (a, b)| w.max((a - b).abs()));
+        assert!(worst < 1e-4, "{worst}");
+        // A full scale below the step: the samples above it are clamped, and said to be.
+        let clamped = run(&file(0.5), &t, Compensation::Designed(Arithmetic::Fixed)).unwrap();
+        let above = y.iter().filter(|v| v.abs() > 0.5).count();
+        let summary = clamped.fixed.unwrap();
+        assert!(
+            summary.clamped_inputs > 0 && summary.clamped_inputs.abs_diff(above) <= 1,
+            "{summary:?} against {above}"
+        );
+    }
+
+    #[test]
+    fn the_direct_inverse_the_offline_optimum_and_a_still_reference() {
+        let (u, y) = step_test(1.0, 8);
+        let t = trace(&u, &y);
+        let f = file(2.0);
+        let direct = run(&f, &t, Compensation::Direct(Arithmetic::F64)).unwrap();
+        assert!(!direct.designed);
+        assert_eq!(direct.latency_samples, 3.0);
+        assert_eq!(direct.compensator, "the paper's direct inverse (eq. 7)");
+        assert!(matches!(
+            run(&f, &t, Compensation::Direct(Arithmetic::Fixed)),
+            Err(Error::InvalidArgument {
+                what: "--arithmetic",
+                ..
+            })
+        ));
+        // The band-limited design has no noise and prior for the offline optimum.
+        assert!(matches!(
+            run(&f, &t, Compensation::Offline),
+            Err(Error::InvalidArgument {
+                what: "--offline",
+                ..
+            })
+        ));
+        // A reference that does not move: compensated, but no error against it.
+        let flat = vec![0.0; u.len()];
+        let quiet = run(
+            &f,
+            &trace(&flat, &y),
+            Compensation::Designed(Arithmetic::F32),
+        )
+        .unwrap();
+        assert!(quiet.still_reference && quiet.error.is_none());
+    }
+
+    #[test]
+    fn the_probes_offset_is_removed_before_the_compensator() {
+        let (u, y) = step_test(1.0, 9);
+        let shifted: Vec<f64> = y.iter().map(|v| v + 0.25).collect();
+        let plain = run(
+            &file(2.0),
+            &trace(&u, &y),
+            Compensation::Designed(Arithmetic::F64),
+        )
+        .unwrap();
+        let mut with_offset = file(2.0);
+        with_offset.effects = vec![Effect::Offset { value: 0.25 }];
+        let removed = run(
+            &with_offset,
+            &trace(&u, &shifted),
+            Compensation::Designed(Arithmetic::F64),
+        )
+        .unwrap();
+        let worst = plain
+            .u_hat
+            .iter()
+            .zip(&removed.u_hat)
+            .fold(0.0f64, |w, (a, b)| w.max((a - b).abs()));
+        assert!(worst < 1e-9, "{worst}");
+        let (a, b) = (plain.error.unwrap(), removed.error.unwrap());
+        assert!((a.u_hat - b.u_hat).abs() < 1e-12, "{a:?} {b:?}");
+    }
+}

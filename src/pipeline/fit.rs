@@ -1,0 +1,301 @@
+//! The fit of the probe's model in the modelling loop: the effects a refit carries and adds,
+//! and the model file a fit makes (sources, error history).
+
+use crate::error::{Error, Result};
+use crate::file::{HistoryRow, HistoryTest, ModelFile, ProbeGeometry, FORMAT_VERSION};
+use crate::fit::model::Source;
+use crate::fit::{self, Options, Order, Test};
+use crate::modelling::effects::{self, Effect, EffectKind};
+
+/// A fit of the probe's model to its step tests (`unlag fit`).
+#[derive(Debug, Clone)]
+pub struct FitRequest<'a> {
+    /// The tests: the estimation test first, then the held-out ones (which choose the order
+    /// and are reported). Their names are the files the model file records.
+    pub tests: &'a [Test<'a>],
+    /// The SHA-256 of each test's file, in the same order.
+    pub digests: &'a [String],
+    /// The tests' sample rate (Hz).
+    pub fs: f64,
+    /// Method, order and delay.
+    pub options: Options,
+    /// The effects to fit with ([`carried_effects`], [`add_effects`]).
+    pub effects: Vec<Effect>,
+    /// Search the delay again and keep it as the model's from then on (`--add delay`); without
+    /// effect when `effects` fix the delay already.
+    pub search_delay: bool,
+    /// The error history of the model this fit continues (empty for a fresh one).
+    pub history: Vec<HistoryRow>,
+    /// The probe's geometry, which describes the hardware and is kept whatever the fit.
+    pub probe: Option<ProbeGeometry>,
+}
+
+/// Fits the model, with its effects, to the tests: the model file with its sources (errors
+/// with the effects included, noise floors), one more row of error history, and no
+/// compensator yet ([`super::design_compensator`] designs it).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] without a test, or with a digest missing; the fit's errors
+/// ([`effects::fit_with`]).
+pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
+    let Some((estimation, validation)) = request.tests.split_first() else {
+        return Err(Error::InvalidArgument {
+            what: "FILE",
+            message: "give at least one step test".into(),
+        });
+    };
+    if request.digests.len() != request.tests.len() {
+        return Err(Error::InvalidArgument {
+            what: "digests",
+            message: format!(
+                "{} file digests for {} tests",
+                request.digests.len(),
+                request.tests.len()
+            ),
+        });
+    }
+    let search_delay = request.search_delay
+        && !request
+            .effects
+            .iter()
+            .any(|e| e.kind() == EffectKind::Delay);
+    let (fitted, mut effects) = effects::fit_with(
+        estimation,
+        validation,
+        request.fs,
+        &request.options,
+        &request.effects,
+    )?;
+    if search_delay {
+        effects.push(Effect::Delay {
+            samples: fitted.model.delay,
+        });
+    }
+    // Errors with the effects included (an offset or a drift is estimated on each test).
+    let sources: Vec<Source> = request
+        .tests
+        .iter()
+        .zip(request.digests)
+        .enumerate()
+        .map(|(i, (test, digest))| Source {
+            file: test.name.to_string(),
+            sha256: digest.clone(),
+            role: if i == 0 { "estimation" } else { "validation" }.into(),
+            // With a noise model, the one-step-ahead prediction error (said when printed).
+            nrmse: effects::judged_nrmse(&fitted.model, &effects, test.u, test.y),
+            noise_floor: fit::noise_floor(test.y, fit::step::quiet_until(test.u)),
+        })
+        .collect();
+    let mut history = request.history.clone();
+    history.push(HistoryRow {
+        effects: effects.iter().map(|e| e.kind().to_string()).collect(),
+        order: fitted.model.order(),
+        delay: fitted.model.delay,
+        tests: sources
+            .iter()
+            .map(|s| HistoryTest {
+                file: s.file.clone(),
+                role: s.role.clone(),
+                nrmse: s.nrmse,
+            })
+            .collect(),
+    });
+    Ok(ModelFile {
+        format_version: FORMAT_VERSION,
+        model: fitted.model,
+        fit: Some(fitted.report),
+        sources,
+        inverse: None,
+        effects,
+        history,
+        probe: request.probe.clone(),
+    })
+}
+
+/// The effects a refit starts from: those of the model it continues, less its modes when the
+/// order is given (a mode is two more poles, which would override the order asked for); and
+/// how many modes were dropped.
+#[must_use]
+pub fn carried_effects(previous: &[Effect], order: Order) -> (Vec<Effect>, usize) {
+    let mut effects = previous.to_vec();
+    if matches!(order, Order::Fixed(_)) {
+        effects.retain(|e| e.kind() != EffectKind::Mode);
+    }
+    let dropped = previous.len() - effects.len();
+    (effects, dropped)
+}
+
+/// Adds the effects named by `kinds` (`unlag fit --add KIND`, [`Effect::parse`]) to
+/// `effects`: each replaces one of its kind, but modes add up. A bare `delay` (what a
+/// diagnosis names) removes the delay effect instead; returns whether one was named, for
+/// [`FitRequest::search_delay`].
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for a kind that is not an effect, naming the kinds there are.
+pub fn add_effects(effects: &mut Vec<Effect>, kinds: &[String]) -> Result<bool> {
+    let mut search_delay = false;
+    for kind in kinds {
+        if kind.parse() == Ok(EffectKind::Delay) {
+            effects.retain(|x| x.kind() != EffectKind::Delay);
+            search_delay = true;
+            continue;
+        }
+        let e = Effect::parse(kind).ok_or_else(|| Error::InvalidArgument {
+            what: "--add",
+            message: format!(
+                "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, sensor-resonance-prefilter[=HZ], temperature=K, temperature-viscous[=K]",
+                effects::KINDS
+                    .iter()
+                    .map(|k| k.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        })?;
+        effects.retain(|x| x.kind() != e.kind() || e.kind() == EffectKind::Mode);
+        effects.push(e);
+    }
+    Ok(search_delay)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testing::step_test;
+    use super::*;
+    use crate::fit::Method;
+
+    #[test]
+    fn a_fit_records_each_test_with_its_role_digest_and_a_history_row() {
+        let ((ue, ye), (uv, yv)) = (step_test(1.0, 1), step_test(1.0, 2));
+        let tests = [
+            Test {
+                name: "est.csv",
+                u: &ue,
+                y: &ye,
+            },
+            Test {
+                name: "val.csv",
+                u: &uv,
+                y: &yv,
+            },
+        ];
+        let digests = ["e".to_string(), "v".to_string()];
+        let earlier = HistoryRow {
+            effects: Vec::new(),
+            order: 2,
+            delay: 1,
+            tests: Vec::new(),
+        };
+        let request = FitRequest {
+            tests: &tests,
+            digests: &digests,
+            fs: 10_000.0,
+            options: Options {
+                method: Method::Oe,
+                order: Order::Fixed(1),
+                delay: Some(3),
+            },
+            effects: Vec::new(),
+            search_delay: false,
+            history: vec![earlier.clone()],
+            probe: None,
+        };
+        let file = fit_probe(&request).unwrap();
+        assert_eq!((file.model.order(), file.model.delay), (1, 3));
+        assert!((file.model.a[0] + 0.95).abs() < 0.01, "{:?}", file.model.a);
+        assert!(file.inverse.is_none() && file.fit.is_some());
+        let roles: Vec<(&str, &str, &str)> = file
+            .sources
+            .iter()
+            .map(|s| (s.file.as_str(), s.sha256.as_str(), s.role.as_str()))
+            .collect();
+        assert_eq!(
+            roles,
+            [
+                ("est.csv", "e", "estimation"),
+                ("val.csv", "v", "validation")
+            ]
+        );
+        // Noise of 1e-3 on a unit step: errors at that level, floors measured before the step.
+        for s in &file.sources {
+            assert!(s.nrmse < 3e-3, "{s:?}");
+            assert!(s.noise_floor > 3e-4 && s.noise_floor < 3e-3, "{s:?}");
+        }
+        assert_eq!(file.history.len(), 2);
+        assert_eq!(file.history[0], earlier);
+        let row = &file.history[1];
+        assert_eq!((row.order, row.delay), (1, 3));
+        assert_eq!(row.tests.len(), 2);
+        assert_eq!(row.tests[1].nrmse, file.sources[1].nrmse);
+
+        // `--add delay`: the delay found is kept as an effect; not when one is given.
+        let searched = fit_probe(&FitRequest {
+            search_delay: true,
+            ..request.clone()
+        })
+        .unwrap();
+        assert_eq!(searched.effects, [Effect::Delay { samples: 3 }]);
+        assert_eq!(searched.history[1].effects, ["delay"]);
+        let given = fit_probe(&FitRequest {
+            search_delay: true,
+            effects: vec![Effect::Delay { samples: 4 }],
+            ..request.clone()
+        })
+        .unwrap();
+        assert_eq!(given.model.delay, 4);
+        assert_eq!(given.effects, [Effect::Delay { samples: 4 }]);
+
+        assert!(matches!(
+            fit_probe(&FitRequest {
+                digests: &digests[..1],
+                ..request.clone()
+            }),
+            Err(Error::InvalidArgument {
+                what: "digests",
+                ..
+            })
+        ));
+        assert!(matches!(
+            fit_probe(&FitRequest {
+                tests: &[],
+                digests: &[],
+                ..request
+            }),
+            Err(Error::InvalidArgument { what: "FILE", .. })
+        ));
+    }
+
+    #[test]
+    fn a_refit_drops_carried_modes_only_for_an_order_given() {
+        let previous = [
+            Effect::parse("mode").unwrap(),
+            Effect::parse("leak").unwrap(),
+            Effect::parse("mode").unwrap(),
+        ];
+        let (auto, dropped) = carried_effects(&previous, Order::Auto { max: 6 });
+        assert_eq!((auto.as_slice(), dropped), (&previous[..], 0));
+        let (fixed, dropped) = carried_effects(&previous, Order::Fixed(2));
+        assert_eq!((fixed.as_slice(), dropped), (&previous[1..2], 2));
+    }
+
+    #[test]
+    fn added_effects_replace_their_kind_but_modes_add_up() {
+        let mut effects = vec![
+            Effect::parse("delay=5").unwrap(),
+            Effect::parse("mode").unwrap(),
+            Effect::parse("temperature=300").unwrap(),
+        ];
+        let kinds = ["mode", "temperature=320", "offset"].map(String::from);
+        assert!(!add_effects(&mut effects, &kinds).unwrap());
+        let spelt: Vec<String> = effects.iter().map(|e| e.kind().to_string()).collect();
+        assert_eq!(spelt, ["delay", "mode", "mode", "temperature", "offset"]);
+        assert_eq!(effects::reference_k(&effects), Some(320.0));
+        // A bare `delay` asks for the search: the delay effect goes.
+        assert!(add_effects(&mut effects, &["delay".to_string()]).unwrap());
+        assert!(effects.iter().all(|e| e.kind() != EffectKind::Delay));
+        let unknown = add_effects(&mut effects, &["modes".to_string()]);
+        assert!(
+            matches!(&unknown, Err(Error::InvalidArgument { what: "--add", message }) if message.contains("one of mode, leak")),
+            "{unknown:?}"
+        );
+    }
+}

@@ -1,0 +1,55 @@
+//! The library's pipeline from step tests to the board's coefficients: the probe's model fitted
+//! from its tests ([`fit_probe`]), its compensator designed ([`design_compensator`]), a stored
+//! compensator designed anew for a rescaled model ([`retarget`]), and a recording compensated
+//! with a model file ([`compensate`]).
+//!
+//! Every compensator goes through one sequence: the design (checked on the tests against the
+//! raw probe, or a stored design's shape redone), the sensor-resonance prefilter put in front
+//! of it, then its fixed-point plans. The command line only parses its arguments into the
+//! requests here and prints what comes back; nothing here reads a file or prints.
+
+mod compensate;
+mod design;
+mod fit;
+
+pub use compensate::{
+    compensate, Arithmetic, CompensateRequest, Compensated, Compensation, FixedRunSummary,
+    ReferenceError,
+};
+pub use design::{
+    at_temperature, design_compensator, retarget, Compensator, CompensatorRequest, CompensatorSpec,
+    Roles, Shape,
+};
+pub use fit::{add_effects, carried_effects, fit_probe, FitRequest};
+
+/// The probe and step tests the pipeline's unit tests run on.
+#[cfg(test)]
+mod testing {
+    use crate::fit::model::Model;
+
+    /// A first-order probe (pole 0.95) behind 3 samples of delay, at 10 kHz.
+    pub(super) fn probe() -> Model {
+        Model {
+            fs: 10_000.0,
+            delay: 3,
+            a: vec![-0.95],
+            b: vec![0.05],
+        }
+    }
+
+    /// A step from 0 to `level` at sample 600 of 3000, and the probe's answer with noise of
+    /// 1e-3 (seeded).
+    pub(super) fn step_test(level: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
+        let u: Vec<f64> = (0..3000)
+            .map(|k| if k < 600 { 0.0 } else { level })
+            .collect();
+        let noise = crate::testing::gaussian(u.len(), seed);
+        let y = probe()
+            .simulate(&u)
+            .iter()
+            .zip(noise)
+            .map(|(y, n)| y + 1e-3 * n)
+            .collect();
+        (u, y)
+    }
+}

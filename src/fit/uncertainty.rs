@@ -1,0 +1,99 @@
+//! The fit's stated uncertainty: how far the model's DC gain and resonances could move with
+//! the noise the tests show, from the covariance of the refit on the whitened data.
+
+use super::arx::Data;
+use super::{oe, padded, residual_noise, unpadded, whitened, Method};
+use crate::fit::model::{Model, ResonanceUncertainty, Uncertainty};
+
+/// The resonances of a model, lowest natural frequency first, and its DC gain.
+fn features(model: &Model) -> Option<(f64, Vec<(f64, f64)>)> {
+    let mut r = crate::fit::analysis::Analysis::new(model)
+        .ok()?
+        .resonance_pairs();
+    r.sort_by(|x, y| x.0.total_cmp(&y.0));
+    Some((model.dc_gain(), r))
+}
+
+/// One standard deviation of the fitted model's DC gain and resonances (see
+/// [`Uncertainty`]): the parameters' covariance from [`oe::covariance`] on the data whitened
+/// by the residual's AR noise model (Box-Jenkins) or as they are, carried to the features by
+/// central differences. `None` for the least-squares methods, or when the covariance or the
+/// features cannot be had.
+pub(super) fn uncertainty(sets: &[Data<'_>], model: &Model, method: Method) -> Option<Uncertainty> {
+    if !matches!(method, Method::Oe | Method::Bj) {
+        return None;
+    }
+    let d = model.delay;
+    let (b, short) = unpadded(&model.b);
+    let ar = if method == Method::Bj {
+        residual_noise(sets, (&model.a, &model.b), d).0
+    } else {
+        Vec::new()
+    };
+    let white = whitened(sets, &ar);
+    let wsets: Vec<Data<'_>> = white.iter().map(|(u, y)| Data { u, y }).collect();
+    let cov = oe::covariance(&wsets, (&model.a, &b), d)?;
+    let m = model.a.len();
+    let theta: Vec<f64> = model.a.iter().chain(&b).copied().collect();
+    let at = |t: &[f64]| -> Option<(f64, Vec<(f64, f64)>)> {
+        features(&Model {
+            a: t.get(..m)?.to_vec(),
+            b: padded(t.get(m..)?.to_vec(), short),
+            ..model.clone()
+        })
+    };
+    let (dc, res) = at(&theta)?;
+    if !dc.is_finite() {
+        return None;
+    }
+    // Gradient of each feature by central differences, a hundredth of a standard deviation.
+    let k = 1 + 2 * res.len();
+    let flat = |f: &(f64, Vec<(f64, f64)>)| -> Option<Vec<f64>> {
+        (f.1.len() == res.len()).then(|| {
+            std::iter::once(f.0)
+                .chain(f.1.iter().flat_map(|(w, z)| [*w, *z]))
+                .collect()
+        })
+    };
+    let mut grad = vec![vec![0.0; theta.len()]; k];
+    for i in 0..theta.len() {
+        let h = 0.01 * cov[(i, i)].max(0.0).sqrt();
+        if h <= 0.0 || h.is_nan() {
+            return None;
+        }
+        let mut up = theta.clone();
+        let mut down = theta.clone();
+        up[i] += h;
+        down[i] -= h;
+        let (fu, fd) = (flat(&at(&up)?)?, flat(&at(&down)?)?);
+        for (j, g) in grad.iter_mut().enumerate() {
+            g[i] = (fu[j] - fd[j]) / (2.0 * h);
+        }
+    }
+    let std: Vec<f64> = grad
+        .iter()
+        .map(|g| {
+            let mut v = 0.0;
+            for (i, gi) in g.iter().enumerate() {
+                for (j, gj) in g.iter().enumerate() {
+                    v += gi * cov[(i, j)] * gj;
+                }
+            }
+            v.max(0.0).sqrt()
+        })
+        .collect();
+    Some(Uncertainty {
+        dc_gain_std: std.first().copied()?,
+        resonances: res
+            .iter()
+            .enumerate()
+            .map(|(i, (w, z))| ResonanceUncertainty {
+                natural_frequency_hz: *w,
+                natural_frequency_std_hz: std.get(1 + 2 * i).copied().unwrap_or(f64::NAN),
+                damping: *z,
+                damping_std: std.get(2 + 2 * i).copied().unwrap_or(f64::NAN),
+            })
+            .collect(),
+        noise_model: !ar.is_empty(),
+    })
+}

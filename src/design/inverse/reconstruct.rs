@@ -1,0 +1,163 @@
+//! What a design does on a test: the reconstruction of the reference, and its error at the
+//! best alignment (searched directly or by FFT on long records).
+
+use super::{Design, Reconstruction};
+use crate::error::Result;
+use crate::fit::model::Model;
+use crate::fit::Test;
+
+/// The lags at which a compensator's output and the raw probe are compared with the
+/// reference, `(output's, raw probe's)`. The raw probe: from 0 to the delay plus four times the
+/// compensator's causal latency (at least 40 samples), whatever the compensator. The output:
+/// its stated latency `nominal` plus or minus 4 samples, or plus or minus the part of the
+/// latency beyond the delay when that is larger; a design that passes the probe on
+/// ([`Design::passes_probe`]) is the raw probe, and is searched over the raw probe's lags.
+#[must_use]
+pub fn comparison_lags(
+    design: Option<&Design>,
+    nominal: usize,
+    causal: usize,
+    delay: usize,
+) -> (
+    std::ops::RangeInclusive<usize>,
+    std::ops::RangeInclusive<usize>,
+) {
+    let raw = 0..=delay + 4 * causal.max(10);
+    if design.is_some_and(Design::passes_probe) {
+        return (raw.clone(), raw);
+    }
+    let w = nominal.saturating_sub(delay).max(4);
+    (nominal.saturating_sub(w)..=nominal + w, raw)
+}
+
+/// Error of an estimate against a reference when the estimate lags by `lag` samples, searched
+/// over `lags` for the best alignment: `(nrmse, lag)`, RMS over the range of the reference.
+/// All lags are compared on the same samples.
+#[must_use]
+pub fn aligned_error(
+    reference: &[f64],
+    estimate: &[f64],
+    lags: std::ops::RangeInclusive<usize>,
+) -> (f64, usize) {
+    let n = reference.len().min(estimate.len());
+    let hi = (*lags.end()).min(n.saturating_sub(2));
+    let (lo_v, hi_v) = reference
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(*v), h.max(*v))
+        });
+    let range = hi_v - lo_v;
+    let lo = *lags.start();
+    let count = n.saturating_sub(hi);
+    if lo < hi && count > 0 && (hi - lo + 1).saturating_mul(count) > FFT_ALIGNMENT_WORK {
+        return aligned_error_by_fft(reference, estimate, lo..=hi, range);
+    }
+    let mut best = (f64::INFINITY, 0);
+    for lag in lo..=hi {
+        let count = n - hi;
+        let sse: f64 = (hi..n)
+            .map(|k| {
+                let e = estimate[k] - reference[k - lag];
+                e * e
+            })
+            .sum();
+        let e = (sse / count as f64).sqrt() / range;
+        if e < best.0 {
+            best = (e, lag);
+        }
+    }
+    best
+}
+
+/// Above this many multiply-adds (lags times samples) [`aligned_error`] finds the best lag by
+/// FFT cross-correlation; below it, by direct sums.
+pub(crate) const FFT_ALIGNMENT_WORK: usize = 1 << 24;
+
+/// [`aligned_error`] for long records: the squared error at each lag is `Σ e² + Σ r² − 2 Σ e r`,
+/// its cross term for every lag at once by FFT blocks and the reference's energy by a running
+/// sum; the best lag's error is then summed directly, so the figure is exact.
+fn aligned_error_by_fft(
+    reference: &[f64],
+    estimate: &[f64],
+    lags: std::ops::RangeInclusive<usize>,
+    range: f64,
+) -> (f64, usize) {
+    let (lo, hi) = (*lags.start(), *lags.end());
+    let n = reference.len().min(estimate.len());
+    let (Some(e), Some(r)) = (estimate.get(hi..n), reference.get(..n - lo)) else {
+        return (f64::INFINITY, lo);
+    };
+    // Σ_j e[j] r[s + j] for s = hi − lag, s in 0..=hi − lo.
+    let cross = crate::fit::noise::lagged_products(e, r, (0.0, 0.0), hi - lo + 1);
+    let ee: f64 = e.iter().map(|v| v * v).sum();
+    // Σ r[s..s + len]² for s = 0, 1, ...: a sliding window.
+    let len = e.len();
+    let mut rr: f64 = r.iter().take(len).map(|v| v * v).sum();
+    let mut sse = Vec::with_capacity(cross.len());
+    for (s, c) in cross.iter().enumerate() {
+        if s > 0 {
+            let (out, inn) = (r.get(s - 1), r.get(s + len - 1));
+            rr += inn.map_or(0.0, |v| v * v) - out.map_or(0.0, |v| v * v);
+        }
+        sse.push((ee + rr - 2.0 * c).max(0.0));
+    }
+    // The smallest lag among equals, as the direct search takes it.
+    let (_, lag) = (lo..=hi).fold((f64::INFINITY, lo), |best, lag| match sse.get(hi - lag) {
+        Some(&e) if e < best.0 => (e, lag),
+        _ => best,
+    });
+    let sse: f64 = (hi..n)
+        .map(|k| {
+            let d = estimate[k] - reference[k - lag];
+            d * d
+        })
+        .sum();
+    ((sse / len as f64).sqrt() / range, lag)
+}
+
+/// Reconstruction error of `design` on one test (f64 arithmetic), against the raw probe.
+///
+/// # Errors
+/// As [`Design::run`].
+pub fn reconstruct(design: &Design, model: &Model, test: &Test<'_>) -> Result<Reconstruction> {
+    reconstruct_with(design, model, test, 0.0)
+}
+
+/// [`reconstruct`] for a model with the `nonlinear-damping` effect: the compensator's output
+/// plus the board's correction for the quadratic loss `nonlinear_gain` (s^2 per probe unit,
+/// see [`crate::modelling::effects`]); with `nonlinear_gain = 0` exactly [`reconstruct`].
+///
+/// # Errors
+/// As [`Design::run`] and [`Design::run_nonlinear_correction`].
+pub fn reconstruct_with(
+    design: &Design,
+    model: &Model,
+    test: &Test<'_>,
+    nonlinear_gain: f64,
+) -> Result<Reconstruction> {
+    let mut u_hat = design.run::<f64>(test.y)?;
+    if nonlinear_gain != 0.0 {
+        let c = design.run_nonlinear_correction::<f64>(model.fs, nonlinear_gain, test.y)?;
+        for (u, c) in u_hat.iter_mut().zip(c) {
+            *u += c;
+        }
+    }
+    let nominal = design.latency_samples.round().max(0.0) as usize;
+    let (lags, raw_lags) = comparison_lags(Some(design), nominal, nominal, model.delay);
+    let (e, lag) = aligned_error(test.u, &u_hat, lags);
+    let (raw, _) = aligned_error(test.u, test.y, raw_lags);
+    let range = test.u.iter().fold(f64::NEG_INFINITY, |m, v| m.max(*v))
+        - test.u.iter().fold(f64::INFINITY, |m, v| m.min(*v));
+    let model_part = design.budget.map(|b| {
+        let explained = (b.total * b.total + b.reference * b.reference) / (range * range);
+        (e * e - explained).max(0.0).sqrt()
+    });
+    Ok(Reconstruction {
+        file: test.name.to_string(),
+        nrmse_u_hat: e,
+        nrmse_raw: raw,
+        lag,
+        range: Some(range),
+        model_part,
+    })
+}

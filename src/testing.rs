@@ -18,3 +18,25 @@ pub(crate) fn gaussian(n: usize, seed: u64) -> Vec<f64> {
         })
         .collect()
 }
+
+/// A second-order probe: natural frequency `f` Hz, damping `zeta`, sampled at `fs` behind
+/// `delay` samples, unit DC gain; with its continuous pole `s` (upper half-plane).
+pub(crate) fn second_order(
+    f: f64,
+    zeta: f64,
+    fs: f64,
+    delay: usize,
+) -> (crate::fit::model::Model, crate::poly::Complex) {
+    let w = 2.0 * std::f64::consts::PI * f;
+    let s = crate::poly::Complex::new(-zeta * w, w * (1.0 - zeta * zeta).sqrt());
+    let z = (s / fs).exp();
+    let a = vec![-2.0 * z.re, z.norm_sqr()];
+    let g = 1.0 + a[0] + a[1];
+    let model = crate::fit::model::Model {
+        fs,
+        delay,
+        a,
+        b: vec![0.0, 0.6 * g, 0.4 * g],
+    };
+    (model, s)
+}

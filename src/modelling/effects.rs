@@ -1545,6 +1545,7 @@ fn additive_rate(effects: &[Effect]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::second_order;
 
     #[test]
     fn every_kind_has_the_text_of_before_in_every_form() {
@@ -1705,21 +1706,6 @@ mod tests {
 
     /// A ZOH-discretised second-order probe (unit DC gain), built from its poles
     /// `z = exp(s / fs)` directly.
-    fn second_order(f: f64, zeta: f64, fs: f64, delay: usize) -> (Model, crate::poly::Complex) {
-        let w = 2.0 * std::f64::consts::PI * f;
-        let s = crate::poly::Complex::new(-zeta * w, w * (1.0 - zeta * zeta).sqrt());
-        let z = (s / fs).exp();
-        let a = vec![-2.0 * z.re, z.norm_sqr()];
-        let g = 1.0 + a[0] + a[1];
-        let model = Model {
-            fs,
-            delay,
-            a,
-            b: vec![0.0, 0.6 * g, 0.4 * g],
-        };
-        (model, s)
-    }
-
     #[test]
     fn scaling_multiplies_every_pole_and_divides_the_delay() {
         let fs = 10_000.0;

@@ -483,21 +483,7 @@ pub fn at_temperature(file: &ModelFile, temperature_k: f64) -> Result<ModelFile>
 mod tests {
     use super::super::testing::{probe, step_test};
     use super::*;
-
-    fn second_order(f: f64, zeta: f64, fs: f64, delay: usize) -> (Model, crate::poly::Complex) {
-        let w = 2.0 * std::f64::consts::PI * f;
-        let s = crate::poly::Complex::new(-zeta * w, w * (1.0 - zeta * zeta).sqrt());
-        let z = (s / fs).exp();
-        let a = vec![-2.0 * z.re, z.norm_sqr()];
-        let g = 1.0 + a[0] + a[1];
-        let model = Model {
-            fs,
-            delay,
-            a,
-            b: vec![0.0, 0.6 * g, 0.4 * g],
-        };
-        (model, s)
-    }
+    use crate::testing::second_order;
 
     #[test]
     fn a_coefficient_set_for_a_temperature_follows_the_damping_law() {

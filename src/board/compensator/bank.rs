@@ -65,6 +65,8 @@
 
 use core::fmt;
 
+use heapless::Vec;
+
 use super::{CascadeCoefficients, CascadeState, InverseError, Sample};
 
 /// Why a temperature bank was refused. Checked once, when the bank is built; a built
@@ -159,12 +161,14 @@ impl core::error::Error for BankError {}
 ///
 /// Built once from the exported tables (see the module docs); shared by any number of
 /// channels, each a [`BankChannel`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct TemperatureBank<T, const SETS: usize, const N: usize> {
-    temperatures_k: [f32; SETS],
+    /// The sets' temperatures, ascending: its length is the number of sets in use (1..=SETS).
+    temperatures_k: Vec<f32, SETS>,
+    /// The sets, the unused capacity filled with identities: the per-sample path indexes a
+    /// whole array, its bound a constant (a `heapless::Vec` here costs a load and a register,
+    /// 4 instructions per call on a Cortex-M4F, BENCHMARKS.md).
     sets: [CascadeCoefficients<T, N>; SETS],
-    /// Sets in use, 1..=SETS (the rest are identities).
-    count: usize,
     hysteresis_k: f32,
     /// Samples a new set runs beside the old one before it takes over (0: at once).
     warm_up: u32,
@@ -269,10 +273,10 @@ impl<T: Sample, const SETS: usize, const N: usize> TemperatureBank<T, SETS, N> {
                 sets: sections.len(),
             });
         }
-        let mut temps = [0.0f32; SETS];
+        let mut temps = Vec::<f32, SETS>::new();
         let mut previous = 0.0f32;
         let mut smallest_step = f32::INFINITY;
-        for (index, (dst, &t)) in temps.iter_mut().zip(temperatures_k).enumerate() {
+        for (index, &t) in temperatures_k.iter().enumerate() {
             let t = narrow(t);
             if !(t.is_finite() && t > previous) {
                 return Err(BankError::Temperatures { index });
@@ -280,7 +284,11 @@ impl<T: Sample, const SETS: usize, const N: usize> TemperatureBank<T, SETS, N> {
             if index > 0 {
                 smallest_step = smallest_step.min(t - previous);
             }
-            *dst = t;
+            // Not refused: `count <= SETS` was checked above.
+            temps.push(t).map_err(|_| BankError::SetCount {
+                given: count,
+                capacity: SETS,
+            })?;
             previous = t;
         }
         let h = narrow(hysteresis_k);
@@ -308,7 +316,6 @@ impl<T: Sample, const SETS: usize, const N: usize> TemperatureBank<T, SETS, N> {
         Ok(Self {
             temperatures_k: temps,
             sets,
-            count,
             hysteresis_k: h,
             warm_up: warm_up_samples,
         })
@@ -317,19 +324,19 @@ impl<T: Sample, const SETS: usize, const N: usize> TemperatureBank<T, SETS, N> {
     /// The temperatures of the sets in use (K), ascending.
     #[must_use]
     pub fn temperatures_k(&self) -> &[f32] {
-        self.temperatures_k.get(..self.count).unwrap_or(&[])
+        &self.temperatures_k
     }
 
     /// Number of sets in use.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.count
+        self.temperatures_k.len()
     }
 
     /// Always `false`: a bank holds at least one set.
     #[must_use]
     pub fn is_empty(&self) -> bool {
-        self.count == 0
+        self.temperatures_k.is_empty()
     }
 
     /// The hysteresis (K).
@@ -347,7 +354,7 @@ impl<T: Sample, const SETS: usize, const N: usize> TemperatureBank<T, SETS, N> {
     /// Set `index`'s coefficients, if there is one.
     #[must_use]
     pub fn set(&self, index: usize) -> Option<&CascadeCoefficients<T, N>> {
-        self.sets.get(..self.count).and_then(|s| s.get(index))
+        self.sets.get(..self.len()).and_then(|s| s.get(index))
     }
 
     /// The set nearest to `temperature_k`, no hysteresis (a tie goes to the colder set).
@@ -366,7 +373,7 @@ impl<T: Sample, const SETS: usize, const N: usize> TemperatureBank<T, SETS, N> {
     /// nearest set. NaN keeps `current` (brought into range).
     #[must_use]
     pub fn select(&self, current: usize, temperature_k: f32) -> usize {
-        let current = current.min(self.count.saturating_sub(1));
+        let current = current.min(self.len().saturating_sub(1));
         if temperature_k.is_nan() {
             return current;
         }
@@ -484,7 +491,7 @@ mod tests {
 
     /// Five one-section low-passes, DC gain 1, at 253..=333 K by 20 K; pole at 0.5 + i/10.
     fn bank(h: f64) -> TemperatureBank<f64, 5, 2> {
-        let sections: Vec<[[f64; 5]; 1]> = (0..5)
+        let sections: std::vec::Vec<[[f64; 5]; 1]> = (0..5)
             .map(|i| {
                 let p = 0.5 + f64::from(i) / 10.0;
                 [[1.0 - p, 0.0, 0.0, -p, 0.0]]
@@ -644,7 +651,7 @@ mod tests {
             let mut st = c.equilibrium(0.0);
             (0..100)
                 .map(|k| c.process(&mut st, input(k)))
-                .collect::<Vec<_>>()
+                .collect::<std::vec::Vec<_>>()
         };
         let (cold, warm) = (alone(0), alone(1));
         let mut ch = b.channel(273.0, 0.0);

@@ -59,6 +59,11 @@
 
 use core::fmt;
 
+/// Q2.30, the format of every state-matrix and input-vector coefficient here and of every
+/// direct-form coefficient ([`direct`]): `fixed`'s signed 32-bit number with 30 fractional
+/// bits, the same bits as the `i32` fields.
+pub use ::fixed::types::I2F30;
+
 /// Fractional bits of the state matrix `a` and the input vector `b` (Q2.30).
 pub const STATE_BITS: u32 = 30;
 
@@ -93,6 +98,51 @@ impl FixedSection {
         d: 1 << 30,
         shift: 30,
     };
+
+    /// A section from its Q2.30 state matrix `a` and input vector `b` as [`I2F30`], and its
+    /// output vector `c` and direct term `d` as integers with `shift` fractional bits (their
+    /// format is chosen per section by the host's scaling, so it has no type of its own).
+    ///
+    /// ```
+    /// use unlag::fixed::{FixedSection, I2F30};
+    ///
+    /// let q = I2F30::from_num;
+    /// let lag = FixedSection::from_q([q(0.9), q(0.0), q(0.0), q(0.0)], [q(0.5), q(0.0)], [1 << 29, 0], 0, 30);
+    /// assert_eq!(lag.a, [966_367_642, 0, 0, 0]); // round(0.9 * 2^30)
+    /// assert_eq!(lag.state_matrix()[0], q(0.9));
+    /// assert_eq!(lag.input_vector()[0].to_num::<f64>(), 0.5);
+    /// ```
+    #[must_use]
+    pub const fn from_q(a: [I2F30; 4], b: [I2F30; 2], c: [i32; 2], d: i32, shift: u8) -> Self {
+        let [a11, a12, a21, a22] = a;
+        let [b1, b2] = b;
+        Self {
+            a: [a11.to_bits(), a12.to_bits(), a21.to_bits(), a22.to_bits()],
+            b: [b1.to_bits(), b2.to_bits()],
+            c,
+            d,
+            shift,
+        }
+    }
+
+    /// The state matrix `[a11, a12, a21, a22]` as Q2.30 numbers.
+    #[must_use]
+    pub const fn state_matrix(&self) -> [I2F30; 4] {
+        let [a11, a12, a21, a22] = self.a;
+        [
+            I2F30::from_bits(a11),
+            I2F30::from_bits(a12),
+            I2F30::from_bits(a21),
+            I2F30::from_bits(a22),
+        ]
+    }
+
+    /// The input vector `[b1, b2]` as Q2.30 numbers.
+    #[must_use]
+    pub const fn input_vector(&self) -> [I2F30; 2] {
+        let [b1, b2] = self.b;
+        [I2F30::from_bits(b1), I2F30::from_bits(b2)]
+    }
 }
 
 /// Why a set of fixed-point coefficients was refused.
@@ -417,9 +467,29 @@ fn normal_form(a: [i32; 4]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
 
     fn q30(v: f64) -> i32 {
         (v * (1u64 << 30) as f64).round() as i32
+    }
+
+    proptest! {
+        /// The Q2.30 views are the integer fields, bit for bit, both ways.
+        #[test]
+        fn q_views_round_trip(a in any::<[i32; 4]>(), b in any::<[i32; 2]>(), c in any::<[i32; 2]>(), d: i32, shift in 1u8..=62) {
+            let s = FixedSection { a, b, c, d, shift };
+            prop_assert_eq!(FixedSection::from_q(s.state_matrix(), s.input_vector(), c, d, shift), s);
+            prop_assert_eq!(s.state_matrix().map(|q| q.to_num::<f64>()), a.map(|v| f64::from(v) / f64::from(1u32 << 30)));
+            prop_assert_eq!(s.input_vector().map(I2F30::to_bits), b);
+        }
+
+        /// The same for the direct form.
+        #[test]
+        fn direct_q_views_round_trip(b in any::<[i32; 3]>(), neg_a in any::<[i32; 2]>()) {
+            let s = direct::DirectSection { b, neg_a };
+            prop_assert_eq!(direct::DirectSection::from_q(s.numerator(), s.negated_denominator()), s);
+            prop_assert_eq!(s.numerator().map(|q| q.to_num::<f64>()), b.map(|v| f64::from(v) / f64::from(1u32 << 30)));
+        }
     }
 
     fn rotation(r: f64, theta: f64) -> FixedSection {

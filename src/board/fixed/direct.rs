@@ -62,6 +62,8 @@
 
 use core::fmt;
 
+use super::I2F30;
+
 /// Fractional bits of every coefficient (Q2.30).
 pub const COEFFICIENT_BITS: u32 = 30;
 
@@ -88,6 +90,45 @@ impl DirectSection {
         b: [1 << 30, 0, 0],
         neg_a: [0, 0],
     };
+
+    /// A section from its numerator `[b0, b1, b2]` and **negated** denominator `[-a1, -a2]`
+    /// as Q2.30 numbers.
+    ///
+    /// ```
+    /// use unlag::fixed::{direct::DirectSection, I2F30};
+    ///
+    /// let q = I2F30::from_num;
+    /// let lag = DirectSection::from_q([q(0.5), q(0.0), q(0.0)], [q(0.5), q(0.0)]);
+    /// assert_eq!(lag, DirectSection { b: [1 << 29, 0, 0], neg_a: [1 << 29, 0] });
+    /// assert_eq!(lag.negated_denominator()[0], q(0.5));
+    /// ```
+    #[must_use]
+    pub const fn from_q(b: [I2F30; 3], neg_a: [I2F30; 2]) -> Self {
+        let [b0, b1, b2] = b;
+        let [na1, na2] = neg_a;
+        Self {
+            b: [b0.to_bits(), b1.to_bits(), b2.to_bits()],
+            neg_a: [na1.to_bits(), na2.to_bits()],
+        }
+    }
+
+    /// The numerator `[b0, b1, b2]` as Q2.30 numbers.
+    #[must_use]
+    pub const fn numerator(&self) -> [I2F30; 3] {
+        let [b0, b1, b2] = self.b;
+        [
+            I2F30::from_bits(b0),
+            I2F30::from_bits(b1),
+            I2F30::from_bits(b2),
+        ]
+    }
+
+    /// The negated denominator `[-a1, -a2]` as Q2.30 numbers.
+    #[must_use]
+    pub const fn negated_denominator(&self) -> [I2F30; 2] {
+        let [na1, na2] = self.neg_a;
+        [I2F30::from_bits(na1), I2F30::from_bits(na2)]
+    }
 }
 
 /// Why a set of direct-form coefficients was refused.

@@ -10,6 +10,9 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
+    /// A trace file is not a usable step test (the trace room's error).
+    #[error(transparent)]
+    Trace(#[from] crate::trace::TraceError),
     /// The file could not be read or written.
     #[error("{path}: {action}: {source}")]
     Io {
@@ -19,100 +22,6 @@ pub enum Error {
         action: &'static str,
         /// The operating system's reason.
         source: std::io::Error,
-    },
-    /// The file has no header, or a header and no data rows.
-    #[error("{path}:{line}: the file is empty ({what})")]
-    Empty {
-        /// The file.
-        path: PathBuf,
-        /// Where the data should have started.
-        line: u64,
-        /// What is missing.
-        what: &'static str,
-    },
-    /// A required column is not in the header.
-    #[error("{path}:1: missing column '{column}' (the header has: {found}){hint}")]
-    MissingColumn {
-        /// The file.
-        path: PathBuf,
-        /// The column asked for.
-        column: String,
-        /// The header's column names, comma-separated.
-        found: String,
-        /// How to fix it.
-        hint: &'static str,
-    },
-    /// A field is not a number.
-    #[error("{path}:{line}:{column}: '{value}' in column '{name}' is not a number")]
-    NotANumber {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line.
-        line: u64,
-        /// 1-based field position.
-        column: usize,
-        /// The column's name.
-        name: String,
-        /// The text found.
-        value: String,
-    },
-    /// A field is NaN or infinite.
-    #[error("{path}:{line}:{column}: value '{value}' in column '{name}' is not finite")]
-    NonFinite {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line.
-        line: u64,
-        /// 1-based field position.
-        column: usize,
-        /// The column's name.
-        name: String,
-        /// The text found.
-        value: String,
-    },
-    /// A row has the wrong number of fields, or the CSV is malformed.
-    #[error("{path}:{line}: {message}")]
-    Malformed {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line.
-        line: u64,
-        /// What the CSV reader said.
-        message: String,
-    },
-    /// Time does not increase from one row to the next.
-    #[error("{path}:{line}:{column}: time in column '{name}' does not increase ({previous} then {value})")]
-    TimeNotIncreasing {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line.
-        line: u64,
-        /// 1-based field position.
-        column: usize,
-        /// The column's name.
-        name: String,
-        /// The previous time.
-        previous: f64,
-        /// This row's time.
-        value: f64,
-    },
-    /// The time step varies by more than 1 %.
-    #[error("{path}:{line}:{column}: time step {step:.6e} s in column '{name}' differs from the mean step {nominal:.6e} s by {percent:.2} % (more than 1 % jitter: resample the trace or give --fs)")]
-    NonUniformTime {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line.
-        line: u64,
-        /// 1-based field position.
-        column: usize,
-        /// The column's name.
-        name: String,
-        /// The offending step.
-        step: f64,
-        /// The mean step.
-        nominal: f64,
-        /// Relative deviation in percent.
-        percent: f64,
     },
     /// The trace has too few samples for what was asked.
     #[error("{path}: {samples} samples is too short for order {order} and delay {delay}: at least {needed} are needed")]
@@ -127,24 +36,6 @@ pub enum Error {
         delay: usize,
         /// Samples needed.
         needed: usize,
-    },
-    /// The ADC saturated: the signal sits flat at its extreme value, entered with a jump.
-    #[error("{path}:{line}:{column}: column '{name}' looks clipped: {run} samples flat at its {which} value {value} from this line on (the ADC saturated; re-record with more range)")]
-    Clipped {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line where the flat run starts.
-        line: u64,
-        /// 1-based field position.
-        column: usize,
-        /// The column's name.
-        name: String,
-        /// Length of the flat run.
-        run: usize,
-        /// "largest" or "smallest".
-        which: &'static str,
-        /// The clipped value.
-        value: f64,
     },
     /// No step was found in the reference.
     #[error("{path}: no step found in column {column} ('{name}'): {reason}")]
@@ -271,16 +162,9 @@ impl Error {
     #[must_use]
     pub fn kind(&self) -> &'static str {
         match self {
+            Self::Trace(e) => e.kind(),
             Self::Io { .. } => "io",
-            Self::Empty { .. } => "empty",
-            Self::MissingColumn { .. } => "missing-column",
-            Self::NotANumber { .. } => "not-a-number",
-            Self::NonFinite { .. } => "non-finite",
-            Self::Malformed { .. } => "malformed",
-            Self::TimeNotIncreasing { .. } => "time-not-increasing",
-            Self::NonUniformTime { .. } => "non-uniform-time",
             Self::TooShort { .. } => "too-short",
-            Self::Clipped { .. } => "clipped",
             Self::NoStep { .. } => "no-step",
             Self::Mismatch { .. } => "mismatch",
             Self::InvalidArgument { .. } => "invalid-argument",
@@ -299,28 +183,10 @@ impl Error {
     #[must_use]
     pub fn location(&self) -> (Option<&std::path::Path>, Option<u64>, Option<u64>) {
         match self {
-            Self::NotANumber {
-                path, line, column, ..
-            }
-            | Self::NonFinite {
-                path, line, column, ..
-            }
-            | Self::TimeNotIncreasing {
-                path, line, column, ..
-            }
-            | Self::NonUniformTime {
-                path, line, column, ..
-            }
-            | Self::Clipped {
-                path, line, column, ..
-            } => (Some(path), Some(*line), Some(*column as u64)),
+            Self::Trace(e) => e.location(),
             Self::ModelAt {
                 path, line, column, ..
             } => (Some(path), Some(*line as u64), Some(*column as u64)),
-            Self::Empty { path, line, .. } | Self::Malformed { path, line, .. } => {
-                (Some(path), Some(*line), None)
-            }
-            Self::MissingColumn { path, .. } => (Some(path), Some(1), None),
             Self::Io { path, .. }
             | Self::TooShort { path, .. }
             | Self::NoStep { path, .. }

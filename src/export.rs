@@ -37,8 +37,8 @@ pub use image::{
 };
 
 use crate::error::Result;
+use crate::file::write_atomically;
 use crate::file::ModelFile;
-use crate::trace::write_atomically;
 
 /// Largest section count `unlag export` writes: as many as a design may have.
 pub const MAX_EXPORT_SECTIONS: usize = crate::design::inverse::optimal::MAX_SECTIONS;

@@ -6,6 +6,9 @@
 //! [`Design`](crate::design::Design), the modelling loop's
 //! [`Effect`](crate::modelling::effects::Effect)s.
 
+mod write;
+pub use write::{write_atomically, write_atomically_with, WriteFailure};
+
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -185,7 +188,7 @@ impl ModelFile {
             path: path.to_path_buf(),
             message: format!("not written: the model would not load again ({e})"),
         })?;
-        crate::trace::write_atomically(path, text.as_bytes())
+        write_atomically(path, text.as_bytes())
     }
 
     /// Reads and checks a model file: its syntax, every field's type and name (an unknown or

@@ -7,6 +7,9 @@
 // produce; `file` composes the stage outputs into the model file; `pipeline` runs the stages
 // in order (fit a probe, design its compensator, retarget it, compensate a record); export
 // and the report read them; the CLI parses, asks the pipeline and prints.
+// Errors: a room with its own error enum (`trace::TraceError`) imports nothing above it;
+// `error::Error` composes those for the rooms that do not have their own yet, and the CLI
+// adds the flag that fixes a problem (`cli::describe`).
 // Everything but `board` is host side, behind the `std` feature.
 
 pub mod board;

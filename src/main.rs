@@ -40,9 +40,10 @@ fn main() -> ExitCode {
         (Err(e), _) => {
             if json {
                 let (path, line, column) = e.location();
-                unlag::cli::print_json_error(e.kind(), &e.to_string(), path, line, column);
+                let message = unlag::cli::describe(&e);
+                unlag::cli::print_json_error(e.kind(), &message, path, line, column);
             }
-            unlag::errln!("error: {e}");
+            unlag::errln!("error: {}", unlag::cli::describe(&e));
             ExitCode::FAILURE
         }
         (Ok(()), Err(e)) => {

@@ -120,8 +120,8 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     }
     let (latency, what, error) = (c.latency_samples, c.compensator, c.error);
     let design = file.inverse.as_ref().filter(|_| c.designed);
-    crate::trace::write_atomically_with(&args.output, |out| {
-        trace.write_csv_with(out, &[("u_hat", &c.u_hat)])
+    crate::file::write_atomically_with(&args.output, |out| {
+        Ok(trace.write_csv_with(out, &[("u_hat", &c.u_hat)])?)
     })?;
     let arith = match args.arithmetic {
         _ if args.offline => "f64",

@@ -101,7 +101,7 @@ impl InverseArgs {
                     .signal
                     .iter()
                     .map(|f| Trace::read(f, &columns.columns(false)))
-                    .collect::<Result<Vec<_>>>()?;
+                    .collect::<Result<Vec<_>, _>>()?;
                 let max_band_hz = match self.max_band {
                     Some(f) if !(f.is_finite() && f > 0.0) => {
                         return Err(Error::InvalidArgument {

@@ -132,6 +132,30 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
+/// The error as the command line says it: the library's message, and where the library
+/// names a parameter, the flag that sets it.
+#[must_use]
+pub fn describe(e: &Error) -> String {
+    use crate::trace::{ColumnRole, TraceError};
+    let flag = match e {
+        Error::Trace(TraceError::MissingColumn { role, .. }) => Some(match role {
+            ColumnRole::Probe => "--y",
+            ColumnRole::Reference => "--u",
+            ColumnRole::Time => "--t, or --fs",
+        }),
+        Error::Trace(
+            TraceError::SampleRate { .. }
+            | TraceError::NoSampleRate { .. }
+            | TraceError::NonUniformTime { .. },
+        ) => Some("--fs"),
+        _ => None,
+    };
+    match flag {
+        Some(flag) => format!("{e} ({flag})"),
+        None => e.to_string(),
+    }
+}
+
 /// Step tests for the library, one per trace (`names[i]` names `traces[i]`).
 ///
 /// # Errors

@@ -474,7 +474,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
     for ((t, u), y) in test.t.iter().zip(&test.reference).zip(&test.probe) {
         let _ = writeln!(csv, "{t:.9},{u},{y}");
     }
-    crate::trace::write_atomically(&args.output, csv.as_bytes())?;
+    crate::file::write_atomically(&args.output, csv.as_bytes())?;
     let ir = &test.impulse;
     if args.json {
         let v = json!({

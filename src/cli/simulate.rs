@@ -65,8 +65,8 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
         crate::modelling::effects::predict_with(&file.model, &file.effects, u, &trace.y, scale);
     let observed = crate::modelling::effects::observed(&file.effects, file.model.fs, &trace.y);
     let error = fit::nrmse_of(&observed, &y_model);
-    crate::trace::write_atomically_with(&args.output, |out| {
-        trace.write_csv_with(out, &[("y_model", &y_model)])
+    crate::file::write_atomically_with(&args.output, |out| {
+        Ok(trace.write_csv_with(out, &[("y_model", &y_model)])?)
     })?;
     if args.json {
         let v = json!({

@@ -15,8 +15,8 @@ use std::path::Path;
 use crate::compensator::TemperatureBank;
 use crate::error::{Error, Result};
 use crate::export::{BoardCoefficients, BoardImage, Format, MAX_EXPORT_SECTIONS};
+use crate::file::write_atomically;
 use crate::file::ModelFile;
-use crate::trace::write_atomically;
 
 /// Most sets one bank may hold.
 pub const MAX_BANK_SETS: usize = 64;

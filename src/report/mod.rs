@@ -71,7 +71,7 @@ pub fn plot_ids(tests: usize, compensated: bool) -> Vec<String> {
 /// cannot be written (nothing is left behind).
 pub fn write(path: &Path, inputs: &Inputs<'_>) -> Result<usize> {
     let html = render(inputs)?;
-    crate::trace::write_atomically(path, html.as_bytes())?;
+    crate::file::write_atomically(path, html.as_bytes())?;
     Ok(html.len())
 }
 

@@ -7,18 +7,21 @@
 //! infinities, time that does not increase or jitters by more than 1 %, and clipped ADC
 //! channels. Each problem is reported with the file, line and column.
 //!
-//! Output files are written to a temporary file in the same directory and renamed at the end
-//! ([`write_atomically`]), so a failed run never leaves a half-written file.
+//! Results are written back beside the trace's own columns by [`Trace::write_csv_with`], which
+//! streams the rows to any writer (the file room's `write_atomically_with` puts them on disk
+//! without ever leaving a half-written file). Problems are [`TraceError`]s, in this room's
+//! own words: the trace room imports nothing of the rooms after it.
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 use sha2::{Digest, Sha256};
 
-use crate::error::{Error, Result};
+mod error;
+pub use error::{ColumnRole, CopyFailure, TraceError};
 
-mod write;
-pub use write::{write_atomically, write_atomically_with, WriteFailure};
+/// The trace room's result.
+pub type Result<T, E = TraceError> = std::result::Result<T, E>;
 
 /// Highest sample rate a record or a model file may carry (1 GHz).
 pub const MAX_SAMPLE_RATE_HZ: f64 = 1e9;
@@ -98,7 +101,7 @@ struct Hashing<R> {
 impl Hashing<std::io::BufReader<std::fs::File>> {
     /// Opens the file at `path` to be read through a buffer and hashed; with its length.
     fn open(path: &Path) -> Result<(Self, u64)> {
-        let cannot_read = |source| Error::Io {
+        let cannot_read = |source| TraceError::Io {
             path: path.to_path_buf(),
             action: "cannot read",
             source,
@@ -136,7 +139,7 @@ impl Trace {
     /// Reads and checks a trace.
     ///
     /// # Errors
-    /// [`Error`] naming the file, line and column of the first problem found.
+    /// [`TraceError`] naming the file, line and column of the first problem found.
     pub fn read(path: &Path, columns: &Columns) -> Result<Self> {
         let (mut reader, size) = Hashing::open(path)?;
         let mut trace = Self::parse_reader(path, &mut reader, size, columns)?;
@@ -162,19 +165,16 @@ impl Trace {
         let p = || path.to_path_buf();
         if let Some(fs) = columns.sample_rate_hz {
             if !(fs.is_finite() && fs > 0.0 && fs <= MAX_SAMPLE_RATE_HZ) {
-                return Err(Error::InvalidArgument {
-                    what: "--fs",
-                    message: format!(
-                        "the sample rate must be a positive number of Hz up to {:e}, not {fs:?}",
-                        MAX_SAMPLE_RATE_HZ
-                    ),
+                return Err(TraceError::SampleRate {
+                    given: fs,
+                    max: MAX_SAMPLE_RATE_HZ,
                 });
             }
         }
         let mut reader = csv_reader(reader);
         let headers = reader.headers().map_err(|e| csv_error(path, &e))?.clone();
         if headers.is_empty() || headers.iter().all(str::is_empty) {
-            return Err(Error::Empty {
+            return Err(TraceError::Empty {
                 path: p(),
                 line: 1,
                 what: "no header row",
@@ -182,20 +182,22 @@ impl Trace {
         }
         let find = |name: &str| headers.iter().position(|h| h == name);
         let found = headers.iter().collect::<Vec<_>>().join(", ");
-        let y_idx = find(&columns.output).ok_or_else(|| Error::MissingColumn {
+        let y_idx = find(&columns.output).ok_or_else(|| TraceError::MissingColumn {
             path: p(),
             column: columns.output.clone(),
             found: found.clone(),
-            hint: "; name the probe column with --y",
+            role: ColumnRole::Probe,
+            needed: false,
         })?;
         let u_idx = match find(&columns.input) {
             Some(i) => Some(i),
             None if columns.require_input => {
-                return Err(Error::MissingColumn {
+                return Err(TraceError::MissingColumn {
                     path: p(),
                     column: columns.input.clone(),
                     found: found.clone(),
-                    hint: "; name the reference column with --u",
+                    role: ColumnRole::Reference,
+                    needed: false,
                 })
             }
             None => None,
@@ -203,12 +205,15 @@ impl Trace {
         let t_idx = if columns.sample_rate_hz.is_some() {
             None
         } else {
-            Some(find(&columns.time).ok_or_else(|| Error::MissingColumn {
-                path: p(),
-                column: columns.time.clone(),
-                found: found.clone(),
-                hint: "; name the time column with --t, or give the sample rate with --fs",
-            })?)
+            Some(
+                find(&columns.time).ok_or_else(|| TraceError::MissingColumn {
+                    path: p(),
+                    column: columns.time.clone(),
+                    found: found.clone(),
+                    role: ColumnRole::Time,
+                    needed: false,
+                })?,
+            )
         };
 
         let mut t = Vec::new();
@@ -237,7 +242,7 @@ impl Trace {
             let field = |idx: usize| -> Result<f64> {
                 let text = rec.get(idx).unwrap_or("");
                 let name = headers.get(idx).unwrap_or("").to_string();
-                let v: f64 = text.parse().map_err(|_| Error::NotANumber {
+                let v: f64 = text.parse().map_err(|_| TraceError::NotANumber {
                     path: p(),
                     line,
                     column: idx + 1,
@@ -245,7 +250,7 @@ impl Trace {
                     value: text.to_string(),
                 })?;
                 if !v.is_finite() {
-                    return Err(Error::NonFinite {
+                    return Err(TraceError::NonFinite {
                         path: p(),
                         line,
                         column: idx + 1,
@@ -265,7 +270,7 @@ impl Trace {
             lines.push(line);
         }
         if y.is_empty() {
-            return Err(Error::Empty {
+            return Err(TraceError::Empty {
                 path: p(),
                 line: 2,
                 what: "a header and no data rows",
@@ -277,7 +282,7 @@ impl Trace {
             (None, None) => unreachable_fs(path)?,
         };
         if sample_rate_hz.is_nan() || sample_rate_hz > MAX_SAMPLE_RATE_HZ {
-            return Err(Error::Malformed {
+            return Err(TraceError::Malformed {
                 path: p(),
                 line: 3,
                 message: format!(
@@ -322,13 +327,14 @@ impl Trace {
     /// The reference column, or an error naming the file when it has none.
     ///
     /// # Errors
-    /// [`Error::MissingColumn`] when the file has no reference column.
+    /// [`TraceError::MissingColumn`] when the file has no reference column.
     pub fn input(&self) -> Result<&[f64]> {
-        self.u.as_deref().ok_or_else(|| Error::MissingColumn {
+        self.u.as_deref().ok_or_else(|| TraceError::MissingColumn {
             path: self.path.clone(),
             column: "u".into(),
             found: self.headers.iter().collect::<Vec<_>>().join(", "),
-            hint: "; this step needs the reference column (name it with --u)",
+            role: ColumnRole::Reference,
+            needed: true,
         })
     }
 
@@ -337,16 +343,16 @@ impl Trace {
     /// checked at the end) and written with the new values beside them.
     ///
     /// # Errors
-    /// [`WriteFailure::Content`] with [`Error::Mismatch`] when a column's length differs from
-    /// the trace's or the file changed, [`WriteFailure::Output`] when `out` fails.
+    /// [`CopyFailure::Trace`] with [`TraceError::Mismatch`] when a column's length differs from
+    /// the trace's or the file changed, [`CopyFailure::Output`] when `out` fails.
     pub fn write_csv_with(
         &self,
         out: &mut dyn Write,
         extra: &[(&str, &[f64])],
-    ) -> std::result::Result<(), WriteFailure> {
+    ) -> std::result::Result<(), CopyFailure> {
         for (name, col) in extra {
             if col.len() != self.len() {
-                return Err(Error::Mismatch {
+                return Err(TraceError::Mismatch {
                     path: self.path.clone(),
                     message: format!(
                         "column '{name}' has {} values for {} rows",
@@ -357,8 +363,8 @@ impl Trace {
                 .into());
             }
         }
-        let changed = || -> WriteFailure {
-            Error::Mismatch {
+        let changed = || -> CopyFailure {
+            TraceError::Mismatch {
                 path: self.path.clone(),
                 message: "the file changed while unlag was running; run again".into(),
             }
@@ -371,7 +377,7 @@ impl Trace {
         }
         header.push('\n');
         out.write_all(header.as_bytes())?;
-        let mut copy = |reader: &mut dyn Read| -> std::result::Result<(), WriteFailure> {
+        let mut copy = |reader: &mut dyn Read| -> std::result::Result<(), CopyFailure> {
             let mut reader = csv_reader(reader);
             let mut rec = csv::StringRecord::new();
             // Skip the header.
@@ -417,13 +423,12 @@ impl Trace {
 }
 
 fn unreachable_fs(path: &Path) -> Result<f64> {
-    Err(Error::InvalidArgument {
-        what: "--fs",
-        message: format!("{}: no time column and no sample rate", path.display()),
+    Err(TraceError::NoSampleRate {
+        path: path.to_path_buf(),
     })
 }
 
-fn csv_error(path: &Path, e: &csv::Error) -> Error {
+fn csv_error(path: &Path, e: &csv::Error) -> TraceError {
     let line = e.position().map_or(0, csv::Position::line);
     let message = match e.kind() {
         csv::ErrorKind::UnequalLengths {
@@ -432,7 +437,7 @@ fn csv_error(path: &Path, e: &csv::Error) -> Error {
         csv::ErrorKind::Utf8 { .. } => "the file is not UTF-8 text".to_string(),
         _ => e.to_string(),
     };
-    Error::Malformed {
+    TraceError::Malformed {
         path: path.to_path_buf(),
         line,
         message,
@@ -443,25 +448,22 @@ fn csv_error(path: &Path, e: &csv::Error) -> Error {
 fn check_time(path: &Path, t: &[f64], lines: &[u64], column: usize, name: &str) -> Result<f64> {
     let n = t.len();
     let (Some(&first), Some(&last)) = (t.first(), t.last()) else {
-        return Err(Error::Empty {
+        return Err(TraceError::Empty {
             path: path.to_path_buf(),
             line: 2,
             what: "a header and no data rows",
         });
     };
     if n < 2 {
-        return Err(Error::TooShort {
+        return Err(TraceError::TooShort {
             path: path.to_path_buf(),
             samples: n,
-            order: 0,
-            delay: 0,
-            needed: 2,
         });
     }
     for (k, w) in t.windows(2).enumerate() {
         if let [a, b] = *w {
             if b <= a {
-                return Err(Error::TimeNotIncreasing {
+                return Err(TraceError::TimeNotIncreasing {
                     path: path.to_path_buf(),
                     line: lines.get(k + 1).copied().unwrap_or(0),
                     column,
@@ -478,7 +480,7 @@ fn check_time(path: &Path, t: &[f64], lines: &[u64], column: usize, name: &str) 
             let step = b - a;
             let dev = (step - nominal).abs() / nominal;
             if dev > MAX_JITTER {
-                return Err(Error::NonUniformTime {
+                return Err(TraceError::NonUniformTime {
                     path: path.to_path_buf(),
                     line: lines.get(k + 1).copied().unwrap_or(0),
                     column,
@@ -566,7 +568,7 @@ fn check_clipping(path: &Path, x: &[f64], lines: &[u64], column: usize, name: &s
                     run >= CLIP_MIN_RUN_AT_END && repeat_fraction_outside(x, start, k) < 0.2
                 };
                 if clipped && entry_jump > 5.0 * typical {
-                    return Err(Error::Clipped {
+                    return Err(TraceError::Clipped {
                         path: path.to_path_buf(),
                         line: lines.get(start).copied().unwrap_or(0),
                         column,
@@ -596,6 +598,7 @@ fn hex(bytes: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::file::write_atomically_with;
 
     fn parse(text: &str) -> Result<Trace> {
         Trace::parse(Path::new("x.csv"), text.as_bytes(), &Columns::default())
@@ -713,7 +716,7 @@ mod tests {
         assert_eq!(tr.y, [0.0, 0.5, 0.75]);
         let out = dir.path().join("out.csv");
         write_atomically_with(&out, |w| {
-            tr.write_csv_with(w, &[("u_hat", &[0.0, 1.0, 2.5])])
+            Ok(tr.write_csv_with(w, &[("u_hat", &[0.0, 1.0, 2.5])])?)
         })
         .unwrap();
         assert_eq!(
@@ -724,7 +727,7 @@ mod tests {
         std::fs::write(&input, text.replace("0.75", "0.70")).unwrap();
         let again = dir.path().join("again.csv");
         let e = write_atomically_with(&again, |w| {
-            tr.write_csv_with(w, &[("u_hat", &[0.0, 1.0, 2.5])])
+            Ok(tr.write_csv_with(w, &[("u_hat", &[0.0, 1.0, 2.5])])?)
         })
         .unwrap_err();
         assert!(

@@ -27,6 +27,15 @@ impl From<Error> for WriteFailure {
     }
 }
 
+impl From<crate::trace::CopyFailure> for WriteFailure {
+    fn from(e: crate::trace::CopyFailure) -> Self {
+        match e {
+            crate::trace::CopyFailure::Output(e) => Self::Output(e),
+            crate::trace::CopyFailure::Trace(e) => Self::Content(e.into()),
+        }
+    }
+}
+
 /// Writes `bytes` to `path` so that nothing is lost or half-written:
 ///
 /// - a regular file (new or existing) is written to a temporary file in its directory and

@@ -1,0 +1,288 @@
+//! The evidence across tests: each test fitted alone ([`PerTest`]), and what those fits show
+//! together, a damping that rises with the step's amplitude ([`AmplitudeSignature`]) or
+//! natural frequencies that all move by one factor ([`TemperatureEvidence`]).
+
+use serde::Serialize;
+
+use super::Current;
+use crate::fit::{Options, Order, Test};
+use crate::modelling::effects::FitChanges;
+use crate::modelling::evidence::TestEvidence;
+
+/// One test seen on its own: the same model structure fitted to it alone, and how big its
+/// residual is for its step. Across tests this shows what one model hides: natural
+/// frequencies that move together (temperature), damping that changes with the step's
+/// amplitude or direction (amplitude-dependent losses), a residual that grows faster than
+/// the step.
+#[derive(Debug, Clone, Serialize)]
+pub struct PerTest {
+    /// The test's file name.
+    pub file: String,
+    /// Signed step size of the reference.
+    pub step_size: f64,
+    /// The shared model's residual RMS over `|step|`.
+    pub residual_per_step: f64,
+    /// Each resonance of the test's own fit: `(natural frequency in Hz, damping)`, lowest
+    /// first.
+    pub resonances: Vec<(f64, f64)>,
+    /// What the test's own (linear) fit leaves above the noise, RMS over `|step|`:
+    /// `sqrt(max(rms^2 - noise^2, (noise / 10)^2)) / |step|`. A linear probe leaves the same
+    /// share of every step; amplitude-dependent losses leave more of a larger one.
+    pub own_residual_per_step: f64,
+}
+
+/// Lowest relative rise of the damping over the tests' amplitudes for the nonlinear-damping
+/// signature.
+pub const MIN_DAMPING_RISE: f64 = 0.1;
+
+/// Lowest exponent of the own-fit residual against the step's amplitude for the
+/// nonlinear-damping signature (1 for a linear probe).
+pub const MIN_RESIDUAL_EXPONENT: f64 = 1.3;
+
+/// Smallest ratio of the largest to the smallest step for an amplitude signature.
+pub const MIN_AMPLITUDE_RATIO: f64 = 1.3;
+
+/// Residual against amplitude across tests: how the fitted damping and what a linear fit
+/// cannot explain change with the step's size.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AmplitudeSignature {
+    /// `|step|` of each test, smallest first.
+    pub amplitudes: Vec<f64>,
+    /// Damping of the lowest resonance of each test's own fit, in the same order.
+    pub damping: Vec<f64>,
+    /// Own-fit residual per unit step ([`PerTest::own_residual_per_step`]), same order.
+    pub residual_per_step: Vec<f64>,
+    /// Least-squares slope of the damping against `|step|` (per probe unit).
+    pub damping_slope: f64,
+    /// Damping at the largest step over the damping at the smallest, less one.
+    pub damping_rise: f64,
+    /// Exponent `p` of the own-fit residual against amplitude, `residual ~ |step|^p` (least
+    /// squares on the logarithms): 1 for a linear probe, 2 for quadratic losses.
+    pub residual_exponent: f64,
+}
+
+impl AmplitudeSignature {
+    /// Whether it is the signature of amplitude-dependent losses: the damping rises by
+    /// [`MIN_DAMPING_RISE`] and the residual grows as `|step|^p`, `p >=`
+    /// [`MIN_RESIDUAL_EXPONENT`].
+    #[must_use]
+    pub fn nonlinear_damping(&self) -> bool {
+        self.damping_rise >= MIN_DAMPING_RISE && self.residual_exponent >= MIN_RESIDUAL_EXPONENT
+    }
+}
+
+fn slope(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len()) as f64;
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let (mut num, mut den) = (0.0, 0.0);
+    for (a, b) in x.iter().zip(y) {
+        num += (a - mx) * (b - my);
+        den += (a - mx) * (a - mx);
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        0.0
+    }
+}
+
+/// The residual-against-amplitude signature across tests, or `None` with fewer than two
+/// tests with a resonance, or steps too alike in size (ratio under [`MIN_AMPLITUDE_RATIO`]).
+#[must_use]
+pub fn amplitude_signature(per_test: &[PerTest]) -> Option<AmplitudeSignature> {
+    let mut points: Vec<(f64, f64, f64)> = per_test
+        .iter()
+        .filter_map(|p| {
+            let a = p.step_size.abs();
+            let z = p.resonances.first()?.1;
+            (a > 0.0 && a.is_finite() && p.own_residual_per_step > 0.0).then_some((
+                a,
+                z,
+                p.own_residual_per_step,
+            ))
+        })
+        .collect();
+    points.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (first, last) = (points.first()?, points.last()?);
+    if points.len() < 2 || last.0 < MIN_AMPLITUDE_RATIO * first.0 {
+        return None;
+    }
+    let amplitudes: Vec<f64> = points.iter().map(|p| p.0).collect();
+    let damping: Vec<f64> = points.iter().map(|p| p.1).collect();
+    let residual_per_step: Vec<f64> = points.iter().map(|p| p.2).collect();
+    let ln_a: Vec<f64> = amplitudes.iter().map(|a| a.ln()).collect();
+    let ln_r: Vec<f64> = points.iter().map(|p| (p.2 * p.0).ln()).collect();
+    Some(AmplitudeSignature {
+        damping_slope: slope(&amplitudes, &damping),
+        damping_rise: last.1 / first.1 - 1.0,
+        residual_exponent: slope(&ln_a, &ln_r),
+        amplitudes,
+        damping,
+        residual_per_step,
+    })
+}
+
+/// A test's natural frequencies must move by at least this factor (3 %) together to point at
+/// a temperature.
+pub const MIN_FREQUENCY_SHIFT: f64 = 1.03;
+
+/// The per-test evidence of a temperature change.
+#[derive(Debug, Clone, Serialize)]
+pub struct TemperatureRow {
+    /// The test.
+    pub file: String,
+    /// Each resonance of its own fit against the model's nearest: `(test Hz, model Hz, ratio)`.
+    pub modes: Vec<(f64, f64, f64)>,
+    /// The common ratio (geometric mean over the modes).
+    pub ratio: f64,
+    /// Largest relative departure of a mode's ratio from the common one.
+    pub spread: f64,
+    /// Geometric mean of the damping ratios (test over model).
+    pub damping_ratio: f64,
+}
+
+/// What [`temperature_evidence`] found.
+#[derive(Debug, Clone)]
+pub struct TemperatureEvidence {
+    /// One row per test.
+    pub rows: Vec<TemperatureRow>,
+    /// Spread of the strongest test.
+    pub spread: f64,
+    /// Damping ratio of the strongest test.
+    pub damping_ratio: f64,
+}
+
+impl TemperatureEvidence {
+    /// The test whose frequencies moved most, and its common ratio.
+    #[must_use]
+    pub fn strongest(&self) -> (String, f64) {
+        self.rows
+            .iter()
+            .max_by(|a, b| a.ratio.ln().abs().total_cmp(&b.ratio.ln().abs()))
+            .map_or((String::new(), 1.0), |r| (r.file.clone(), r.ratio))
+    }
+}
+
+/// The natural frequencies of each test fitted alone against the model's: present when a test's
+/// frequencies all move by one common factor of at least [`MIN_FREQUENCY_SHIFT`] (spread
+/// across modes under a third of the shift) while its damping stays about the same (a change
+/// of damping much larger than of frequency is an amplitude effect, not temperature).
+#[must_use]
+pub fn temperature_evidence(
+    current: &Current<'_>,
+    tests: &[Test<'_>],
+    evidence: &[TestEvidence],
+) -> Option<TemperatureEvidence> {
+    let model_modes = crate::fit::analysis::Analysis::new(current.model)
+        .ok()?
+        .resonance_pairs();
+    if model_modes.is_empty() {
+        return None;
+    }
+    let rows: Vec<TemperatureRow> = per_test(current, tests, evidence)
+        .into_iter()
+        .filter(|p| !p.resonances.is_empty())
+        .map(|p| {
+            let pairs: Vec<((f64, f64), (f64, f64))> = p
+                .resonances
+                .iter()
+                .filter_map(|&(f, z)| {
+                    model_modes
+                        .iter()
+                        .min_by(|a, b| (a.0 / f).ln().abs().total_cmp(&(b.0 / f).ln().abs()))
+                        .map(|&m| ((f, z), m))
+                })
+                .collect();
+            let n = pairs.len().max(1) as f64;
+            let ln_ratio = pairs
+                .iter()
+                .map(|((f, _), (g, _))| (f / g).ln())
+                .sum::<f64>()
+                / n;
+            let spread = pairs
+                .iter()
+                .map(|((f, _), (g, _))| ((f / g).ln() - ln_ratio).abs())
+                .fold(0.0, f64::max);
+            let ln_damping = pairs
+                .iter()
+                .map(|((_, z), (_, w))| (z.max(1e-6) / w.max(1e-6)).ln())
+                .sum::<f64>()
+                / n;
+            TemperatureRow {
+                file: p.file,
+                modes: pairs
+                    .iter()
+                    .map(|((f, _), (g, _))| (*f, *g, f / g))
+                    .collect(),
+                ratio: ln_ratio.exp(),
+                spread,
+                damping_ratio: ln_damping.exp(),
+            }
+        })
+        .collect();
+    let strongest = rows
+        .iter()
+        .max_by(|a, b| a.ratio.ln().abs().total_cmp(&b.ratio.ln().abs()))?;
+    let shift = strongest.ratio.ln().abs();
+    let ok = shift >= MIN_FREQUENCY_SHIFT.ln()
+        && strongest.spread <= shift / 3.0 + 0.005
+        && strongest.damping_ratio.ln().abs() <= 2.0 * shift + 0.1;
+    ok.then(|| TemperatureEvidence {
+        spread: strongest.spread,
+        damping_ratio: strongest.damping_ratio,
+        rows: rows.clone(),
+    })
+}
+
+/// Fits the current model's structure (order without effects, delay, method) to each test
+/// alone.
+#[must_use]
+pub fn per_test(
+    current: &Current<'_>,
+    tests: &[Test<'_>],
+    evidence: &[TestEvidence],
+) -> Vec<PerTest> {
+    let have = FitChanges::of(current.effects);
+    let order = current
+        .model
+        .order()
+        .saturating_sub(have.extra_order)
+        .max(1);
+    let options = Options {
+        method: current.method,
+        order: Order::Fixed(order),
+        delay: Some(current.model.delay),
+    };
+    tests
+        .iter()
+        .zip(evidence)
+        .map(|(t, e)| {
+            let own = crate::fit::fit(t, &[], current.model.fs, &options).ok();
+            let own_rms = own.as_ref().map_or(f64::NAN, |f| {
+                let ym = f.model.simulate(t.u);
+                let n = t.y.len().min(ym.len()).max(1) as f64;
+                (t.y.iter()
+                    .zip(&ym)
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>()
+                    / n)
+                    .sqrt()
+            });
+            let noise2 = e.noise_std * e.noise_std;
+            let excess = (own_rms * own_rms - noise2).max(0.01 * noise2).sqrt();
+            let mut resonances: Vec<(f64, f64)> = own
+                .as_ref()
+                .and_then(|f| crate::fit::analysis::Analysis::new(&f.model).ok())
+                .map(|a| a.resonance_pairs())
+                .unwrap_or_default();
+            resonances.sort_by(|a, b| a.0.total_cmp(&b.0));
+            PerTest {
+                file: e.file.clone(),
+                step_size: e.step_size,
+                residual_per_step: e.residual_rms / e.step_size.abs().max(1e-300),
+                resonances,
+                own_residual_per_step: excess / e.step_size.abs().max(1e-300),
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,185 @@
+//! What a diagnosis says: the [`Finding`] it names, each ranked [`Candidate`] with the numbers
+//! behind it, and the test that tells two close candidates apart.
+
+use serde::Serialize;
+use serde_json::Value;
+
+#[cfg(doc)]
+use super::PARAMETER_PENALTY;
+use crate::fit::model::Uncertainty;
+use crate::modelling::effects::{self, EffectKind};
+
+/// What a diagnosis names: a missing effect, nothing missing, or something missing that no
+/// effect of the catalogue explains. Its text is the candidate's `kind` in `--json`: the
+/// effect's name, exactly what `unlag fit --add` takes ([`EffectKind`]), or `none`, or
+/// `unexplained` (verdicts, not effects: there is nothing to add for them, so they are no
+/// [`EffectKind`]).
+///
+/// ```
+/// use unlag::modelling::diagnose::Finding;
+/// use unlag::modelling::effects::EffectKind;
+///
+/// assert_eq!(Finding::Missing(EffectKind::Leak).to_string(), "leak");
+/// assert_eq!(Finding::Nothing.to_string(), "none");
+/// assert_eq!("unexplained".parse(), Ok(Finding::Unexplained));
+/// assert_eq!(Finding::Missing(EffectKind::Mode).effect(), Some(EffectKind::Mode));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Finding {
+    /// This effect is missing: `unlag fit --add` it.
+    Missing(EffectKind),
+    /// `none`: the residual is what the noise leaves; nothing to add.
+    Nothing,
+    /// `unexplained`: the residual is above the noise floor and no effect's trial lowers it.
+    Unexplained,
+}
+
+impl Finding {
+    /// The effect to add, when one is named.
+    #[must_use]
+    pub const fn effect(self) -> Option<EffectKind> {
+        match self {
+            Self::Missing(k) => Some(k),
+            Self::Nothing | Self::Unexplained => None,
+        }
+    }
+
+    /// Its text: the effect's name, `none` or `unexplained`.
+    #[must_use]
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Self::Missing(k) => k.as_str(),
+            Self::Nothing => "none",
+            Self::Unexplained => "unexplained",
+        }
+    }
+}
+
+impl core::fmt::Display for Finding {
+    /// Its text ([`Finding::as_str`]), padded as the formatter asks.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.pad(self.as_str())
+    }
+}
+
+impl core::str::FromStr for Finding {
+    type Err = effects::UnknownKind;
+
+    fn from_str(s: &str) -> core::result::Result<Self, Self::Err> {
+        match s {
+            "none" => Ok(Self::Nothing),
+            "unexplained" => Ok(Self::Unexplained),
+            _ => s.parse().map(Self::Missing),
+        }
+    }
+}
+
+impl Serialize for Finding {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> core::result::Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Finding {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> core::result::Result<Self, D::Error> {
+        let s = std::borrow::Cow::<'de, str>::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+impl PartialEq<EffectKind> for Finding {
+    fn eq(&self, other: &EffectKind) -> bool {
+        *self == Self::Missing(*other)
+    }
+}
+
+/// One ranked candidate.
+#[derive(Debug, Clone, Serialize)]
+pub struct Candidate {
+    /// What it names: an effect, exactly what `unlag fit --add` takes (`mode`, `leak`,
+    /// `offset`, `drift`, `delay`, `coloured-noise`, `nonlinear-damping`, `sensor-resonance`,
+    /// `temperature`, `temperature-viscous`), or `none` or `unexplained`.
+    pub kind: Finding,
+    /// `ln(error before / error after)` of the trial, less [`PARAMETER_PENALTY`] per parameter
+    /// the effect adds; larger is stronger.
+    pub score: f64,
+    /// The numbers behind it.
+    pub evidence: Value,
+    /// What it means physically.
+    pub reading: String,
+    /// The exact change that adds it.
+    pub change: String,
+    /// Held-out error before the trial.
+    pub nrmse_before: f64,
+    /// Held-out error after the trial.
+    pub nrmse_after: f64,
+    /// How far ahead of the next candidate it is (score difference; the last one's score).
+    pub margin: f64,
+    /// When the next candidate is within [`CLOSE_MARGIN`]: the test that would tell the two
+    /// apart.
+    pub separated_by: Option<String>,
+    /// The model's stated uncertainty before the trial (its fit report's), when it has one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uncertainty_before: Option<Uncertainty>,
+    /// The trial refit's stated uncertainty, when it could say: with `coloured-noise` it is
+    /// computed on the data its noise model whitens, so coloured noise is no longer counted
+    /// as independent samples.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uncertainty_after: Option<Uncertainty>,
+}
+
+impl Candidate {
+    /// The stated uncertainty before and after the trial in one sentence, when both are
+    /// known; with a noise model added, which figure to quote.
+    #[must_use]
+    pub fn uncertainty_text(&self) -> Option<String> {
+        let (b, a) = (
+            self.uncertainty_before.as_ref()?,
+            self.uncertainty_after.as_ref()?,
+        );
+        let quote = if !b.noise_model && a.noise_model {
+            " (the white-noise figure counts correlated samples as independent: it understates; \
+             the whitened one is the one to quote)"
+        } else {
+            ""
+        };
+        Some(format!(
+            "stated uncertainty (1 sigma): before, from {}: {}; after, from {}: {}{quote}",
+            b.noise_text(),
+            b.summary(),
+            a.noise_text(),
+            a.summary()
+        ))
+    }
+}
+
+/// Two candidates closer than this in score are close: the diagnosis names the test that
+/// would separate them.
+pub const CLOSE_MARGIN: f64 = 0.3;
+
+/// The test that tells what `a` names from what `b` names, by what each one's signature
+/// depends on.
+#[must_use]
+pub fn separating_test(a: Finding, b: Finding) -> String {
+    use EffectKind::{ColouredNoise, Drift, Leak, Mode, NonlinearDamping, Offset, SensorResonance};
+    let pair = |x: EffectKind, y: EffectKind| (a == x && b == y) || (a == y && b == x);
+    let temperature = |k: Finding| {
+        k.effect()
+            .is_some_and(|k| k.family() == EffectKind::Temperature)
+    };
+    if pair(Drift, Offset) || pair(Leak, Drift) {
+        "a longer record after the step (a drift keeps growing, an offset stays, a leak settles)"
+            .into()
+    } else if pair(ColouredNoise, Drift) || pair(ColouredNoise, Offset) {
+        "a record with no step, the pressure steady (the noise alone: it wanders both ways, a drift one way)".into()
+    } else if temperature(a) || temperature(b) {
+        "a test at another gas temperature, or the same temperature as the estimation test (a temperature moves every natural frequency by one factor)".into()
+    } else if a == NonlinearDamping || b == NonlinearDamping {
+        "steps of other sizes (amplitude-dependent losses change with the step, a linear effect does not)".into()
+    } else if pair(Mode, SensorResonance) {
+        "the reference transducer alone on a step (a diaphragm rings in it, a line mode does not)"
+            .into()
+    } else {
+        "another step test of another size and direction, held out".into()
+    }
+}

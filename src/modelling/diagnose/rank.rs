@@ -1,0 +1,604 @@
+//! The ranking: each candidate effect's signature read from the evidence and its trial run,
+//! the candidates ordered, and the verdict when none is offered (`none` or `unexplained`).
+
+use serde_json::{json, Value};
+
+use super::trial::{held_out, trial_window};
+use super::{
+    amplitude_signature, mean, per_test, separating_test, temperature_evidence, AmplitudeSignature,
+    Candidate, Current, Finding, CLOSE_MARGIN,
+};
+use crate::error::Result;
+use crate::fit::model::Uncertainty;
+use crate::fit::{Method, Options, Order, Test};
+use crate::modelling::effects::{self, Effect, EffectKind, FitChanges};
+use crate::modelling::evidence::TestEvidence;
+
+/// A trial must lower the held-out error by at least this factor to be offered.
+pub const MIN_IMPROVEMENT: f64 = 1.15;
+
+/// A held-out error that falls this much in a trial overrules a noise floor that says nothing
+/// is missing.
+pub const FLOOR_OVERRULED: f64 = 1.4;
+
+/// Score charged per parameter an effect adds: between two effects that explain the data
+/// equally well, the simpler one ranks first (an offset before a drift, a leak before a mode).
+pub const PARAMETER_PENALTY: f64 = 0.03;
+
+/// Two peaks within this relative distance are at the same frequency.
+pub const SAME_FREQUENCY: f64 = 0.15;
+
+/// Ranks the candidates, best first; `none` alone when nothing is missing.
+///
+/// # Errors
+/// Only when the current model cannot be evaluated; a trial that fails is simply not
+/// offered.
+pub fn diagnose(
+    current: &Current<'_>,
+    tests: &[Test<'_>],
+    evidence: &[TestEvidence],
+) -> Result<Vec<Candidate>> {
+    let fs = current.model.fs;
+    let before = held_out(current.model, current.effects, tests);
+    let have = FitChanges::of(current.effects);
+    let base_order = current
+        .model
+        .order()
+        .saturating_sub(have.extra_order)
+        .max(1);
+    let base = Options {
+        method: current.method,
+        order: Order::Fixed(base_order),
+        delay: Some(current.model.delay),
+    };
+    let Some((estimation, validation)) = tests.split_first() else {
+        return Ok(Vec::new());
+    };
+    let estimation = &trial_window(estimation);
+    let validation: &[Test<'_>] = &validation.iter().map(trial_window).collect::<Vec<_>>();
+    // Each trial's held-out error and stated uncertainty, for the candidate it becomes.
+    let stated: std::cell::RefCell<Vec<(f64, Option<Uncertainty>)>> = Default::default();
+    let trial = |added: Effect, options: &Options| -> Option<(f64, Vec<Effect>)> {
+        let mut with = current.effects.to_vec();
+        with.retain(|e| e.kind() != added.kind());
+        with.push(added);
+        let (fitted, fx) = effects::fit_with(estimation, validation, fs, options, &with).ok()?;
+        fitted.model.check_stable("trial").ok()?;
+        let after = held_out(&fitted.model, &fx, tests);
+        stated
+            .borrow_mut()
+            .push((after, fitted.report.uncertainty.clone()));
+        Some((after, fx))
+    };
+    let floor = mean(evidence.iter().map(|e| e.noise_floor));
+    let white = evidence.iter().all(|e| e.autocorrelation.p_value > 0.01);
+    let at_floor = evidence.iter().all(TestEvidence::at_noise_floor);
+    let mut out: Vec<Candidate> = Vec::new();
+    let mut offer =
+        |kind: EffectKind, after: f64, evidence: Value, reading: String, change: String| {
+            let ratio = before / after;
+            if after.is_finite() && ratio >= MIN_IMPROVEMENT {
+                out.push(Candidate {
+                    kind: Finding::Missing(kind),
+                    score: ratio.ln() - PARAMETER_PENALTY * kind.parameters() as f64,
+                    evidence,
+                    reading,
+                    change,
+                    nrmse_before: before,
+                    nrmse_after: after,
+                    margin: 0.0,
+                    separated_by: None,
+                    uncertainty_before: current.uncertainty.cloned(),
+                    uncertainty_after: stated
+                        .borrow()
+                        .iter()
+                        .rev()
+                        .find(|(e, _)| e.to_bits() == after.to_bits())
+                        .and_then(|(_, u)| u.clone()),
+                });
+            }
+        };
+
+    // mode: the trial (two more poles and zeros), read with the highest peak of the
+    // model-error spectrum (where the measured response rises above the model's), or its rise
+    // at the top of the band the noise leaves, or a residual spectrum peak.
+    let peak = evidence
+        .iter()
+        .flat_map(|e| e.model_error.peaks.iter().map(move |p| (e, p)))
+        .max_by(|a, b| a.1.above_floor_db.total_cmp(&b.1.above_floor_db));
+    let edge = evidence
+        .iter()
+        .filter_map(|e| {
+            let last = e.model_error.db.last().copied()?;
+            (last > crate::modelling::evidence::MODEL_ERROR_PEAK_DB).then_some((e, last))
+        })
+        .max_by(|a, b| a.1.total_cmp(&b.1));
+    let residual_peak = evidence
+        .iter()
+        .flat_map(|e| e.spectrum.peaks.iter().map(move |p| (e, p)))
+        .max_by(|a, b| a.1.above_floor_db.total_cmp(&b.1.above_floor_db));
+    if let Some((after, fx)) = trial(Effect::Mode { near_hz: None }, &base) {
+        let (near, ev, reading) = if let Some((e, p)) = peak {
+            (
+                Some(p.frequency_hz),
+                json!({"frequency_hz": p.frequency_hz, "above_floor_db": p.above_floor_db,
+                       "q": p.q, "test": e.file, "source": "model-error spectrum"}),
+                format!(
+                    "the measured response rises {:.1} dB above the model's at {:.0} Hz (Q about \
+                     {:.0}): an unmodelled acoustic mode of the line or a cavity resonance",
+                    p.above_floor_db, p.frequency_hz, p.q
+                ),
+            )
+        } else if let Some((e, db)) = edge {
+            let f = e.model_error.valid_to_hz;
+            (
+                Some(f),
+                json!({"rise_db": db, "up_to_hz": f, "test": e.file,
+                       "source": "model-error spectrum, top of the band"}),
+                format!(
+                    "the measured response rises {db:.1} dB above the model's towards {f:.0} Hz, \
+                     where the noise takes over: an unmodelled mode at or above it (a higher \
+                     acoustic mode of the line or a cavity resonance)"
+                ),
+            )
+        } else if let Some((e, p)) = residual_peak {
+            (
+                Some(p.frequency_hz),
+                json!({"frequency_hz": p.frequency_hz, "above_floor_db": p.above_floor_db,
+                       "q": p.q, "test": e.file, "source": "residual spectrum"}),
+                format!(
+                    "a narrow residual peak at {:.0} Hz, {:.0} dB above the floor, Q about {:.0}: \
+                     an unmodelled acoustic mode of the line or a cavity resonance",
+                    p.frequency_hz, p.above_floor_db, p.q
+                ),
+            )
+        } else {
+            (
+                None,
+                json!({"source": "trial only"}),
+                "two more poles and zeros lower the held-out error, without a spectral peak to \
+                 point at: a heavily damped extra mode"
+                    .to_string(),
+            )
+        };
+        let _ = fx;
+        offer(
+            EffectKind::Mode,
+            after,
+            ev,
+            reading,
+            match near {
+                Some(f) => format!(
+                    "unlag fit ... --add mode   (model file: effects = [{{ kind = \"mode\", near_hz = {f:.0} }}])"
+                ),
+                None => "unlag fit ... --add mode   (model file: effects = [{ kind = \"mode\" }])"
+                    .into(),
+            },
+        );
+    }
+
+    // offset: a residual level before the step, the same after it.
+    let offset = evidence
+        .iter()
+        .map(|e| e.trend.pre_mean / e.trend.pre_mean_se.max(1e-300))
+        .fold(0.0f64, |m, z| if z.abs() > m.abs() { z } else { m });
+    if offset.abs() > 5.0 && !have.offset {
+        if let Some((after, fx)) = trial(Effect::Offset { value: 0.0 }, &base) {
+            let value = effects::Additive::of(&fx).offset;
+            offer(
+                EffectKind::Offset,
+                after,
+                json!({"pre_step_mean_in_standard_errors": offset, "offset": value}),
+                format!(
+                    "the residual sits {offset:.0} standard errors off zero before the step: a zero \
+                     offset of the probe against the reference ({value:.4e})"
+                ),
+                "unlag fit ... --add offset   (model file: effects = [{ kind = \"offset\" }])"
+                    .into(),
+            );
+        }
+    }
+
+    // drift: a ramp through the residual.
+    let drift = evidence
+        .iter()
+        .map(|e| {
+            let t = e.samples as f64 / fs;
+            (e.trend.slope_per_s * t) / (e.noise_std / (e.samples as f64).sqrt()).max(1e-300)
+        })
+        .fold(0.0f64, |m, z| if z.abs() > m.abs() { z } else { m });
+    if drift.abs() > 10.0 && !have.drift {
+        if let Some((after, fx)) = trial(
+            Effect::Drift {
+                value: 0.0,
+                rate_per_s: 0.0,
+            },
+            &base,
+        ) {
+            let rate = effects::Additive::of(&fx).rate_per_s;
+            let pre = mean(evidence.iter().map(|e| e.trend.pre_slope_per_s));
+            offer(
+                EffectKind::Drift,
+                after,
+                json!({"ramp_in_standard_errors": drift, "rate_per_s": rate,
+                       "pre_step_slope_per_s": pre}),
+                format!(
+                    "a ramp through the whole residual ({rate:.3e} per second, already before the \
+                     step): the sensor drifts in time (thermal drift)"
+                ),
+                "unlag fit ... --add drift   (model file: effects = [{ kind = \"drift\" }])".into(),
+            );
+        }
+    }
+
+    // leak: a slow creep after the step (one more slow pole and zero).
+    let creep = evidence
+        .iter()
+        .map(|e| (e.trend.late_mean - e.trend.pre_mean) / e.step_size.abs().max(1e-300))
+        .fold(0.0f64, |m, v| if v.abs() > m.abs() { v } else { m });
+    if let Some((after, _)) = trial(Effect::Leak, &base) {
+        offer(
+            EffectKind::Leak,
+            after,
+            json!({"late_residual_over_step": creep, "dc_gain": current.model.dc_gain()}),
+            format!(
+                "after the step the residual creeps slowly ({:+.2} % of the step at the end of the \
+                 record) and the model's DC gain is {:.4}: a leaking cavity or side volume, a \
+                 second, slow time scale",
+                100.0 * creep,
+                current.model.dc_gain()
+            ),
+            "unlag fit ... --add leak   (model file: effects = [{ kind = \"leak\" }])".into(),
+        );
+    }
+
+    // sensor-resonance: the reference rings too, at the frequency where the probe's residual
+    // or model error peaks: the transducers' own diaphragm, in both channels. A line or cavity
+    // mode never shows in the reference.
+    let ringing = evidence
+        .iter()
+        .filter_map(|e| e.reference_ringing.map(|p| (e, p)))
+        .max_by(|a, b| a.1.above_floor_db.total_cmp(&b.1.above_floor_db));
+    let mut sensor_matched = false;
+    if let (Some((e, rp)), None) = (ringing, effects::prefilter_hz(current.effects)) {
+        let near = |f: f64| (f / rp.frequency_hz - 1.0).abs() < SAME_FREQUENCY;
+        let probe = evidence
+            .iter()
+            .flat_map(|e| {
+                e.spectrum
+                    .peaks
+                    .iter()
+                    .map(|p| (p, "residual spectrum"))
+                    .chain(
+                        e.model_error
+                            .peaks
+                            .iter()
+                            .map(|p| (p, "model-error spectrum")),
+                    )
+            })
+            .filter(|(p, _)| near(p.frequency_hz))
+            .max_by(|a, b| a.0.above_floor_db.total_cmp(&b.0.above_floor_db));
+        if let Some((pp, source)) = probe {
+            let f = rp.frequency_hz;
+            let added = Effect::SensorResonance {
+                natural_frequency_hz: f,
+                prefilter_hz: 0.0,
+                remedy: effects::SensorRemedy::Modes,
+            };
+            if let Some((after, _)) = trial(added, &base) {
+                sensor_matched = true;
+                offer(
+                    EffectKind::SensorResonance,
+                    after,
+                    json!({"reference_peak_hz": f, "reference_above_floor_db": rp.above_floor_db,
+                           "reference_q": rp.q, "reference_test": e.file,
+                           "probe_peak_hz": pp.frequency_hz, "probe_above_floor_db": pp.above_floor_db,
+                           "probe_source": source,
+                           "remedy": "the transducers' modes in the model: two more poles and zeros, fitted on the raw signals (sensor-resonance-prefilter: the paper's prefilter instead)"}),
+                    format!(
+                        "the reference itself rings at {f:.0} Hz ({:.0} dB above the floor of its \
+                         increments, Q about {:.0}) and the probe's {source} peaks at {:.0} Hz: the \
+                         transducers' own diaphragm resonance, in both channels, not the line's; \
+                         model the transducers' modes (two more poles and zeros, on the raw \
+                         signals), or, as the paper does, fit below it with both channels \
+                         prefiltered at {:.0} Hz (sensor-resonance-prefilter)",
+                        rp.above_floor_db,
+                        rp.q,
+                        pp.frequency_hz,
+                        0.5 * f
+                    ),
+                    format!(
+                        "unlag fit ... --add sensor-resonance={f:.0}   (model file: effects = [{{ kind = \"sensor-resonance\", natural_frequency_hz = {f:.0}, remedy = \"modes\" }}])"
+                    ),
+                );
+            }
+        }
+    }
+
+    // temperature: every natural frequency of the per-test fits moves by one common factor
+    // against the model's, with the damping about the same or moving as the viscous law says:
+    // the speed of sound (and the kinematic viscosity) changed. Both damping laws are tried;
+    // the one that lowers the held-out error more is offered.
+    if tests.len() >= 2 && effects::reference_k(current.effects).is_none() {
+        if let Some(t) = temperature_evidence(current, tests, evidence) {
+            let best = [
+                effects::TemperatureDamping::Constant,
+                effects::TemperatureDamping::Viscous,
+            ]
+            .into_iter()
+            .filter_map(|damping| {
+                let added = Effect::Temperature {
+                    reference_k: effects::DEFAULT_REFERENCE_K,
+                    damping,
+                };
+                trial(added, &base).map(|(after, fx)| (after, fx, damping))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some((after, fx, damping)) = best {
+                let reference_k = effects::reference_k(&fx).unwrap_or(effects::DEFAULT_REFERENCE_K);
+                let estimated: Vec<Value> = tests
+                    .iter()
+                    .map(|t| {
+                        let k = effects::estimate_scale_with(
+                            current.model,
+                            damping,
+                            reference_k,
+                            t.u,
+                            t.y,
+                        );
+                        json!({"test": t.name, "scale": k,
+                               "temperature_k": reference_k * k * k,
+                               "damping_factor": damping.factor(k, reference_k)})
+                    })
+                    .collect();
+                let (file, ratio) = t.strongest();
+                let viscous = effects::TemperatureDamping::Viscous.factor(ratio, reference_k);
+                let spelling = damping.spelling();
+                let law = match damping {
+                    effects::TemperatureDamping::Constant => "damping kept".to_string(),
+                    effects::TemperatureDamping::Viscous => format!(
+                        "damping x{viscous:.2} by the viscous law nu(T)/nu(T_ref)/k of a \
+                         tube-volume system"
+                    ),
+                };
+                // The kind is what `--add` takes: the damping law is part of it.
+                offer(
+                    spelling,
+                    after,
+                    json!({"per_test": t.rows, "common_ratio": ratio, "test": file,
+                           "temperature_ratio": ratio * ratio,
+                           "damping_ratio": t.damping_ratio,
+                           "viscous_damping_ratio": viscous,
+                           "damping": damping, "add": spelling,
+                           "estimated_scale": estimated, "reference_k": reference_k}),
+                    format!(
+                        "every natural frequency of {file} fitted alone is {ratio:.3} times the \
+                         model's (spread across modes {:.1} %, damping x{:.2}): the same probe at \
+                         another gas temperature, T/T_ref = {:.3} (speed of sound goes as the root \
+                         of temperature); {law}",
+                        100.0 * t.spread,
+                        t.damping_ratio,
+                        ratio * ratio
+                    ),
+                    match damping {
+                        effects::TemperatureDamping::Constant => format!(
+                            "unlag fit ... --add {spelling}   (model file: effects = [{{ kind = \"temperature\", reference_k = 293.15 }}]; the estimation test's temperature)"
+                        ),
+                        effects::TemperatureDamping::Viscous => format!(
+                            "unlag fit ... --add {spelling}   (model file: effects = [{{ kind = \"temperature\", reference_k = 293.15, damping = \"viscous\" }}]; the estimation test's temperature)"
+                        ),
+                    },
+                );
+            }
+        }
+    }
+
+    // delay: a refit that searches the delay.
+    let xc = evidence.first().map_or(0, |e| e.cross_correlation.peak_lag);
+    let search = Options {
+        delay: None,
+        ..base
+    };
+    if have.delay.is_none() {
+        if let Ok(f) = crate::fit::fit(estimation, validation, fs, &search) {
+            let d = f.model.delay;
+            if d != current.model.delay {
+                if let Some((after, _)) = trial(Effect::Delay { samples: d }, &base) {
+                    offer(
+                        EffectKind::Delay,
+                        after,
+                        json!({"model_delay": current.model.delay, "best_delay": d,
+                               "residual_input_xcorr_peak_lag": xc}),
+                        format!(
+                            "the model answers {} samples {} the probe does (loss lowest at d = {d}, \
+                             not {}); the residual against the input peaks at lag {xc}",
+                            current.model.delay.abs_diff(d),
+                            if d > current.model.delay { "before" } else { "after" },
+                            current.model.delay
+                        ),
+                        format!("unlag fit ... --delay {d}   (model file: effects = [{{ kind = \"delay\", samples = {d} }}])"),
+                    );
+                }
+            }
+        }
+    }
+
+    // nonlinear damping: across tests, the damping rises with the step and the residual of
+    // each test's own linear fit grows faster than the step.
+    if !have.nonlinear && tests.len() > 1 {
+        let across = per_test(current, tests, evidence);
+        if let Some(sig) =
+            amplitude_signature(&across).filter(AmplitudeSignature::nonlinear_damping)
+        {
+            if let Some((after, fx)) = trial(Effect::NonlinearDamping { gain: 0.0 }, &base) {
+                let gain = effects::nonlinear_gain(&fx);
+                let (a0, a1) = (
+                    sig.amplitudes.first().copied().unwrap_or(0.0),
+                    sig.amplitudes.last().copied().unwrap_or(0.0),
+                );
+                let (z0, z1) = (
+                    sig.damping.first().copied().unwrap_or(0.0),
+                    sig.damping.last().copied().unwrap_or(0.0),
+                );
+                offer(
+                    EffectKind::NonlinearDamping,
+                    after,
+                    json!({"amplitudes": sig.amplitudes, "damping": sig.damping,
+                           "residual_per_step": sig.residual_per_step,
+                           "damping_slope_per_unit_step": sig.damping_slope,
+                           "damping_rise": sig.damping_rise,
+                           "residual_exponent": sig.residual_exponent,
+                           "gain_s2_per_unit": gain}),
+                    format!(
+                        "the damping fitted to each test alone rises from {z0:.3} at a step of                          {a0:.3} to {z1:.3} at {a1:.3} ({:+.3} per unit step), and what a linear                          fit leaves grows as |step|^{:.2} (a linear probe: 1): amplitude-dependent                          losses, orifice or turbulent flow at large steps (quadratic loss                          {gain:.3e} s^2 per unit)",
+                        sig.damping_slope, sig.residual_exponent
+                    ),
+                    "unlag fit ... --add nonlinear-damping   (model file: effects = [{ kind = \"nonlinear-damping\" }])"
+                        .into(),
+                );
+            }
+        }
+    }
+
+    // coloured noise: correlated residuals with no cause in the input and no peak.
+    let p = evidence
+        .iter()
+        .map(|e| e.autocorrelation.p_value)
+        .fold(1.0f64, f64::min);
+    let input_explains = evidence
+        .iter()
+        .any(|e| e.cross_correlation.peak.abs() > 2.0 * e.cross_correlation.band);
+    // With least squares (ARX, SM) an output-error refit is the trial, whatever the residual
+    // correlates with: noise biases least squares; with output error already, the signature
+    // must be clean (no cause in the input).
+    if p < 1e-3 && (!matches!(current.method, Method::Oe | Method::Bj) || !input_explains) {
+        let added = Effect::ColouredNoise {
+            ar: Vec::new(),
+            innovation_std: 0.0,
+        };
+        let after = trial(added, &base).map_or(f64::NAN, |t| t.0);
+        let how =
+            "output error and an AR noise model; the error is the one-step-ahead prediction error";
+        let rho1 = evidence
+            .first()
+            .and_then(|e| e.autocorrelation.values.first().copied())
+            .unwrap_or(0.0);
+        offer(
+            EffectKind::ColouredNoise,
+            after,
+            json!({"ljung_box_p": p, "lag1_autocorrelation": rho1, "fit": how}),
+            format!(
+                "the residual is correlated in time beyond what both channels' noise through \
+                 the model explains (Ljung-Box p = {p:.1e}, lag-1 correlation {rho1:.2}): \
+                 coloured measurement noise. The remedy is a noise model beside the dynamics \
+                 ({how}: what a predictor of the probe one sample ahead cannot remove, against \
+                 the simulation error before)"
+            ),
+            "unlag fit ... --add coloured-noise   (model file: effects = [{ kind = \"coloured-noise\" }])"
+                .into(),
+        );
+    }
+
+    out.sort_by(|a, b| b.score.total_cmp(&a.score));
+    // A resonance that shows in the reference as well is the transducers', not the line's:
+    // the sensor resonance goes before a mode that would only model it.
+    if sensor_matched {
+        let s = out
+            .iter()
+            .position(|c| c.kind == EffectKind::SensorResonance);
+        let m = out.iter().position(|c| c.kind == EffectKind::Mode);
+        if let (Some(s), Some(m)) = (s, m) {
+            if m < s {
+                let c = out.remove(s);
+                out.insert(m, c);
+            }
+        }
+    }
+    // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
+    // too: when an effect in the dynamics scores within CLOSE_MARGIN of it, the physics goes
+    // first and the noise model is the last resort.
+    if out
+        .first()
+        .is_some_and(|c| c.kind == EffectKind::ColouredNoise)
+    {
+        let top = out.first().map_or(0.0, |c| c.score);
+        if let Some(i) = out
+            .iter()
+            .position(|c| c.kind != EffectKind::ColouredNoise && c.score >= top - CLOSE_MARGIN)
+        {
+            let c = out.remove(0);
+            out.insert(i, c);
+        }
+    }
+    // Nothing is missing when the residual is what both channels' noise leaves (at the floor,
+    // correlated only as that noise is), or at the floor with no effect's trial lowering it.
+    // A residual above the floor that no effect's trial lowers is not "none": something
+    // outside the catalogue is missing, and the diagnosis says so.
+    if !at_floor && out.is_empty() {
+        let worst = evidence
+            .iter()
+            .map(|e| e.nrmse / e.noise_floor.max(f64::MIN_POSITIVE))
+            .fold(0.0f64, f64::max);
+        out.push(Candidate {
+            kind: Finding::Unexplained,
+            score: 0.0,
+            evidence: json!({"nrmse": before, "noise_floor": floor, "white": white,
+                             "worst_over_floor": worst}),
+            reading: format!(
+                "the residual is up to {worst:.1}x what both channels' noise leaves{}, but no \
+                 effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x: something \
+                 outside the catalogue is missing (a higher order, or physics the effects do not \
+                 describe); the model is not at its noise floor",
+                if white {
+                    ""
+                } else {
+                    " and correlated beyond that noise"
+                }
+            ),
+            change: "unlag fit ... --order auto   (or a higher --order N)".into(),
+            nrmse_before: before,
+            nrmse_after: before,
+            margin: 0.0,
+            separated_by: None,
+            uncertainty_before: current.uncertainty.cloned(),
+            uncertainty_after: None,
+        });
+    }
+    // A trial that cuts the error by FLOOR_OVERRULED or more shows the floor was measured too
+    // high (a noisy pre-step segment): the candidates then stand.
+    let best_fall = out
+        .iter()
+        .map(|c| c.nrmse_before / c.nrmse_after)
+        .fold(0.0f64, f64::max);
+    if at_floor && ((white && best_fall < FLOOR_OVERRULED) || out.is_empty()) {
+        let none = Candidate {
+            kind: Finding::Nothing,
+            score: 0.0,
+            evidence: json!({"nrmse": before, "noise_floor": floor, "white": white}),
+            reading: format!(
+                "the residuals are consistent with noise (error {:.3} % against a floor of {:.3} %{}); \
+                 no effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x",
+                100.0 * before,
+                100.0 * floor,
+                if white { ", white" } else { "" }
+            ),
+            change: "none".into(),
+            nrmse_before: before,
+            nrmse_after: before,
+            margin: 0.0,
+            separated_by: None,
+            uncertainty_before: current.uncertainty.cloned(),
+            uncertainty_after: None,
+        };
+        out.insert(0, none);
+    }
+    let scores: Vec<(f64, Finding)> = out.iter().map(|c| (c.score, c.kind)).collect();
+    for (i, c) in out.iter_mut().enumerate() {
+        let next = scores.get(i + 1);
+        c.margin = c.score - next.map_or(0.0, |n| n.0);
+        c.separated_by = next
+            .filter(|_| c.margin < CLOSE_MARGIN)
+            .map(|n| separating_test(c.kind, n.1));
+    }
+    Ok(out)
+}

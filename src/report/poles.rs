@@ -1,0 +1,135 @@
+//! The report's pole-zero map of the model and its table of modes.
+
+use std::fmt::Write as _;
+
+use plotters::prelude::SeriesLabelPosition;
+
+use super::plot::{self, colour, Panel, Series, Style};
+use super::{escape, push_figure, Inputs};
+use crate::error::Result;
+use crate::fit::analysis::{self, Analysis, ModeKind};
+
+pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
+    let model = &inputs.file.model;
+    let a = match Analysis::new(model) {
+        Ok(a) => a,
+        Err(e) => {
+            let _ = writeln!(
+                h,
+                "<p class=\"note\">No pole-zero analysis: {}</p>",
+                escape(&e.to_string())
+            );
+            return Ok(());
+        }
+    };
+    let view = 1.6f64;
+    let inside = |r: &&analysis::Root| r.magnitude <= view;
+    let circle: Vec<(f64, f64)> = (0..=240)
+        .map(|i| {
+            let t = 2.0 * std::f64::consts::PI * f64::from(i) / 240.0;
+            (t.cos(), t.sin())
+        })
+        .collect();
+    let series = vec![
+        Series::with("unit circle", circle, colour::GUIDE, Style::Line(1)),
+        Series::with(
+            "poles",
+            a.poles
+                .iter()
+                .filter(inside)
+                .map(|r| (r.re, r.im))
+                .collect(),
+            colour::PROBE,
+            Style::Crosses,
+        ),
+        Series::with(
+            "zeros",
+            a.zeros
+                .iter()
+                .filter(inside)
+                .map(|r| (r.re, r.im))
+                .collect(),
+            colour::RESIDUAL,
+            Style::Circles,
+        ),
+    ];
+    let mut p = Panel::new(
+        "pole-zero map of the model (z plane)",
+        "real part",
+        "imaginary part",
+        series,
+    );
+    p.x = -view..view;
+    p.y = -view..view;
+    p.legend = SeriesLabelPosition::UpperLeft;
+    // A square plot keeps the circle round: draw it in a square SVG.
+    let svg = plot::figure_sized("pole-zero", &[p], (560, 540), 1)?;
+    let svg = format!("<div style=\"max-width: 560px\">{svg}</div>");
+    let outside: Vec<String> = a
+        .zeros
+        .iter()
+        .filter(|r| r.magnitude > view)
+        .map(|r| format!("{:.3}{:+.3}j", r.re, r.im))
+        .collect();
+    push_figure(
+        h,
+        "pole-zero",
+        &svg,
+        &format!(
+            "Stable: {} (margin {:.4}). Minimum phase: {} (margin {:.4}){}.",
+            a.stable,
+            a.stability_margin,
+            a.minimum_phase,
+            a.minimum_phase_margin,
+            if outside.is_empty() {
+                String::new()
+            } else {
+                format!("; zeros outside the view: {}", outside.join(", "))
+            }
+        ),
+    );
+    h.push_str(
+        "<table class=\"modes\"><tr><th>mode</th><th>natural frequency</th><th>damping ratio</th>\
+         <th>time constant</th><th>pole</th></tr>\n",
+    );
+    for m in &a.modes {
+        let what = match &m.kind {
+            ModeKind::Resonance { .. } => "resonance (pole pair)",
+            ModeKind::Real { .. } => "first-order lag (real pole)",
+            ModeKind::Nyquist { .. } => "alternating (negative real pole)",
+            ModeKind::Origin => "pole at the origin",
+        };
+        let (f, z, tau) = match &m.kind {
+            ModeKind::Resonance {
+                natural_frequency_hz,
+                damping,
+                ..
+            } => (
+                format!("{natural_frequency_hz:.1} Hz"),
+                format!("{damping:.3}"),
+                "&ndash;".to_string(),
+            ),
+            ModeKind::Real {
+                time_constant_s, ..
+            } => (
+                "&ndash;".into(),
+                "&ndash;".into(),
+                time_constant_s.map_or("&infin;".into(), |t| format!("{:.4} ms", 1e3 * t)),
+            ),
+            ModeKind::Nyquist { frequency_hz, .. } => (
+                format!("{frequency_hz:.1} Hz (Nyquist)"),
+                "&ndash;".into(),
+                "&ndash;".into(),
+            ),
+            ModeKind::Origin => ("&ndash;".into(), "&ndash;".into(), "&ndash;".into()),
+        };
+        let _ = writeln!(
+            h,
+            "<tr><td>{}</td><td class=\"num\">{f}</td><td class=\"num\">{z}</td>\
+             <td class=\"num\">{tau}</td><td class=\"num\">{:.4}{:+.4}j (|z| {:.4})</td></tr>",
+            what, m.pole.re, m.pole.im, m.pole.magnitude
+        );
+    }
+    h.push_str("</table>\n");
+    Ok(())
+}

@@ -1,4 +1,4 @@
-//! Physics of pressure-measuring lines, holes and cavities (issue 6): what a probe's tubing,
+//! Physics of pressure-measuring lines, holes and cavities: what a probe's tubing,
 //! recessed holes, cavities and transducer do to a pressure signal, predicted from geometry
 //! and gas properties, and step tests simulated from it.
 //!

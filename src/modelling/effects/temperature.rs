@@ -309,8 +309,8 @@ mod tests {
     use super::*;
     use crate::testing::second_order;
 
-    /// A ZOH-discretised second-order probe (unit DC gain), built from its poles
-    /// `z = exp(s / fs)` directly.
+    /// Scaling a second-order probe by `k` moves its poles to `exp(k s / fs)`, keeps its DC
+    /// gain and divides its delay; scaling back by `1 / k` returns its step response.
     #[test]
     fn scaling_multiplies_every_pole_and_divides_the_delay() {
         let fs = 10_000.0;

@@ -57,7 +57,16 @@ pub enum Error {
         /// What differs.
         message: String,
     },
-    /// A command-line value is out of range.
+    /// A request's parameter is out of range or does not fit the model (the CLI names the
+    /// flag that sets it).
+    #[error("invalid {parameter}: {message}")]
+    InvalidParameter {
+        /// Which parameter.
+        parameter: Parameter,
+        /// Why.
+        message: String,
+    },
+    /// A value is out of range.
     #[error("invalid {what}: {message}")]
     InvalidArgument {
         /// Which argument.
@@ -167,7 +176,7 @@ impl Error {
             Self::TooShort { .. } => "too-short",
             Self::NoStep { .. } => "no-step",
             Self::Mismatch { .. } => "mismatch",
-            Self::InvalidArgument { .. } => "invalid-argument",
+            Self::InvalidArgument { .. } | Self::InvalidParameter { .. } => "invalid-argument",
             Self::Model { .. } | Self::ModelAt { .. } => "model",
             Self::UnstableModel { .. } => "unstable-model",
             Self::UnstableInverse { .. } => "unstable-inverse",
@@ -196,6 +205,7 @@ impl Error {
             | Self::Blob { path, .. }
             | Self::Overwrite { output: path, .. } => (Some(path), None, None),
             Self::InvalidArgument { .. }
+            | Self::InvalidParameter { .. }
             | Self::UnstableModel { .. }
             | Self::UnstableInverse { .. }
             | Self::Numerical { .. }
@@ -209,6 +219,47 @@ impl Error {
             plot: plot.to_string(),
             message: e.to_string(),
         }
+    }
+}
+
+/// A parameter of a library request that an error can be about, in the library's words
+/// (`Display`); the command line names the flag that sets it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Parameter {
+    /// The model order of a fit.
+    Order,
+    /// The effects added to a fit.
+    Effect,
+    /// The order of the band-limited inverse's low-pass.
+    LowpassOrder,
+    /// The band-limited inverse's corner.
+    Bandwidth,
+    /// The ADC's full scale, for a fixed-point plan.
+    FullScale,
+    /// The gas temperature a design is retargeted to.
+    Temperature,
+    /// The temperature table of a bank.
+    Temperatures,
+    /// The offline (non-causal, host-only) reconstruction.
+    Offline,
+    /// The arithmetic a record is compensated in.
+    Arithmetic,
+}
+
+impl std::fmt::Display for Parameter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Order => "model order",
+            Self::Effect => "effect",
+            Self::LowpassOrder => "low-pass order",
+            Self::Bandwidth => "bandwidth",
+            Self::FullScale => "full scale",
+            Self::Temperature => "temperature",
+            Self::Temperatures => "temperature table",
+            Self::Offline => "offline reconstruction",
+            Self::Arithmetic => "arithmetic",
+        })
     }
 }
 

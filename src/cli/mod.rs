@@ -136,7 +136,22 @@ pub fn run(cli: Cli) -> Result<()> {
 /// names a parameter, the flag that sets it.
 #[must_use]
 pub fn describe(e: &Error) -> String {
+    use crate::error::Parameter;
     use crate::trace::{ColumnRole, TraceError};
+    if let Error::InvalidParameter { parameter, message } = e {
+        let flag = match parameter {
+            Parameter::Order => "--order",
+            Parameter::Effect => "--add",
+            Parameter::LowpassOrder => "--lowpass-order",
+            Parameter::Bandwidth => "--bandwidth",
+            Parameter::FullScale => "--full-scale",
+            Parameter::Temperature => "--temperature",
+            Parameter::Temperatures => "--temperatures",
+            Parameter::Offline => "--offline",
+            Parameter::Arithmetic => "--arithmetic",
+        };
+        return format!("invalid {flag}: {message}");
+    }
     let flag = match e {
         Error::Trace(TraceError::MissingColumn { role, .. }) => Some(match role {
             ColumnRole::Probe => "--y",
@@ -391,5 +406,38 @@ impl Command {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error::Parameter;
+    use crate::trace::{ColumnRole, TraceError};
+
+    /// The library says what is wrong in its own words; the command line adds the flag.
+    #[test]
+    fn the_library_names_parameters_and_the_command_line_names_flags() {
+        let e = Error::InvalidParameter {
+            parameter: Parameter::FullScale,
+            message: "must be positive".into(),
+        };
+        assert_eq!(e.to_string(), "invalid full scale: must be positive");
+        assert_eq!(describe(&e), "invalid --full-scale: must be positive");
+        let missing = Error::from(TraceError::MissingColumn {
+            path: "a.csv".into(),
+            column: "p".into(),
+            found: "t, u".into(),
+            role: ColumnRole::Probe,
+            needed: false,
+        });
+        assert!(!missing.to_string().contains("--"), "{missing}");
+        assert!(
+            describe(&missing).ends_with("name the probe column (--y)"),
+            "{}",
+            describe(&missing)
+        );
+        assert_eq!(missing.kind(), "missing-column");
+        assert_eq!(missing.location().1, Some(1));
     }
 }

@@ -34,8 +34,8 @@ pub struct TemperatureRange {
 }
 
 fn bad_range(message: String) -> Error {
-    Error::InvalidArgument {
-        what: "--temperatures",
+    Error::InvalidParameter {
+        parameter: crate::error::Parameter::Temperatures,
         message,
     }
 }
@@ -385,8 +385,8 @@ mod tests {
             assert!(
                 matches!(
                     e,
-                    Error::InvalidArgument {
-                        what: "--temperatures",
+                    Error::InvalidParameter {
+                        parameter: crate::error::Parameter::Temperatures,
                         ..
                     }
                 ),

@@ -648,7 +648,7 @@ mod tests {
                     assert_eq!((set.output_exponent, set.sections), (-1, 1));
                 }
                 BoardImage::Bank(b) => {
-                    assert!(matches!(bin, Err(Error::InvalidArgument { .. })));
+                    assert!(matches!(bin, Err(Error::InvalidParameter { .. })));
                     assert_eq!(image.section_count(), 2);
                     assert_eq!(
                         b.to_bin().unwrap_err().to_string(),

@@ -529,8 +529,8 @@ pub fn fit(
     let results = in_parallel(&orders, |&m| -> std::result::Result<_, (Error, bool)> {
         if m == 0 || m > crate::fit::model::MAX_ORDER {
             return Err((
-                Error::InvalidArgument {
-                    what: "--order",
+                Error::InvalidParameter {
+                    parameter: crate::error::Parameter::Order,
                     message: format!(
                         "the order must be 1..={}, not {m}",
                         crate::fit::model::MAX_ORDER

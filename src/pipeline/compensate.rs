@@ -133,8 +133,8 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
     // Quadratic losses: the board adds gain * lowpass(|dy| dy) to the linear inverse.
     let nonlinear = effects::nonlinear_gain(&file.effects);
     if offline && design.is_none() {
-        return Err(Error::InvalidArgument {
-            what: "--offline",
+        return Err(Error::InvalidParameter {
+            parameter: crate::error::Parameter::Offline,
             message: format!(
                 "{} has no compensator design to take the noise and prior from: run `unlag invert`",
                 model_path.display()
@@ -145,8 +145,8 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
     let (mut u_hat, latency, compensator) = match design {
         Some(d) if offline => {
             let (Some(noise), Some(prior)) = (&d.noise, &d.prior) else {
-                return Err(Error::InvalidArgument {
-                    what: "--offline",
+                return Err(Error::InvalidParameter {
+                    parameter: crate::error::Parameter::Offline,
                     message: format!(
                         "{} has no stored noise and prior: design its compensator with `unlag invert` (without --bandwidth)",
                         model_path.display()
@@ -200,8 +200,8 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
                 Arithmetic::F32 => m.compensate::<f32>(&y_probe)?,
                 Arithmetic::F64 => m.compensate::<f64>(&y_probe)?,
                 Arithmetic::Fixed => {
-                    return Err(Error::InvalidArgument {
-                        what: "--arithmetic",
+                    return Err(Error::InvalidParameter {
+                        parameter: crate::error::Parameter::Arithmetic,
                         message: "fixed point runs the designed compensator in sections, not \
                                   the paper's direct inverse: drop --direct, or run `unlag invert`"
                             .into(),
@@ -270,8 +270,8 @@ fn run_fixed(d: &Design, model: &Path, y: &[f64]) -> Result<(Vec<f64>, FixedRunS
     let (run, full_scale) = if let Some(plan) = &d.fixed_direct {
         (plan.run(y)?, plan.full_scale)
     } else {
-        let plan = d.fixed.as_ref().ok_or_else(|| Error::InvalidArgument {
-            what: "--arithmetic",
+        let plan = d.fixed.as_ref().ok_or_else(|| Error::InvalidParameter {
+            parameter: crate::error::Parameter::Arithmetic,
             message: format!(
                 "{} has no fixed-point plan: run `unlag invert {} --full-scale FS -o ...`",
                 model.display(),
@@ -399,16 +399,16 @@ mod tests {
         assert_eq!(direct.compensator, "the paper's direct inverse (eq. 7)");
         assert!(matches!(
             run(&f, &t, Compensation::Direct(Arithmetic::Fixed)),
-            Err(Error::InvalidArgument {
-                what: "--arithmetic",
+            Err(Error::InvalidParameter {
+                parameter: crate::error::Parameter::Arithmetic,
                 ..
             })
         ));
         // The band-limited design has no noise and prior for the offline optimum.
         assert!(matches!(
             run(&f, &t, Compensation::Offline),
-            Err(Error::InvalidArgument {
-                what: "--offline",
+            Err(Error::InvalidParameter {
+                parameter: crate::error::Parameter::Offline,
                 ..
             })
         ));

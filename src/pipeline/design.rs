@@ -415,7 +415,9 @@ fn compensator(
         match planned {
             Ok(()) => {}
             // A full scale that makes no sense is the caller's error.
-            Err(e @ Error::InvalidArgument { .. }) => return Err(e),
+            Err(e @ (Error::InvalidArgument { .. } | Error::InvalidParameter { .. })) => {
+                return Err(e)
+            }
             Err(e) if plans_required => return Err(e),
             Err(e) => unplanned.push(e),
         }
@@ -433,13 +435,13 @@ fn compensator(
 /// This is the coefficient set a board is given for that temperature.
 ///
 /// # Errors
-/// [`crate::error::Error::InvalidArgument`] when the file has no `temperature` effect (no
+/// [`crate::error::Error::InvalidParameter`] when the file has no `temperature` effect (no
 /// reference temperature) or `T` is not a positive number of kelvin; the scaling's and the
 /// design's errors.
 pub fn at_temperature(file: &ModelFile, temperature_k: f64) -> Result<ModelFile> {
     let (reference, damping) = effects::temperature_law(&file.effects).ok_or_else(|| {
-        crate::error::Error::InvalidArgument {
-            what: "--temperature",
+        crate::error::Error::InvalidParameter {
+            parameter: crate::error::Parameter::Temperature,
             message:
                 "the model file has no temperature effect, so no reference temperature: refit \
                   with `unlag fit ... --add temperature` (or add effects = [{ kind = \
@@ -618,8 +620,8 @@ mod tests {
         assert!(
             matches!(
                 refused,
-                Err(Error::InvalidArgument {
-                    what: "--full-scale",
+                Err(Error::InvalidParameter {
+                    parameter: crate::error::Parameter::FullScale,
                     ..
                 })
             ),

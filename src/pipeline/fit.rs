@@ -131,7 +131,7 @@ pub fn carried_effects(previous: &[Effect], order: Order) -> (Vec<Effect>, usize
 /// [`FitRequest::search_delay`].
 ///
 /// # Errors
-/// [`Error::InvalidArgument`] for a kind that is not an effect, naming the kinds there are.
+/// [`Error::InvalidParameter`] for a kind that is not an effect, naming the kinds there are.
 pub fn add_effects(effects: &mut Vec<Effect>, kinds: &[String]) -> Result<bool> {
     let mut search_delay = false;
     for kind in kinds {
@@ -140,8 +140,8 @@ pub fn add_effects(effects: &mut Vec<Effect>, kinds: &[String]) -> Result<bool> 
             search_delay = true;
             continue;
         }
-        let e = Effect::parse(kind).ok_or_else(|| Error::InvalidArgument {
-            what: "--add",
+        let e = Effect::parse(kind).ok_or_else(|| Error::InvalidParameter {
+            parameter: crate::error::Parameter::Effect,
             message: format!(
                 "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, sensor-resonance-prefilter[=HZ], temperature=K, temperature-viscous[=K]",
                 effects::KINDS
@@ -294,7 +294,7 @@ mod tests {
         assert!(effects.iter().all(|e| e.kind() != EffectKind::Delay));
         let unknown = add_effects(&mut effects, &["modes".to_string()]);
         assert!(
-            matches!(&unknown, Err(Error::InvalidArgument { what: "--add", message }) if message.contains("one of mode, leak")),
+            matches!(&unknown, Err(Error::InvalidParameter { parameter: crate::error::Parameter::Effect, message }) if message.contains("one of mode, leak")),
             "{unknown:?}"
         );
     }

@@ -183,7 +183,12 @@ pub fn design_checked(
                 candidates.push(optimal::design(model, &noise, &p, options));
                 // Nothing narrower is tried when the first is refused for a reason of its own
                 // (a latency cap below the delay).
-                if matches!(candidates.first(), Some(Err(Error::InvalidArgument { .. }))) {
+                if matches!(
+                    candidates.first(),
+                    Some(Err(
+                        Error::InvalidArgument { .. } | Error::InvalidParameter { .. }
+                    ))
+                ) {
                     break;
                 }
             }
@@ -208,7 +213,9 @@ pub fn design_checked(
     for (i, candidate) in candidates.into_iter().enumerate() {
         let mut d = match candidate {
             Ok(d) => d,
-            Err(e @ Error::InvalidArgument { .. }) => return Err(e),
+            Err(e @ (Error::InvalidArgument { .. } | Error::InvalidParameter { .. })) => {
+                return Err(e)
+            }
             Err(e) => {
                 rejected.push(format!("design {} failed: {e}", i + 1));
                 first_error.get_or_insert(e);

@@ -81,17 +81,17 @@ fn analog_prototype(kind: LowpassKind, n: usize) -> Result<Vec<Complex>> {
 /// Digital low-pass by the bilinear transform, corner prewarped to `fc`, unit DC gain.
 ///
 /// # Errors
-/// [`Error::InvalidArgument`] for an order outside 1..=8 or a corner outside (0, fs/2).
+/// [`Error::InvalidParameter`] for an order outside 1..=8 or a corner outside (0, fs/2).
 pub fn lowpass(kind: LowpassKind, order: usize, fc: f64, fs: f64) -> Result<Zpk> {
     if !(1..=8).contains(&order) {
-        return Err(Error::InvalidArgument {
-            what: "--lowpass-order",
+        return Err(Error::InvalidParameter {
+            parameter: crate::error::Parameter::LowpassOrder,
             message: format!("must be 1..=8, not {order}"),
         });
     }
     if !(fc.is_finite() && fc > 0.0 && fc < 0.5 * fs) {
-        return Err(Error::InvalidArgument {
-            what: "--bandwidth",
+        return Err(Error::InvalidParameter {
+            parameter: crate::error::Parameter::Bandwidth,
             message: format!(
                 "the low-pass corner must be between 0 and half the sample rate ({} Hz), not {fc}",
                 0.5 * fs

@@ -126,13 +126,13 @@ impl DirectPlan {
     /// Plans the direct-form compensator for `design` and inputs within `+-full_scale`.
     ///
     /// # Errors
-    /// [`Error::InvalidArgument`] for a full scale that is not positive and finite;
+    /// [`Error::InvalidParameter`] for a full scale that is not positive and finite;
     /// [`Error::Numerical`] when a coefficient cannot be represented, a bound is not finite or
     /// leaves no headroom, or the quantised cascade is refused by the board's validation.
     pub fn new(design: &Design, full_scale: f64) -> Result<Self> {
         if !(full_scale.is_finite() && full_scale > 0.0) {
-            return Err(Error::InvalidArgument {
-                what: "--full-scale",
+            return Err(Error::InvalidParameter {
+                parameter: crate::error::Parameter::FullScale,
                 message: format!("must be a positive number, not {full_scale}"),
             });
         }

@@ -107,7 +107,7 @@ pub fn temperature_law(effects: &[Effect]) -> Option<(f64, TemperatureDamping)> 
 /// `sqrt(T / T_ref)`, the ratio of the speeds of sound of an ideal gas.
 ///
 /// # Errors
-/// [`crate::error::Error::InvalidArgument`] for a temperature that is not a positive number
+/// [`crate::error::Error::InvalidParameter`] for a temperature that is not a positive number
 /// of kelvin.
 pub fn scale_for(temperature_k: f64, reference_k: f64) -> Result<f64> {
     if !(temperature_k.is_finite()
@@ -115,8 +115,8 @@ pub fn scale_for(temperature_k: f64, reference_k: f64) -> Result<f64> {
         && reference_k.is_finite()
         && reference_k > 0.0)
     {
-        return Err(crate::error::Error::InvalidArgument {
-            what: "--temperature",
+        return Err(crate::error::Error::InvalidParameter {
+            parameter: crate::error::Parameter::Temperature,
             message: format!(
                 "temperatures must be positive numbers of kelvin, not {temperature_k} K (model at {reference_k} K)"
             ),

@@ -551,3 +551,19 @@ fn numbers_out_of_range_on_the_command_line_are_refused_quickly() {
         "need 2 to 10 million",
     );
 }
+
+/// A usage error with `--json` names what is missing in its JSON message, not only on stderr
+/// (clap lists missing arguments on the lines after its first).
+#[test]
+fn a_usage_error_as_json_names_the_missing_argument() {
+    let o = unlag(&["predict", "--line", "0.1,0.0005", "--json"]);
+    assert_eq!(o.status.code(), Some(2));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["error"]["kind"], "usage");
+    let message = v["error"]["message"].as_str().unwrap();
+    assert!(message.contains("--volume"), "{message}");
+    assert!(
+        !message.contains("Usage:") && !message.contains('\n'),
+        "{message}"
+    );
+}

@@ -14,8 +14,16 @@ fn main() -> ExitCode {
             let json = std::env::args_os().any(|a| a == "--json");
             if json && !matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
                 let text = e.to_string();
-                let first = text.lines().next().unwrap_or("");
-                let message = first.strip_prefix("error: ").unwrap_or(first);
+                // The message is every line before the usage: a list of missing arguments
+                // follows its first line.
+                let message = text
+                    .split("\n\nUsage:")
+                    .next()
+                    .unwrap_or("")
+                    .split_whitespace()
+                    .collect::<Vec<_>>()
+                    .join(" ");
+                let message = message.strip_prefix("error: ").unwrap_or(&message);
                 unlag::cli::print_json_error("usage", message, None, None, None);
                 unlag::cli::console::warn(format_args!("{text}"));
                 return ExitCode::from(2);

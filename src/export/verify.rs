@@ -57,6 +57,25 @@ pub fn read(bytes: &[u8]) -> Result<BlobSummary, BlobError> {
         .get(4..6)
         .and_then(|t| <[u8; 2]>::try_from(t).ok())
         .map_or(0, u16::from_le_bytes);
+    if format_code == (NumberFormat::FixedDirect { frac_bits: 0 }).code() {
+        let set = blob::parse_direct::<CAPACITY>(bytes)?;
+        return Ok(BlobSummary {
+            bytes: bytes.len(),
+            format_version: version,
+            number_format: "fixed-direct",
+            sample_rate_hz: set.sample_rate_hz,
+            delay_samples: set.delay_samples,
+            sections: set.sections,
+            gain: None,
+            coefficients: Vec::new(),
+            pole_radius: Vec::new(),
+            dc_gain: None,
+            nonlinear: false,
+            full_scale: Some(set.full_scale),
+            output_exponent: Some(set.output_exponent),
+            crc32: crc(bytes),
+        });
+    }
     // Not f32: the fixed-point parser reads it, or refuses an unknown code with its error.
     if format_code != NumberFormat::F32.code() {
         let set = blob::parse_fixed::<CAPACITY>(bytes)?;
@@ -145,6 +164,29 @@ mod tests {
         let dc = 2.0 * (0.5 / 0.2) * (1.3f32 as f64 / (1.0 - 1.2f32 as f64 + 0.5));
         assert!((r.dc_gain.unwrap() - dc).abs() < 1e-5, "{:?}", r.dc_gain);
         assert!(r.pole_radius.iter().all(|p| *p < 1.0));
+    }
+
+    /// A direct-form blob is read by the direct-form parser, not refused by the normal form's.
+    #[test]
+    fn a_direct_form_blob_reads_back() {
+        use crate::export::image::{BoardImage, DirectBoardCoefficients};
+        use crate::fixed::direct::DirectSection;
+        let image: BoardImage = DirectBoardCoefficients {
+            sample_rate_hz: 10_000.0,
+            delay_samples: 3,
+            latency_samples: 4.5,
+            full_scale: 1000.0,
+            output_exponent: -1,
+            sections: vec![DirectSection {
+                b: [1 << 29, 0, 0],
+                neg_a: [1 << 29, 0],
+            }],
+        }
+        .into();
+        let r = read(&image.to_bin().unwrap()).unwrap();
+        assert_eq!(r.number_format, "fixed-direct");
+        assert_eq!((r.sections, r.delay_samples), (1, 3));
+        assert_eq!((r.full_scale, r.output_exponent), (Some(1000.0), Some(-1)));
     }
 
     #[test]

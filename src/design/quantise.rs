@@ -130,6 +130,32 @@ fn code_of(y: f64, full_scale: f64) -> (i32, bool) {
     }
 }
 
+/// Checks what both fixed-point plans need (a positive, finite full scale; a design with
+/// sections, every pole inside the unit circle) and returns the length of impulse response
+/// the plan traces: long enough for the slowest pole to decay by e^-40, the tail then
+/// negligible.
+pub(super) fn impulse_len(design: &Design, full_scale: f64) -> Result<usize> {
+    if !(full_scale.is_finite() && full_scale > 0.0) {
+        return Err(Error::InvalidParameter {
+            parameter: crate::error::Parameter::FullScale,
+            message: format!("must be a positive number, not {full_scale}"),
+        });
+    }
+    if design.sections.is_empty() {
+        return Err(plan_error("the design has no sections"));
+    }
+    let radius = design
+        .sections
+        .iter()
+        .fold(0.0f64, |r, &[_, _, _, a1, a2]| {
+            r.max(crate::compensator::section_pole_radius(a1, a2))
+        });
+    if radius.is_nan() || radius >= 1.0 {
+        return Err(plan_error(format!("a section pole has radius {radius}")));
+    }
+    Ok(((40.0 / (1.0 - radius)).ceil() as usize).clamp(2_000, MAX_IMPULSE))
+}
+
 fn plan_error(message: impl Into<String>) -> Error {
     Error::Numerical {
         context: "fixed point".into(),
@@ -246,26 +272,7 @@ impl FixedPlan {
     /// [`Error::Numerical`] when a coefficient cannot be represented, a bound is not finite,
     /// or the quantised cascade is refused by the board's validation.
     pub fn new(design: &Design, full_scale: f64) -> Result<Self> {
-        if !(full_scale.is_finite() && full_scale > 0.0) {
-            return Err(Error::InvalidParameter {
-                parameter: crate::error::Parameter::FullScale,
-                message: format!("must be a positive number, not {full_scale}"),
-            });
-        }
-        if design.sections.is_empty() {
-            return Err(plan_error("the design has no sections"));
-        }
-        let radius = design
-            .sections
-            .iter()
-            .fold(0.0f64, |r, &[_, _, _, a1, a2]| {
-                r.max(crate::compensator::section_pole_radius(a1, a2))
-            });
-        if radius.is_nan() || radius >= 1.0 {
-            return Err(plan_error(format!("a section pole has radius {radius}")));
-        }
-        // Long enough for the slowest pole to decay by e^-40, the tail then negligible.
-        let len = ((40.0 / (1.0 - radius)).ceil() as usize).clamp(2_000, MAX_IMPULSE);
+        let len = impulse_len(design, full_scale)?;
         // The input to the current section in the fixed-point domain: the impulse response
         // from the cascade input (a full-scale unit) to it, times its scale.
         let mut input = vec![0.0; len];

@@ -57,44 +57,47 @@ pub fn read(bytes: &[u8]) -> Result<BlobSummary, BlobError> {
         .get(4..6)
         .and_then(|t| <[u8; 2]>::try_from(t).ok())
         .map_or(0, u16::from_le_bytes);
-    if format_code == (NumberFormat::FixedDirect { frac_bits: 0 }).code() {
-        let set = blob::parse_direct::<CAPACITY>(bytes)?;
-        return Ok(BlobSummary {
+    // The two fixed-point forms carry the same header fields; only their parsers differ.
+    let fixed = |number_format, sample_rate_hz, delay_samples, sections, full_scale, exponent| {
+        BlobSummary {
             bytes: bytes.len(),
             format_version: version,
-            number_format: "fixed-direct",
-            sample_rate_hz: set.sample_rate_hz,
-            delay_samples: set.delay_samples,
-            sections: set.sections,
+            number_format,
+            sample_rate_hz,
+            delay_samples,
+            sections,
             gain: None,
             coefficients: Vec::new(),
             pole_radius: Vec::new(),
             dc_gain: None,
             nonlinear: false,
-            full_scale: Some(set.full_scale),
-            output_exponent: Some(set.output_exponent),
+            full_scale: Some(full_scale),
+            output_exponent: Some(exponent),
             crc32: crc(bytes),
-        });
+        }
+    };
+    if format_code == (NumberFormat::FixedDirect { frac_bits: 0 }).code() {
+        let s = blob::parse_direct::<CAPACITY>(bytes)?;
+        return Ok(fixed(
+            "fixed-direct",
+            s.sample_rate_hz,
+            s.delay_samples,
+            s.sections,
+            s.full_scale,
+            s.output_exponent,
+        ));
     }
     // Not f32: the fixed-point parser reads it, or refuses an unknown code with its error.
     if format_code != NumberFormat::F32.code() {
-        let set = blob::parse_fixed::<CAPACITY>(bytes)?;
-        return Ok(BlobSummary {
-            bytes: bytes.len(),
-            format_version: version,
-            number_format: "fixed",
-            sample_rate_hz: set.sample_rate_hz,
-            delay_samples: set.delay_samples,
-            sections: set.sections,
-            gain: None,
-            coefficients: Vec::new(),
-            pole_radius: Vec::new(),
-            dc_gain: None,
-            nonlinear: false,
-            full_scale: Some(set.full_scale),
-            output_exponent: Some(set.output_exponent),
-            crc32: crc(bytes),
-        });
+        let s = blob::parse_fixed::<CAPACITY>(bytes)?;
+        return Ok(fixed(
+            "fixed",
+            s.sample_rate_hz,
+            s.delay_samples,
+            s.sections,
+            s.full_scale,
+            s.output_exponent,
+        ));
     }
     let set = blob::parse::<CAPACITY>(bytes)?;
     // Valid, so the fields are where the layout says: gain at 24, sections from 28.

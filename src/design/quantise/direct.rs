@@ -17,9 +17,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{plan_error, MAX_IMPULSE, TARGET};
+use super::{impulse_len, plan_error, TARGET};
 use crate::design::inverse::Design;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::fixed::direct::{
     DirectCascade, DirectSection, DirectState, COEFFICIENT_BITS, MAX_COEFFICIENT_SUM,
 };
@@ -126,29 +126,11 @@ impl DirectPlan {
     /// Plans the direct-form compensator for `design` and inputs within `+-full_scale`.
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] for a full scale that is not positive and finite;
-    /// [`Error::Numerical`] when a coefficient cannot be represented, a bound is not finite or
+    /// [`crate::error::Error::InvalidParameter`] for a full scale that is not positive and finite;
+    /// [`crate::error::Error::Numerical`] when a coefficient cannot be represented, a bound is not finite or
     /// leaves no headroom, or the quantised cascade is refused by the board's validation.
     pub fn new(design: &Design, full_scale: f64) -> Result<Self> {
-        if !(full_scale.is_finite() && full_scale > 0.0) {
-            return Err(Error::InvalidParameter {
-                parameter: crate::error::Parameter::FullScale,
-                message: format!("must be a positive number, not {full_scale}"),
-            });
-        }
-        if design.sections.is_empty() {
-            return Err(plan_error("the design has no sections"));
-        }
-        let radius = design
-            .sections
-            .iter()
-            .fold(0.0f64, |r, &[_, _, _, a1, a2]| {
-                r.max(crate::compensator::section_pole_radius(a1, a2))
-            });
-        if radius.is_nan() || radius >= 1.0 {
-            return Err(plan_error(format!("a section pole has radius {radius}")));
-        }
-        let len = ((40.0 / (1.0 - radius)).ceil() as usize).clamp(2_000, MAX_IMPULSE);
+        let len = impulse_len(design, full_scale)?;
         let mut input = vec![0.0; len];
         if let Some(first) = input.first_mut() {
             *first = 1.0;
@@ -280,7 +262,7 @@ impl DirectPlan {
     /// Validates the integers as the board does.
     ///
     /// # Errors
-    /// [`Error::Numerical`] with the board's reason.
+    /// [`crate::error::Error::Numerical`] with the board's reason.
     pub fn check(&self) -> Result<()> {
         DirectCascade::<16>::new(&self.board_sections())
             .map(|_| ())
@@ -302,7 +284,7 @@ impl DirectPlan {
     /// Runs the board's direct-form code on `y`, starting in equilibrium with `y[0]`.
     ///
     /// # Errors
-    /// [`Error::Numerical`] when the plan does not validate.
+    /// [`crate::error::Error::Numerical`] when the plan does not validate.
     pub fn run(&self, y: &[f64]) -> Result<super::FixedRun> {
         let sections = self.board_sections();
         match sections.len() {

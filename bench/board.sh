@@ -201,7 +201,11 @@ if update:
     head = "## Board (Cortex-M4, QEMU)"
     if head in old:
         start = old.index(head)
-        nxt = old.find("\n## ", start + len(head))
+        # The generated text ends at the next heading of any level: subsections written by
+        # hand or by other commands (the Cortex-M3 table) are kept.
+        ends = [i for i in (old.find("\n## ", start + len(head)),
+                            old.find("\n### ", start + len(head))) if i >= 0]
+        nxt = min(ends) if ends else -1
         new = old[:start] + text + ("\n" + old[nxt + 1:] if nxt >= 0 else "")
     else:
         new = old.rstrip("\n") + "\n\n" + text

@@ -621,7 +621,9 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
     let path = std::path::Path::new(&model);
     let file = unlag::file::ModelFile::load(path).unwrap();
     assert!(matches!(
-        unlag::export::FixedBoardCoefficients::from_model_file(&file, path, Some(4.0)),
+        unlag::export::FixedBoardCoefficients::from_model_file(&file, path, Some(4.0))
+            .as_ref()
+            .map_err(unlag::error::Error::unadvised),
         Err(unlag::error::Error::UnsupportedOnBoard { .. })
     ));
     let o = unlag(&[

@@ -142,10 +142,8 @@ pub enum Error {
         message: String,
     },
     /// The model has an effect the chosen board arithmetic does not run (the nonlinear-damping
-    /// correction is `f32` only).
-    #[error(
-        "{path}: the model has {effect}, which the {arithmetic} compensator does not run: {hint}"
-    )]
+    /// correction is `f32` only). What to do instead comes with it ([`Error::Advised`]).
+    #[error("{path}: the model has {effect}, which the {arithmetic} compensator does not run")]
     UnsupportedOnBoard {
         /// The model file.
         path: PathBuf,
@@ -153,8 +151,41 @@ pub enum Error {
         effect: &'static str,
         /// The arithmetic asked for.
         arithmetic: &'static str,
-        /// What to do instead.
-        hint: &'static str,
+    },
+    /// The board's code refused coefficients the host built for it (it does not for a design
+    /// that passed its checks).
+    #[error("{during}: {refusal}")]
+    BoardRefused {
+        /// What the host was doing.
+        during: &'static str,
+        /// The board's error.
+        refusal: BoardRefusal,
+    },
+    /// An exported blob does not read back, through the board's parser, as what was written.
+    #[error("export: {}", match .parsed {
+        Some(e) => format!("the blob does not parse back: {e}"),
+        None => "the blob parses back to other coefficients".into(),
+    })]
+    BlobRoundTrip {
+        /// The parser's error, or `None` when it parsed to other coefficients.
+        parsed: Option<crate::blob::BlobError>,
+    },
+    /// Something could not be serialised (it cannot for finite values).
+    #[error("{what}: {message}")]
+    Serialise {
+        /// What was being written (`model file`, `json`).
+        what: &'static str,
+        /// The serialiser's reason.
+        message: String,
+    },
+    /// An error with what to do about it. The library says it in its own words; the command
+    /// line spells the command and flags that do it.
+    #[error("{error}: {advice}")]
+    Advised {
+        /// What went wrong.
+        error: Box<Error>,
+        /// What to do.
+        advice: Advice,
     },
     /// A plot of the HTML report could not be drawn (`unlag report`).
     #[error("report: plot '{plot}' could not be drawn: {message}")]
@@ -167,10 +198,29 @@ pub enum Error {
 }
 
 impl Error {
+    /// This error with what to do about it.
+    #[must_use]
+    pub fn advised(self, advice: Advice) -> Self {
+        Self::Advised {
+            error: Box::new(self),
+            advice,
+        }
+    }
+
+    /// The error under any advice.
+    #[must_use]
+    pub fn unadvised(&self) -> &Self {
+        match self {
+            Self::Advised { error, .. } => error.unadvised(),
+            e => e,
+        }
+    }
+
     /// The kind of problem, one stable kebab-case word per variant (for `--json`).
     #[must_use]
     pub fn kind(&self) -> &'static str {
         match self {
+            Self::Advised { error, .. } => error.kind(),
             Self::Trace(e) => e.kind(),
             Self::Io { .. } => "io",
             Self::TooShort { .. } => "too-short",
@@ -180,7 +230,10 @@ impl Error {
             Self::Model { .. } | Self::ModelAt { .. } => "model",
             Self::UnstableModel { .. } => "unstable-model",
             Self::UnstableInverse { .. } => "unstable-inverse",
-            Self::Numerical { .. } => "numerical",
+            Self::Numerical { .. }
+            | Self::BoardRefused { .. }
+            | Self::BlobRoundTrip { .. }
+            | Self::Serialise { .. } => "numerical",
             Self::UnsupportedOnBoard { .. } => "unsupported-on-board",
             Self::Plot { .. } => "plot",
             Self::Overwrite { .. } => "overwrite",
@@ -192,6 +245,7 @@ impl Error {
     #[must_use]
     pub fn location(&self) -> (Option<&std::path::Path>, Option<u64>, Option<u64>) {
         match self {
+            Self::Advised { error, .. } => error.location(),
             Self::Trace(e) => e.location(),
             Self::ModelAt {
                 path, line, column, ..
@@ -209,6 +263,9 @@ impl Error {
             | Self::UnstableModel { .. }
             | Self::UnstableInverse { .. }
             | Self::Numerical { .. }
+            | Self::BoardRefused { .. }
+            | Self::BlobRoundTrip { .. }
+            | Self::Serialise { .. }
             | Self::Plot { .. } => (None, None, None),
         }
     }
@@ -245,6 +302,8 @@ pub enum Parameter {
     Offline,
     /// The arithmetic a record is compensated in.
     Arithmetic,
+    /// The step tests a request is given.
+    Tests,
 }
 
 impl std::fmt::Display for Parameter {
@@ -259,7 +318,103 @@ impl std::fmt::Display for Parameter {
             Self::Temperatures => "temperature table",
             Self::Offline => "offline reconstruction",
             Self::Arithmetic => "arithmetic",
+            Self::Tests => "step tests",
         })
+    }
+}
+
+/// The board-side error behind [`Error::BoardRefused`]: each board constructor's and
+/// parser's own `Copy` error.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum BoardRefusal {
+    /// The `f32` cascade's or nonlinear correction's constructor.
+    #[error(transparent)]
+    Inverse(#[from] crate::compensator::InverseError),
+    /// The fixed-point normal form's constructor.
+    #[error(transparent)]
+    Fixed(#[from] crate::fixed::FixedError),
+    /// The fixed-point direct form's constructor.
+    #[error(transparent)]
+    Direct(#[from] crate::fixed::direct::DirectError),
+    /// The blob encoder.
+    #[error(transparent)]
+    Blob(#[from] crate::blob::BlobError),
+}
+
+/// What to do about an error ([`Error::Advised`]), in the library's words (`Display`); the
+/// command line spells each as the command and flags that do it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Advice {
+    /// Design the compensator from the measured noise and the signal prior, with no band limit
+    /// (the optimal design).
+    DesignOptimal,
+    /// Run the model file's designed compensator, or design one.
+    DesignSections,
+    /// Design the model file's compensator again with the ADC's full scale, which plans the
+    /// fixed-point arithmetic.
+    PlanFixedPoint {
+        /// The model file.
+        model: PathBuf,
+    },
+    /// Give the ADC's full scale.
+    GiveFullScale,
+    /// Give a step test, or ask for the band-limited inverse (it needs a bandwidth, not a
+    /// noise measurement).
+    GiveTestOrBandwidth,
+    /// Write a bank as source code, or send a running board one set at a time.
+    BankAsSource,
+    /// Refit with the temperature effect (which sets the reference temperature).
+    AddTemperature {
+        /// Also say how to write it into the model file by hand.
+        by_hand: bool,
+    },
+    /// Run the compensator in `f32`.
+    UseF32,
+    /// Export the compensator in `f32`.
+    ExportF32,
+    /// Export one coefficient set per temperature instead of a bank.
+    OnePerTemperature,
+}
+
+/// The model-file line that adds a temperature effect by hand.
+pub const TEMPERATURE_BY_HAND: &str =
+    " (or add effects = [{ kind = \"temperature\", reference_k = K }])";
+
+impl std::fmt::Display for Advice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::DesignOptimal => f.write_str(
+                "design its compensator from the measured noise and the signal prior, \
+                 with no band limit (the optimal design)",
+            ),
+            Self::DesignSections => {
+                f.write_str("run the model file's designed compensator, or design one")
+            }
+            Self::PlanFixedPoint { model } => write!(
+                f,
+                "design the compensator of {} again with the ADC's full scale",
+                model.display()
+            ),
+            Self::GiveFullScale => f.write_str("give the ADC's full scale, in the probe's units"),
+            Self::GiveTestOrBandwidth => {
+                f.write_str("give one, or ask for a band-limited inverse with its bandwidth")
+            }
+            Self::BankAsSource => f.write_str(
+                "write it as Rust or C source, or send a running board one set at a time",
+            ),
+            Self::AddTemperature { by_hand } => {
+                f.write_str("refit with the temperature effect")?;
+                if *by_hand {
+                    f.write_str(TEMPERATURE_BY_HAND)?;
+                }
+                Ok(())
+            }
+            Self::UseF32 => f.write_str("run it in f32"),
+            Self::ExportF32 => f.write_str("export it as f32"),
+            Self::OnePerTemperature => f.write_str("export one set per temperature"),
+        }
     }
 }
 

@@ -167,10 +167,10 @@ impl ModelFile {
     /// Renders the file as TOML.
     ///
     /// # Errors
-    /// [`Error::Numerical`] if serialisation fails (it does not for finite values).
+    /// [`Error::Serialise`] if serialisation fails (it does not for finite values).
     pub fn to_toml(&self) -> Result<String> {
-        let body = toml::to_string(self).map_err(|e| Error::Numerical {
-            context: "model file".into(),
+        let body = toml::to_string(self).map_err(|e| Error::Serialise {
+            what: "model file",
             message: e.to_string(),
         })?;
         Ok(format!("{HEADER}{body}"))

@@ -53,8 +53,8 @@ pub struct ResampleArgs {
 }
 
 fn json_err(e: serde_json::Error) -> Error {
-    Error::Numerical {
-        context: "json".into(),
+    Error::Serialise {
+        what: "json",
         message: e.to_string(),
     }
 }

@@ -138,6 +138,9 @@ pub fn run(cli: Cli) -> Result<()> {
 pub fn describe(e: &Error) -> String {
     use crate::error::Parameter;
     use crate::trace::{ColumnRole, TraceError};
+    if let Error::Advised { error, advice } = e {
+        return format!("{}: {}", describe(error), spell(advice));
+    }
     if let Error::InvalidParameter { parameter, message } = e {
         let flag = match parameter {
             Parameter::Order => "--order",
@@ -149,6 +152,7 @@ pub fn describe(e: &Error) -> String {
             Parameter::Temperatures => "--temperatures",
             Parameter::Offline => "--offline",
             Parameter::Arithmetic => "--arithmetic",
+            Parameter::Tests => "FILE",
         };
         return format!("invalid {flag}: {message}");
     }
@@ -168,6 +172,38 @@ pub fn describe(e: &Error) -> String {
     match flag {
         Some(flag) => format!("{e} ({flag})"),
         None => e.to_string(),
+    }
+}
+
+/// What to do about an error, spelled as the commands and flags that do it.
+fn spell(advice: &crate::error::Advice) -> String {
+    use crate::error::{Advice, TEMPERATURE_BY_HAND};
+    match advice {
+        Advice::DesignOptimal => {
+            "design its compensator with `unlag invert` (without --bandwidth)".into()
+        }
+        Advice::DesignSections => "drop --direct, or run `unlag invert`".into(),
+        Advice::PlanFixedPoint { model } => format!(
+            "run `unlag invert {} --full-scale FS -o ...`",
+            model.display()
+        ),
+        Advice::GiveFullScale => {
+            "give --full-scale (the ADC's full scale in the probe's units)".into()
+        }
+        Advice::GiveTestOrBandwidth => {
+            "give one, or ask for a band-limited inverse with --bandwidth HZ".into()
+        }
+        Advice::BankAsSource => "write --format rust or c, or send a running board one set at \
+                                 a time with --temperature K --format bin"
+            .into(),
+        Advice::AddTemperature { by_hand } => format!(
+            "refit with `unlag fit ... --add temperature`{}",
+            if *by_hand { TEMPERATURE_BY_HAND } else { "" }
+        ),
+        Advice::UseF32 => "use --arithmetic f32".into(),
+        Advice::OnePerTemperature => "export one set per temperature with --temperature K".into(),
+        // Said the same way in both.
+        Advice::ExportF32 => advice.to_string(),
     }
 }
 
@@ -244,8 +280,8 @@ pub(crate) fn pct(x: f64) -> String {
 
 /// A JSON serialisation error as the crate's error.
 pub(crate) fn json_err(e: serde_json::Error) -> Error {
-    Error::Numerical {
-        context: "json".into(),
+    Error::Serialise {
+        what: "json",
         message: e.to_string(),
     }
 }
@@ -439,5 +475,72 @@ mod tests {
         );
         assert_eq!(missing.kind(), "missing-column");
         assert_eq!(missing.location().1, Some(1));
+    }
+
+    /// Advice is said in the library's words and spelled as commands by the command line,
+    /// which prints what it printed when the library wrote the flags itself.
+    #[test]
+    fn advice_is_spelled_as_commands_only_on_the_command_line() {
+        use crate::error::Advice;
+        let unsupported = Error::UnsupportedOnBoard {
+            path: "m.toml".into(),
+            effect: "nonlinear damping",
+            arithmetic: "fixed-point",
+        }
+        .advised(Advice::UseF32);
+        assert_eq!(
+            describe(&unsupported),
+            "m.toml: the model has nonlinear damping, which the fixed-point compensator does not \
+             run: use --arithmetic f32"
+        );
+        assert_eq!(unsupported.kind(), "unsupported-on-board");
+        assert_eq!(
+            unsupported.location().0,
+            Some(std::path::Path::new("m.toml"))
+        );
+        let no_plan = Error::InvalidParameter {
+            parameter: Parameter::Arithmetic,
+            message: "m.toml has no fixed-point plan".into(),
+        }
+        .advised(Advice::PlanFixedPoint {
+            model: "m.toml".into(),
+        });
+        assert_eq!(
+            describe(&no_plan),
+            "invalid --arithmetic: m.toml has no fixed-point plan: run `unlag invert m.toml \
+             --full-scale FS -o ...`"
+        );
+        let no_test = Error::InvalidParameter {
+            parameter: Parameter::Tests,
+            message: "give at least one step test".into(),
+        };
+        assert_eq!(
+            describe(&no_test),
+            "invalid FILE: give at least one step test"
+        );
+        let every = [
+            Advice::DesignOptimal,
+            Advice::DesignSections,
+            Advice::PlanFixedPoint {
+                model: "m.toml".into(),
+            },
+            Advice::GiveFullScale,
+            Advice::GiveTestOrBandwidth,
+            Advice::BankAsSource,
+            Advice::AddTemperature { by_hand: true },
+            Advice::UseF32,
+            Advice::ExportF32,
+            Advice::OnePerTemperature,
+        ];
+        for advice in every {
+            let e = Error::InvalidParameter {
+                parameter: Parameter::Tests,
+                message: "give at least one step test".into(),
+            }
+            .advised(advice);
+            assert!(!e.to_string().contains("--"), "{e}");
+            assert!(!e.to_string().contains("unlag "), "{e}");
+            assert!(describe(&e).starts_with("invalid FILE: give at least one step test: "));
+        }
     }
 }

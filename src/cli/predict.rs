@@ -89,8 +89,8 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
     if args.json {
         let mut v = prediction_json(&sys, &p);
         if let Some(c) = &comparison {
-            v["comparison"] = serde_json::to_value(c).map_err(|e| Error::Numerical {
-                context: "JSON output".into(),
+            v["comparison"] = serde_json::to_value(c).map_err(|e| Error::Serialise {
+                what: "JSON output",
                 message: e.to_string(),
             })?;
         }

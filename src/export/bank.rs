@@ -42,11 +42,8 @@ fn bad_range(message: String) -> Error {
 
 /// The refusal of a bank as a blob, which carries one set.
 pub(super) fn not_a_blob() -> Error {
-    bad_range(
-        "a blob carries one coefficient set, not a bank: write --format rust or c, or send a \
-         running board one set at a time with --temperature K --format bin"
-            .into(),
-    )
+    bad_range("a blob carries one coefficient set, not a bank".into())
+        .advised(crate::error::Advice::BankAsSource)
 }
 
 impl TemperatureRange {
@@ -146,17 +143,18 @@ impl BoardBank {
         let Some(reference) = crate::modelling::effects::reference_k(&file.effects) else {
             return Err(bad_range(
                 "the model file has no temperature effect, so no reference temperature to scale \
-                 from: refit with `unlag fit ... --add temperature`"
+                 from"
                     .into(),
-            ));
+            )
+            .advised(crate::error::Advice::AddTemperature { by_hand: false }));
         };
         if crate::modelling::effects::nonlinear_gain(&file.effects) != 0.0 {
             return Err(Error::UnsupportedOnBoard {
                 path: path.to_path_buf(),
                 effect: "nonlinear damping",
                 arithmetic: "temperature-bank",
-                hint: "export one set per temperature with --temperature K",
-            });
+            }
+            .advised(crate::error::Advice::OnePerTemperature));
         }
         let bad = |message: String| Error::Model {
             path: path.to_path_buf(),

@@ -5,14 +5,15 @@
 use super::image::{board_cascade, BoardImage};
 use super::MAX_EXPORT_SECTIONS;
 use crate::blob::{self, BlobError};
-use crate::error::{Error, Result};
+use crate::error::{BoardRefusal, Error, Result};
 use crate::fixed::direct::DirectCascade;
 use crate::fixed::FixedCascade;
 
-fn fail(message: String) -> Error {
-    Error::Numerical {
-        context: "export".into(),
-        message,
+/// The board's refusal of what export built, as the host's error.
+fn fail(refusal: impl Into<BoardRefusal>) -> Error {
+    Error::BoardRefused {
+        during: "export",
+        refusal: refusal.into(),
     }
 }
 
@@ -22,14 +23,14 @@ fn encoded(
     encode: impl FnOnce(&mut [u8]) -> std::result::Result<usize, BlobError>,
 ) -> Result<Vec<u8>> {
     let mut out = vec![0u8; len];
-    let n = encode(&mut out).map_err(|e| fail(e.to_string()))?;
+    let n = encode(&mut out).map_err(fail)?;
     out.truncate(n);
     Ok(out)
 }
 
 /// The board's parse of the blob.
 fn parsed_back<T>(parsed: std::result::Result<T, BlobError>) -> Result<T> {
-    parsed.map_err(|e| fail(format!("the blob does not parse back: {e}")))
+    parsed.map_err(|e| Error::BlobRoundTrip { parsed: Some(e) })
 }
 
 /// Refuses a blob whose parse differs from what was encoded.
@@ -37,7 +38,7 @@ fn same(equal: bool) -> Result<()> {
     if equal {
         Ok(())
     } else {
-        Err(fail("the blob parses back to other coefficients".into()))
+        Err(Error::BlobRoundTrip { parsed: None })
     }
 }
 
@@ -48,7 +49,8 @@ impl BoardImage {
     /// returned.
     ///
     /// # Errors
-    /// [`Error::Numerical`] if the blob cannot be encoded or does not parse back to the same
+    /// [`Error::BoardRefused`] if the blob cannot be encoded, [`Error::BlobRoundTrip`] if it
+    /// does not parse back to the same
     /// coefficients (neither happens for an image built from a model file);
     /// [`Error::InvalidArgument`] for a bank (a blob carries one set).
     pub fn to_bin(&self) -> Result<Vec<u8>> {
@@ -74,11 +76,10 @@ impl BoardImage {
                     ),
                 })?;
                 let back = parsed_back(blob::parse::<MAX_EXPORT_SECTIONS>(&out))?;
-                let cascade =
-                    board_cascade(c.gain, &c.sections).map_err(|e| fail(e.to_string()))?;
+                let cascade = board_cascade(c.gain, &c.sections).map_err(fail)?;
                 let nonlinear = match &c.nonlinear {
                     None => None,
-                    Some(n) => Some(n.board().map_err(|e| fail(e.to_string()))?),
+                    Some(n) => Some(n.board().map_err(fail)?),
                 };
                 same(
                     back.cascade == cascade
@@ -99,8 +100,8 @@ impl BoardImage {
                     )
                 })?;
                 let back = parsed_back(blob::parse_fixed::<MAX_EXPORT_SECTIONS>(&out))?;
-                let cascade = FixedCascade::<MAX_EXPORT_SECTIONS>::new(&c.sections)
-                    .map_err(|e| fail(e.to_string()))?;
+                let cascade =
+                    FixedCascade::<MAX_EXPORT_SECTIONS>::new(&c.sections).map_err(fail)?;
                 same(back.cascade == cascade && back.sections == c.sections.len())?;
                 Ok(out)
             }
@@ -116,8 +117,8 @@ impl BoardImage {
                     )
                 })?;
                 let back = parsed_back(blob::parse_direct::<MAX_EXPORT_SECTIONS>(&out))?;
-                let cascade = DirectCascade::<MAX_EXPORT_SECTIONS>::new(&c.sections)
-                    .map_err(|e| fail(e.to_string()))?;
+                let cascade =
+                    DirectCascade::<MAX_EXPORT_SECTIONS>::new(&c.sections).map_err(fail)?;
                 same(back.cascade == cascade && back.sections == c.sections.len())?;
                 Ok(out)
             }

@@ -462,18 +462,13 @@ fn fixed_parts<S: FixedForm>(
             path: path.to_path_buf(),
             effect: "nonlinear damping",
             arithmetic: "fixed-point",
-            hint: "export it as f32",
-        });
+        }
+        .advised(crate::error::Advice::ExportF32));
     }
     let design = design(file, path)?;
     let Some((full_scale, output_exponent, sections)) = S::plan(design, full_scale)? else {
-        return Err(bad(
-            path,
-            format!(
-                "no {} plan in the model file: give --full-scale (the ADC's full scale in the probe's units)",
-                S::PLAN
-            ),
-        ));
+        return Err(bad(path, format!("no {} plan in the model file", S::PLAN))
+            .advised(crate::error::Advice::GiveFullScale));
     };
     check_count(
         path,
@@ -648,7 +643,10 @@ mod tests {
                     assert_eq!((set.output_exponent, set.sections), (-1, 1));
                 }
                 BoardImage::Bank(b) => {
-                    assert!(matches!(bin, Err(Error::InvalidParameter { .. })));
+                    assert!(matches!(
+                        bin.as_ref().map_err(Error::unadvised),
+                        Err(Error::InvalidParameter { .. })
+                    ));
                     assert_eq!(image.section_count(), 2);
                     assert_eq!(
                         b.to_bin().unwrap_err().to_string(),

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use crate::design::inverse::{self, Design};
-use crate::error::{Error, Result};
+use crate::error::{Advice, Error, Result};
 use crate::file::ModelFile;
 use crate::fit;
 use crate::modelling::effects;
@@ -147,11 +147,9 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
             let (Some(noise), Some(prior)) = (&d.noise, &d.prior) else {
                 return Err(Error::InvalidParameter {
                     parameter: crate::error::Parameter::Offline,
-                    message: format!(
-                        "{} has no stored noise and prior: design its compensator with `unlag invert` (without --bandwidth)",
-                        model_path.display()
-                    ),
-                });
+                    message: format!("{} has no stored noise and prior", model_path.display()),
+                }
+                .advised(Advice::DesignOptimal));
             };
             let y_in = effects::prefiltered(&file.effects, m.fs, &y_probe);
             (
@@ -170,8 +168,8 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
                         path: model_path.to_path_buf(),
                         effect: "nonlinear damping",
                         arithmetic: "fixed-point",
-                        hint: "use --arithmetic f32",
-                    })
+                    }
+                    .advised(Advice::UseF32))
                 }
                 Arithmetic::Fixed => {
                     let (u_hat, summary) = run_fixed(d, model_path, &y_probe)?;
@@ -203,9 +201,10 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
                     return Err(Error::InvalidParameter {
                         parameter: crate::error::Parameter::Arithmetic,
                         message: "fixed point runs the designed compensator in sections, not \
-                                  the paper's direct inverse: drop --direct, or run `unlag invert`"
+                                  the paper's direct inverse"
                             .into(),
-                    })
+                    }
+                    .advised(Advice::DesignSections))
                 }
             };
             (u_hat, m.delay as f64, "the paper's direct inverse (eq. 7)")
@@ -218,9 +217,9 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
             1.0,
             &[],
         )
-        .map_err(|e| Error::Numerical {
-            context: "nonlinear-damping correction".into(),
-            message: e.to_string(),
+        .map_err(|e| Error::BoardRefused {
+            during: "nonlinear-damping correction",
+            refusal: e.into(),
         })?;
         let mut st = c.equilibrium(y_probe.first().copied().unwrap_or(0.0));
         for (u, y) in u_hat.iter_mut().zip(&y_probe) {
@@ -270,13 +269,14 @@ fn run_fixed(d: &Design, model: &Path, y: &[f64]) -> Result<(Vec<f64>, FixedRunS
     let (run, full_scale) = if let Some(plan) = &d.fixed_direct {
         (plan.run(y)?, plan.full_scale)
     } else {
-        let plan = d.fixed.as_ref().ok_or_else(|| Error::InvalidParameter {
-            parameter: crate::error::Parameter::Arithmetic,
-            message: format!(
-                "{} has no fixed-point plan: run `unlag invert {} --full-scale FS -o ...`",
-                model.display(),
-                model.display()
-            ),
+        let plan = d.fixed.as_ref().ok_or_else(|| {
+            Error::InvalidParameter {
+                parameter: crate::error::Parameter::Arithmetic,
+                message: format!("{} has no fixed-point plan", model.display()),
+            }
+            .advised(Advice::PlanFixedPoint {
+                model: model.to_path_buf(),
+            })
         })?;
         (plan.run(y)?, plan.full_scale)
     };
@@ -398,7 +398,9 @@ mod tests {
         assert_eq!(direct.latency_samples, 3.0);
         assert_eq!(direct.compensator, "the paper's direct inverse (eq. 7)");
         assert!(matches!(
-            run(&f, &t, Compensation::Direct(Arithmetic::Fixed)),
+            run(&f, &t, Compensation::Direct(Arithmetic::Fixed))
+                .as_ref()
+                .map_err(Error::unadvised),
             Err(Error::InvalidParameter {
                 parameter: crate::error::Parameter::Arithmetic,
                 ..
@@ -406,7 +408,9 @@ mod tests {
         ));
         // The band-limited design has no noise and prior for the offline optimum.
         assert!(matches!(
-            run(&f, &t, Compensation::Offline),
+            run(&f, &t, Compensation::Offline)
+                .as_ref()
+                .map_err(Error::unadvised),
             Err(Error::InvalidParameter {
                 parameter: crate::error::Parameter::Offline,
                 ..

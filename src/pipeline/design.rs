@@ -255,13 +255,13 @@ fn noise_and_prior(
     let noise = match (raw.is_empty(), stored) {
         (true, Some((noise, _))) => noise,
         (true, None) => {
-            return Err(Error::InvalidArgument {
-                what: "FILE",
+            return Err(Error::InvalidParameter {
+                parameter: crate::error::Parameter::Tests,
                 message: "the optimal compensator needs a step test to measure the noise on \
-                          (or a model file designed from one): give one, or ask for a \
-                          band-limited inverse with --bandwidth HZ"
+                          (or a model file designed from one)"
                     .into(),
-            })
+            }
+            .advised(crate::error::Advice::GiveTestOrBandwidth))
         }
         _ => optimal::estimate_noise(raw),
     };
@@ -415,7 +415,12 @@ fn compensator(
         match planned {
             Ok(()) => {}
             // A full scale that makes no sense is the caller's error.
-            Err(e @ (Error::InvalidArgument { .. } | Error::InvalidParameter { .. })) => {
+            Err(e)
+                if matches!(
+                    e.unadvised(),
+                    Error::InvalidArgument { .. } | Error::InvalidParameter { .. }
+                ) =>
+            {
                 return Err(e)
             }
             Err(e) if plans_required => return Err(e),
@@ -442,12 +447,9 @@ pub fn at_temperature(file: &ModelFile, temperature_k: f64) -> Result<ModelFile>
     let (reference, damping) = effects::temperature_law(&file.effects).ok_or_else(|| {
         crate::error::Error::InvalidParameter {
             parameter: crate::error::Parameter::Temperature,
-            message:
-                "the model file has no temperature effect, so no reference temperature: refit \
-                  with `unlag fit ... --add temperature` (or add effects = [{ kind = \
-                  \"temperature\", reference_k = K }])"
-                    .into(),
+            message: "the model file has no temperature effect, so no reference temperature".into(),
         }
+        .advised(crate::error::Advice::AddTemperature { by_hand: true })
     })?;
     let k = effects::scale_for(temperature_k, reference)?;
     let model = effects::scaled_with(&file.model, k, damping.factor(k, reference))?;
@@ -665,7 +667,13 @@ mod tests {
             ..request
         });
         assert!(
-            matches!(without, Err(Error::InvalidArgument { what: "FILE", .. })),
+            matches!(
+                without.as_ref().map_err(Error::unadvised),
+                Err(Error::InvalidParameter {
+                    parameter: crate::error::Parameter::Tests,
+                    ..
+                })
+            ),
             "{without:?}"
         );
     }

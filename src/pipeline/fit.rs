@@ -39,8 +39,8 @@ pub struct FitRequest<'a> {
 /// ([`effects::fit_with`]).
 pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
     let Some((estimation, validation)) = request.tests.split_first() else {
-        return Err(Error::InvalidArgument {
-            what: "FILE",
+        return Err(Error::InvalidParameter {
+            parameter: crate::error::Parameter::Tests,
             message: "give at least one step test".into(),
         });
     };
@@ -260,7 +260,10 @@ mod tests {
                 digests: &[],
                 ..request
             }),
-            Err(Error::InvalidArgument { what: "FILE", .. })
+            Err(Error::InvalidParameter {
+                parameter: crate::error::Parameter::Tests,
+                ..
+            })
         ));
     }
 

@@ -213,7 +213,12 @@ pub fn design_checked(
     for (i, candidate) in candidates.into_iter().enumerate() {
         let mut d = match candidate {
             Ok(d) => d,
-            Err(e @ (Error::InvalidArgument { .. } | Error::InvalidParameter { .. })) => {
+            Err(e)
+                if matches!(
+                    e.unadvised(),
+                    Error::InvalidArgument { .. } | Error::InvalidParameter { .. }
+                ) =>
+            {
                 return Err(e)
             }
             Err(e) => {

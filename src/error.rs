@@ -13,6 +13,9 @@ pub enum Error {
     /// A trace file is not a usable step test (the trace room's error).
     #[error(transparent)]
     Trace(#[from] crate::trace::TraceError),
+    /// An effect's fit or scaling failed (the modelling room's error).
+    #[error(transparent)]
+    Modelling(#[from] crate::modelling::ModellingError),
     /// The file could not be read or written.
     #[error("{path}: {action}: {source}")]
     Io {
@@ -222,6 +225,7 @@ impl Error {
         match self {
             Self::Advised { error, .. } => error.kind(),
             Self::Trace(e) => e.kind(),
+            Self::Modelling(e) => e.kind(),
             Self::Io { .. } => "io",
             Self::TooShort { .. } => "too-short",
             Self::NoStep { .. } => "no-step",
@@ -260,6 +264,7 @@ impl Error {
             | Self::Overwrite { output: path, .. } => (Some(path), None, None),
             Self::InvalidArgument { .. }
             | Self::InvalidParameter { .. }
+            | Self::Modelling(_)
             | Self::UnstableModel { .. }
             | Self::UnstableInverse { .. }
             | Self::Numerical { .. }

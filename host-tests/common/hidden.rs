@@ -878,7 +878,7 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
         // Nothing to add for `none`, nothing named for `unexplained`.
         Some(c) if c.kind.effect().is_some() => {
             let effect = if c.kind == EffectKind::Delay {
-                let d = c.evidence["best_delay"].as_u64().unwrap_or(0) as usize;
+                let d = c.change.delay().unwrap_or(0);
                 Effect::Delay { samples: d }
             } else {
                 // The `--add` spelling (`temperature-viscous` with its damping law).

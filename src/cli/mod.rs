@@ -156,6 +156,11 @@ pub fn describe(e: &Error) -> String {
         };
         return format!("invalid {flag}: {message}");
     }
+    if let Error::Modelling(crate::modelling::ModellingError::NoSensorResonance) = e {
+        return "invalid sensor-resonance: the estimation test's reference shows no resonance to \
+                filter below; give the transducer's natural frequency: --add sensor-resonance=HZ"
+            .into();
+    }
     let flag = match e {
         Error::Trace(TraceError::MissingColumn { role, .. }) => Some(match role {
             ColumnRole::Probe => "--y",

@@ -171,6 +171,7 @@ pub(crate) fn write_report(
             tests,
             evidence: &evidence,
             candidates: &candidates,
+            change_text: super::modelling::change_text,
         },
     )
 }

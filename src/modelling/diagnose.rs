@@ -13,7 +13,7 @@
 //!    the tests fitted alone that all move by one common factor against the model's, with the
 //!    damping about the same, for a temperature ([`temperature_evidence`]; both damping laws
 //!    of [`crate::modelling::effects::TemperatureDamping`] are tried and the better offered, its `change`
-//!    `--add temperature` or `--add temperature-viscous`); and across tests
+//!    adding `temperature` or `temperature-viscous`); and across tests
 //!    ([`amplitude_signature`]), a damping that rises with the step's amplitude and a residual
 //!    that grows faster than the step, for nonlinear damping;
 //! 2. a trial: the model is refitted on the estimation test with the effect added
@@ -30,8 +30,10 @@ use crate::modelling::effects::{self, Effect};
 use crate::modelling::evidence::TestEvidence;
 
 mod across;
+mod evidence;
 mod finding;
 mod rank;
+mod remedy;
 mod trial;
 
 pub use across::{
@@ -39,8 +41,13 @@ pub use across::{
     TemperatureEvidence, TemperatureRow, MIN_AMPLITUDE_RATIO, MIN_DAMPING_RISE,
     MIN_FREQUENCY_SHIFT, MIN_RESIDUAL_EXPONENT,
 };
+pub use evidence::{
+    Evidence, ModeEvidence, NonlinearDamping, ScaleEstimate, SensorResonance, Spectrum,
+    TemperatureShift, COLOURED_NOISE_FIT, SENSOR_RESONANCE_REMEDY,
+};
 pub use finding::{separating_test, Candidate, Finding, CLOSE_MARGIN};
 pub use rank::{diagnose, FLOOR_OVERRULED, MIN_IMPROVEMENT, PARAMETER_PENALTY, SAME_FREQUENCY};
+pub use remedy::Remedy;
 pub use trial::TRIAL_WINDOW;
 
 /// The current state of a model file that a diagnosis starts from.

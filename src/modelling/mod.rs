@@ -8,4 +8,7 @@
 
 pub mod diagnose;
 pub mod effects;
+mod error;
 pub mod evidence;
+
+pub use error::ModellingError;

@@ -215,7 +215,9 @@ pub(super) fn candidates(h: &mut String, inputs: &Inputs<'_>) {
          <th>held-out error</th><th>reading and evidence</th><th>change</th></tr>\n",
     );
     for (i, c) in inputs.candidates.iter().enumerate() {
-        let evidence = evidence_text(&rounded(&c.evidence));
+        let evidence = evidence_text(&rounded(
+            &serde_json::to_value(&c.evidence).unwrap_or(serde_json::Value::Null),
+        ));
         let _ = writeln!(
             h,
             "<tr><td class=\"num\">{}</td><td><b>{}</b></td><td class=\"num\">{:.2}</td>\
@@ -229,7 +231,7 @@ pub(super) fn candidates(h: &mut String, inputs: &Inputs<'_>) {
             escape(&c.reading),
             stated_uncertainty(c),
             escape(&evidence),
-            escape(&c.change)
+            escape(&(inputs.change_text)(&c.change))
         );
     }
     h.push_str("</table>\n<p class=\"sub\">Score: ln of the held-out error's fall in a trial refit, less a small charge per parameter.</p>\n");

@@ -17,7 +17,7 @@ use std::path::Path;
 use crate::error::Result;
 use crate::file::ModelFile;
 use crate::fit::Test;
-use crate::modelling::diagnose::Candidate;
+use crate::modelling::diagnose::{Candidate, Remedy};
 use crate::modelling::evidence::TestEvidence;
 
 mod compensated;
@@ -47,6 +47,9 @@ pub struct Inputs<'a> {
     pub evidence: &'a [TestEvidence],
     /// The ranked candidates ([`crate::modelling::diagnose::diagnose`]).
     pub candidates: &'a [Candidate],
+    /// How a candidate's change is worded: `|r| r.to_string()` for the library's words
+    /// ([`Remedy`]'s `Display`); a front end passes the command that makes it.
+    pub change_text: fn(&Remedy) -> String,
 }
 
 /// Identifiers of the plots a report holds (`<figure class="plot" id=...>`), in page order;
@@ -226,7 +229,7 @@ fn verdict(h: &mut String, inputs: &Inputs<'_>) {
                 pct(c.nrmse_before),
                 pct(c.nrmse_after),
                 escape(&c.reading),
-                escape(&c.change)
+                escape(&(inputs.change_text)(&c.change))
             );
         }
         None => {
@@ -365,6 +368,7 @@ mod tests {
             tests: &tests,
             evidence: &ev,
             candidates: &[],
+            change_text: |r| r.to_string(),
         })
         .unwrap();
         eprintln!("report of a 100 000-sample test: {} bytes", html.len());
@@ -399,9 +403,12 @@ mod tests {
                 crate::modelling::effects::EffectKind::Leak,
             ),
             score: 0.5,
-            evidence: serde_json::json!({"x": 1}),
+            evidence: crate::modelling::diagnose::Evidence::Leak {
+                dc_gain: 0.5,
+                late_residual_over_step: 1.0,
+            },
             reading: "a slow creep & more".into(),
-            change: "unlag fit ... --add leak".into(),
+            change: Remedy::Add(crate::modelling::effects::Effect::Leak),
             nrmse_before: 0.0123,
             nrmse_after: 0.00456,
             margin: 0.5,
@@ -415,6 +422,7 @@ mod tests {
             tests: &tests,
             evidence: &ev,
             candidates: &[c],
+            change_text: |r| r.to_string(),
         })
         .unwrap();
         assert!(html.contains("Diagnosis: <span class=\"effect\">leak</span>"));
@@ -424,7 +432,14 @@ mod tests {
         assert!(html.contains("a&lt;b&gt;.csv") && !html.contains("a<b>.csv"));
         // The subtitle says what is there in words; the candidates' evidence is not JSON.
         assert!(html.contains("no effects added") && !html.contains("effects []"));
-        assert!(html.contains("<code>x: 1</code>"), "evidence as text");
+        assert!(
+            html.contains("<code>dc gain: 0.5; late residual over step: 1.0</code>"),
+            "evidence as text"
+        );
+        // The change in the words it was given: here the library's.
+        assert!(html.contains(
+            "<code>add the leak effect   (model file: effects = [{ kind = &quot;leak&quot; }])</code>"
+        ));
     }
 
     #[test]

@@ -2,10 +2,10 @@
 //! behind it, and the test that tells two close candidates apart.
 
 use serde::Serialize;
-use serde_json::Value;
 
 #[cfg(doc)]
 use super::PARAMETER_PENALTY;
+use super::{Evidence, Remedy};
 use crate::fit::model::Uncertainty;
 use crate::modelling::effects::{self, EffectKind};
 
@@ -103,12 +103,12 @@ pub struct Candidate {
     /// `ln(error before / error after)` of the trial, less [`PARAMETER_PENALTY`] per parameter
     /// the effect adds; larger is stronger.
     pub score: f64,
-    /// The numbers behind it.
-    pub evidence: Value,
+    /// The numbers behind it, by its kind.
+    pub evidence: Evidence,
     /// What it means physically.
     pub reading: String,
-    /// The exact change that adds it.
-    pub change: String,
+    /// The change that adds it (a front end words it as its own command).
+    pub change: Remedy,
     /// Held-out error before the trial.
     pub nrmse_before: f64,
     /// Held-out error after the trial.

@@ -1,12 +1,12 @@
 //! The ranking: each candidate effect's signature read from the evidence and its trial run,
 //! the candidates ordered, and the verdict when none is offered (`none` or `unexplained`).
 
-use serde_json::{json, Value};
-
 use super::trial::{held_out, trial_window};
 use super::{
     amplitude_signature, mean, per_test, separating_test, temperature_evidence, AmplitudeSignature,
-    Candidate, Current, Finding, CLOSE_MARGIN,
+    Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping, Remedy, ScaleEstimate,
+    SensorResonance, Spectrum, TemperatureShift, CLOSE_MARGIN, COLOURED_NOISE_FIT,
+    SENSOR_RESONANCE_REMEDY,
 };
 use crate::error::Result;
 use crate::fit::model::Uncertainty;
@@ -75,7 +75,7 @@ pub fn diagnose(
     let at_floor = evidence.iter().all(TestEvidence::at_noise_floor);
     let mut out: Vec<Candidate> = Vec::new();
     let mut offer =
-        |kind: EffectKind, after: f64, evidence: Value, reading: String, change: String| {
+        |kind: EffectKind, after: f64, evidence: Evidence, reading: String, change: Remedy| {
             let ratio = before / after;
             if after.is_finite() && ratio >= MIN_IMPROVEMENT {
                 out.push(Candidate {
@@ -121,8 +121,13 @@ pub fn diagnose(
         let (near, ev, reading) = if let Some((e, p)) = peak {
             (
                 Some(p.frequency_hz),
-                json!({"frequency_hz": p.frequency_hz, "above_floor_db": p.above_floor_db,
-                       "q": p.q, "test": e.file, "source": "model-error spectrum"}),
+                Evidence::Mode(ModeEvidence::Peak {
+                    spectrum: Spectrum::ModelError,
+                    frequency_hz: p.frequency_hz,
+                    above_floor_db: p.above_floor_db,
+                    q: p.q,
+                    test: e.file.clone(),
+                }),
                 format!(
                     "the measured response rises {:.1} dB above the model's at {:.0} Hz (Q about \
                      {:.0}): an unmodelled acoustic mode of the line or a cavity resonance",
@@ -133,8 +138,11 @@ pub fn diagnose(
             let f = e.model_error.valid_to_hz;
             (
                 Some(f),
-                json!({"rise_db": db, "up_to_hz": f, "test": e.file,
-                       "source": "model-error spectrum, top of the band"}),
+                Evidence::Mode(ModeEvidence::BandEdge {
+                    rise_db: db,
+                    up_to_hz: f,
+                    test: e.file.clone(),
+                }),
                 format!(
                     "the measured response rises {db:.1} dB above the model's towards {f:.0} Hz, \
                      where the noise takes over: an unmodelled mode at or above it (a higher \
@@ -144,8 +152,13 @@ pub fn diagnose(
         } else if let Some((e, p)) = residual_peak {
             (
                 Some(p.frequency_hz),
-                json!({"frequency_hz": p.frequency_hz, "above_floor_db": p.above_floor_db,
-                       "q": p.q, "test": e.file, "source": "residual spectrum"}),
+                Evidence::Mode(ModeEvidence::Peak {
+                    spectrum: Spectrum::Residual,
+                    frequency_hz: p.frequency_hz,
+                    above_floor_db: p.above_floor_db,
+                    q: p.q,
+                    test: e.file.clone(),
+                }),
                 format!(
                     "a narrow residual peak at {:.0} Hz, {:.0} dB above the floor, Q about {:.0}: \
                      an unmodelled acoustic mode of the line or a cavity resonance",
@@ -155,7 +168,7 @@ pub fn diagnose(
         } else {
             (
                 None,
-                json!({"source": "trial only"}),
+                Evidence::Mode(ModeEvidence::TrialOnly),
                 "two more poles and zeros lower the held-out error, without a spectral peak to \
                  point at: a heavily damped extra mode"
                     .to_string(),
@@ -167,13 +180,7 @@ pub fn diagnose(
             after,
             ev,
             reading,
-            match near {
-                Some(f) => format!(
-                    "unlag fit ... --add mode   (model file: effects = [{{ kind = \"mode\", near_hz = {f:.0} }}])"
-                ),
-                None => "unlag fit ... --add mode   (model file: effects = [{ kind = \"mode\" }])"
-                    .into(),
-            },
+            Remedy::Add(Effect::Mode { near_hz: near }),
         );
     }
 
@@ -188,13 +195,15 @@ pub fn diagnose(
             offer(
                 EffectKind::Offset,
                 after,
-                json!({"pre_step_mean_in_standard_errors": offset, "offset": value}),
+                Evidence::Offset {
+                    offset: value,
+                    pre_step_mean_in_standard_errors: offset,
+                },
                 format!(
                     "the residual sits {offset:.0} standard errors off zero before the step: a zero \
                      offset of the probe against the reference ({value:.4e})"
                 ),
-                "unlag fit ... --add offset   (model file: effects = [{ kind = \"offset\" }])"
-                    .into(),
+                Remedy::Add(Effect::Offset { value: 0.0 }),
             );
         }
     }
@@ -220,13 +229,19 @@ pub fn diagnose(
             offer(
                 EffectKind::Drift,
                 after,
-                json!({"ramp_in_standard_errors": drift, "rate_per_s": rate,
-                       "pre_step_slope_per_s": pre}),
+                Evidence::Drift {
+                    pre_step_slope_per_s: pre,
+                    ramp_in_standard_errors: drift,
+                    rate_per_s: rate,
+                },
                 format!(
                     "a ramp through the whole residual ({rate:.3e} per second, already before the \
                      step): the sensor drifts in time (thermal drift)"
                 ),
-                "unlag fit ... --add drift   (model file: effects = [{ kind = \"drift\" }])".into(),
+                Remedy::Add(Effect::Drift {
+                    value: 0.0,
+                    rate_per_s: 0.0,
+                }),
             );
         }
     }
@@ -240,7 +255,10 @@ pub fn diagnose(
         offer(
             EffectKind::Leak,
             after,
-            json!({"late_residual_over_step": creep, "dc_gain": current.model.dc_gain()}),
+            Evidence::Leak {
+                dc_gain: current.model.dc_gain(),
+                late_residual_over_step: creep,
+            },
             format!(
                 "after the step the residual creeps slowly ({:+.2} % of the step at the end of the \
                  record) and the model's DC gain is {:.4}: a leaking cavity or side volume, a \
@@ -248,7 +266,7 @@ pub fn diagnose(
                 100.0 * creep,
                 current.model.dc_gain()
             ),
-            "unlag fit ... --add leak   (model file: effects = [{ kind = \"leak\" }])".into(),
+            Remedy::Add(Effect::Leak),
         );
     }
 
@@ -268,12 +286,12 @@ pub fn diagnose(
                 e.spectrum
                     .peaks
                     .iter()
-                    .map(|p| (p, "residual spectrum"))
+                    .map(|p| (p, Spectrum::Residual))
                     .chain(
                         e.model_error
                             .peaks
                             .iter()
-                            .map(|p| (p, "model-error spectrum")),
+                            .map(|p| (p, Spectrum::ModelError)),
                     )
             })
             .filter(|(p, _)| near(p.frequency_hz))
@@ -285,16 +303,21 @@ pub fn diagnose(
                 prefilter_hz: 0.0,
                 remedy: effects::SensorRemedy::Modes,
             };
-            if let Some((after, _)) = trial(added, &base) {
+            if let Some((after, _)) = trial(added.clone(), &base) {
                 sensor_matched = true;
                 offer(
                     EffectKind::SensorResonance,
                     after,
-                    json!({"reference_peak_hz": f, "reference_above_floor_db": rp.above_floor_db,
-                           "reference_q": rp.q, "reference_test": e.file,
-                           "probe_peak_hz": pp.frequency_hz, "probe_above_floor_db": pp.above_floor_db,
-                           "probe_source": source,
-                           "remedy": "the transducers' modes in the model: two more poles and zeros, fitted on the raw signals (sensor-resonance-prefilter: the paper's prefilter instead)"}),
+                    Evidence::SensorResonance(SensorResonance {
+                        probe_above_floor_db: pp.above_floor_db,
+                        probe_peak_hz: pp.frequency_hz,
+                        probe_source: source,
+                        reference_above_floor_db: rp.above_floor_db,
+                        reference_peak_hz: f,
+                        reference_q: rp.q,
+                        reference_test: e.file.clone(),
+                        remedy: SENSOR_RESONANCE_REMEDY.into(),
+                    }),
                     format!(
                         "the reference itself rings at {f:.0} Hz ({:.0} dB above the floor of its \
                          increments, Q about {:.0}) and the probe's {source} peaks at {:.0} Hz: the \
@@ -307,9 +330,7 @@ pub fn diagnose(
                         pp.frequency_hz,
                         0.5 * f
                     ),
-                    format!(
-                        "unlag fit ... --add sensor-resonance={f:.0}   (model file: effects = [{{ kind = \"sensor-resonance\", natural_frequency_hz = {f:.0}, remedy = \"modes\" }}])"
-                    ),
+                    Remedy::Add(added),
                 );
             }
         }
@@ -336,7 +357,7 @@ pub fn diagnose(
             .min_by(|a, b| a.0.total_cmp(&b.0));
             if let Some((after, fx, damping)) = best {
                 let reference_k = effects::reference_k(&fx).unwrap_or(effects::DEFAULT_REFERENCE_K);
-                let estimated: Vec<Value> = tests
+                let estimated: Vec<ScaleEstimate> = tests
                     .iter()
                     .map(|t| {
                         let k = effects::estimate_scale_with(
@@ -346,9 +367,12 @@ pub fn diagnose(
                             t.u,
                             t.y,
                         );
-                        json!({"test": t.name, "scale": k,
-                               "temperature_k": reference_k * k * k,
-                               "damping_factor": damping.factor(k, reference_k)})
+                        ScaleEstimate {
+                            damping_factor: damping.factor(k, reference_k),
+                            scale: k,
+                            temperature_k: reference_k * k * k,
+                            test: t.name.to_string(),
+                        }
                     })
                     .collect();
                 let (file, ratio) = t.strongest();
@@ -361,16 +385,22 @@ pub fn diagnose(
                          tube-volume system"
                     ),
                 };
-                // The kind is what `--add` takes: the damping law is part of it.
+                // The kind names the damping law: `temperature` or `temperature-viscous`.
                 offer(
                     spelling,
                     after,
-                    json!({"per_test": t.rows, "common_ratio": ratio, "test": file,
-                           "temperature_ratio": ratio * ratio,
-                           "damping_ratio": t.damping_ratio,
-                           "viscous_damping_ratio": viscous,
-                           "damping": damping, "add": spelling,
-                           "estimated_scale": estimated, "reference_k": reference_k}),
+                    Evidence::Temperature(TemperatureShift {
+                        add: spelling,
+                        common_ratio: ratio,
+                        damping,
+                        damping_ratio: t.damping_ratio,
+                        estimated_scale: estimated,
+                        per_test: t.rows.clone(),
+                        reference_k,
+                        temperature_ratio: ratio * ratio,
+                        test: file.clone(),
+                        viscous_damping_ratio: viscous,
+                    }),
                     format!(
                         "every natural frequency of {file} fitted alone is {ratio:.3} times the \
                          model's (spread across modes {:.1} %, damping x{:.2}): the same probe at \
@@ -380,14 +410,10 @@ pub fn diagnose(
                         t.damping_ratio,
                         ratio * ratio
                     ),
-                    match damping {
-                        effects::TemperatureDamping::Constant => format!(
-                            "unlag fit ... --add {spelling}   (model file: effects = [{{ kind = \"temperature\", reference_k = 293.15 }}]; the estimation test's temperature)"
-                        ),
-                        effects::TemperatureDamping::Viscous => format!(
-                            "unlag fit ... --add {spelling}   (model file: effects = [{{ kind = \"temperature\", reference_k = 293.15, damping = \"viscous\" }}]; the estimation test's temperature)"
-                        ),
-                    },
+                    Remedy::Add(Effect::Temperature {
+                        reference_k: effects::DEFAULT_REFERENCE_K,
+                        damping,
+                    }),
                 );
             }
         }
@@ -407,8 +433,11 @@ pub fn diagnose(
                     offer(
                         EffectKind::Delay,
                         after,
-                        json!({"model_delay": current.model.delay, "best_delay": d,
-                               "residual_input_xcorr_peak_lag": xc}),
+                        Evidence::Delay {
+                            best_delay: d,
+                            model_delay: current.model.delay,
+                            residual_input_xcorr_peak_lag: xc,
+                        },
                         format!(
                             "the model answers {} samples {} the probe does (loss lowest at d = {d}, \
                              not {}); the residual against the input peaks at lag {xc}",
@@ -416,7 +445,7 @@ pub fn diagnose(
                             if d > current.model.delay { "before" } else { "after" },
                             current.model.delay
                         ),
-                        format!("unlag fit ... --delay {d}   (model file: effects = [{{ kind = \"delay\", samples = {d} }}])"),
+                        Remedy::SetDelay { samples: d },
                     );
                 }
             }
@@ -443,18 +472,20 @@ pub fn diagnose(
                 offer(
                     EffectKind::NonlinearDamping,
                     after,
-                    json!({"amplitudes": sig.amplitudes, "damping": sig.damping,
-                           "residual_per_step": sig.residual_per_step,
-                           "damping_slope_per_unit_step": sig.damping_slope,
-                           "damping_rise": sig.damping_rise,
-                           "residual_exponent": sig.residual_exponent,
-                           "gain_s2_per_unit": gain}),
+                    Evidence::NonlinearDamping(NonlinearDamping {
+                        amplitudes: sig.amplitudes.clone(),
+                        damping: sig.damping.clone(),
+                        damping_rise: sig.damping_rise,
+                        damping_slope_per_unit_step: sig.damping_slope,
+                        gain_s2_per_unit: gain,
+                        residual_exponent: sig.residual_exponent,
+                        residual_per_step: sig.residual_per_step.clone(),
+                    }),
                     format!(
                         "the damping fitted to each test alone rises from {z0:.3} at a step of                          {a0:.3} to {z1:.3} at {a1:.3} ({:+.3} per unit step), and what a linear                          fit leaves grows as |step|^{:.2} (a linear probe: 1): amplitude-dependent                          losses, orifice or turbulent flow at large steps (quadratic loss                          {gain:.3e} s^2 per unit)",
                         sig.damping_slope, sig.residual_exponent
                     ),
-                    "unlag fit ... --add nonlinear-damping   (model file: effects = [{ kind = \"nonlinear-damping\" }])"
-                        .into(),
+                    Remedy::Add(Effect::NonlinearDamping { gain: 0.0 }),
                 );
             }
         }
@@ -477,8 +508,7 @@ pub fn diagnose(
             innovation_std: 0.0,
         };
         let after = trial(added, &base).map_or(f64::NAN, |t| t.0);
-        let how =
-            "output error and an AR noise model; the error is the one-step-ahead prediction error";
+        let how = COLOURED_NOISE_FIT;
         let rho1 = evidence
             .first()
             .and_then(|e| e.autocorrelation.values.first().copied())
@@ -486,7 +516,11 @@ pub fn diagnose(
         offer(
             EffectKind::ColouredNoise,
             after,
-            json!({"ljung_box_p": p, "lag1_autocorrelation": rho1, "fit": how}),
+            Evidence::ColouredNoise {
+                fit: how.into(),
+                lag1_autocorrelation: rho1,
+                ljung_box_p: p,
+            },
             format!(
                 "the residual is correlated in time beyond what both channels' noise through \
                  the model explains (Ljung-Box p = {p:.1e}, lag-1 correlation {rho1:.2}): \
@@ -494,8 +528,10 @@ pub fn diagnose(
                  ({how}: what a predictor of the probe one sample ahead cannot remove, against \
                  the simulation error before)"
             ),
-            "unlag fit ... --add coloured-noise   (model file: effects = [{ kind = \"coloured-noise\" }])"
-                .into(),
+            Remedy::Add(Effect::ColouredNoise {
+                ar: Vec::new(),
+                innovation_std: 0.0,
+            }),
         );
     }
 
@@ -542,8 +578,12 @@ pub fn diagnose(
         out.push(Candidate {
             kind: Finding::Unexplained,
             score: 0.0,
-            evidence: json!({"nrmse": before, "noise_floor": floor, "white": white,
-                             "worst_over_floor": worst}),
+            evidence: Evidence::Unexplained {
+                noise_floor: floor,
+                nrmse: before,
+                white,
+                worst_over_floor: worst,
+            },
             reading: format!(
                 "the residual is up to {worst:.1}x what both channels' noise leaves{}, but no \
                  effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x: something \
@@ -555,7 +595,7 @@ pub fn diagnose(
                     " and correlated beyond that noise"
                 }
             ),
-            change: "unlag fit ... --order auto   (or a higher --order N)".into(),
+            change: Remedy::RaiseOrder,
             nrmse_before: before,
             nrmse_after: before,
             margin: 0.0,
@@ -574,7 +614,11 @@ pub fn diagnose(
         let none = Candidate {
             kind: Finding::Nothing,
             score: 0.0,
-            evidence: json!({"nrmse": before, "noise_floor": floor, "white": white}),
+            evidence: Evidence::Nothing {
+                noise_floor: floor,
+                nrmse: before,
+                white,
+            },
             reading: format!(
                 "the residuals are consistent with noise (error {:.3} % against a floor of {:.3} %{}); \
                  no effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x",
@@ -582,7 +626,7 @@ pub fn diagnose(
                 100.0 * floor,
                 if white { ", white" } else { "" }
             ),
-            change: "none".into(),
+            change: Remedy::Nothing,
             nrmse_before: before,
             nrmse_after: before,
             margin: 0.0,

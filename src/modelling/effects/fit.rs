@@ -12,14 +12,16 @@ use super::{
 use crate::error::Result;
 use crate::fit::model::Model;
 use crate::fit::{Fitted, Options, Order, Test};
+use crate::modelling::ModellingError;
 
 /// The effects with their frequency-domain parameters resolved on the estimation test: a
 /// sensor resonance without a frequency takes the reference's ringing peak, and its prefilter
 /// half of it.
 ///
 /// # Errors
-/// [`crate::error::Error::InvalidArgument`] when the reference shows no resonance to filter
-/// below, or the prefilter's corner is not below half the sample rate.
+/// [`ModellingError::NoSensorResonance`] when the reference shows no resonance to filter
+/// below; [`crate::error::Error::InvalidArgument`] when the prefilter's corner is not below
+/// half the sample rate.
 pub fn resolve(effects: &[Effect], u: &[f64], fs: f64) -> Result<Vec<Effect>> {
     effects
         .iter()
@@ -34,13 +36,7 @@ pub fn resolve(effects: &[Effect], u: &[f64], fs: f64) -> Result<Vec<Effect>> {
                 } else {
                     crate::modelling::evidence::reference_ringing(u, fs)
                         .map(|p| p.frequency_hz)
-                        .ok_or_else(|| crate::error::Error::InvalidArgument {
-                            what: "sensor-resonance",
-                            message: "the estimation test's reference shows no resonance to \
-                                      filter below; give the transducer's natural frequency: \
-                                      --add sensor-resonance=HZ"
-                                .into(),
-                        })?
+                        .ok_or(ModellingError::NoSensorResonance)?
                 };
                 if *remedy == SensorRemedy::Modes {
                     if f >= 0.5 * fs {
@@ -124,10 +120,7 @@ pub fn fit_with(
         .zip(std::iter::once(estimation).chain(validation))
         .map(|((u, y), t)| Test { name: t.name, u, y });
     let Some(estimation) = tests.next() else {
-        return Err(crate::error::Error::Numerical {
-            context: "fit".into(),
-            message: "no estimation test".into(),
-        });
+        return Err(ModellingError::numerical("fit", "no estimation test").into());
     };
     let validation: Vec<Test<'_>> = tests.collect();
     let validation = validation.as_slice();
@@ -165,10 +158,7 @@ pub fn fit_with(
         additive = estimate_additive(&changes, &r, onset, fs);
         fitted = Some(f);
     }
-    let fitted = fitted.ok_or_else(|| crate::error::Error::Numerical {
-        context: "fit".into(),
-        message: "no fit".into(),
-    })?;
+    let fitted = fitted.ok_or_else(|| ModellingError::numerical("fit", "no fit"))?;
     let out: Vec<Effect> = effects
         .iter()
         .map(|e| match e {
@@ -214,7 +204,7 @@ pub fn fit_with(
             });
             if !still_slow && f.nrmse_estimation <= 1.1 * fitted.nrmse_estimation {
                 f.report.notes.push(format!(
-                    "a real pole with time constant {:.4} s, longer than the {:.4} s after the step, was read as a drift of {:.4e} per second (a drift is removed before compensation, never inverted): `--add leak` keeps it as dynamics",
+                    "a real pole with time constant {:.4} s, longer than the {:.4} s after the step, was read as a drift of {:.4e} per second (a drift is removed before compensation, never inverted): adding the `leak` effect keeps it as dynamics",
                     tau / fs,
                     after_step / fs,
                     additive_rate(&fx)

@@ -183,12 +183,13 @@ fn scale_continuous(ct: &Continuous, k: f64, damping_factor: f64, fs: f64) -> Re
         .iter()
         .any(|r| !(r.re.is_finite() && r.im.is_finite()))
     {
-        return Err(crate::error::Error::Numerical {
-            context: "temperature scaling".into(),
-            message: format!(
+        return Err(crate::modelling::ModellingError::numerical(
+            "temperature scaling",
+            format!(
                 "the damping scaled by {damping_factor} puts two poles together: no modal form"
             ),
-        });
+        )
+        .into());
     }
     out.poles = new
         .into_iter()
@@ -220,7 +221,7 @@ pub fn scaled(model: &Model, k: f64) -> Result<Model> {
 /// any) is multiplied by the product of the new poles over the old.
 ///
 /// # Errors
-/// As [`scaled`]; [`crate::error::Error::Numerical`] when two moved poles coincide.
+/// As [`scaled`]; [`crate::modelling::ModellingError::Numerical`] when two moved poles coincide.
 pub fn scaled_with(model: &Model, k: f64, damping_factor: f64) -> Result<Model> {
     let ct = Continuous::from_model(model)?;
     scale_continuous(&ct, k, damping_factor, model.fs)

@@ -1,0 +1,414 @@
+//! The numbers behind a candidate: one [`Evidence`] variant per kind of candidate, each with
+//! named, typed fields. Serialised as a plain JSON object (no tag), its fields in alphabetical
+//! order, as `unlag diagnose --json` has always written them.
+
+use serde::ser::SerializeStruct;
+use serde::{Serialize, Serializer};
+
+use super::TemperatureRow;
+use crate::modelling::effects::{EffectKind, TemperatureDamping};
+
+/// What a coloured-noise trial fits, and the error it then reports
+/// ([`Evidence::ColouredNoise`]'s `fit`).
+pub const COLOURED_NOISE_FIT: &str =
+    "output error and an AR noise model; the error is the one-step-ahead prediction error";
+
+/// What the transducers' modes do, and the other way ([`SensorResonance::remedy`]).
+pub const SENSOR_RESONANCE_REMEDY: &str = "the transducers' modes in the model: two more poles \
+     and zeros, fitted on the raw signals (sensor-resonance-prefilter: the paper's prefilter \
+     instead)";
+
+/// The numbers behind one candidate, by its kind.
+///
+/// ```
+/// use unlag::modelling::diagnose::Evidence;
+///
+/// let e = Evidence::Leak { dc_gain: 0.98, late_residual_over_step: -0.01 };
+/// assert_eq!(
+///     serde_json::to_string(&e).unwrap(),
+///     r#"{"dc_gain":0.98,"late_residual_over_step":-0.01}"#
+/// );
+/// ```
+#[derive(Debug, Clone, Serialize)]
+#[serde(untagged)]
+#[non_exhaustive]
+pub enum Evidence {
+    /// `mode`: where the spectra point at the unmodelled resonance.
+    Mode(ModeEvidence),
+    /// `offset`: a residual level before the step.
+    Offset {
+        /// The offset the trial fitted (probe units).
+        offset: f64,
+        /// The largest level before the step over the tests, in standard errors of its mean.
+        pre_step_mean_in_standard_errors: f64,
+    },
+    /// `drift`: a ramp through the residual.
+    Drift {
+        /// Mean slope of the residual before the step over the tests (probe units per second).
+        pre_step_slope_per_s: f64,
+        /// The largest ramp over the record, in standard errors of the mean.
+        ramp_in_standard_errors: f64,
+        /// The drift rate the trial fitted (probe units per second).
+        rate_per_s: f64,
+    },
+    /// `leak`: a slow creep after the step.
+    Leak {
+        /// The current model's DC gain.
+        dc_gain: f64,
+        /// The residual's level at the end of the record less its level before the step,
+        /// over the step (the largest over the tests).
+        late_residual_over_step: f64,
+    },
+    /// `sensor-resonance`: the reference rings where the probe's residual peaks.
+    SensorResonance(SensorResonance),
+    /// `temperature` or `temperature-viscous`: every natural frequency moved by one factor.
+    Temperature(TemperatureShift),
+    /// `delay`: the loss is lower at another delay.
+    Delay {
+        /// The delay a refit that searches it finds (samples).
+        best_delay: usize,
+        /// The current model's delay (samples).
+        model_delay: usize,
+        /// Lag of the peak of the residual's correlation with the input (samples).
+        residual_input_xcorr_peak_lag: usize,
+    },
+    /// `nonlinear-damping`: across tests, damping that rises with the step.
+    NonlinearDamping(NonlinearDamping),
+    /// `coloured-noise`: a residual correlated in time with no cause in the input.
+    ColouredNoise {
+        /// What the trial fits ([`COLOURED_NOISE_FIT`]).
+        fit: String,
+        /// The first test's residual correlation at lag 1.
+        lag1_autocorrelation: f64,
+        /// The smallest Ljung-Box p-value over the tests.
+        ljung_box_p: f64,
+    },
+    /// `unexplained`: above the noise floor, and no effect's trial lowers it.
+    Unexplained {
+        /// The mean noise floor over the tests (normalised RMS).
+        noise_floor: f64,
+        /// The held-out error (normalised RMS).
+        nrmse: f64,
+        /// Whether every test's residual is white (as the noise leaves it).
+        white: bool,
+        /// The largest error over noise floor over the tests.
+        worst_over_floor: f64,
+    },
+    /// `none`: the residual is what the noise leaves.
+    Nothing {
+        /// The mean noise floor over the tests (normalised RMS).
+        noise_floor: f64,
+        /// The held-out error (normalised RMS).
+        nrmse: f64,
+        /// Whether every test's residual is white (as the noise leaves it).
+        white: bool,
+    },
+}
+
+/// Which spectrum of the probe's residual a peak was read in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Spectrum {
+    /// The model-error spectrum `|FFT(dy)| / |FFT(dy_model)|`: `model-error spectrum`.
+    ModelError,
+    /// The residual's spectrum after the step: `residual spectrum`.
+    Residual,
+}
+
+impl Spectrum {
+    /// Its text: `model-error spectrum` or `residual spectrum`.
+    #[must_use]
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Self::ModelError => "model-error spectrum",
+            Self::Residual => "residual spectrum",
+        }
+    }
+}
+
+impl core::fmt::Display for Spectrum {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.pad(self.as_str())
+    }
+}
+
+impl Serialize for Spectrum {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+/// What points at an unmodelled mode; each serialises with its `source` in words.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ModeEvidence {
+    /// A peak of a spectrum (`source`: the spectrum's name).
+    Peak {
+        /// The spectrum it is in.
+        spectrum: Spectrum,
+        /// Its frequency (Hz).
+        frequency_hz: f64,
+        /// Its height above the floor (dB).
+        above_floor_db: f64,
+        /// Its quality factor.
+        q: f64,
+        /// The test it is on.
+        test: String,
+    },
+    /// The model-error spectrum rising at the top of the band the noise leaves (`source`:
+    /// `model-error spectrum, top of the band`).
+    BandEdge {
+        /// The rise at the top of the band (dB).
+        rise_db: f64,
+        /// The top of the band (Hz).
+        up_to_hz: f64,
+        /// The test it is on.
+        test: String,
+    },
+    /// No peak: only the trial says it (`source`: `trial only`).
+    TrialOnly,
+}
+
+impl Serialize for ModeEvidence {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Self::Peak {
+                spectrum,
+                frequency_hz,
+                above_floor_db,
+                q,
+                test,
+            } => {
+                let mut m = s.serialize_struct("ModeEvidence", 5)?;
+                m.serialize_field("above_floor_db", above_floor_db)?;
+                m.serialize_field("frequency_hz", frequency_hz)?;
+                m.serialize_field("q", q)?;
+                m.serialize_field("source", spectrum)?;
+                m.serialize_field("test", test)?;
+                m.end()
+            }
+            Self::BandEdge {
+                rise_db,
+                up_to_hz,
+                test,
+            } => {
+                let mut m = s.serialize_struct("ModeEvidence", 4)?;
+                m.serialize_field("rise_db", rise_db)?;
+                m.serialize_field("source", "model-error spectrum, top of the band")?;
+                m.serialize_field("test", test)?;
+                m.serialize_field("up_to_hz", up_to_hz)?;
+                m.end()
+            }
+            Self::TrialOnly => {
+                let mut m = s.serialize_struct("ModeEvidence", 1)?;
+                m.serialize_field("source", "trial only")?;
+                m.end()
+            }
+        }
+    }
+}
+
+/// The evidence of a sensor resonance: the reference's own ringing and the probe's peak
+/// beside it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SensorResonance {
+    /// The probe's peak's height above its floor (dB).
+    pub probe_above_floor_db: f64,
+    /// The probe's peak's frequency (Hz).
+    pub probe_peak_hz: f64,
+    /// The spectrum the probe's peak is in.
+    pub probe_source: Spectrum,
+    /// The reference's ringing's height above the floor of its increments (dB).
+    pub reference_above_floor_db: f64,
+    /// The reference's ringing frequency (Hz).
+    pub reference_peak_hz: f64,
+    /// The reference's ringing's quality factor.
+    pub reference_q: f64,
+    /// The test whose reference rings most.
+    pub reference_test: String,
+    /// What the remedy does ([`SENSOR_RESONANCE_REMEDY`]).
+    pub remedy: String,
+}
+
+/// The evidence of a temperature change: the natural frequencies of the tests fitted alone
+/// against the model's, and the scale a trial estimates for each test.
+#[derive(Debug, Clone, Serialize)]
+pub struct TemperatureShift {
+    /// The kind offered (`temperature` or `temperature-viscous`: the damping law is part of it).
+    pub add: EffectKind,
+    /// The strongest test's common frequency ratio.
+    pub common_ratio: f64,
+    /// The damping law the trial used.
+    pub damping: TemperatureDamping,
+    /// The strongest test's damping ratio (test over model).
+    pub damping_ratio: f64,
+    /// Per test, the scale the trial's model estimates.
+    pub estimated_scale: Vec<ScaleEstimate>,
+    /// Per test, its resonances against the model's.
+    pub per_test: Vec<TemperatureRow>,
+    /// The model's reference temperature (K).
+    pub reference_k: f64,
+    /// `common_ratio` squared: `T / T_ref`.
+    pub temperature_ratio: f64,
+    /// The strongest test.
+    pub test: String,
+    /// The damping factor the viscous law gives for `common_ratio`.
+    pub viscous_damping_ratio: f64,
+}
+
+/// The time-scale factor a temperature trial estimates for one test.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ScaleEstimate {
+    /// The damping factor at that scale.
+    pub damping_factor: f64,
+    /// The scale `k = sqrt(T / T_ref)`.
+    pub scale: f64,
+    /// The gas temperature it means (K).
+    pub temperature_k: f64,
+    /// The test.
+    pub test: String,
+}
+
+/// The evidence of amplitude-dependent damping, across tests of different step sizes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NonlinearDamping {
+    /// The tests' step amplitudes, smallest first.
+    pub amplitudes: Vec<f64>,
+    /// The damping of each test fitted alone.
+    pub damping: Vec<f64>,
+    /// Relative rise of the damping from the smallest step to the largest.
+    pub damping_rise: f64,
+    /// Slope of the damping against the step.
+    pub damping_slope_per_unit_step: f64,
+    /// The quadratic loss the trial fitted (s^2 per probe unit).
+    pub gain_s2_per_unit: f64,
+    /// Exponent `p` of the own-fit residual growing as `|step|^p`.
+    pub residual_exponent: f64,
+    /// Each test's own-fit residual over its step.
+    pub residual_per_step: Vec<f64>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn value(e: &Evidence) -> serde_json::Value {
+        serde_json::to_value(e).unwrap()
+    }
+
+    #[test]
+    fn each_kind_serialises_as_the_object_it_always_was() {
+        let peak = Evidence::Mode(ModeEvidence::Peak {
+            spectrum: Spectrum::ModelError,
+            frequency_hz: 303.9,
+            above_floor_db: 2.5,
+            q: 12.0,
+            test: "a.csv".into(),
+        });
+        assert_eq!(
+            serde_json::to_string(&peak).unwrap(),
+            r#"{"above_floor_db":2.5,"frequency_hz":303.9,"q":12.0,"source":"model-error spectrum","test":"a.csv"}"#
+        );
+        let edge = Evidence::Mode(ModeEvidence::BandEdge {
+            rise_db: 3.0,
+            up_to_hz: 400.0,
+            test: "b.csv".into(),
+        });
+        assert_eq!(
+            value(&edge),
+            json!({"rise_db": 3.0, "up_to_hz": 400.0, "test": "b.csv",
+                   "source": "model-error spectrum, top of the band"})
+        );
+        assert_eq!(
+            serde_json::to_string(&Evidence::Mode(ModeEvidence::TrialOnly)).unwrap(),
+            r#"{"source":"trial only"}"#
+        );
+        assert_eq!(
+            value(&Evidence::Delay {
+                best_delay: 27,
+                model_delay: 30,
+                residual_input_xcorr_peak_lag: 2
+            }),
+            json!({"model_delay": 30, "best_delay": 27, "residual_input_xcorr_peak_lag": 2})
+        );
+        assert_eq!(
+            serde_json::to_string(&Evidence::ColouredNoise {
+                fit: COLOURED_NOISE_FIT.into(),
+                lag1_autocorrelation: 0.5,
+                ljung_box_p: 1e-9,
+            })
+            .unwrap(),
+            format!(
+                r#"{{"fit":"{COLOURED_NOISE_FIT}","lag1_autocorrelation":0.5,"ljung_box_p":1e-9}}"#
+            )
+        );
+        assert_eq!(
+            serde_json::to_string(&Evidence::Nothing {
+                noise_floor: 0.001,
+                nrmse: 0.002,
+                white: true
+            })
+            .unwrap(),
+            r#"{"noise_floor":0.001,"nrmse":0.002,"white":true}"#
+        );
+        let sensor = Evidence::SensorResonance(SensorResonance {
+            probe_above_floor_db: 20.0,
+            probe_peak_hz: 2990.0,
+            probe_source: Spectrum::Residual,
+            reference_above_floor_db: 30.0,
+            reference_peak_hz: 2998.0,
+            reference_q: 25.0,
+            reference_test: "s1.csv".into(),
+            remedy: SENSOR_RESONANCE_REMEDY.into(),
+        });
+        assert_eq!(
+            value(&sensor),
+            json!({"reference_peak_hz": 2998.0, "reference_above_floor_db": 30.0,
+                   "reference_q": 25.0, "reference_test": "s1.csv",
+                   "probe_peak_hz": 2990.0, "probe_above_floor_db": 20.0,
+                   "probe_source": "residual spectrum",
+                   "remedy": "the transducers' modes in the model: two more poles and zeros, fitted on the raw signals (sensor-resonance-prefilter: the paper's prefilter instead)"})
+        );
+        let t = Evidence::Temperature(TemperatureShift {
+            add: EffectKind::TemperatureViscous,
+            common_ratio: 1.05,
+            damping: TemperatureDamping::Viscous,
+            damping_ratio: 1.1,
+            estimated_scale: vec![ScaleEstimate {
+                damping_factor: 1.0,
+                scale: 1.0,
+                temperature_k: 293.15,
+                test: "t1.csv".into(),
+            }],
+            per_test: vec![TemperatureRow {
+                file: "t2.csv".into(),
+                modes: vec![(105.0, 100.0, 1.05)],
+                ratio: 1.05,
+                spread: 0.0,
+                damping_ratio: 1.1,
+            }],
+            reference_k: 293.15,
+            temperature_ratio: 1.1025,
+            test: "t2.csv".into(),
+            viscous_damping_ratio: 1.2,
+        });
+        assert_eq!(
+            value(&t),
+            json!({"per_test": [{"file": "t2.csv", "modes": [[105.0, 100.0, 1.05]],
+                                 "ratio": 1.05, "spread": 0.0, "damping_ratio": 1.1}],
+                   "common_ratio": 1.05, "test": "t2.csv", "temperature_ratio": 1.1025,
+                   "damping_ratio": 1.1, "viscous_damping_ratio": 1.2,
+                   "damping": "viscous", "add": "temperature-viscous",
+                   "estimated_scale": [{"test": "t1.csv", "scale": 1.0, "temperature_k": 293.15,
+                                        "damping_factor": 1.0}],
+                   "reference_k": 293.15})
+        );
+        // A number that is not finite is null, as `json!` wrote it.
+        assert_eq!(
+            value(&Evidence::Offset {
+                offset: f64::NAN,
+                pre_step_mean_in_standard_errors: 6.0
+            }),
+            json!({"offset": null, "pre_step_mean_in_standard_errors": 6.0})
+        );
+    }
+}

@@ -1,0 +1,66 @@
+//! What can go wrong in the modelling room (the effects' fits and their scalings), in its
+//! own words (no command-line flags).
+
+/// What the modelling room owns of the host's errors: a numerical step of an effect's fit or
+/// scaling that failed, and an effect that cannot be resolved from the tests without a value.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ModellingError {
+    /// A numerical step failed.
+    #[error("{context}: {message}")]
+    Numerical {
+        /// Where.
+        context: String,
+        /// What happened.
+        message: String,
+    },
+    /// A sensor resonance without a frequency, and an estimation test whose reference shows
+    /// no resonance to find it in.
+    #[error(
+        "invalid sensor-resonance: the estimation test's reference shows no resonance to \
+         filter below; give the transducer's natural frequency: the effect sensor-resonance=HZ"
+    )]
+    NoSensorResonance,
+}
+
+impl ModellingError {
+    /// The kind of problem, one stable kebab-case word per variant (as
+    /// [`crate::error::Error::kind`]): `numerical`, or `invalid-argument` for a value that
+    /// must be given.
+    #[must_use]
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::Numerical { .. } => "numerical",
+            Self::NoSensorResonance => "invalid-argument",
+        }
+    }
+
+    pub(crate) fn numerical(context: &str, message: impl Into<String>) -> Self {
+        Self::Numerical {
+            context: context.into(),
+            message: message.into(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error::Error;
+
+    #[test]
+    fn the_text_and_kind_are_those_of_before() {
+        let e: Error = ModellingError::numerical("fit", "no estimation test").into();
+        assert_eq!(e.to_string(), "fit: no estimation test");
+        assert_eq!(e.kind(), "numerical");
+        assert_eq!(e.location(), (None, None, None));
+        let e: Error = ModellingError::NoSensorResonance.into();
+        assert_eq!(e.kind(), "invalid-argument");
+        assert_eq!(
+            e.to_string(),
+            "invalid sensor-resonance: the estimation test's reference shows no resonance to \
+             filter below; give the transducer's natural frequency: the effect \
+             sensor-resonance=HZ"
+        );
+    }
+}

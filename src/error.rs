@@ -13,6 +13,18 @@ pub enum Error {
     /// A trace file is not a usable step test (the trace room's error).
     #[error(transparent)]
     Trace(#[from] crate::trace::TraceError),
+    /// Fitting a model failed (the fit room's error).
+    #[error(transparent)]
+    Fit(#[from] crate::fit::FitError),
+    /// Designing or realising a compensator failed (the design room's error).
+    #[error(transparent)]
+    Design(#[from] crate::design::DesignError),
+    /// A physical prediction or simulation failed (the physics room's error).
+    #[error(transparent)]
+    Physics(#[from] crate::physics::PhysicsError),
+    /// A polynomial's roots could not be found.
+    #[error(transparent)]
+    Poly(#[from] crate::poly::PolyError),
     /// The file could not be read or written.
     #[error("{path}: {action}: {source}")]
     Io {
@@ -180,7 +192,11 @@ impl Error {
             Self::Model { .. } | Self::ModelAt { .. } => "model",
             Self::UnstableModel { .. } => "unstable-model",
             Self::UnstableInverse { .. } => "unstable-inverse",
-            Self::Numerical { .. } => "numerical",
+            Self::Numerical { .. }
+            | Self::Fit(_)
+            | Self::Design(_)
+            | Self::Physics(_)
+            | Self::Poly(_) => "numerical",
             Self::UnsupportedOnBoard { .. } => "unsupported-on-board",
             Self::Plot { .. } => "plot",
             Self::Overwrite { .. } => "overwrite",
@@ -209,6 +225,10 @@ impl Error {
             | Self::UnstableModel { .. }
             | Self::UnstableInverse { .. }
             | Self::Numerical { .. }
+            | Self::Fit(_)
+            | Self::Design(_)
+            | Self::Physics(_)
+            | Self::Poly(_)
             | Self::Plot { .. } => (None, None, None),
         }
     }

@@ -16,6 +16,18 @@ pub enum Error {
     /// An effect's fit or scaling failed (the modelling room's error).
     #[error(transparent)]
     Modelling(#[from] crate::modelling::ModellingError),
+    /// Fitting a model failed (the fit room's error).
+    #[error(transparent)]
+    Fit(#[from] crate::fit::FitError),
+    /// Designing or realising a compensator failed (the design room's error).
+    #[error(transparent)]
+    Design(#[from] crate::design::DesignError),
+    /// A physical prediction or simulation failed (the physics room's error).
+    #[error(transparent)]
+    Physics(#[from] crate::physics::PhysicsError),
+    /// A polynomial's roots could not be found.
+    #[error(transparent)]
+    Poly(#[from] crate::poly::PolyError),
     /// The file could not be read or written.
     #[error("{path}: {action}: {source}")]
     Io {
@@ -136,14 +148,6 @@ pub enum Error {
         /// Its magnitude.
         radius: f64,
     },
-    /// A numerical step failed.
-    #[error("{context}: {message}")]
-    Numerical {
-        /// Where.
-        context: String,
-        /// What happened.
-        message: String,
-    },
     /// The model has an effect the chosen board arithmetic does not run (the nonlinear-damping
     /// correction is `f32` only). What to do instead comes with it ([`Error::Advised`]).
     #[error("{path}: the model has {effect}, which the {arithmetic} compensator does not run")]
@@ -234,10 +238,13 @@ impl Error {
             Self::Model { .. } | Self::ModelAt { .. } => "model",
             Self::UnstableModel { .. } => "unstable-model",
             Self::UnstableInverse { .. } => "unstable-inverse",
-            Self::Numerical { .. }
-            | Self::BoardRefused { .. }
+            Self::BoardRefused { .. }
             | Self::BlobRoundTrip { .. }
-            | Self::Serialise { .. } => "numerical",
+            | Self::Serialise { .. }
+            | Self::Fit(_)
+            | Self::Design(_)
+            | Self::Physics(_)
+            | Self::Poly(_) => "numerical",
             Self::UnsupportedOnBoard { .. } => "unsupported-on-board",
             Self::Plot { .. } => "plot",
             Self::Overwrite { .. } => "overwrite",
@@ -267,10 +274,13 @@ impl Error {
             | Self::Modelling(_)
             | Self::UnstableModel { .. }
             | Self::UnstableInverse { .. }
-            | Self::Numerical { .. }
             | Self::BoardRefused { .. }
             | Self::BlobRoundTrip { .. }
             | Self::Serialise { .. }
+            | Self::Fit(_)
+            | Self::Design(_)
+            | Self::Physics(_)
+            | Self::Poly(_)
             | Self::Plot { .. } => (None, None, None),
         }
     }

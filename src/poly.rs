@@ -7,23 +7,50 @@
 
 use faer::Mat;
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 
 /// A complex number (faer's `c64`).
 pub type Complex = faer::c64;
+
+/// What can go wrong in finding a polynomial's roots: the polynomial is zero, or the
+/// eigenvalue iteration does not converge. Reached as [`crate::Error::Poly`].
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PolyError {
+    /// Every coefficient is zero: the roots are not defined.
+    #[error("roots: the polynomial is zero")]
+    Zero,
+    /// The eigenvalues of the companion matrix did not converge.
+    #[error("roots: eigenvalues of the companion matrix did not converge: {error:?}")]
+    NoConvergence {
+        /// faer's reason.
+        error: faer::linalg::evd::EvdError,
+    },
+}
+
+impl PolyError {
+    /// What went wrong, without the "roots" it happened in (for a caller that names its own
+    /// step).
+    #[must_use]
+    pub(crate) fn reason(&self) -> String {
+        let text = self.to_string();
+        match text.strip_prefix("roots: ") {
+            Some(reason) => reason.to_string(),
+            None => text,
+        }
+    }
+}
 
 /// Roots in `z` of `p0 + p1 z^-1 + ... + pn z^-n`. Leading zeros of `p` are dropped (they lower
 /// the degree); trailing zeros give roots at `z = 0`.
 ///
 /// # Errors
-/// [`Error::Numerical`] when the eigenvalue iteration does not converge or `p` is all zeros.
+/// [`PolyError::NoConvergence`] when the eigenvalue iteration does not converge,
+/// [`PolyError::Zero`] when `p` is all zeros.
 pub fn roots(p: &[f64]) -> Result<Vec<Complex>> {
     let first = p.iter().position(|&c| c != 0.0);
     let Some(first) = first else {
-        return Err(Error::Numerical {
-            context: "roots".into(),
-            message: "the polynomial is zero".into(),
-        });
+        return Err(PolyError::Zero.into());
     };
     let p = p.get(first..).unwrap_or(&[]);
     let n = p.len().saturating_sub(1);
@@ -41,10 +68,9 @@ pub fn roots(p: &[f64]) -> Result<Vec<Complex>> {
             0.0
         }
     });
-    let mut r = c.eigenvalues().map_err(|e| Error::Numerical {
-        context: "roots".into(),
-        message: format!("eigenvalues of the companion matrix did not converge: {e:?}"),
-    })?;
+    let mut r = c
+        .eigenvalues()
+        .map_err(|error| PolyError::NoConvergence { error })?;
     // Largest magnitude first: that is the one that decides stability.
     r.sort_by(|x, y| y.norm().total_cmp(&x.norm()));
     Ok(r)
@@ -90,6 +116,23 @@ mod tests {
         // Leading zero lowers the degree.
         assert_eq!(roots(&[0.0, 1.0, -0.5]).unwrap().len(), 1);
         assert!(roots(&[0.0, 0.0]).is_err());
+    }
+
+    #[test]
+    fn a_zero_polynomial_has_no_roots() {
+        let e = roots(&[0.0, 0.0, 0.0]).unwrap_err();
+        assert!(matches!(e, crate::Error::Poly(PolyError::Zero)), "{e:?}");
+        assert_eq!(e.to_string(), "roots: the polynomial is zero");
+        assert_eq!(e.kind(), "numerical");
+        assert_eq!(e.location(), (None, None, None));
+        assert_eq!(PolyError::Zero.reason(), "the polynomial is zero");
+        let e = PolyError::NoConvergence {
+            error: faer::linalg::evd::EvdError::NoConvergence,
+        };
+        assert_eq!(
+            e.to_string(),
+            "roots: eigenvalues of the companion matrix did not converge: NoConvergence"
+        );
     }
 
     #[test]

@@ -298,11 +298,13 @@ pub fn run_resample(args: &ResampleArgs) -> Result<()> {
     }
     let file = ModelFile::load(&args.model)?;
     let old = &file.model;
+    let cannot = |reason: String| Error::Model {
+        path: args.model.clone(),
+        message: format!("cannot resample: {reason}"),
+    };
     let ct = Continuous::from_model(old).map_err(|e| match e {
-        Error::Numerical { message, .. } => Error::Model {
-            path: args.model.clone(),
-            message: format!("cannot resample: {message}"),
-        },
+        Error::Fit(crate::fit::FitError::Continuous(reason)) => cannot(reason.to_string()),
+        Error::Poly(e) => cannot(e.reason()),
         e => e,
     })?;
     let new = ct.discretise(args.fs)?;

@@ -161,6 +161,14 @@ pub fn describe(e: &Error) -> String {
                 filter below; give the transducer's natural frequency: --add sensor-resonance=HZ"
             .into();
     }
+    if let Error::Design(crate::design::DesignError::NoUsableBandwidth) = e {
+        // The library says "give a bandwidth"; the command line gives it with a flag.
+        let text = e.to_string();
+        return match text.strip_suffix("give a bandwidth") {
+            Some(head) => format!("{head}give --bandwidth"),
+            None => text,
+        };
+    }
     let flag = match e {
         Error::Trace(TraceError::MissingColumn { role, .. }) => Some(match role {
             ColumnRole::Probe => "--y",
@@ -547,5 +555,19 @@ mod tests {
             assert!(!e.to_string().contains("unlag "), "{e}");
             assert!(describe(&e).starts_with("invalid FILE: give at least one step test: "));
         }
+    }
+
+    /// The design asks for a bandwidth in words; the command line names `--bandwidth`, as it
+    /// did when the library named it.
+    #[test]
+    fn the_command_line_names_the_bandwidth_flag() {
+        let e = Error::from(crate::design::DesignError::NoUsableBandwidth);
+        assert!(!e.to_string().contains("--"), "{e}");
+        assert_eq!(
+            describe(&e),
+            "inverse: no low-pass corner gave a usable compensator (noise gain above 10 \
+             everywhere); give --bandwidth"
+        );
+        assert_eq!(e.kind(), "numerical");
     }
 }

@@ -26,6 +26,7 @@ use std::f64::consts::PI;
 use serde::{Deserialize, Serialize};
 
 use crate::compensator::{CascadeCoefficients, CascadeState, Sample, MIN_POLE_MARGIN};
+use crate::design::DesignError;
 use crate::error::{Error, Result};
 use crate::fit::model::Model;
 use crate::fit::Test;
@@ -210,20 +211,17 @@ fn group_delay_at_dc(moved: &[(Complex, Complex)], lp: &Zpk) -> f64 {
 /// The model's numerator after its leading zero coefficients, which are delay: `(count, b)`.
 ///
 /// # Errors
-/// [`Error::Numerical`] naming `context` when `b` is zero.
+/// [`DesignError::ZeroNumerator`] naming `context` when `b` is zero.
 pub(crate) fn numerator_after_delay<'m>(
     model: &'m Model,
-    context: &str,
+    context: &'static str,
 ) -> Result<(usize, &'m [f64])> {
     let scale = model.b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let lead = model
         .b
         .iter()
         .position(|v| v.abs() > 1e-12 * scale)
-        .ok_or_else(|| Error::Numerical {
-            context: context.into(),
-            message: "the model's numerator b is zero".into(),
-        })?;
+        .ok_or(DesignError::ZeroNumerator { context })?;
     Ok((lead, model.b.get(lead..).unwrap_or(&[])))
 }
 
@@ -231,8 +229,8 @@ pub(crate) fn numerator_after_delay<'m>(
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] for a bad corner or order, [`Error::UnstableInverse`] when
-/// `stabilise` is off and `B` is not minimum phase, [`Error::Numerical`] when `B(1) = 0` (the
-/// probe does not pass DC) or root finding fails.
+/// `stabilise` is off and `B` is not minimum phase, [`DesignError`] when `B(1) = 0` (the
+/// probe does not pass DC), [`crate::poly::PolyError`] when root finding fails.
 pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
     let fs = model.fs;
     let (lead, b) = numerator_after_delay(model, "inverse")?;
@@ -240,11 +238,7 @@ pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
     let b0 = b.first().copied().unwrap_or(1.0);
     let b_at_1: f64 = b.iter().sum();
     if b_at_1.abs() < 1e-14 * scale {
-        return Err(Error::Numerical {
-            context: "inverse".into(),
-            message: "B(1) = 0: the model does not pass a steady pressure, it cannot be inverted"
-                .into(),
-        });
+        return Err(DesignError::NoSteadyGain.into());
     }
     let zeros = poly::roots(b)?;
     let poles = model.poles()?;
@@ -404,8 +398,8 @@ impl Design {
     /// equilibrium with `y[0]`.
     ///
     /// # Errors
-    /// [`Error::Numerical`] when the sections do not validate (too many, or a pole too close
-    /// to the unit circle).
+    /// [`DesignError::Cascade`] when the sections do not validate (too many, or a pole too
+    /// close to the unit circle).
     pub fn run<T: Sample>(&self, y: &[f64]) -> Result<Vec<f64>> {
         match self.sections.len() {
             0..=2 => self.run_with::<T, 2>(y),
@@ -416,12 +410,8 @@ impl Design {
     }
 
     fn run_with<T: Sample, const N: usize>(&self, y: &[f64]) -> Result<Vec<f64>> {
-        let c = CascadeCoefficients::<T, N>::new(self.gain, &self.sections).map_err(|e| {
-            Error::Numerical {
-                context: "compensator".into(),
-                message: e.to_string(),
-            }
-        })?;
+        let c = CascadeCoefficients::<T, N>::new(self.gain, &self.sections)
+            .map_err(|error| DesignError::Cascade { error })?;
         let mut st: CascadeState<T, N> =
             c.equilibrium(T::from_f64(y.first().copied().unwrap_or(0.0)));
         Ok(y.iter()
@@ -446,8 +436,8 @@ impl Design {
     /// [`Design::run`]'s output.
     ///
     /// # Errors
-    /// As [`Design::lowpass_sections`]; [`Error::Numerical`] when the correction's
-    /// coefficients do not validate.
+    /// As [`Design::lowpass_sections`]; [`DesignError::NonlinearCorrection`] when the
+    /// correction's coefficients do not validate.
     pub fn run_nonlinear_correction<T: Sample>(
         &self,
         fs: f64,
@@ -460,10 +450,7 @@ impl Design {
             lp_gain,
             &lp,
         )
-        .map_err(|e| Error::Numerical {
-            context: "nonlinear-damping correction".into(),
-            message: e.to_string(),
-        })?;
+        .map_err(|error| DesignError::NonlinearCorrection { error })?;
         let mut st = c.equilibrium(T::from_f64(y.first().copied().unwrap_or(0.0)));
         Ok(y.iter()
             .map(|&v| c.process(&mut st, T::from_f64(v)).to_f64())
@@ -484,16 +471,13 @@ impl Design {
     /// [`MIN_POLE_MARGIN`].
     ///
     /// # Errors
-    /// [`Error::Numerical`] naming the margin.
+    /// [`DesignError::PoleMargin`] naming the margin.
     pub fn check_exportable(&self) -> Result<()> {
         if self.pole_margin.is_nan() || self.pole_margin < MIN_POLE_MARGIN {
-            return Err(Error::Numerical {
-                context: "inverse".into(),
-                message: format!(
-                    "the compensator's poles are {:.2e} from the unit circle, less than the required margin {MIN_POLE_MARGIN:.0e}: refusing to export it",
-                    self.pole_margin
-                ),
-            });
+            return Err(DesignError::PoleMargin {
+                margin: self.pole_margin,
+            }
+            .into());
         }
         Ok(())
     }
@@ -565,10 +549,7 @@ pub fn design_auto_with(
         }
     }
     let Some((best_score, mut d)) = best else {
-        return Err(Error::Numerical {
-            context: "inverse".into(),
-            message: "no low-pass corner gave a usable compensator (noise gain above 10 everywhere); give --bandwidth".into(),
-        });
+        return Err(DesignError::NoUsableBandwidth.into());
     };
     if !tests.is_empty() {
         // Refine between the neighbours of the best grid corner (golden-section search on
@@ -722,5 +703,62 @@ mod tests {
             ..Options::default()
         };
         assert!(design(&model, 500.0, &direct).is_err());
+    }
+
+    /// A probe with a tiny gain has no corner whose noise gain is at most 10; the library
+    /// asks for a bandwidth in words, the command line names the flag.
+    #[test]
+    fn no_usable_corner_asks_for_a_bandwidth_without_naming_a_flag() {
+        // DC gain 1e-3: the inverse amplifies the noise a thousandfold.
+        let model = Model {
+            fs: 1000.0,
+            delay: 1,
+            a: vec![-0.5],
+            b: vec![0.5e-3],
+        };
+        let e = design_auto(&model, &[], &Options::default()).unwrap_err();
+        assert!(
+            matches!(e, Error::Design(DesignError::NoUsableBandwidth)),
+            "{e:?}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "inverse: no low-pass corner gave a usable compensator (noise gain above 10 \
+             everywhere); give a bandwidth"
+        );
+        assert!(!e.to_string().contains("--"));
+        assert_eq!(e.kind(), "numerical");
+    }
+
+    #[test]
+    fn a_model_that_does_not_pass_a_steady_pressure_cannot_be_inverted() {
+        let model = Model {
+            fs: 1000.0,
+            delay: 1,
+            a: vec![-0.5],
+            b: vec![0.5, -0.5],
+        };
+        let e = design(&model, 100.0, &Options::default()).unwrap_err();
+        assert!(
+            matches!(e, Error::Design(DesignError::NoSteadyGain)),
+            "{e:?}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "inverse: B(1) = 0: the model does not pass a steady pressure, it cannot be inverted"
+        );
+        let zero = Model {
+            b: vec![0.0, 0.0],
+            ..model
+        };
+        let e = design(&zero, 100.0, &Options::default()).unwrap_err();
+        assert_eq!(e.to_string(), "inverse: the model's numerator b is zero");
+        assert_eq!(
+            DesignError::PoleMargin { margin: 1.5e-6 }.to_string(),
+            format!(
+                "inverse: the compensator's poles are 1.50e-6 from the unit circle, less than the \
+                 required margin {MIN_POLE_MARGIN:.0e}: refusing to export it"
+            )
+        );
     }
 }

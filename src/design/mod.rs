@@ -5,7 +5,9 @@
 //! kernels. This room reads the fit stage's [`Model`](crate::fit::Model) and the board's
 //! types, nothing above.
 
+mod error;
 pub mod inverse;
 pub mod quantise;
 
+pub use error::DesignError;
 pub use inverse::Design;

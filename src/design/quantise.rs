@@ -22,6 +22,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::design::inverse::Design;
+use crate::design::DesignError;
 use crate::error::{Error, Result};
 use crate::fixed::{FixedCascade, FixedSection, FixedState, MAX_COEFFICIENT, STATE_BITS};
 
@@ -142,7 +143,7 @@ pub(super) fn impulse_len(design: &Design, full_scale: f64) -> Result<usize> {
         });
     }
     if design.sections.is_empty() {
-        return Err(plan_error("the design has no sections"));
+        return Err(DesignError::NoSections.into());
     }
     let radius = design
         .sections
@@ -151,25 +152,21 @@ pub(super) fn impulse_len(design: &Design, full_scale: f64) -> Result<usize> {
             r.max(crate::compensator::section_pole_radius(a1, a2))
         });
     if radius.is_nan() || radius >= 1.0 {
-        return Err(plan_error(format!("a section pole has radius {radius}")));
+        return Err(DesignError::SectionPoleRadius { radius }.into());
     }
     Ok(((40.0 / (1.0 - radius)).ceil() as usize).clamp(2_000, MAX_IMPULSE))
 }
 
-fn plan_error(message: impl Into<String>) -> Error {
-    Error::Numerical {
-        context: "fixed point".into(),
-        message: message.into(),
-    }
-}
-
 /// Rounds `v * 2^bits` to an integer coefficient, refusing what does not fit.
-fn quantise(v: f64, bits: u32, what: &str) -> Result<i32> {
+fn quantise(v: f64, bits: u32, what: &'static str) -> Result<i32> {
     let q = (v * f64::from(bits).exp2()).round();
     if !q.is_finite() || q.abs() > f64::from(MAX_COEFFICIENT) {
-        return Err(plan_error(format!(
-            "{what} = {v:e} does not fit 2^30 at {bits} fractional bits"
-        )));
+        return Err(DesignError::CoefficientRange {
+            what,
+            value: v,
+            bits,
+        }
+        .into());
     }
     // In range, checked above.
     #[allow(clippy::cast_possible_truncation)]
@@ -179,7 +176,7 @@ fn quantise(v: f64, bits: u32, what: &str) -> Result<i32> {
 /// Fractional bits for coefficients of largest magnitude `max`: as many as fit under 2^30.
 fn shift_for(max: f64) -> Result<u8> {
     if !(max.is_finite()) {
-        return Err(plan_error("an output coefficient is not finite"));
+        return Err(DesignError::OutputCoefficientNotFinite.into());
     }
     if max == 0.0 {
         return Ok(30);
@@ -187,9 +184,7 @@ fn shift_for(max: f64) -> Result<u8> {
     // max * 2^shift <= 2^30 (minus rounding room).
     let bits = (30.0 - (max * (1.0 + 1e-9)).log2()).floor();
     if bits < 1.0 {
-        return Err(plan_error(format!(
-            "an output coefficient of {max:e} needs more than 29 integer bits"
-        )));
+        return Err(DesignError::OutputCoefficientRange { max }.into());
     }
     // bits >= 1 here; at most 62.
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
@@ -269,8 +264,9 @@ impl FixedPlan {
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] for a full scale that is not positive and finite;
-    /// [`Error::Numerical`] when a coefficient cannot be represented, a bound is not finite,
-    /// or the quantised cascade is refused by the board's validation.
+    /// [`DesignError`] when the design has no sections or a pole on or outside the unit circle,
+    /// a coefficient cannot be represented, a bound is not finite, or the quantised cascade is
+    /// refused by the board's validation.
     pub fn new(design: &Design, full_scale: f64) -> Result<Self> {
         let len = impulse_len(design, full_scale)?;
         // The input to the current section in the fixed-point domain: the impulse response
@@ -330,9 +326,7 @@ impl FixedPlan {
                 .collect();
             let out_l1 = l1(&out);
             if !(out_l1.is_finite() && state_bound.is_finite()) {
-                return Err(plan_error(format!(
-                    "section {k}: the L1 bound is not finite"
-                )));
+                return Err(DesignError::L1Bound { section: k }.into());
             }
             // Output scale: TARGET / bound, a power of two for the last section.
             let lambda = if out_l1 > 0.0 { TARGET / out_l1 } else { 1.0 };
@@ -341,7 +335,7 @@ impl FixedPlan {
                 l1_gain = out_l1 / scale_in;
                 let e = -(TARGET / l1_gain).log2().floor();
                 if !e.is_finite() || e.abs() > 60.0 {
-                    return Err(plan_error(format!("L1 gain {l1_gain:e} out of range")));
+                    return Err(DesignError::L1Gain { gain: l1_gain }.into());
                 }
                 // |e| <= 60, checked above.
                 #[allow(clippy::cast_possible_truncation)]
@@ -404,11 +398,11 @@ impl FixedPlan {
     /// Validates the integers as the board does.
     ///
     /// # Errors
-    /// [`Error::Numerical`] with the board's reason.
+    /// [`DesignError::FixedBoard`] with the board's reason.
     pub fn check(&self) -> Result<()> {
         FixedCascade::<16>::new(&self.board_sections())
             .map(|_| ())
-            .map_err(|e| plan_error(e.to_string()))
+            .map_err(|error| DesignError::FixedBoard { error }.into())
     }
 
     /// The Q1.31 code of a probe value, clamped to the full scale; `true` when clamped.
@@ -426,7 +420,7 @@ impl FixedPlan {
     /// Runs the board's fixed-point code on `y`, starting in equilibrium with `y[0]`.
     ///
     /// # Errors
-    /// [`Error::Numerical`] when the plan does not validate.
+    /// [`DesignError::FixedBoard`] when the plan does not validate.
     pub fn run(&self, y: &[f64]) -> Result<FixedRun> {
         let sections = self.board_sections();
         match sections.len() {
@@ -438,7 +432,8 @@ impl FixedPlan {
     }
 
     fn run_with<const N: usize>(&self, sections: &[FixedSection], y: &[f64]) -> Result<FixedRun> {
-        let cascade = FixedCascade::<N>::new(sections).map_err(|e| plan_error(e.to_string()))?;
+        let cascade =
+            FixedCascade::<N>::new(sections).map_err(|error| DesignError::FixedBoard { error })?;
         // Start in equilibrium with the first sample, as the f32 compensator does.
         let mut state: FixedState<N> =
             cascade.equilibrium(y.first().map_or(0, |&v| self.to_code(v).0));
@@ -519,5 +514,30 @@ mod tests {
         let design = line_design(1e4, 95.0, 0.2, 300.0);
         assert!(FixedPlan::new(&design, 0.0).is_err());
         assert!(FixedPlan::new(&design, f64::NAN).is_err());
+    }
+
+    #[test]
+    fn a_design_without_sections_has_no_plan() {
+        let mut design = line_design(1e4, 95.0, 0.2, 300.0);
+        design.sections.clear();
+        for e in [
+            FixedPlan::new(&design, 1.0).unwrap_err(),
+            direct::DirectPlan::new(&design, 1.0).unwrap_err(),
+        ] {
+            assert!(matches!(e, Error::Design(DesignError::NoSections)), "{e:?}");
+            assert_eq!(e.to_string(), "fixed point: the design has no sections");
+        }
+        let mut design = line_design(1e4, 95.0, 0.2, 300.0);
+        design.sections[0][4] = 1.5;
+        let e = FixedPlan::new(&design, 1.0).unwrap_err();
+        assert!(
+            matches!(e, Error::Design(DesignError::SectionPoleRadius { radius }) if radius > 1.0),
+            "{e:?}"
+        );
+        assert!(
+            e.to_string()
+                .starts_with("fixed point: a section pole has radius 1.2247"),
+            "{e}"
+        );
     }
 }

@@ -150,7 +150,7 @@ impl Analysis {
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] for a model with a non-positive sample rate, non-finite
-    /// coefficients or an empty `b`; [`Error::Numerical`] if the eigenvalue solver fails.
+    /// coefficients or an empty `b`; [`crate::poly::PolyError`] if the eigenvalue solver fails.
     pub fn new(model: &Model) -> Result<Self> {
         validate(model)?;
         let fs = model.fs;

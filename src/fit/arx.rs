@@ -9,7 +9,8 @@
 use faer::linalg::solvers::SolveLstsq;
 use faer::Mat;
 
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::fit::FitError;
 
 /// One data set for a regression: input and output deviations, zero before the first sample.
 #[derive(Debug, Clone, Copy)]
@@ -26,17 +27,17 @@ pub type Params = (Vec<f64>, Vec<f64>);
 /// Solves `min || X theta - t ||` by column-pivoted QR and checks the rank.
 ///
 /// # Errors
-/// [`Error::Numerical`] when `X` is rank deficient (the data do not determine the parameters).
+/// [`FitError::TooFewEquations`] when `X` has fewer rows than columns,
+/// [`FitError::RankDeficient`] when it is rank deficient (the data do not determine the
+/// parameters), [`FitError::NonFiniteSolution`] when the solution is not finite.
 pub fn lstsq(x: &Mat<f64>, t: &Mat<f64>, context: &str) -> Result<Vec<f64>> {
     if x.nrows() < x.ncols() {
-        return Err(Error::Numerical {
+        return Err(FitError::TooFewEquations {
             context: context.into(),
-            message: format!(
-                "{} equations for {} unknowns: the data are too short",
-                x.nrows(),
-                x.ncols()
-            ),
-        });
+            equations: x.nrows(),
+            unknowns: x.ncols(),
+        }
+        .into());
     }
     let qr = x.col_piv_qr();
     let r = qr.thin_R();
@@ -44,18 +45,18 @@ pub fn lstsq(x: &Mat<f64>, t: &Mat<f64>, context: &str) -> Result<Vec<f64>> {
     let d0 = if n > 0 { r[(0, 0)].abs() } else { 0.0 };
     let dn = if n > 0 { r[(n - 1, n - 1)].abs() } else { 0.0 };
     if d0.is_nan() || d0 <= 0.0 || dn.is_nan() || dn <= d0 * 1e-14 {
-        return Err(Error::Numerical {
+        return Err(FitError::RankDeficient {
             context: context.into(),
-            message: "the regression is rank deficient: the data do not excite the model (is there a step?)".into(),
-        });
+        }
+        .into());
     }
     let sol = qr.solve_lstsq(t);
     let theta: Vec<f64> = (0..x.ncols()).map(|i| sol[(i, 0)]).collect();
     if theta.iter().any(|v| !v.is_finite()) {
-        return Err(Error::Numerical {
+        return Err(FitError::NonFiniteSolution {
             context: context.into(),
-            message: "least squares gave a non-finite solution".into(),
-        });
+        }
+        .into());
     }
     Ok(theta)
 }
@@ -107,7 +108,7 @@ pub fn regression(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> (Mat<f64>
 /// Direct least squares of order `m` with delay `d` (the paper's eq. 5, by QR).
 ///
 /// # Errors
-/// [`Error::Numerical`] when the data are too short or do not determine the parameters.
+/// [`FitError`] when the data are too short or do not determine the parameters.
 pub fn fit(sets: &[Data<'_>], m: usize, d: usize) -> Result<Params> {
     fit_nb(sets, m, m + 1, d)
 }
@@ -120,10 +121,12 @@ pub fn fit_nb(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> Result<Params
     let cols = m + nb;
     let (r, rows) = triangle(sets, m, nb, d);
     if rows < cols {
-        return Err(Error::Numerical {
+        return Err(FitError::TooFewEquations {
             context: "arx".into(),
-            message: format!("{rows} equations for {cols} unknowns: the data are too short"),
-        });
+            equations: rows,
+            unknowns: cols,
+        }
+        .into());
     }
     // R's columns have X's norms and R^T R = X^T X, so the pivoted QR of R sees the same
     // rank and gives the same solution as that of X.
@@ -224,5 +227,41 @@ mod tests {
         let u = vec![0.0; 100];
         let y = vec![0.0; 100];
         assert!(fit(&[Data { u: &u, y: &y }], 2, 0).is_err());
+    }
+
+    /// Too little data and data without excitation are told apart, in the fit's words.
+    #[test]
+    fn short_and_unexciting_data_are_refused_by_name() {
+        let u = vec![1.0; 3];
+        let y = vec![0.5; 3];
+        let e = fit(&[Data { u: &u, y: &y }], 2, 0).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                crate::Error::Fit(FitError::TooFewEquations {
+                    equations: 1,
+                    unknowns: 5,
+                    ..
+                })
+            ),
+            "{e:?}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "arx: 1 equations for 5 unknowns: the data are too short"
+        );
+        assert_eq!(e.kind(), "numerical");
+        let x = Mat::<f64>::zeros(4, 2);
+        let t = Mat::<f64>::zeros(4, 1);
+        let e = lstsq(&x, &t, "output error").unwrap_err();
+        assert!(
+            matches!(e, crate::Error::Fit(FitError::RankDeficient { .. })),
+            "{e:?}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "output error: the regression is rank deficient: the data do not excite the model \
+             (is there a step?)"
+        );
     }
 }

@@ -40,6 +40,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::fit::analysis::{self, Root, ORIGIN_RADIUS, REAL_AXIS_TOLERANCE};
 use crate::fit::model::{filter, Model};
+use crate::fit::{ContinuousError, FitError};
 use crate::poly::{self, Complex};
 
 /// Two poles closer than this (relative to the larger magnitude) are refused as repeated.
@@ -127,38 +128,34 @@ fn to_complex(r: &Root) -> Complex {
     c(r.re, r.im)
 }
 
-fn numerical(message: String) -> Error {
-    Error::Numerical {
-        context: "continuous-time equivalent".into(),
-        message,
-    }
+fn continuous(reason: ContinuousError) -> Error {
+    FitError::Continuous(reason).into()
 }
 
 impl Continuous {
     /// The continuous-time equivalent of `model` (step invariant).
     ///
     /// # Errors
-    /// [`Error::InvalidArgument`] for an invalid model; [`Error::Numerical`] naming the pole
-    /// when a pole is at `z = 0`, on the negative real axis, on or outside the unit circle, or
-    /// repeated, or when the eigenvalue solver fails.
+    /// [`Error::InvalidArgument`] for an invalid model; [`FitError::Continuous`] naming the
+    /// pole when a pole is at `z = 0`, on the negative real axis, on or outside the unit
+    /// circle, or repeated; [`crate::poly::PolyError`] when the eigenvalue solver fails.
     pub fn from_model(model: &Model) -> Result<Self> {
         analysis::validate(model)?;
         let fs = model.fs;
-        let shift =
-            model.b.iter().position(|&v| v != 0.0).ok_or_else(|| {
-                numerical("b is all zeros: the model's output is always zero".into())
-            })?;
+        let shift = model
+            .b
+            .iter()
+            .position(|&v| v != 0.0)
+            .ok_or(FitError::Continuous(ContinuousError::ZeroNumerator))?;
         let b = model.b.get(shift..).unwrap_or(&[]);
         let d = model.delay + shift;
         let a_len = model.a.iter().rposition(|&v| v != 0.0).map_or(0, |i| i + 1);
         let a = model.a.get(..a_len).unwrap_or(&[]);
         if b.len() > a.len() + 1 {
-            return Err(numerical(format!(
-                "b has {} coefficients after the delay but a only {}: the model has poles at z = 0 \
-                 (a finite-impulse-response part), which have no continuous-time equivalent",
-                b.len(),
-                a.len()
-            )));
+            return Err(continuous(ContinuousError::FiniteImpulsePart {
+                numerator: b.len(),
+                denominator: a.len(),
+            }));
         }
         let denominator: Vec<f64> = std::iter::once(1.0).chain(a.iter().copied()).collect();
         let p = poly::roots(&denominator)?;
@@ -272,8 +269,8 @@ impl Continuous {
     /// The step-invariant discrete model at `sample_rate_hz` (see the module documentation).
     ///
     /// # Errors
-    /// [`Error::InvalidArgument`] for a non-positive or non-finite rate; [`Error::Numerical`]
-    /// if the combined coefficients come out complex (which only round-off on ill-conditioned
+    /// [`Error::InvalidArgument`] for a non-positive or non-finite rate;
+    /// [`FitError::Continuous`] if the combined coefficients come out complex (which only round-off on ill-conditioned
     /// poles can cause).
     pub fn discretise(&self, sample_rate_hz: f64) -> Result<Discretised> {
         let fs2 = sample_rate_hz;
@@ -321,10 +318,11 @@ impl Continuous {
             .map(|v| v.im.abs())
             .fold(0.0, f64::max);
         if worst_im > 1e-9 * scale {
-            return Err(numerical(format!(
-                "re-discretised coefficients are not real (imaginary part {worst_im:e} of {scale:e}): \
-                 the poles are too ill-conditioned at {fs2} Hz"
-            )));
+            return Err(continuous(ContinuousError::ComplexCoefficients {
+                imaginary: worst_im,
+                scale,
+                rate_hz: fs2,
+            }));
         }
         let model = Model {
             fs: fs2,
@@ -460,31 +458,26 @@ fn multiply(p: &[Complex], q: &[Complex]) -> Vec<Complex> {
 fn check_poles(p: &[Complex]) -> Result<()> {
     for &pi in p {
         let r = pi.norm();
-        let name = poly::format_root(pi);
         if r < ORIGIN_RADIUS {
-            return Err(numerical(format!(
-                "pole {name} is at z = 0 (a finite-impulse-response part): it has no continuous-time equivalent"
-            )));
+            return Err(continuous(ContinuousError::PoleAtOrigin { pole: pi }));
         }
         if r >= 1.0 {
-            return Err(numerical(format!(
-                "pole {name} has |z| = {r:.6} >= 1: an unstable model has no step-invariant continuous-time equivalent"
-            )));
+            return Err(continuous(ContinuousError::UnstablePole {
+                pole: pi,
+                radius: r,
+            }));
         }
         if pi.im.abs() <= REAL_AXIS_TOLERANCE * r && pi.re < 0.0 {
-            return Err(numerical(format!(
-                "pole {name} is on the negative real axis: it oscillates at Nyquist and has no continuous-time equivalent (s = fs ln p is not real)"
-            )));
+            return Err(continuous(ContinuousError::NegativeRealPole { pole: pi }));
         }
     }
     for (i, &pi) in p.iter().enumerate() {
         for &pj in p.iter().skip(i + 1) {
             if (pi - pj).norm() < REPEATED_POLE_TOLERANCE * pi.norm().max(pj.norm()) {
-                return Err(numerical(format!(
-                    "poles {} and {} are repeated (closer than {REPEATED_POLE_TOLERANCE:e}): the modal expansion does not exist; refit with a different order",
-                    poly::format_root(pi),
-                    poly::format_root(pj)
-                )));
+                return Err(continuous(ContinuousError::RepeatedPoles {
+                    first: pi,
+                    second: pj,
+                }));
             }
         }
     }
@@ -507,10 +500,9 @@ fn check_expansion(b: &[f64], a: &[f64], d: usize, f: &dyn Fn(f64) -> f64) -> Re
         .map(|(k, v)| (f(k as f64) - v).abs())
         .fold(0.0, f64::max);
     if worst > EXPANSION_TOLERANCE * scale {
-        return Err(numerical(format!(
-            "the modal expansion misses the step response by {:.3e} of its size (poles nearly repeated?)",
-            worst / scale
-        )));
+        return Err(continuous(ContinuousError::ExpansionMismatch {
+            relative: worst / scale,
+        }));
     }
     Ok(())
 }
@@ -865,5 +857,62 @@ mod tests {
         let r = ct.discretise(4000.0).unwrap();
         assert_eq!(r.delay_samples, 12);
         assert_eq!(r.model.b, vec![0.8]);
+    }
+
+    /// The fit room's typed errors keep their words ("continuous-time equivalent: ...") and
+    /// the stable kind "numerical".
+    #[test]
+    fn models_without_an_equivalent_are_refused_by_name() {
+        let model = |a: Vec<f64>, b: Vec<f64>| Model {
+            fs: 1000.0,
+            delay: 1,
+            a,
+            b,
+        };
+        let e = Continuous::from_model(&model(vec![0.5], vec![0.5])).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                Error::Fit(FitError::Continuous(
+                    ContinuousError::NegativeRealPole { .. }
+                ))
+            ),
+            "{e:?}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "continuous-time equivalent: pole -0.500000 is on the negative real axis: it \
+             oscillates at Nyquist and has no continuous-time equivalent (s = fs ln p is not real)"
+        );
+        assert_eq!(e.kind(), "numerical");
+        assert_eq!(e.location(), (None, None, None));
+        let e = Continuous::from_model(&model(vec![-1.5], vec![0.5])).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "continuous-time equivalent: pole 1.500000 has |z| = 1.500000 >= 1: an unstable \
+             model has no step-invariant continuous-time equivalent"
+        );
+        let e = Continuous::from_model(&model(vec![-0.5], vec![0.1, 0.2, 0.3])).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                Error::Fit(FitError::Continuous(ContinuousError::FiniteImpulsePart {
+                    numerator: 3,
+                    denominator: 1
+                }))
+            ),
+            "{e:?}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "continuous-time equivalent: b has 3 coefficients after the delay but a only 1: the \
+             model has poles at z = 0 (a finite-impulse-response part), which have no \
+             continuous-time equivalent"
+        );
+        let e = Continuous::from_model(&model(vec![-0.5], vec![0.0, 0.0])).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "continuous-time equivalent: b is all zeros: the model's output is always zero"
+        );
     }
 }

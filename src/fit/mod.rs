@@ -19,12 +19,14 @@
 pub mod analysis;
 pub mod arx;
 pub mod continuous;
+mod error;
 pub mod model;
 pub mod noise;
 pub mod oe;
 pub mod step;
 mod uncertainty;
 
+pub use error::{ContinuousError, FitError};
 pub use model::Model;
 
 use crate::error::{Error, Result};
@@ -439,10 +441,7 @@ fn search_delay(p: &Prepared, m: usize) -> Result<(usize, Vec<DelayRow>)> {
     }
     let best = rows.iter().map(|r| r.nrmse).fold(f64::INFINITY, f64::min);
     if !best.is_finite() {
-        return Err(Error::Numerical {
-            context: "delay search".into(),
-            message: "no candidate delay gave a usable fit".into(),
-        });
+        return Err(FitError::NoUsableDelay.into());
     }
     // Candidates whose residual sum of squares is within 2 noise variances of the best are
     // statistically indistinguishable from it (a likelihood-ratio margin); among those the
@@ -501,7 +500,7 @@ fn in_parallel<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec
 /// # Errors
 /// [`Error::NoStep`] when the reference has no step, [`Error::TooShort`] when the test is too
 /// short for the order and delay, [`Error::UnstableModel`] when the chosen fit is unstable,
-/// [`Error::Numerical`] when the data do not determine a model.
+/// [`FitError`] when the data do not determine a model.
 pub fn fit(
     estimation: &Test<'_>,
     validation: &[Test<'_>],
@@ -613,9 +612,11 @@ pub fn fit(
         if let Some(c) = candidates.first() {
             c.1.check_stable(estimation.name)?;
         }
-        return Err(first_error.unwrap_or_else(|| Error::Numerical {
-            context: estimation.name.into(),
-            message: "no order gave a usable model".into(),
+        return Err(first_error.unwrap_or_else(|| {
+            FitError::NoUsableOrder {
+                test: estimation.name.into(),
+            }
+            .into()
         }));
     };
     // Parsimony: the smallest order whose held-out error is within 5 % of the best; with BIC
@@ -630,9 +631,8 @@ pub fn fit(
             }
         })
         .copied()
-        .ok_or_else(|| Error::Numerical {
-            context: estimation.name.into(),
-            message: "order selection failed".into(),
+        .ok_or_else(|| FitError::OrderSelectionFailed {
+            test: estimation.name.into(),
         })?;
     let (m, mut model, rows, mut est, mut val, _, _) = chosen.clone();
     if window.is_some() {

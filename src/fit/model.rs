@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::compensator::{Compensator, InverseCoefficients, Sample};
 use crate::error::{Error, Result};
+use crate::fit::FitError;
 use crate::poly::{self, Complex};
 
 /// Largest model order the host compensator handles.
@@ -64,7 +65,7 @@ impl Model {
     /// Poles (roots of `A`), largest magnitude first.
     ///
     /// # Errors
-    /// [`Error::Numerical`] if the eigenvalue solver fails.
+    /// [`crate::poly::PolyError`] if the eigenvalue solver fails.
     pub fn poles(&self) -> Result<Vec<Complex>> {
         poly::roots(&self.denominator())
     }
@@ -72,7 +73,7 @@ impl Model {
     /// Zeros (roots of `B`, without the delay's zeros at the origin), largest magnitude first.
     ///
     /// # Errors
-    /// [`Error::Numerical`] if the eigenvalue solver fails.
+    /// [`crate::poly::PolyError`] if the eigenvalue solver fails (or `b` is zero).
     pub fn zeros(&self) -> Result<Vec<Complex>> {
         poly::roots(&self.b)
     }
@@ -156,11 +157,8 @@ impl Model {
     }
 
     fn compensate_with<T: Sample, const M: usize>(&self, y: &[f64]) -> Result<Vec<f64>> {
-        let coefficients =
-            InverseCoefficients::<T, M>::new(&self.b, &self.a).map_err(|e| Error::Numerical {
-                context: "compensate".into(),
-                message: e.to_string(),
-            })?;
+        let coefficients = InverseCoefficients::<T, M>::new(&self.b, &self.a)
+            .map_err(|error| FitError::Compensator { error })?;
         let y0 = T::from_f64(y.first().copied().unwrap_or(0.0));
         let mut c = Compensator::from_coefficients(coefficients, y0);
         Ok(y.iter().map(|&v| c.push(T::from_f64(v)).to_f64()).collect())

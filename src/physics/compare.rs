@@ -13,7 +13,8 @@ use super::gas::Gas;
 use super::line::Line;
 use super::lumped::{lumped, Lumped, POISEUILLE_INERTANCE};
 use super::modes::{find_modes, Mode};
-use crate::error::{Error, Result};
+use super::PhysicsError;
+use crate::error::Result;
 use crate::fit::model::Model;
 
 /// Womersley number below which the lumped approximation is trusted (README 1.3).
@@ -161,17 +162,15 @@ pub struct Comparison {
 /// Compares a fitted model with a prediction.
 ///
 /// # Errors
-/// [`Error::Numerical`] when the prediction has no mode or the model has no oscillatory or
-/// overdamped mode; errors of [`model_modes`].
+/// [`PhysicsError::NoPredictedMode`] when the prediction has no mode,
+/// [`PhysicsError::NoFittedMode`] when the model has no oscillatory or overdamped mode; errors
+/// of [`model_modes`].
 pub fn compare(model: &Model, prediction: &Prediction) -> Result<Comparison> {
     let predicted = prediction
         .modes
         .first()
         .map(ModeSummary::from)
-        .ok_or_else(|| Error::Numerical {
-            context: "comparison".into(),
-            message: "the prediction has no mode".into(),
-        })?;
+        .ok_or(PhysicsError::NoPredictedMode)?;
     let fitted = model_modes(model)?
         .into_iter()
         .min_by(|a, b| {
@@ -183,12 +182,7 @@ pub fn compare(model: &Model, prediction: &Prediction) -> Result<Comparison> {
                 .abs();
             da.total_cmp(&db)
         })
-        .ok_or_else(|| Error::Numerical {
-            context: "comparison".into(),
-            message:
-                "the fitted model has no mode (no complex pole pair, fewer than two real poles)"
-                    .into(),
-        })?;
+        .ok_or(PhysicsError::NoFittedMode)?;
     let fr = fitted.natural_frequency_hz / predicted.natural_frequency_hz;
     let zr = fitted.damping / predicted.damping;
     let fitted_delay_s = model.delay as f64 / model.fs;

@@ -7,22 +7,20 @@
 
 use num_complex::Complex64;
 
-use crate::error::{Error, Result};
+use super::PhysicsError;
+use crate::error::Result;
 
 /// Forward (`e^{-2πikn/N}`) or inverse (`e^{+2πikn/N}`, scaled by `1/N`) transform, in place.
 ///
 /// # Errors
-/// [`Error::Numerical`] when the length is not a power of two.
+/// [`PhysicsError::FftLength`] when the length is not a power of two.
 pub fn fft_in_place(buf: &mut [Complex64], inverse: bool) -> Result<()> {
     let n = buf.len();
     if n <= 1 {
         return Ok(());
     }
     if !n.is_power_of_two() {
-        return Err(Error::Numerical {
-            context: "FFT".into(),
-            message: format!("length {n} is not a power of two"),
-        });
+        return Err(PhysicsError::FftLength { length: n }.into());
     }
     let mut planner = rustfft::FftPlanner::new();
     let plan = if inverse {
@@ -44,7 +42,7 @@ pub fn fft_in_place(buf: &mut [Complex64], inverse: bool) -> Result<()> {
 /// a power-of-two length of at least `a.len() + b.len() - 1` (so nothing wraps around).
 ///
 /// # Errors
-/// [`Error::Numerical`] if the transform length would overflow.
+/// [`PhysicsError::ConvolutionLength`] if the transform length would overflow.
 pub fn convolve(a: &[f64], b: &[f64], out_len: usize) -> Result<Vec<f64>> {
     if a.is_empty() || b.is_empty() {
         return Ok(vec![0.0; out_len]);
@@ -52,10 +50,7 @@ pub fn convolve(a: &[f64], b: &[f64], out_len: usize) -> Result<Vec<f64>> {
     let need = a.len() + b.len() - 1;
     let n = need
         .checked_next_power_of_two()
-        .ok_or_else(|| Error::Numerical {
-            context: "convolution".into(),
-            message: format!("length {need} is too large"),
-        })?;
+        .ok_or(PhysicsError::ConvolutionLength { length: need })?;
     let mut fa: Vec<Complex64> = a.iter().map(|&x| Complex64::new(x, 0.0)).collect();
     fa.resize(n, Complex64::new(0.0, 0.0));
     let mut fb: Vec<Complex64> = b.iter().map(|&x| Complex64::new(x, 0.0)).collect();
@@ -120,5 +115,21 @@ mod tests {
         for (x, y) in c.iter().zip(want) {
             assert!((x - y).abs() < 1e-12, "{c:?}");
         }
+    }
+
+    #[test]
+    fn a_length_that_is_not_a_power_of_two_is_refused() {
+        let mut buf = vec![Complex64::new(1.0, 0.0); 6];
+        let e = fft_in_place(&mut buf, false).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                crate::Error::Physics(PhysicsError::FftLength { length: 6 })
+            ),
+            "{e:?}"
+        );
+        assert_eq!(e.to_string(), "FFT: length 6 is not a power of two");
+        assert_eq!(e.kind(), "numerical");
+        assert_eq!(e.location(), (None, None, None));
     }
 }

@@ -26,7 +26,8 @@ use num_complex::Complex64;
 
 use super::gas::Gas;
 use super::line::{CavityThermal, Element, Line};
-use crate::error::{Error, Result};
+use super::PhysicsError;
+use crate::error::Result;
 
 /// Inertance factor of the Poiseuille velocity profile (exact BT low-frequency limit).
 pub const POISEUILLE_INERTANCE: f64 = 4.0 / 3.0;
@@ -82,8 +83,8 @@ fn mmul(a: [[Poly; 2]; 2], b: [[Poly; 2]; 2]) -> [[Poly; 2]; 2] {
 /// [`POISEUILLE_INERTANCE`]; 1 gives the plug-flow Helmholtz form).
 ///
 /// # Errors
-/// [`Error::InvalidArgument`] for an invalid line or gas; [`Error::Numerical`] if the line
-/// has no inertance or no compliance (no second-order dynamics).
+/// [`crate::Error::InvalidArgument`] for an invalid line or gas; [`PhysicsError::NoSecondOrder`] if
+/// the line has no inertance or no compliance (no second-order dynamics).
 pub fn lumped(line: &Line, gas: &Gas, c_i: f64) -> Result<Lumped> {
     gas.validate()?;
     line.validate()?;
@@ -140,19 +141,13 @@ pub fn lumped(line: &Line, gas: &Gas, c_i: f64) -> Result<Lumped> {
         }
         let [c0, c1, c2] = m[0][0];
         if !(c2 > 0.0 && c0 > 0.0 && c1 >= 0.0) {
-            return Err(Error::Numerical {
-                context: "lumped approximation".into(),
-                message: "the line has no second-order dynamics (no tube, or no compliance)".into(),
-            });
+            return Err(PhysicsError::NoSecondOrder.into());
         }
         let (a1, a2) = (c1 / c0, c2 / c0);
         omega = 1.0 / a2.sqrt();
         out = Some((a1, a2, 1.0 / c0));
     }
-    let (a1, a2, dc) = out.ok_or_else(|| Error::Numerical {
-        context: "lumped approximation".into(),
-        message: "no iteration ran".into(),
-    })?;
+    let (a1, a2, dc) = out.ok_or(PhysicsError::NoIteration)?;
     let nu = gas.kinematic_viscosity();
     let r_min = line
         .tubes()
@@ -223,5 +218,19 @@ mod tests {
             assert!(z > last);
             last = z;
         }
+    }
+
+    #[test]
+    fn a_line_without_a_tube_has_no_second_order_dynamics() {
+        let gas = Gas::standard_air();
+        let e = lumped(&Line::new().volume(50e-6), &gas, POISEUILLE_INERTANCE).unwrap_err();
+        assert!(
+            matches!(e, crate::Error::Physics(PhysicsError::NoSecondOrder)),
+            "{e:?}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "lumped approximation: the line has no second-order dynamics (no tube, or no compliance)"
+        );
     }
 }

@@ -24,6 +24,7 @@
 
 pub mod bessel;
 pub mod compare;
+mod error;
 pub mod fft;
 pub mod gas;
 pub mod helmholtz;
@@ -35,6 +36,7 @@ pub mod sensor;
 pub mod simulate;
 
 pub use compare::{compare, predict, Comparison, Prediction};
+pub use error::PhysicsError;
 pub use gas::Gas;
 pub use helmholtz::{EndKind, HoleCavity};
 pub use line::{CavityThermal, Element, Line, SeriesImpedance, Tube, Volume};

@@ -26,6 +26,7 @@ use num_complex::Complex64;
 
 use super::gas::Gas;
 use super::line::Line;
+use super::PhysicsError;
 use crate::error::{Error, Result};
 
 /// One mode (a pole pair) of the line.
@@ -191,7 +192,7 @@ fn real_poles(line: &Line, gas: &Gas, sigma_min: f64, sigma_max: f64) -> Vec<(f6
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] for an invalid line or gas, or a line without tubes;
-/// [`Error::Numerical`] if no mode could be found.
+/// [`PhysicsError::NoMode`] if no mode could be found.
 pub fn find_modes(line: &Line, gas: &Gas, count: usize) -> Result<ModeAnalysis> {
     gas.validate()?;
     line.validate()?;
@@ -282,10 +283,7 @@ pub fn find_modes(line: &Line, gas: &Gas, count: usize) -> Result<ModeAnalysis> 
     }
     modes.truncate(count);
     if modes.is_empty() {
-        return Err(Error::Numerical {
-            context: "mode finder".into(),
-            message: "no pole of the line response was found".into(),
-        });
+        return Err(PhysicsError::NoMode.into());
     }
     Ok(ModeAnalysis {
         modes,

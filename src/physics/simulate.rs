@@ -42,6 +42,7 @@ use super::fft::{convolve, fft_in_place};
 use super::gas::Gas;
 use super::line::Line;
 use super::sensor::{Butterworth, Diaphragm};
+use super::PhysicsError;
 use crate::error::{Error, Result};
 
 mod excitation;
@@ -327,8 +328,8 @@ pub struct ImpulseResponse {
 /// module documentation), at least `min_taps` long.
 ///
 /// # Errors
-/// [`Error::Numerical`] if the response is not finite on the frequency grid or does not decay
-/// within [`MAX_FFT_LENGTH`] samples.
+/// [`PhysicsError::ResponseNotFinite`] if the response is not finite on the frequency grid,
+/// [`PhysicsError::NoDecay`] if it does not decay within [`MAX_FFT_LENGTH`] samples.
 pub fn impulse_response(
     response: &dyn Fn(Complex64) -> Complex64,
     rate_hz: f64,
@@ -358,13 +359,10 @@ pub fn impulse_response(
             })
             .collect();
         if let Some((k, _)) = half.iter().enumerate().find(|(_, h)| !h.is_finite()) {
-            return Err(Error::Numerical {
-                context: "impulse response".into(),
-                message: format!(
-                    "the response is not finite at {} Hz",
-                    k as f64 * rate_hz / n as f64
-                ),
-            });
+            return Err(PhysicsError::ResponseNotFinite {
+                frequency_hz: k as f64 * rate_hz / n as f64,
+            }
+            .into());
         }
         let mut spec: Vec<Complex64> = half
             .iter()
@@ -400,13 +398,11 @@ pub fn impulse_response(
         }
         n *= 2;
         if n > MAX_FFT_LENGTH {
-            return Err(Error::Numerical {
-                context: "impulse response".into(),
-                message: format!(
-                    "the response does not decay within {:.3} s at {rate_hz} Hz (an undamped mode?)",
-                    (MAX_FFT_LENGTH / 2) as f64 / rate_hz
-                ),
-            });
+            return Err(PhysicsError::NoDecay {
+                seconds: (MAX_FFT_LENGTH / 2) as f64 / rate_hz,
+                rate_hz,
+            }
+            .into());
         }
     }
 }

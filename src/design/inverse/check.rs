@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use super::optimal::{self, NoiseModel, OptimalOptions, SignalPrior};
 use super::{design_auto_with, reconstruct_with, Design, Options, Reconstruction};
+use crate::design::DesignError;
 use crate::error::{Error, Result};
 use crate::fit::model::Model;
 use crate::fit::Test;
@@ -71,14 +72,11 @@ pub enum Request {
 /// least the delay). The last fall-back.
 ///
 /// # Errors
-/// [`Error::Numerical`] when the model's DC gain is zero or not finite.
+/// [`DesignError::DcGain`] when the model's DC gain is zero or not finite.
 pub fn delay_only(model: &Model) -> Result<Design> {
     let dc = model.dc_gain();
     if !(dc.is_finite() && dc.abs() > 1e-12) {
-        return Err(Error::Numerical {
-            context: "delay-only compensator".into(),
-            message: format!("the model's DC gain is {dc}"),
-        });
+        return Err(DesignError::DcGain { dc_gain: dc }.into());
     }
     let latency = model
         .dc_group_delay()
@@ -389,6 +387,25 @@ mod tests {
             (check.worst_ratio - 1.0).abs() < 1e-12,
             "{}",
             check.worst_ratio
+        );
+    }
+
+    #[test]
+    fn delay_only_needs_a_dc_gain() {
+        let model = Model {
+            fs: 1000.0,
+            delay: 1,
+            a: vec![-0.5],
+            b: vec![0.0],
+        };
+        let e = delay_only(&model).unwrap_err();
+        assert!(
+            matches!(e, Error::Design(DesignError::DcGain { dc_gain }) if dc_gain == 0.0),
+            "{e:?}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "delay-only compensator: the model's DC gain is 0"
         );
     }
 }

@@ -212,7 +212,8 @@ fn response_numbers(
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] when the latency cap is below the model's delay;
-/// [`Error::Numerical`] as [`Smoother::new`] and [`Smoother::realise`].
+/// [`crate::design::DesignError`] as [`Smoother::new`] and [`Smoother::realise`], and when the
+/// smoother's poles are too close to the unit circle for the board.
 pub fn design(
     model: &Model,
     noise: &NoiseModel,
@@ -345,13 +346,10 @@ fn design_for(
             })
             .fold(0.0, f64::max);
     if pole_margin.is_nan() || pole_margin < crate::compensator::MIN_POLE_MARGIN {
-        return Err(Error::Numerical {
-            context: "optimal compensator".into(),
-            message: format!(
-                "the smoother's poles are {pole_margin:.2e} from the unit circle, less than the board's margin {:.0e}",
-                crate::compensator::MIN_POLE_MARGIN
-            ),
-        });
+        return Err(crate::design::DesignError::SmootherPoleMargin {
+            margin: pole_margin,
+        }
+        .into());
     }
     Ok(super::Design {
         method: super::DesignMethod::new(super::MethodKind::Smoother, &format!(

@@ -17,8 +17,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{impulse_len, plan_error, TARGET};
+use super::{impulse_len, TARGET};
 use crate::design::inverse::Design;
+use crate::design::DesignError;
 use crate::error::Result;
 use crate::fixed::direct::{
     DirectCascade, DirectSection, DirectState, COEFFICIENT_BITS, MAX_COEFFICIENT_SUM,
@@ -66,12 +67,10 @@ pub struct DirectPlan {
 }
 
 /// Rounds `v * 2^30` to a coefficient, refusing what does not fit `i32`.
-fn coefficient(v: f64, what: &str) -> Result<i32> {
+fn coefficient(v: f64, what: &'static str) -> Result<i32> {
     let q = (v * f64::from(COEFFICIENT_BITS).exp2()).round();
     if !q.is_finite() || q >= f64::from(i32::MAX) || q < f64::from(i32::MIN) {
-        return Err(plan_error(format!(
-            "{what} = {v:e} does not fit Q2.30 (direct form)"
-        )));
+        return Err(DesignError::DirectCoefficientRange { what, value: v }.into());
     }
     // In range, checked above.
     #[allow(clippy::cast_possible_truncation)]
@@ -127,8 +126,9 @@ impl DirectPlan {
     ///
     /// # Errors
     /// [`crate::error::Error::InvalidParameter`] for a full scale that is not positive and finite;
-    /// [`crate::error::Error::Numerical`] when a coefficient cannot be represented, a bound is not finite or
-    /// leaves no headroom, or the quantised cascade is refused by the board's validation.
+    /// [`DesignError`] when the design has no sections or a pole on or outside the unit circle,
+    /// a coefficient cannot be represented, a bound is not finite or leaves no headroom, or the
+    /// quantised cascade is refused by the board's validation.
     pub fn new(design: &Design, full_scale: f64) -> Result<Self> {
         let len = impulse_len(design, full_scale)?;
         let mut input = vec![0.0; len];
@@ -157,9 +157,7 @@ impl DirectPlan {
             let out = filter(b, aq, &input);
             let out_l1 = l1(&out);
             if !(out_l1.is_finite() && out_l1 > 0.0) {
-                return Err(plan_error(format!(
-                    "section {k}: the L1 bound is not finite and positive"
-                )));
+                return Err(DesignError::DirectL1Bound { section: k }.into());
             }
             // The accumulator's bound: the coefficient magnitudes must sum below 2^32 (with
             // room for the rounding of the numerator), which caps the numerator's scale (the
@@ -179,7 +177,7 @@ impl DirectPlan {
                 let e = -(TARGET / l1_gain).log2().floor();
                 let e = e.max(-(lambda_max * scale_in).log2().floor());
                 if !e.is_finite() || e.abs() > 60.0 {
-                    return Err(plan_error(format!("L1 gain {l1_gain:e} out of range")));
+                    return Err(DesignError::L1Gain { gain: l1_gain }.into());
                 }
                 // |e| <= 60, checked above.
                 #[allow(clippy::cast_possible_truncation)]
@@ -195,9 +193,7 @@ impl DirectPlan {
             if t.iter()
                 .any(|v| !v.is_finite() || v.abs() >= f64::from(i32::MAX) - 2.0)
             {
-                return Err(plan_error(format!(
-                    "section {k}: a scaled numerator coefficient does not fit Q2.30"
-                )));
+                return Err(DesignError::ScaledNumeratorRange { section: k }.into());
             }
             let a_q1 = one - f64::from(neg_a[0]) - f64::from(neg_a[1]);
             let dc = (b[0] + b[1] + b[2]) * lambda / (1.0 + a1 + a2);
@@ -207,9 +203,8 @@ impl DirectPlan {
             let bq = round_to_sum(t, sum);
             let mut bi = [0i32; 3];
             for (dst, v) in bi.iter_mut().zip(bq) {
-                *dst = i32::try_from(v).map_err(|_| {
-                    plan_error(format!("section {k}: a numerator coefficient overflows"))
-                })?;
+                *dst =
+                    i32::try_from(v).map_err(|_| DesignError::NumeratorOverflow { section: k })?;
             }
             let bf = bi.map(|v| f64::from(v) / one);
             // Bounds with the integers the board uses.
@@ -224,9 +219,11 @@ impl DirectPlan {
             let noise = feedback + gain * noise_in;
             let total = output_bound + noise / 2f64.powi(31);
             if !(total.is_finite() && total < 0.99) {
-                return Err(plan_error(format!(
-                    "section {k}: output bound {total} leaves no headroom"
-                )));
+                return Err(DesignError::NoHeadroom {
+                    section: k,
+                    bound: total,
+                }
+                .into());
             }
             headroom = headroom.min(-total.log2());
             sections.push(DirectPlanSection {
@@ -262,11 +259,11 @@ impl DirectPlan {
     /// Validates the integers as the board does.
     ///
     /// # Errors
-    /// [`crate::error::Error::Numerical`] with the board's reason.
+    /// [`DesignError::DirectBoard`] with the board's reason.
     pub fn check(&self) -> Result<()> {
         DirectCascade::<16>::new(&self.board_sections())
             .map(|_| ())
-            .map_err(|e| plan_error(e.to_string()))
+            .map_err(|error| DesignError::DirectBoard { error }.into())
     }
 
     /// The Q1.31 code of a probe value, clamped to the full scale; `true` when clamped.
@@ -284,7 +281,7 @@ impl DirectPlan {
     /// Runs the board's direct-form code on `y`, starting in equilibrium with `y[0]`.
     ///
     /// # Errors
-    /// [`crate::error::Error::Numerical`] when the plan does not validate.
+    /// [`DesignError::DirectBoard`] when the plan does not validate.
     pub fn run(&self, y: &[f64]) -> Result<super::FixedRun> {
         let sections = self.board_sections();
         match sections.len() {
@@ -300,7 +297,8 @@ impl DirectPlan {
         sections: &[DirectSection],
         y: &[f64],
     ) -> Result<super::FixedRun> {
-        let cascade = DirectCascade::<N>::new(sections).map_err(|e| plan_error(e.to_string()))?;
+        let cascade = DirectCascade::<N>::new(sections)
+            .map_err(|error| DesignError::DirectBoard { error })?;
         let mut state: DirectState<N> =
             cascade.equilibrium(y.first().map_or(0, |&v| self.to_code(v).0));
         let mut clipped_inputs = 0;

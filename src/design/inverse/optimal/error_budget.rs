@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{NoiseModel, SignalPrior};
 use crate::design::inverse::{cascade_response, model_response};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::fit::model::Model;
 use crate::poly::Complex;
 
@@ -34,7 +34,8 @@ pub struct Budget {
 /// that neither end wraps into the other.
 ///
 /// # Errors
-/// [`Error::Numerical`] when the record is too long for a power-of-two transform.
+/// [`crate::design::DesignError::RecordTooLong`] when the record is too long for a power-of-two
+/// transform.
 pub fn offline(
     model: &Model,
     noise: &NoiseModel,
@@ -48,10 +49,7 @@ pub fn offline(
     let pad = (n / 4).max(4096);
     let size = (n + 2 * pad)
         .checked_next_power_of_two()
-        .ok_or_else(|| Error::Numerical {
-            context: "offline reconstruction".into(),
-            message: format!("a record of {n} samples is too long"),
-        })?;
+        .ok_or(crate::design::DesignError::RecordTooLong { samples: n })?;
     let head = size - n - pad;
     let mut buf: Vec<Complex> = Vec::with_capacity(size);
     buf.extend(std::iter::repeat_n(Complex::new(first, 0.0), head));

@@ -9,6 +9,7 @@ use faer::Mat;
 
 use super::{NoiseModel, SignalPrior};
 use crate::design::inverse::{cascade_response, numerator_after_delay, to_sections, Zpk};
+use crate::design::DesignError;
 use crate::error::{Error, Result};
 use crate::fit::model::Model;
 use crate::poly::{self, Complex};
@@ -88,14 +89,11 @@ fn augmented(model: &Model, noise: &NoiseModel, prior: &SignalPrior) -> Result<A
     let total = noise.probe_std().powi(2).max(1e-300);
     let r = (noise.probe_white_std * noise.probe_white_std).max(1e-6 * total);
     if !(prior.increment_std > 0.0 && r > 0.0 && q.iter().all(|v| v.is_finite())) {
-        return Err(Error::Numerical {
-            context: "optimal compensator".into(),
-            message: format!(
-                "the signal prior ({:.3e}) and the probe noise ({:.3e}) must be positive and finite",
-                prior.increment_std,
-                noise.probe_std()
-            ),
-        });
+        return Err(DesignError::NoiseLevels {
+            prior_std: prior.increment_std,
+            probe_std: noise.probe_std(),
+        }
+        .into());
     }
     Ok(Augmented {
         phi,
@@ -176,12 +174,7 @@ fn riccati_recursion(sys: &Augmented) -> Result<Mat<f64>> {
 
 /// The error of a Riccati solution that did not converge.
 fn not_converged() -> Error {
-    Error::Numerical {
-        context: "optimal compensator".into(),
-        message: "the Kalman filter's Riccati equation did not converge (is the model stable and \
-                  its DC gain non-zero?)"
-            .into(),
-    }
+    DesignError::RiccatiNotConverged.into()
 }
 
 /// The structure-preserving doubling algorithm on the dual control Riccati equation
@@ -242,8 +235,9 @@ impl Smoother {
     /// Solves the filter for `model`, `noise` and `prior`.
     ///
     /// # Errors
-    /// [`Error::Numerical`] when the model has no numerator, the levels are not positive, or
-    /// the Riccati equation does not converge.
+    /// [`DesignError::ZeroNumerator`] when the model has no numerator,
+    /// [`DesignError::NoiseLevels`] when the levels are not positive,
+    /// [`DesignError::RiccatiNotConverged`] when the Riccati equation does not converge.
     pub fn new(model: &Model, noise: &NoiseModel, prior: &SignalPrior) -> Result<Self> {
         let sys = augmented(model, noise, prior)?;
         let p = riccati(&sys)?;
@@ -343,14 +337,15 @@ impl Smoother {
     /// The smoother at `lag` as a cascade `(gain, sections)` with the crate's sign convention.
     ///
     /// # Errors
-    /// [`Error::Numerical`] when the eigenvalues or the numerator's roots cannot be found, or
-    /// the sections do not reproduce the smoother's response to `1e-6`.
+    /// [`DesignError::KalmanEigenvalues`] or [`crate::poly::PolyError`] when the eigenvalues or
+    /// the numerator's roots cannot be found, [`DesignError::SmootherSections`] when the
+    /// sections do not reproduce the smoother's response to `1e-6`.
     pub fn realise(&mut self, lag: usize) -> Result<(f64, Vec<[f64; 5]>)> {
         let n = self.h.len();
-        let poles = self.a_cl.eigenvalues().map_err(|e| Error::Numerical {
-            context: "optimal compensator".into(),
-            message: format!("eigenvalues of the Kalman filter did not converge: {e:?}"),
-        })?;
+        let poles = self
+            .a_cl
+            .eigenvalues()
+            .map_err(|error| DesignError::KalmanEigenvalues { error })?;
         // Denominator prod (1 - p z^-1), real.
         let mut den = vec![Complex::new(1.0, 0.0)];
         for p in &poles {
@@ -396,14 +391,12 @@ impl Smoother {
             let want = poly::eval(&num, z) / poly::eval(&den, z);
             let got = cascade_response(gain, &sections, z);
             if (want - got).norm() > 1e-6 * want.norm().max(1e-3 * big) {
-                return Err(Error::Numerical {
-                    context: "optimal compensator".into(),
-                    message: format!(
-                        "the sections do not reproduce the smoother at lag {lag} (|error| {:.2e} at {:.3} rad/sample): ask for a shorter latency",
-                        (want - got).norm(),
-                        w
-                    ),
-                });
+                return Err(DesignError::SmootherSections {
+                    lag,
+                    error: (want - got).norm(),
+                    frequency: w,
+                }
+                .into());
             }
         }
         Ok((gain, sections))

@@ -16,6 +16,9 @@ pub enum Error {
     /// An effect's fit or scaling failed (the modelling room's error).
     #[error(transparent)]
     Modelling(#[from] crate::modelling::ModellingError),
+    /// Exporting a design failed (the export room's error).
+    #[error(transparent)]
+    Export(#[from] crate::export::ExportError),
     /// Fitting a model failed (the fit room's error).
     #[error(transparent)]
     Fit(#[from] crate::fit::FitError),
@@ -168,15 +171,6 @@ pub enum Error {
         /// The board's error.
         refusal: BoardRefusal,
     },
-    /// An exported blob does not read back, through the board's parser, as what was written.
-    #[error("export: {}", match .parsed {
-        Some(e) => format!("the blob does not parse back: {e}"),
-        None => "the blob parses back to other coefficients".into(),
-    })]
-    BlobRoundTrip {
-        /// The parser's error, or `None` when it parsed to other coefficients.
-        parsed: Option<crate::blob::BlobError>,
-    },
     /// Something could not be serialised (it cannot for finite values).
     #[error("{what}: {message}")]
     Serialise {
@@ -239,8 +233,8 @@ impl Error {
             Self::UnstableModel { .. } => "unstable-model",
             Self::UnstableInverse { .. } => "unstable-inverse",
             Self::BoardRefused { .. }
-            | Self::BlobRoundTrip { .. }
             | Self::Serialise { .. }
+            | Self::Export(_)
             | Self::Fit(_)
             | Self::Design(_)
             | Self::Physics(_)
@@ -275,8 +269,8 @@ impl Error {
             | Self::UnstableModel { .. }
             | Self::UnstableInverse { .. }
             | Self::BoardRefused { .. }
-            | Self::BlobRoundTrip { .. }
             | Self::Serialise { .. }
+            | Self::Export(_)
             | Self::Fit(_)
             | Self::Design(_)
             | Self::Physics(_)

@@ -27,10 +27,12 @@ use std::path::Path;
 pub mod bank;
 mod bin;
 mod c;
+mod error;
 pub mod image;
 mod rust;
 pub mod verify;
 
+pub use error::ExportError;
 pub use image::{
     BoardCoefficients, BoardImage, BoardNonlinear, DirectBoardCoefficients, FixedBoardCoefficients,
     SetTiming,

@@ -3,6 +3,7 @@
 //! returned.
 
 use super::image::{board_cascade, BoardImage};
+use super::ExportError;
 use super::MAX_EXPORT_SECTIONS;
 use crate::blob::{self, BlobError};
 use crate::error::{BoardRefusal, Error, Result};
@@ -11,10 +12,7 @@ use crate::fixed::FixedCascade;
 
 /// The board's refusal of what export built, as the host's error.
 fn fail(refusal: impl Into<BoardRefusal>) -> Error {
-    Error::BoardRefused {
-        during: "export",
-        refusal: refusal.into(),
-    }
+    ExportError::BoardRefused(refusal.into()).into()
 }
 
 /// A blob of `len` bytes written by `encode`.
@@ -30,7 +28,7 @@ fn encoded(
 
 /// The board's parse of the blob.
 fn parsed_back<T>(parsed: std::result::Result<T, BlobError>) -> Result<T> {
-    parsed.map_err(|e| Error::BlobRoundTrip { parsed: Some(e) })
+    parsed.map_err(|e| ExportError::BlobRoundTrip { parsed: Some(e) }.into())
 }
 
 /// Refuses a blob whose parse differs from what was encoded.
@@ -38,7 +36,7 @@ fn same(equal: bool) -> Result<()> {
     if equal {
         Ok(())
     } else {
-        Err(Error::BlobRoundTrip { parsed: None })
+        Err(ExportError::BlobRoundTrip { parsed: None }.into())
     }
 }
 
@@ -49,7 +47,7 @@ impl BoardImage {
     /// returned.
     ///
     /// # Errors
-    /// [`Error::BoardRefused`] if the blob cannot be encoded, [`Error::BlobRoundTrip`] if it
+    /// [`ExportError::BoardRefused`] if the blob cannot be encoded, [`ExportError::BlobRoundTrip`] if it
     /// does not parse back to the same
     /// coefficients (neither happens for an image built from a model file);
     /// [`Error::InvalidArgument`] for a bank (a blob carries one set).

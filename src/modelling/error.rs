@@ -6,13 +6,18 @@
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ModellingError {
-    /// A numerical step failed.
-    #[error("{context}: {message}")]
-    Numerical {
-        /// Where.
-        context: String,
-        /// What happened.
-        message: String,
+    /// A fit was asked for without an estimation test.
+    #[error("fit: no estimation test")]
+    NoEstimationTest,
+    /// The effects' fit loop ended without a fitted model.
+    #[error("fit: no fit")]
+    NoFit,
+    /// Scaling the damping to another temperature put two poles together, so the model has
+    /// no modal form to scale.
+    #[error("temperature scaling: the damping scaled by {damping_factor} puts two poles together: no modal form")]
+    CoincidentPoles {
+        /// The factor the damping was scaled by.
+        damping_factor: f64,
     },
     /// A sensor resonance without a frequency, and an estimation test whose reference shows
     /// no resonance to find it in.
@@ -30,15 +35,8 @@ impl ModellingError {
     #[must_use]
     pub fn kind(&self) -> &'static str {
         match self {
-            Self::Numerical { .. } => "numerical",
+            Self::NoEstimationTest | Self::NoFit | Self::CoincidentPoles { .. } => "numerical",
             Self::NoSensorResonance => "invalid-argument",
-        }
-    }
-
-    pub(crate) fn numerical(context: &str, message: impl Into<String>) -> Self {
-        Self::Numerical {
-            context: context.into(),
-            message: message.into(),
         }
     }
 }
@@ -50,7 +48,7 @@ mod tests {
 
     #[test]
     fn the_text_and_kind_are_those_of_before() {
-        let e: Error = ModellingError::numerical("fit", "no estimation test").into();
+        let e: Error = ModellingError::NoEstimationTest.into();
         assert_eq!(e.to_string(), "fit: no estimation test");
         assert_eq!(e.kind(), "numerical");
         assert_eq!(e.location(), (None, None, None));

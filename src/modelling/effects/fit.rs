@@ -120,7 +120,7 @@ pub fn fit_with(
         .zip(std::iter::once(estimation).chain(validation))
         .map(|((u, y), t)| Test { name: t.name, u, y });
     let Some(estimation) = tests.next() else {
-        return Err(ModellingError::numerical("fit", "no estimation test").into());
+        return Err(ModellingError::NoEstimationTest.into());
     };
     let validation: Vec<Test<'_>> = tests.collect();
     let validation = validation.as_slice();
@@ -158,7 +158,7 @@ pub fn fit_with(
         additive = estimate_additive(&changes, &r, onset, fs);
         fitted = Some(f);
     }
-    let fitted = fitted.ok_or_else(|| ModellingError::numerical("fit", "no fit"))?;
+    let fitted = fitted.ok_or(ModellingError::NoFit)?;
     let out: Vec<Effect> = effects
         .iter()
         .map(|e| match e {

@@ -13,24 +13,13 @@ pub enum Error {
     /// A trace file is not a usable step test (the trace room's error).
     #[error(transparent)]
     Trace(#[from] crate::trace::TraceError),
-    /// An effect's fit or scaling failed (the modelling room's error).
-    #[error(transparent)]
-    Modelling(#[from] crate::modelling::ModellingError),
-    /// Exporting a design failed (the export room's error).
-    #[error(transparent)]
-    Export(#[from] crate::export::ExportError),
-    /// Fitting a model failed (the fit room's error).
-    #[error(transparent)]
-    Fit(#[from] crate::fit::FitError),
-    /// Designing or realising a compensator failed (the design room's error).
-    #[error(transparent)]
-    Design(#[from] crate::design::DesignError),
-    /// A physical prediction or simulation failed (the physics room's error).
-    #[error(transparent)]
-    Physics(#[from] crate::physics::PhysicsError),
-    /// A polynomial's roots could not be found.
-    #[error(transparent)]
-    Poly(#[from] crate::poly::PolyError),
+    /// A stage's own error: fitting (`fit::FitError`), designing (`design::DesignError`),
+    /// physics (`physics::PhysicsError`), polynomial roots (`poly::PolyError`), the
+    /// effects (`modelling::ModellingError`) or export (`export::ExportError`). Each stage
+    /// converts its enum into this one, so the stages import this module and never the
+    /// reverse; [`Error::stage`] gets the stage's error back.
+    #[error("{0}")]
+    Stage(Box<dyn StageError>),
     /// The file could not be read or written.
     #[error("{path}: {action}: {source}")]
     Io {
@@ -208,6 +197,27 @@ impl Error {
         }
     }
 
+    /// The stage's error of type `E` (under any advice), when this is one.
+    ///
+    /// ```
+    /// use unlag::design::DesignError;
+    /// use unlag::error::Error;
+    ///
+    /// let e = Error::from(DesignError::NoSections);
+    /// assert!(matches!(e.stage::<DesignError>(), Some(DesignError::NoSections)));
+    /// assert!(e.stage::<unlag::fit::FitError>().is_none());
+    /// ```
+    #[must_use]
+    pub fn stage<E: StageError>(&self) -> Option<&E> {
+        match self.unadvised() {
+            Self::Stage(e) => {
+                let e: &(dyn std::error::Error + 'static) = e.as_ref();
+                e.downcast_ref::<E>()
+            }
+            _ => None,
+        }
+    }
+
     /// The error under any advice.
     #[must_use]
     pub fn unadvised(&self) -> &Self {
@@ -223,7 +233,7 @@ impl Error {
         match self {
             Self::Advised { error, .. } => error.kind(),
             Self::Trace(e) => e.kind(),
-            Self::Modelling(e) => e.kind(),
+            Self::Stage(e) => e.kind(),
             Self::Io { .. } => "io",
             Self::TooShort { .. } => "too-short",
             Self::NoStep { .. } => "no-step",
@@ -232,13 +242,7 @@ impl Error {
             Self::Model { .. } | Self::ModelAt { .. } => "model",
             Self::UnstableModel { .. } => "unstable-model",
             Self::UnstableInverse { .. } => "unstable-inverse",
-            Self::BoardRefused { .. }
-            | Self::Serialise { .. }
-            | Self::Export(_)
-            | Self::Fit(_)
-            | Self::Design(_)
-            | Self::Physics(_)
-            | Self::Poly(_) => "numerical",
+            Self::BoardRefused { .. } | Self::Serialise { .. } => "numerical",
             Self::UnsupportedOnBoard { .. } => "unsupported-on-board",
             Self::Plot { .. } => "plot",
             Self::Overwrite { .. } => "overwrite",
@@ -265,16 +269,11 @@ impl Error {
             | Self::Overwrite { output: path, .. } => (Some(path), None, None),
             Self::InvalidArgument { .. }
             | Self::InvalidParameter { .. }
-            | Self::Modelling(_)
+            | Self::Stage(_)
             | Self::UnstableModel { .. }
             | Self::UnstableInverse { .. }
             | Self::BoardRefused { .. }
             | Self::Serialise { .. }
-            | Self::Export(_)
-            | Self::Fit(_)
-            | Self::Design(_)
-            | Self::Physics(_)
-            | Self::Poly(_)
             | Self::Plot { .. } => (None, None, None),
         }
     }
@@ -287,6 +286,29 @@ impl Error {
         }
     }
 }
+
+/// A stage's own error enum, carried by [`Error::Stage`]. A stage implements it and
+/// `From<ItsError> for Error` (with [`Error::Stage`]) beside its enum.
+pub trait StageError: std::error::Error + Send + Sync + 'static {
+    /// The kind of problem for `--json` ([`Error::kind`]): `numerical` unless the stage says
+    /// otherwise.
+    fn kind(&self) -> &'static str {
+        "numerical"
+    }
+}
+
+/// `From<$t> for Error`, through [`Error::Stage`], for a stage's error enum `$t` (which
+/// implements [`StageError`]).
+macro_rules! stage_error {
+    ($t:ty) => {
+        impl From<$t> for $crate::error::Error {
+            fn from(e: $t) -> Self {
+                Self::Stage(Box::new(e))
+            }
+        }
+    };
+}
+pub(crate) use stage_error;
 
 /// A parameter of a library request that an error can be about, in the library's words
 /// (`Display`); the command line names the flag that sets it.

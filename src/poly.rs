@@ -13,7 +13,7 @@ use crate::error::Result;
 pub type Complex = faer::c64;
 
 /// What can go wrong in finding a polynomial's roots: the polynomial is zero, or the
-/// eigenvalue iteration does not converge. Reached as [`crate::Error::Poly`].
+/// eigenvalue iteration does not converge. Reached as [`crate::Error::Stage`].
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum PolyError {
@@ -96,6 +96,9 @@ pub fn format_root(z: Complex) -> String {
     }
 }
 
+impl crate::error::StageError for PolyError {}
+crate::error::stage_error!(PolyError);
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -121,7 +124,7 @@ mod tests {
     #[test]
     fn a_zero_polynomial_has_no_roots() {
         let e = roots(&[0.0, 0.0, 0.0]).unwrap_err();
-        assert!(matches!(e, crate::Error::Poly(PolyError::Zero)), "{e:?}");
+        assert!(matches!(e.stage(), Some(PolyError::Zero)), "{e:?}");
         assert_eq!(e.to_string(), "roots: the polynomial is zero");
         assert_eq!(e.kind(), "numerical");
         assert_eq!(e.location(), (None, None, None));

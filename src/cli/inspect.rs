@@ -302,10 +302,14 @@ pub fn run_resample(args: &ResampleArgs) -> Result<()> {
         path: args.model.clone(),
         message: format!("cannot resample: {reason}"),
     };
-    let ct = Continuous::from_model(old).map_err(|e| match e {
-        Error::Fit(crate::fit::FitError::Continuous(reason)) => cannot(reason.to_string()),
-        Error::Poly(e) => cannot(e.reason()),
-        e => e,
+    let ct = Continuous::from_model(old).map_err(|e| {
+        if let Some(crate::fit::FitError::Continuous(reason)) = e.stage() {
+            cannot(reason.to_string())
+        } else if let Some(p) = e.stage::<crate::poly::PolyError>() {
+            cannot(p.reason())
+        } else {
+            e
+        }
     })?;
     let new = ct.discretise(args.fs)?;
     let agreement = continuous::step_agreement(old, &new.model);

@@ -156,12 +156,12 @@ pub fn describe(e: &Error) -> String {
         };
         return format!("invalid {flag}: {message}");
     }
-    if let Error::Modelling(crate::modelling::ModellingError::NoSensorResonance) = e {
+    if let Some(crate::modelling::ModellingError::NoSensorResonance) = e.stage() {
         return "invalid sensor-resonance: the estimation test's reference shows no resonance to \
                 filter below; give the transducer's natural frequency: --add sensor-resonance=HZ"
             .into();
     }
-    if let Error::Design(crate::design::DesignError::NoUsableBandwidth) = e {
+    if let Some(crate::design::DesignError::NoUsableBandwidth) = e.stage() {
         // The library says "give a bandwidth"; the command line gives it with a flag.
         let text = e.to_string();
         return match text.strip_suffix("give a bandwidth") {

@@ -1,7 +1,7 @@
 //! What can go wrong in designing a compensator: the model cannot be inverted, no corner or
 //! smoother gives a usable one, its poles are too near the unit circle for the board, or it
 //! cannot be realised in the board's fixed point. In the design room's own words (no
-//! command-line flags: the CLI adds them); reached as [`crate::Error::Design`].
+//! command-line flags: the CLI adds them); reached as [`crate::Error::Stage`].
 
 use crate::compensator::{InverseError, MIN_POLE_MARGIN};
 use crate::fixed::direct::DirectError;
@@ -175,3 +175,6 @@ pub enum DesignError {
         error: DirectError,
     },
 }
+
+impl crate::error::StageError for DesignError {}
+crate::error::stage_error!(DesignError);

@@ -24,6 +24,9 @@ pub enum ExportError {
     },
 }
 
+impl crate::error::StageError for ExportError {}
+crate::error::stage_error!(ExportError);
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -41,8 +44,8 @@ mod tests {
         let e: Error = ExportError::BoardRefused(BlobError::BadMagic.into()).into();
         assert_eq!(e.to_string(), format!("export: {}", BlobError::BadMagic));
         assert!(matches!(
-            e,
-            Error::Export(ExportError::BoardRefused(BoardRefusal::Blob(
+            e.stage(),
+            Some(ExportError::BoardRefused(BoardRefusal::Blob(
                 BlobError::BadMagic
             )))
         ));

@@ -344,7 +344,7 @@ impl BoardCoefficients {
     /// # Errors
     /// [`Error::Model`] naming `path` when the file has no `[inverse]` design, the design has
     /// no sections or more than [`MAX_EXPORT_SECTIONS`], the sample rate or delay cannot be
-    /// stored, or the rounded coefficients are not valid; [`Error::Design`] when the design's
+    /// stored, or the rounded coefficients are not valid; [`crate::design::DesignError`] ([`Error::Stage`]) when the design's
     /// pole margin is too small to export.
     pub fn from_model_file(file: &ModelFile, path: &Path) -> Result<Self> {
         let design = design(file, path)?;

@@ -872,8 +872,8 @@ mod tests {
         let e = Continuous::from_model(&model(vec![0.5], vec![0.5])).unwrap_err();
         assert!(
             matches!(
-                e,
-                Error::Fit(FitError::Continuous(
+                e.stage(),
+                Some(FitError::Continuous(
                     ContinuousError::NegativeRealPole { .. }
                 ))
             ),
@@ -895,8 +895,8 @@ mod tests {
         let e = Continuous::from_model(&model(vec![-0.5], vec![0.1, 0.2, 0.3])).unwrap_err();
         assert!(
             matches!(
-                e,
-                Error::Fit(FitError::Continuous(ContinuousError::FiniteImpulsePart {
+                e.stage(),
+                Some(FitError::Continuous(ContinuousError::FiniteImpulsePart {
                     numerator: 3,
                     denominator: 1
                 }))

@@ -1,6 +1,6 @@
 //! What can go wrong in fitting a model: the data do not determine it, no delay or order gives
 //! a usable one, its compensator does not validate, or it has no continuous-time equivalent.
-//! In the fit room's own words (no command-line flags); reached as [`crate::Error::Fit`].
+//! In the fit room's own words (no command-line flags); reached as [`crate::Error::Stage`].
 
 use crate::compensator::InverseError;
 use crate::fit::continuous::REPEATED_POLE_TOLERANCE;
@@ -120,3 +120,6 @@ pub enum ContinuousError {
         rate_hz: f64,
     },
 }
+
+impl crate::error::StageError for FitError {}
+crate::error::stage_error!(FitError);

@@ -41,6 +41,13 @@ impl ModellingError {
     }
 }
 
+impl crate::error::StageError for ModellingError {
+    fn kind(&self) -> &'static str {
+        ModellingError::kind(self)
+    }
+}
+crate::error::stage_error!(ModellingError);
+
 #[cfg(test)]
 mod tests {
     use super::*;

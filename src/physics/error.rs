@@ -1,6 +1,6 @@
 //! What can go wrong in predicting a probe from its geometry: a transform of an unusable
 //! length, a response that is not finite or does not decay, a line without the dynamics or
-//! modes asked for. In the physics room's own words; reached as [`crate::Error::Physics`].
+//! modes asked for. In the physics room's own words; reached as [`crate::Error::Stage`].
 
 /// What can go wrong in the physics room: one variant per problem, each saying the step it
 /// happened in.
@@ -51,3 +51,6 @@ pub enum PhysicsError {
     #[error("comparison: the fitted model has no mode (no complex pole pair, fewer than two real poles)")]
     NoFittedMode,
 }
+
+impl crate::error::StageError for PhysicsError {}
+crate::error::stage_error!(PhysicsError);

@@ -225,7 +225,7 @@ mod tests {
         let gas = Gas::standard_air();
         let e = lumped(&Line::new().volume(50e-6), &gas, POISEUILLE_INERTANCE).unwrap_err();
         assert!(
-            matches!(e, crate::Error::Physics(PhysicsError::NoSecondOrder)),
+            matches!(e.stage(), Some(PhysicsError::NoSecondOrder)),
             "{e:?}"
         );
         assert_eq!(

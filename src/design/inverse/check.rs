@@ -400,7 +400,7 @@ mod tests {
         };
         let e = delay_only(&model).unwrap_err();
         assert!(
-            matches!(e, Error::Design(DesignError::DcGain { dc_gain }) if dc_gain == 0.0),
+            matches!(e.stage(), Some(DesignError::DcGain { dc_gain }) if *dc_gain == 0.0),
             "{e:?}"
         );
         assert_eq!(

@@ -1,6 +1,11 @@
 //! Host-side errors: one enum, one clear message each, naming the file, line and column
 //! where the problem is. The CLI prints the message and exits non-zero; nothing panics.
 //!
+//! The trace room's error is a variant ([`Error::Trace`]); every later stage's own enum
+//! travels as [`Error::Stage`], so this module imports no stage that imports it. Library
+//! messages name no command-line flag: a [`Parameter`] or an [`Advice`] is typed, and the
+//! CLI spells it.
+//!
 //! Line numbers are 1-based lines of the file (the header is line 1); column numbers are
 //! 1-based field positions, given with the column's name.
 

@@ -216,8 +216,8 @@ impl Error {
     pub fn stage<E: StageError>(&self) -> Option<&E> {
         match self.unadvised() {
             Self::Stage(e) => {
-                let e: &(dyn std::error::Error + 'static) = e.as_ref();
-                e.downcast_ref::<E>()
+                let e: &dyn StageError = &**e;
+                e.as_any().downcast_ref::<E>()
             }
             _ => None,
         }
@@ -294,11 +294,24 @@ impl Error {
 
 /// A stage's own error enum, carried by [`Error::Stage`]. A stage implements it and
 /// `From<ItsError> for Error` (with [`Error::Stage`]) beside its enum.
-pub trait StageError: std::error::Error + Send + Sync + 'static {
+pub trait StageError: std::error::Error + Send + Sync + AsAny + 'static {
     /// The kind of problem for `--json` ([`Error::kind`]): `numerical` unless the stage says
     /// otherwise.
     fn kind(&self) -> &'static str {
         "numerical"
+    }
+}
+
+/// The concrete error behind a `dyn StageError`, for [`Error::stage`]'s downcast (without
+/// trait upcasting, which needs Rust 1.86 where the crate's `rust-version` is 1.85).
+pub trait AsAny {
+    /// This value as `Any`.
+    fn as_any(&self) -> &dyn std::any::Any;
+}
+
+impl<T: std::any::Any> AsAny for T {
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
     }
 }
 

@@ -223,6 +223,17 @@ impl Error {
         }
     }
 
+    /// Whether the request itself is wrong (an argument or parameter out of range, under any
+    /// advice), not the data or the arithmetic: a search over designs stops at it instead of
+    /// trying the next candidate.
+    #[must_use]
+    pub fn is_the_callers(&self) -> bool {
+        matches!(
+            self.unadvised(),
+            Self::InvalidArgument { .. } | Self::InvalidParameter { .. }
+        )
+    }
+
     /// The error under any advice.
     #[must_use]
     pub fn unadvised(&self) -> &Self {

@@ -415,14 +415,7 @@ fn compensator(
         match planned {
             Ok(()) => {}
             // A full scale that makes no sense is the caller's error.
-            Err(e)
-                if matches!(
-                    e.unadvised(),
-                    Error::InvalidArgument { .. } | Error::InvalidParameter { .. }
-                ) =>
-            {
-                return Err(e)
-            }
+            Err(e) if e.is_the_callers() => return Err(e),
             Err(e) if plans_required => return Err(e),
             Err(e) => unplanned.push(e),
         }

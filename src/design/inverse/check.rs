@@ -211,14 +211,7 @@ pub fn design_checked(
     for (i, candidate) in candidates.into_iter().enumerate() {
         let mut d = match candidate {
             Ok(d) => d,
-            Err(e)
-                if matches!(
-                    e.unadvised(),
-                    Error::InvalidArgument { .. } | Error::InvalidParameter { .. }
-                ) =>
-            {
-                return Err(e)
-            }
+            Err(e) if e.is_the_callers() => return Err(e),
             Err(e) => {
                 rejected.push(format!("design {} failed: {e}", i + 1));
                 first_error.get_or_insert(e);

@@ -118,6 +118,20 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
         );
         console::note(args.json, &msg);
     }
+    if let Some(f) = &c.fall_back {
+        let msg = format!(
+            "note: on {} the model file's compensator is predicted to leave {:.2}x the raw probe's error \
+             (from the run's own probe spectrum and the stored noise), so {} ran instead ({:.2}x, host only); \
+             for a board running runs like this one: `unlag invert {} TEST.csv --signal {} -o ...`",
+            name(&args.file),
+            f.stored.ratio(),
+            f.what,
+            f.chosen.ratio(),
+            args.model.display(),
+            args.file.display()
+        );
+        console::note(args.json, &msg);
+    }
     let (latency, what, error) = (c.latency_samples, c.compensator, c.error);
     let design = file.inverse.as_ref().filter(|_| c.designed);
     crate::file::write_atomically_with(&args.output, |out| {
@@ -142,6 +156,11 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
             "nrmse_raw": error.map(|e| e.raw),
             "alignment_samples": error.map(|e| e.lag),
             "verdict": error.map(|e| if e.worse() { "worse" } else { "better" }),
+            "predicted_on_run": c.predicted.map(|p| json!({"u_hat": p.design, "raw": p.raw})),
+            "run_fall_back": c.fall_back.as_ref().map(|f| json!({
+                "what": f.what,
+                "predicted_u_hat": f.chosen.design,
+            })),
         });
         crate::outln!("{v}");
         warn_if_worse(args, design, error);

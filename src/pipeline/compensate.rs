@@ -102,6 +102,12 @@ pub struct Compensated {
     pub still_reference: bool,
     /// The fixed-point run's clamps and saturation, when the fixed-point compensator ran.
     pub fixed: Option<FixedRunSummary>,
+    /// What the run's own probe spectrum predicts for the model file's compensator and the raw
+    /// probe.
+    pub predicted: Option<inverse::check::RunCheck>,
+    /// The compensator that ran instead of the model file's, predicted not to beat the raw
+    /// probe on this run.
+    pub fall_back: Option<inverse::check::RunFallBack>,
 }
 
 /// Compensates the recording: the model's offset and drift removed from the probe signal
@@ -141,6 +147,26 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
             ),
         });
     }
+    // The guarantee on a run that has no reference to judge on: a stored design that the run's
+    // own probe spectrum predicts not to beat the raw probe gives way to the one of least
+    // predicted error (host only; fixed point keeps to the delay alone or the raw probe).
+    let fall_back = match (design, arithmetic) {
+        (Some(d), a) if !offline && nonlinear == 0.0 => {
+            inverse::check::fall_back_on_run(d, m, &y_probe, a != Arithmetic::Fixed)
+        }
+        _ => None,
+    };
+    let predicted = match &fall_back {
+        Some(f) => Some(f.stored),
+        None => design
+            .filter(|_| !offline)
+            .and_then(|d| inverse::check::on_run(d, m, &y_probe)),
+    };
+    let design = fall_back.as_ref().map(|f| &f.design).or(design);
+    let arithmetic = match arithmetic {
+        Arithmetic::Fixed if fall_back.is_some() => Arithmetic::F64,
+        a => a,
+    };
     let mut fixed = None;
     let (mut u_hat, latency, compensator) = match design {
         Some(d) if offline => {
@@ -188,7 +214,12 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
                     *u += c;
                 }
             }
-            (u_hat, d.latency_samples, "the model file's compensator")
+            let what = if fall_back.is_some() {
+                "a compensator chosen for this run (host only)"
+            } else {
+                "the model file's compensator"
+            };
+            (u_hat, d.latency_samples, what)
         }
         None => {
             m.check_invertible(&model_path.display().to_string())?;
@@ -253,6 +284,8 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
         ReferenceError { u_hat: e, raw, lag }
     });
     Ok(Compensated {
+        predicted,
+        fall_back: fall_back.clone(),
         u_hat,
         latency_samples: latency,
         compensator,
@@ -425,6 +458,74 @@ mod tests {
         )
         .unwrap();
         assert!(quiet.still_reference && quiet.error.is_none());
+    }
+
+    #[test]
+    fn a_design_for_steps_gives_way_on_a_slow_run_it_would_make_worse() {
+        // A second-order probe at 1.5 kHz behind a sample of delay; noise 1e-3 on the probe.
+        let (m, _) = crate::testing::second_order(1500.0, 0.3, 10_000.0, 1);
+        let noisy = |u: &[f64], seed: u64| -> Vec<f64> {
+            let n = crate::testing::gaussian(u.len(), seed);
+            m.simulate(u)
+                .iter()
+                .zip(n)
+                .map(|(y, n)| y + 1e-3 * n)
+                .collect()
+        };
+        // The optimum for steps, from a step test.
+        let step: Vec<f64> = (0..4000)
+            .map(|k| if k < 1000 { 0.0 } else { 1.0 })
+            .collect();
+        let y_step = noisy(&step, 21);
+        let tests = [crate::fit::Test {
+            name: "step",
+            u: &step,
+            y: &y_step,
+        }];
+        let noise = inverse::optimal::estimate_noise(&tests);
+        let prior = inverse::optimal::estimate_prior(&tests, &noise);
+        let d = inverse::optimal::design(&m, &noise, &prior, &Default::default()).unwrap();
+        let mut f = file(2.0);
+        f.model = m.clone();
+        f.inverse = Some(d.clone());
+        // A slow run (a 3 Hz swing), where the step design's boost above 1.5 kHz only adds
+        // noise.
+        let slow: Vec<f64> = (0..40_000)
+            .map(|k| (2.0 * std::f64::consts::PI * 3.0 * k as f64 / 10_000.0).sin())
+            .collect();
+        let y_slow = noisy(&slow, 22);
+        let t = trace(&slow, &y_slow);
+        // The stored design alone is worse than the raw probe there.
+        let stored = d.run::<f64>(&y_slow).unwrap();
+        let latency = d.latency_samples.round() as usize;
+        let (stored_error, _) = inverse::aligned_error(&slow, &stored, latency - 2..=latency + 2);
+        let (raw_error, _) = inverse::aligned_error(&slow, &y_slow, 0..=60);
+        assert!(stored_error > raw_error, "{stored_error} {raw_error}");
+        // compensate sees it from the probe signal alone, and runs one that is not.
+        let c = run(&f, &t, Compensation::Designed(Arithmetic::F64)).unwrap();
+        let fell = c.fall_back.as_ref().expect("a fall-back");
+        assert!(
+            fell.stored.ratio() >= inverse::check::RUN_MARGIN,
+            "{fell:?}"
+        );
+        assert!(fell.chosen.ratio() < 1.0, "{fell:?}");
+        let e = c.error.unwrap();
+        assert!(e.u_hat < e.raw, "{e:?}");
+        assert_eq!(
+            c.compensator,
+            "a compensator chosen for this run (host only)"
+        );
+        // On a step like its own the stored design stays.
+        let again = noisy(&step, 23);
+        let kept = run(
+            &f,
+            &trace(&step, &again),
+            Compensation::Designed(Arithmetic::F64),
+        )
+        .unwrap();
+        assert!(kept.fall_back.is_none(), "{:?}", kept.fall_back);
+        assert!(kept.predicted.unwrap().ratio() < inverse::check::RUN_MARGIN);
+        assert!(!kept.error.unwrap().worse());
     }
 
     #[test]

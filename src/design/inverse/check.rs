@@ -122,6 +122,163 @@ pub fn pass_through(model: &Model) -> Result<Design> {
     Ok(d)
 }
 
+/// What a run's own probe spectrum predicts for a design and for the raw probe, when the run
+/// has no reference to judge on ([`optimal::predicted_on_run`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RunCheck {
+    /// The design's predicted error (RMS, pressure units) at its best latency.
+    pub design: f64,
+    /// The raw probe's, at its best alignment.
+    pub raw: f64,
+}
+
+impl RunCheck {
+    /// The design's predicted error over the raw probe's (below 1 is better).
+    #[must_use]
+    pub fn ratio(&self) -> f64 {
+        self.design / self.raw
+    }
+}
+
+/// A design's run check keeps it when its predicted error is below this fraction of the raw
+/// probe's; otherwise [`fall_back_on_run`] looks for one that is.
+pub const RUN_MARGIN: f64 = 0.95;
+
+/// A run's probe spectrum with the noise a design was made for: what [`on_run`] and
+/// [`fall_back_on_run`] judge designs with.
+struct RunJudge<'a> {
+    model: &'a Model,
+    noise: NoiseModel,
+    spectrum: optimal::RunSpectrum,
+    raw: f64,
+}
+
+impl<'a> RunJudge<'a> {
+    fn new(design: &Design, model: &'a Model, y: &[f64]) -> Option<Self> {
+        let noise = design.noise?;
+        let spectrum = optimal::RunSpectrum::measure(y)?;
+        let latency = design.latency_samples.round().max(0.0) as usize;
+        let (_, raw_lags) = super::comparison_lags(Some(design), latency, latency, model.delay);
+        let raw = optimal::predicted_on_run(model, 1.0, &[], raw_lags, &noise, &spectrum);
+        Some(Self {
+            model,
+            noise,
+            spectrum,
+            raw,
+        })
+    }
+
+    fn judge(&self, d: &Design) -> RunCheck {
+        let latency = d.latency_samples.round().max(0.0) as usize;
+        let (lags, _) = super::comparison_lags(Some(d), latency, latency, self.model.delay);
+        RunCheck {
+            design: optimal::predicted_on_run(
+                self.model,
+                d.gain,
+                &d.sections,
+                lags,
+                &self.noise,
+                &self.spectrum,
+            ),
+            raw: self.raw,
+        }
+    }
+}
+
+/// Predicts the error of `design` and of the raw probe on the probe signal `y` of a run from
+/// its own spectrum and the design's stored noise: `None` for a design without a noise model,
+/// one that passes the probe on, or a record too short for a spectrum.
+#[must_use]
+pub fn on_run(design: &Design, model: &Model, y: &[f64]) -> Option<RunCheck> {
+    if design.passes_probe() {
+        return None;
+    }
+    RunJudge::new(design, model, y).map(|j| j.judge(design))
+}
+
+/// A compensator chosen for a run on which the stored one is predicted not to beat the raw
+/// probe.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunFallBack {
+    /// The design run instead.
+    pub design: Design,
+    /// It, in words: `the optimum under a prior 100 times quieter (-3 dB band 12000 Hz)`, `the
+    /// delay alone`, `the probe passed through`.
+    pub what: String,
+    /// The stored design's prediction on the run.
+    pub stored: RunCheck,
+    /// The chosen design's.
+    pub chosen: RunCheck,
+}
+
+/// When the stored optimal `design` is predicted on the run `y` (its own probe spectrum, see
+/// [`on_run`]) not to beat the raw probe by [`RUN_MARGIN`], the design of least predicted error
+/// on the run among the same optimum under a quieter prior (ten to ten thousand times, the band
+/// narrowing with it; only when `redesign`), the delay alone and the probe passed through.
+/// `None` when the stored design is kept (no other is predicted to do better) or cannot be
+/// judged.
+#[must_use]
+pub fn fall_back_on_run(
+    design: &Design,
+    model: &Model,
+    y: &[f64],
+    redesign: bool,
+) -> Option<RunFallBack> {
+    if design.passes_probe() {
+        return None;
+    }
+    let judge = RunJudge::new(design, model, y)?;
+    let stored = judge.judge(design);
+    if stored.ratio() < RUN_MARGIN {
+        return None;
+    }
+    let mut candidates: Vec<(String, Design)> = Vec::new();
+    if let (true, Some(prior)) = (redesign, design.prior) {
+        let options = OptimalOptions {
+            max_latency_samples: Some(design.latency_samples.round().max(0.0) as usize),
+            lowpass: design.lowpass,
+            lowpass_order: design.lowpass_order,
+            ..OptimalOptions::default()
+        };
+        for quieter in [10.0, 100.0, 1e3, 1e4] {
+            let p = SignalPrior {
+                increment_std: prior.increment_std / f64::sqrt(quieter),
+                ..prior
+            };
+            if let Ok(d) = optimal::design(model, &judge.noise, &p, &options) {
+                let what = format!(
+                    "the optimum under a prior {quieter} times quieter (-3 dB band {:.0} Hz)",
+                    d.lowpass_hz
+                );
+                candidates.push((what, d));
+            }
+        }
+    }
+    candidates.extend(delay_only(model).ok().map(|d| {
+        (
+            "the delay alone (the probe over its DC gain)".to_string(),
+            d,
+        )
+    }));
+    candidates.extend(
+        pass_through(model)
+            .ok()
+            .map(|d| ("the probe passed through".to_string(), d)),
+    );
+    // The stored design stays unless another is predicted to do better on this run.
+    candidates
+        .into_iter()
+        .map(|(what, d)| (judge.judge(&d), what, d))
+        .filter(|(c, _, _)| c.design < stored.design)
+        .min_by(|a, b| a.0.design.total_cmp(&b.0.design))
+        .map(|(chosen, what, design)| RunFallBack {
+            design,
+            what,
+            stored,
+            chosen,
+        })
+}
+
 /// Reconstructions of every test, and the worst error ratio against the raw probe.
 fn judge(
     design: &Design,

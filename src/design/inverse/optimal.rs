@@ -42,11 +42,13 @@ use crate::fit::model::Model;
 use crate::poly::Complex;
 
 mod error_budget;
+mod on_run;
 mod smoother;
 mod spectra;
 
 pub use crate::fit::step::NoiseSource;
 pub use error_budget::{budget, offline, Budget};
+pub use on_run::{predicted_on_run, RunSpectrum};
 pub use smoother::Smoother;
 pub use spectra::{
     estimate_noise, estimate_prior, prior_from_runs, NoiseModel, PriorSource, SignalPrior,

@@ -1,0 +1,361 @@
+//! What a compensator is expected to do on a recorded run that has no reference: the run's own
+//! probe spectrum, the pressure spectrum it implies through the model and the noise, and the
+//! error a cascade (or the raw probe) leaves on that pressure.
+//!
+//! The probe gives `S_y = |G|^2 S_u + S_ny`, so the run's pressure spectrum is
+//! `S_u = max(S_y - S_ny, 0) / |G|^2`, measured where the probe's signal stands above its noise
+//! and zero where it does not. The error of a cascade `C` at latency `L` is then
+//! `|C G - z^-L|^2 S_u + |C|^2 S_ny`, as in [`super::budget`] but with this run's spectrum in
+//! place of the design's prior: a design made for steps and run on a slow balloon or wake is
+//! judged on the slow run's spectrum, where its boost above the probe's corner only amplifies
+//! noise.
+
+use std::f64::consts::PI;
+use std::ops::RangeInclusive;
+
+use super::NoiseModel;
+use crate::design::inverse::{cascade_response, model_response};
+use crate::fit::model::Model;
+use crate::poly::Complex;
+
+/// Longest stretch of the record transformed at once: a longer record is cut into equal parts
+/// no longer than this, whose periodograms are averaged, so that memory stays bounded.
+pub const SEGMENT: usize = 1 << 20;
+
+/// Shortest record a spectrum is measured on.
+pub const MIN_SAMPLES: usize = 256;
+
+/// Independent periodogram values averaged into each bin's detection (about; at least).
+const AVERAGED: f64 = 16.0;
+
+/// A bin counts as the pressure's when its smoothed density stands this many standard
+/// deviations of the smoothed noise above the noise.
+const DETECTION_SIGMAS: f64 = 4.0;
+
+/// A run's probe spectrum: the periodogram of the whole record (or of parts of at most
+/// [`SEGMENT`] samples, averaged), each part closed by a raised-cosine bridge from its last
+/// value back to its first so that the circular transform sees no jump, and the same smoothed
+/// over enough neighbouring bins to tell the pressure from the noise. The densities are per
+/// sample and two-sided (white noise of variance `s^2` reads `s^2` in every bin); the bins run
+/// from DC to `pi` rad/sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunSpectrum {
+    /// Bin frequencies, rad/sample, from 0 to `pi`.
+    pub omega: Vec<f64>,
+    /// Periodogram of the probe signal at each bin.
+    pub psd: Vec<f64>,
+    /// The same, smoothed over neighbouring bins.
+    pub smoothed: Vec<f64>,
+    /// Independent values averaged into a smoothed bin (about).
+    pub averaged: f64,
+    /// Transform length: the sum over bins, weighted by [`RunSpectrum::weight`], over this is
+    /// the mean square.
+    pub size: usize,
+}
+
+impl RunSpectrum {
+    /// The spectrum of `y`; `None` for a record shorter than [`MIN_SAMPLES`] or not finite.
+    #[must_use]
+    pub fn measure(y: &[f64]) -> Option<Self> {
+        if y.len() < MIN_SAMPLES || y.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let parts = y.len().div_ceil(SEGMENT);
+        let len = y.len().div_ceil(parts);
+        // The bridge: long enough that its bend leaks nothing into the band, short enough that
+        // it adds little power of its own; rustfft takes any length.
+        let size = (len + (len / 32).max(64)).next_multiple_of(64);
+        let fft = rustfft::FftPlanner::<f64>::new().plan_fft_forward(size);
+        let mut buf = vec![Complex::new(0.0, 0.0); size];
+        let half = size / 2;
+        let mut psd = vec![0.0; half + 1];
+        let mut mean_square_level = 0.0;
+        let mut count = 0usize;
+        for part in y.chunks(len) {
+            let (Some(&first), Some(&last)) = (part.first(), part.last()) else {
+                continue;
+            };
+            // The level apart: its square is the DC bin's, and the bridge carries only the
+            // ends' departures from it.
+            let n = part.len() as f64;
+            let level = part.iter().sum::<f64>() / n;
+            let bridge = (size - part.len()) as f64 + 1.0;
+            for (i, c) in buf.iter_mut().enumerate() {
+                let v = match part.get(i) {
+                    Some(v) => *v,
+                    None => {
+                        let t = (i + 1 - part.len()) as f64 / bridge;
+                        last + (first - last) * 0.5 * (1.0 - (PI * t).cos())
+                    }
+                };
+                *c = Complex::new(v - level, 0.0);
+            }
+            fft.process(&mut buf);
+            for (p, c) in psd.iter_mut().zip(&buf) {
+                *p += c.norm_sqr() / n;
+            }
+            mean_square_level += level * level;
+            count += 1;
+        }
+        let parts = count.max(1) as f64;
+        psd.iter_mut().for_each(|p| *p /= parts);
+        // The DC bin holds the level, so that it weighs in the mean square as it does in the
+        // record (a DC gain's error on a run's level is most of a leak's).
+        if let Some(dc) = psd.first_mut() {
+            *dc = size as f64 * mean_square_level / parts;
+        }
+        // Zero padding makes neighbouring bins alike: smooth over enough of them to average
+        // about AVERAGED independent values.
+        let oversampling = size as f64 / len as f64;
+        let width = ((0.5 * AVERAGED * oversampling / parts).ceil() as usize).max(1);
+        let mut smoothed = moving_average(psd.get(1..).unwrap_or(&[]), width);
+        smoothed.insert(0, psd.first().copied().unwrap_or(0.0));
+        let averaged = (2 * width + 1) as f64 / oversampling * parts;
+        let omega = (0..=half)
+            .map(|k| 2.0 * PI * k as f64 / size as f64)
+            .collect();
+        Some(Self {
+            omega,
+            psd,
+            smoothed,
+            averaged,
+            size,
+        })
+    }
+
+    /// Weight of bin `k` in the mean square (the bins between DC and `pi` stand for two).
+    fn weight(&self, k: usize) -> f64 {
+        if k == 0 || k + 1 == self.omega.len() {
+            1.0
+        } else {
+            2.0
+        }
+    }
+
+    /// The pressure spectrum the run implies at each bin, beside the probe noise's density
+    /// and the model's response there. The noise is the stored model's shape at the run's own
+    /// level (the median over the top quarter of the band, where no probe passes pressure
+    /// above its noise), since a run's noise need not be the step test's; a bin is the
+    /// pressure's only where its smoothed density stands [`DETECTION_SIGMAS`] above that
+    /// noise, and is then `(S_y - S_ny) / |G|^2`.
+    fn implied(&self, model: &Model, noise: &NoiseModel) -> Vec<Bin> {
+        let shape: Vec<f64> = self.omega.iter().map(|&w| noise.probe_psd(w)).collect();
+        let mut top: Vec<f64> = self
+            .omega
+            .iter()
+            .zip(self.smoothed.iter().zip(&shape))
+            .filter(|(w, _)| **w > 0.75 * PI)
+            .map(|(_, (p, s))| p / s)
+            .filter(|r| r.is_finite())
+            .collect();
+        top.sort_by(f64::total_cmp);
+        let level = top.get(top.len() / 2).copied().unwrap_or(1.0);
+        let threshold = 1.0 + DETECTION_SIGMAS / self.averaged.max(1.0).sqrt();
+        self.omega
+            .iter()
+            .enumerate()
+            .map(|(k, &w)| {
+                let z = Complex::new(w.cos(), w.sin());
+                let g = model_response(model, z);
+                let sn = level * shape.get(k).copied().unwrap_or(0.0);
+                let (p, smooth) = (
+                    self.psd.get(k).copied().unwrap_or(0.0),
+                    self.smoothed.get(k).copied().unwrap_or(0.0),
+                );
+                let su = if smooth > threshold * sn {
+                    (p - sn).max(0.0) / g.norm_sqr().max(1e-300)
+                } else {
+                    0.0
+                };
+                Bin {
+                    z,
+                    g,
+                    su,
+                    sn,
+                    weight: self.weight(k),
+                }
+            })
+            .collect()
+    }
+}
+
+/// Mean of `x` over `i - width ..= i + width` (fewer at the ends).
+fn moving_average(x: &[f64], width: usize) -> Vec<f64> {
+    let mut prefix = Vec::with_capacity(x.len() + 1);
+    prefix.push(0.0);
+    let mut sum = 0.0;
+    for v in x {
+        sum += v;
+        prefix.push(sum);
+    }
+    (0..x.len())
+        .map(|i| {
+            let (lo, hi) = (i.saturating_sub(width), (i + width + 1).min(x.len()));
+            (prefix[hi] - prefix[lo]) / (hi - lo) as f64
+        })
+        .collect()
+}
+
+/// One bin of a run: its point on the unit circle, the model's response, the implied pressure
+/// and probe noise densities, and its weight in the mean square.
+struct Bin {
+    z: Complex,
+    g: Complex,
+    su: f64,
+    sn: f64,
+    weight: f64,
+}
+
+/// The error a cascade `(gain, sections)` run on the probe signal is expected to leave on the
+/// run whose spectrum is `spectrum` (RMS, pressure units), at its best latency in `lags`: the
+/// pressure part it does not restore and the probe noise it passes, the reference channel's own
+/// noise left out. The raw probe is the cascade `(1, [])`.
+#[must_use]
+pub fn predicted_on_run(
+    model: &Model,
+    gain: f64,
+    sections: &[[f64; 5]],
+    lags: RangeInclusive<usize>,
+    noise: &NoiseModel,
+    spectrum: &RunSpectrum,
+) -> f64 {
+    let bins = spectrum.implied(model, noise);
+    let mut noise_part = 0.0;
+    // Where the run has pressure: C G, the weighted density and the frequency.
+    let mut signal: Vec<(Complex, f64, f64)> = Vec::new();
+    for b in &bins {
+        let c = cascade_response(gain, sections, b.z);
+        noise_part += b.weight * c.norm_sqr() * b.sn;
+        if b.su > 0.0 {
+            signal.push((c * b.g, b.weight * b.su, b.z.im.atan2(b.z.re)));
+        }
+    }
+    let band_part = lags
+        .map(|lag| {
+            let l = lag as f64;
+            signal
+                .iter()
+                .map(|(cg, su, w)| {
+                    (*cg - Complex::new((w * l).cos(), -(w * l).sin())).norm_sqr() * su
+                })
+                .sum::<f64>()
+        })
+        .fold(f64::INFINITY, f64::min);
+    ((band_part + noise_part) / spectrum.size.max(1) as f64).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::step::NoiseSource;
+
+    /// Deterministic uniform noise in [-0.5, 0.5).
+    fn uniform(seed: &mut u64) -> f64 {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    }
+
+    fn white(std: f64) -> NoiseModel {
+        NoiseModel {
+            probe_white_std: std,
+            probe_ar_pole: 0.0,
+            probe_ar_std: 0.0,
+            reference_std: 0.0,
+            source: NoiseSource::PreStep,
+        }
+    }
+
+    #[test]
+    fn white_noise_reads_its_variance_in_every_bin() {
+        let mut seed = 3;
+        let std = 0.01;
+        // Longer than a segment: two parts, averaged.
+        let y: Vec<f64> = (0..(SEGMENT + SEGMENT / 2))
+            .map(|_| std * 12f64.sqrt() * uniform(&mut seed))
+            .collect();
+        let s = RunSpectrum::measure(&y).unwrap();
+        let mean_square = s
+            .psd
+            .iter()
+            .enumerate()
+            .map(|(k, p)| s.weight(k) * p)
+            .sum::<f64>()
+            / s.size as f64;
+        // The level (about 0) adds nothing; the bridge adds a little of its own.
+        assert!(
+            (mean_square / (std * std) - 1.0).abs() < 0.04,
+            "{mean_square}"
+        );
+        let level = s.smoothed.iter().sum::<f64>() / s.smoothed.len() as f64;
+        assert!((level / (std * std) - 1.0).abs() < 0.04, "{level}");
+        assert!(s.averaged >= AVERAGED, "{}", s.averaged);
+        assert!(RunSpectrum::measure(&y[..100]).is_none());
+        let mut bad = y.clone();
+        bad[7] = f64::NAN;
+        assert!(RunSpectrum::measure(&bad).is_none());
+    }
+
+    #[test]
+    fn a_boost_loses_on_a_slow_run_and_wins_on_a_fast_one() {
+        // A first-order probe (pole 0.9) and its inverse, which boosts the band above the
+        // corner tenfold; white probe noise of 1e-3.
+        let m = Model {
+            fs: 1000.0,
+            delay: 0,
+            a: vec![-0.9],
+            b: vec![0.1],
+        };
+        let inverse = [[1.0, -0.9, 0.0, 0.0, 0.0]];
+        let noise = white(1e-3);
+        let probe = |u: &[f64], seed: &mut u64| -> Vec<f64> {
+            let mut state = u.first().copied().unwrap_or(0.0);
+            u.iter()
+                .map(|v| {
+                    state = 0.9 * state + 0.1 * v;
+                    state + 1e-3 * 12f64.sqrt() * uniform(seed)
+                })
+                .collect()
+        };
+        let mut seed = 11;
+        // Slow: a sine at 0.5 Hz. Fast: a square wave at 20 Hz.
+        let slow: Vec<f64> = (0..100_000)
+            .map(|k| (2.0 * PI * 0.5 * k as f64 / 1000.0).sin())
+            .collect();
+        let fast: Vec<f64> = (0..100_000)
+            .map(|k| if (k / 25) % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        for (u, inverse_wins) in [(slow, false), (fast, true)] {
+            let y = probe(&u, &mut seed);
+            let s = RunSpectrum::measure(&y).unwrap();
+            let comp = predicted_on_run(&m, 10.0, &inverse, 0..=2, &noise, &s);
+            let raw = predicted_on_run(&m, 1.0, &[], 0..=40, &noise, &s);
+            assert_eq!(comp < raw, inverse_wins, "comp {comp} raw {raw}");
+            // The measured errors agree on the verdict.
+            let mut u_hat = Vec::with_capacity(y.len());
+            let mut prev = y[0];
+            for v in &y {
+                u_hat.push(10.0 * v - 9.0 * prev);
+                prev = *v;
+            }
+            let rms = |e: &[f64], lag: usize| -> f64 {
+                (e.iter()
+                    .skip(1000)
+                    .zip(u.iter().skip(1000 - lag))
+                    .map(|(a, b)| (a - b).powi(2))
+                    .sum::<f64>()
+                    / (e.len() - 1000) as f64)
+                    .sqrt()
+            };
+            let measured_comp = rms(&u_hat, 0);
+            let measured_raw = (0..=40).map(|l| rms(&y, l)).fold(f64::INFINITY, f64::min);
+            assert_eq!(measured_comp < measured_raw, inverse_wins);
+            // And the prediction is near the measurement.
+            assert!(
+                (comp / measured_comp - 1.0).abs() < 0.25,
+                "{comp} {measured_comp}"
+            );
+        }
+    }
+}

@@ -330,6 +330,7 @@ impl FitChanges {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fit::Test;
     use crate::testing::second_order;
 
     #[test]
@@ -439,6 +440,52 @@ mod tests {
         let r: Vec<f64> = (0..1000).map(|k| 0.5 + 2.0 * k as f64 / 1000.0).collect();
         let est = estimate_additive(&c, &r, 100, 1000.0);
         assert!((est.offset - 0.5).abs() < 1e-9 && (est.rate_per_s - 2.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_default_fit_removes_an_offset_the_quiet_segment_shows_and_adds_none_otherwise() {
+        let fs = 10_000.0;
+        let (m, _) = second_order(95.0, 0.3, fs, 17);
+        let u: Vec<f64> = (0..4000)
+            .map(|k| if k >= 500 { 1.0 } else { 0.0 })
+            .collect();
+        let noise = crate::testing::gaussian(u.len(), 31);
+        let clean: Vec<f64> = m
+            .simulate(&u)
+            .iter()
+            .zip(&noise)
+            .map(|(v, n)| v + 0.002 * n)
+            .collect();
+        let options = crate::fit::Options::default();
+        let fit = |y: &[f64]| {
+            let t = Test {
+                name: "est",
+                u: &u,
+                y,
+            };
+            fit_with(&t, &[], fs, &options, &[]).unwrap()
+        };
+        let offset_of = |fx: &[Effect]| Additive::of(fx).offset;
+        // No offset: none is added.
+        let (_, fx) = fit(&clean);
+        assert!(
+            !fx.iter().any(|e| matches!(e, Effect::Offset { .. })),
+            "{fx:?}"
+        );
+        // 3 % of the step on the probe: found, removed, said.
+        let shifted: Vec<f64> = clean.iter().map(|v| v + 0.03).collect();
+        let (f, fx) = fit(&shifted);
+        assert!((offset_of(&fx) - 0.03).abs() < 0.002, "{fx:?}");
+        assert!(
+            (f.model.dc_gain() - 1.0).abs() < 0.01,
+            "{}",
+            f.model.dc_gain()
+        );
+        assert!(
+            f.report.notes.iter().any(|n| n.contains("offset")),
+            "{:?}",
+            f.report.notes
+        );
     }
 
     #[test]

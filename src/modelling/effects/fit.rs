@@ -132,7 +132,15 @@ pub fn fit_with(
     } else {
         Additive::default()
     };
-    let rounds = if changes.drift { 4 } else { 1 };
+    // An offset or a drift is estimated from what the dynamics leave and the dynamics fitted
+    // again without it, a few times, so that the dynamics do not take it in.
+    let rounds = if changes.drift {
+        4
+    } else if changes.offset {
+        3
+    } else {
+        1
+    };
     let mut gain = 0.0;
     let mut fitted = None;
     for _ in 0..rounds {
@@ -213,7 +221,57 @@ pub fn fit_with(
             }
         }
     }
+    // An offset is the probe's, not the pressure's: unless the user asked for an additive
+    // effect, one that the quiet segment before the step shows clearly is removed before the
+    // fit and kept when the fit explains the test better without it.
+    let additive_asked = effects
+        .iter()
+        .any(|e| matches!(e, Effect::Offset { .. } | Effect::Drift { .. }));
+    if !additive_asked {
+        if let Some(level) = pre_step_offset(&fitted.model, &estimation, onset) {
+            let mut with_offset = out.clone();
+            with_offset.push(Effect::Offset { value: 0.0 });
+            if let Ok((mut f, fx)) =
+                fit_with(estimation_raw, validation_raw, fs, options, &with_offset)
+            {
+                if f.nrmse_estimation <= OFFSET_GAIN * fitted.nrmse_estimation {
+                    f.report.notes.push(format!(
+                        "the probe read {level:.4e} off the model before the step: read as an offset of {:.4e} (the probe's, removed before compensation, never inverted), which brings the estimation error from {:.3} % to {:.3} %",
+                        Additive::of(&fx).offset,
+                        100.0 * fitted.nrmse_estimation,
+                        100.0 * f.nrmse_estimation
+                    ));
+                    return Ok((f, fx));
+                }
+            }
+        }
+    }
     Ok((fitted, out))
+}
+
+/// An offset found before the step is kept only when the fit without it explains the
+/// estimation test at least this much better (its error over the error with it in).
+const OFFSET_GAIN: f64 = 0.9;
+
+/// The mean of what `model` leaves of the probe signal before the step, when the quiet
+/// segment (at least [`crate::design::inverse::optimal::MIN_QUIET`] samples) shows it clearly:
+/// five standard errors from zero, and at least half the segment's noise.
+fn pre_step_offset(model: &Model, test: &Test<'_>, onset: usize) -> Option<f64> {
+    if onset < crate::design::inverse::optimal::MIN_QUIET {
+        return None;
+    }
+    let simulated = model.simulate(test.u.get(..onset)?);
+    let r: Vec<f64> = test
+        .y
+        .get(..onset)?
+        .iter()
+        .zip(&simulated)
+        .map(|(y, s)| y - s)
+        .collect();
+    let n = r.len() as f64;
+    let mean = r.iter().sum::<f64>() / n;
+    let std = (r.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+    (mean.abs() > 5.0 * std / n.sqrt() && mean.abs() > 0.5 * std).then_some(mean)
 }
 
 /// Fits the `coloured-noise` effect's AR model, if `effects` has one, to what the model and

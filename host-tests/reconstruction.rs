@@ -337,3 +337,76 @@ fn the_optimum_without_a_test_reuses_the_stored_noise_or_says_what_it_needs() {
     assert_eq!(r.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&r.stderr).contains("delay"));
 }
+
+#[test]
+fn a_slow_run_the_step_design_would_make_worse_gets_a_narrower_one_and_says_so() {
+    // A fast line (1.5 kHz, damping 0.3) calibrated on a step; then a slow run (a 3 Hz swing
+    // of the same size), which has nothing where the step's compensator boosts.
+    let d = dir("slow-run");
+    let mut rng = Rng::new(77);
+    let probe = |u: &[f64]| continuous_line(u, FS, &[(1500.0, 0.3)], 2);
+    let u1 = step(6000, 1500, 0.0, 1.0);
+    let (u1m, y1m) = measured(&u1, &probe(&u1), &mut rng);
+    let slow: Vec<f64> = (0..40_000)
+        .map(|k| 0.5 + 0.5 * (2.0 * std::f64::consts::PI * 3.0 * k as f64 / FS).sin())
+        .collect();
+    let (u2m, y2m) = measured(&slow, &probe(&slow), &mut rng);
+    let u3 = step(6000, 2000, 1.0, 0.2);
+    let (u3m, y3m) = measured(&u3, &probe(&u3), &mut rng);
+    let (est, run, again) = (d.join("est.csv"), d.join("run.csv"), d.join("again.csv"));
+    write_csv(&est, FS, &u1m, &y1m);
+    write_csv(&run, FS, &u2m, &y2m);
+    write_csv(&again, FS, &u3m, &y3m);
+    let model = d.join("m.toml");
+    let m = model.to_str().unwrap();
+    json(&["fit", est.to_str().unwrap(), "-o", m, "--json"]);
+    let out = d.join("out.csv");
+    let args = [
+        "compensate",
+        m,
+        run.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ];
+    let o = unlag(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    // Told in one line, with the predictions, from the probe signal alone.
+    assert!(
+        stderr.contains("is predicted to leave") && stderr.contains("ran instead"),
+        "{stderr}"
+    );
+    let predicted = &c["predicted_on_run"];
+    assert!(
+        predicted["u_hat"].as_f64().unwrap() >= 0.95 * predicted["raw"].as_f64().unwrap(),
+        "{c}"
+    );
+    assert!(c["run_fall_back"]["what"].is_string(), "{c}");
+    assert_eq!(
+        c["compensator"],
+        "a compensator chosen for this run (host only)"
+    );
+    // And the reference, which the choice never saw, bears it out.
+    assert!(
+        c["nrmse_u_hat"].as_f64().unwrap() < c["nrmse_raw"].as_f64().unwrap(),
+        "{c}"
+    );
+    assert_eq!(c["verdict"], "better", "{c}");
+    // Another step: the stored compensator runs.
+    let s = json(&[
+        "compensate",
+        m,
+        again.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(s["run_fall_back"].is_null(), "{s}");
+    assert_eq!(s["compensator"], "the model file's compensator");
+    assert!(
+        s["nrmse_u_hat"].as_f64().unwrap() * 1.5 < s["nrmse_raw"].as_f64().unwrap(),
+        "{s}"
+    );
+}

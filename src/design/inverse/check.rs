@@ -123,7 +123,7 @@ pub fn pass_through(model: &Model) -> Result<Design> {
 }
 
 /// What a run's own probe spectrum predicts for a design and for the raw probe, when the run
-/// has no reference to judge on ([`optimal::predicted_on_run`]).
+/// has no reference to judge on ([`optimal::RunPressure::predicted`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RunCheck {
     /// The design's predicted error (RMS, pressure units) at its best latency.
@@ -149,21 +149,21 @@ pub const RUN_MARGIN: f64 = 0.95;
 struct RunJudge<'a> {
     model: &'a Model,
     noise: NoiseModel,
-    spectrum: optimal::RunSpectrum,
+    pressure: optimal::RunPressure,
     raw: f64,
 }
 
 impl<'a> RunJudge<'a> {
     fn new(design: &Design, model: &'a Model, y: &[f64]) -> Option<Self> {
         let noise = design.noise?;
-        let spectrum = optimal::RunSpectrum::measure(y)?;
+        let pressure = optimal::RunSpectrum::measure(y)?.pressure(model, &noise);
         let latency = design.latency_samples.round().max(0.0) as usize;
         let (_, raw_lags) = super::comparison_lags(Some(design), latency, latency, model.delay);
-        let raw = optimal::predicted_on_run(model, 1.0, &[], raw_lags, &noise, &spectrum);
+        let raw = pressure.predicted(1.0, &[], raw_lags);
         Some(Self {
             model,
             noise,
-            spectrum,
+            pressure,
             raw,
         })
     }
@@ -172,21 +172,14 @@ impl<'a> RunJudge<'a> {
         let latency = d.latency_samples.round().max(0.0) as usize;
         let (lags, _) = super::comparison_lags(Some(d), latency, latency, self.model.delay);
         RunCheck {
-            design: optimal::predicted_on_run(
-                self.model,
-                d.gain,
-                &d.sections,
-                lags,
-                &self.noise,
-                &self.spectrum,
-            ),
+            design: self.pressure.predicted(d.gain, &d.sections, lags),
             raw: self.raw,
         }
     }
 }
 
 /// Predicts the error of `design` and of the raw probe on the probe signal `y` of a run from
-/// its own spectrum and the design's stored noise: `None` for a design without a noise model,
+/// its own spectrum and the design's stored noise ([`optimal::RunPressure`]): `None` for a design without a noise model,
 /// one that passes the probe on, or a record too short for a spectrum.
 #[must_use]
 pub fn on_run(design: &Design, model: &Model, y: &[f64]) -> Option<RunCheck> {

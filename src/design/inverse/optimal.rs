@@ -48,7 +48,7 @@ mod spectra;
 
 pub use crate::fit::step::NoiseSource;
 pub use error_budget::{budget, offline, Budget};
-pub use on_run::{predicted_on_run, RunSpectrum};
+pub use on_run::{RunPressure, RunSpectrum};
 pub use smoother::Smoother;
 pub use spectra::{
     estimate_noise, estimate_prior, prior_from_runs, NoiseModel, PriorSource, SignalPrior,

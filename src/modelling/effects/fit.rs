@@ -255,7 +255,8 @@ const OFFSET_GAIN: f64 = 0.9;
 
 /// The mean of what `model` leaves of the probe signal before the step, when the quiet
 /// segment (at least [`crate::design::inverse::optimal::MIN_QUIET`] samples) shows it clearly:
-/// five standard errors from zero, and at least half the segment's noise.
+/// five standard errors from zero (its independent samples counted as a correlated noise
+/// leaves them), and at least half the segment's noise.
 fn pre_step_offset(model: &Model, test: &Test<'_>, onset: usize) -> Option<f64> {
     if onset < crate::design::inverse::optimal::MIN_QUIET {
         return None;
@@ -270,8 +271,22 @@ fn pre_step_offset(model: &Model, test: &Test<'_>, onset: usize) -> Option<f64> 
         .collect();
     let n = r.len() as f64;
     let mean = r.iter().sum::<f64>() / n;
-    let std = (r.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
-    (mean.abs() > 5.0 * std / n.sqrt() && mean.abs() > 0.5 * std).then_some(mean)
+    let var = r.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    // Correlated noise (a slow wander) moves a segment's mean further than white noise does:
+    // its standard error counts the independent samples, n (1 - rho) / (1 + rho).
+    let rho = if var > 0.0 {
+        (r.iter()
+            .zip(r.iter().skip(1))
+            .map(|(a, b)| (a - mean) * (b - mean))
+            .sum::<f64>()
+            / ((n - 1.0) * var))
+            .clamp(0.0, 0.999)
+    } else {
+        0.0
+    };
+    let independent = (n * (1.0 - rho) / (1.0 + rho)).max(1.0);
+    let std = var.sqrt();
+    (mean.abs() > 5.0 * std / independent.sqrt() && mean.abs() > 0.5 * std).then_some(mean)
 }
 
 /// Fits the `coloured-noise` effect's AR model, if `effects` has one, to what the model and
@@ -295,4 +310,53 @@ fn with_noise_model(model: &Model, effects: Vec<Effect>, estimation: &Test<'_>) 
             other => other,
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pre_step_offset_must_stand_out_of_the_noise_as_it_is_correlated() {
+        let model = Model {
+            fs: 1000.0,
+            delay: 0,
+            a: vec![-0.5],
+            b: vec![0.5],
+        };
+        let u = vec![0.0; 400];
+        let white = crate::testing::gaussian(400, 5);
+        let test = |y: &[f64]| -> Option<f64> {
+            pre_step_offset(
+                &model,
+                &Test {
+                    name: "t",
+                    u: &u,
+                    y,
+                },
+                400,
+            )
+        };
+        // White noise of 0.01 about 0.01: found.
+        let shifted: Vec<f64> = white.iter().map(|n| 0.01 + 0.01 * n).collect();
+        let found = test(&shifted).unwrap();
+        assert!((found - 0.01).abs() < 0.002, "{found}");
+        // The same noise about zero: nothing.
+        let still: Vec<f64> = white.iter().map(|n| 0.01 * n).collect();
+        assert_eq!(test(&still), None);
+        // A slow wander (AR(1), pole 0.98) whose mean over the segment is off zero by a
+        // fraction of its spread: a white-noise standard error would call it an offset.
+        let mut v = 0.0;
+        let wander: Vec<f64> = white
+            .iter()
+            .map(|n| {
+                v = 0.98 * v + 0.01 * n;
+                v
+            })
+            .collect();
+        let mean = wander.iter().sum::<f64>() / 400.0;
+        let std = (wander.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / 399.0).sqrt();
+        assert!(mean.abs() > 5.0 * std / 20.0, "{mean} {std}");
+        assert_eq!(test(&wander), None);
+    }
 }

@@ -132,13 +132,14 @@ impl RunSpectrum {
         }
     }
 
-    /// The pressure spectrum the run implies at each bin, beside the probe noise's density
-    /// and the model's response there. The noise is the stored model's shape at the run's own
+    /// The pressure spectrum the run implies through `model` at each bin, beside the probe
+    /// noise's density and the model's response there. The noise is the stored model's shape at the run's own
     /// level (the median over the top quarter of the band, where no probe passes pressure
     /// above its noise), since a run's noise need not be the step test's; a bin is the
     /// pressure's only where its smoothed density stands [`DETECTION_SIGMAS`] above that
     /// noise, and is then `(S_y - S_ny) / |G|^2`.
-    fn implied(&self, model: &Model, noise: &NoiseModel) -> Vec<Bin> {
+    #[must_use]
+    pub fn pressure(&self, model: &Model, noise: &NoiseModel) -> RunPressure {
         let shape: Vec<f64> = self.omega.iter().map(|&w| noise.probe_psd(w)).collect();
         let mut top: Vec<f64> = self
             .omega
@@ -151,7 +152,8 @@ impl RunSpectrum {
         top.sort_by(f64::total_cmp);
         let level = top.get(top.len() / 2).copied().unwrap_or(1.0);
         let threshold = 1.0 + DETECTION_SIGMAS / self.averaged.max(1.0).sqrt();
-        self.omega
+        let bins = self
+            .omega
             .iter()
             .enumerate()
             .map(|(k, &w)| {
@@ -175,7 +177,11 @@ impl RunSpectrum {
                     weight: self.weight(k),
                 }
             })
-            .collect()
+            .collect();
+        RunPressure {
+            bins,
+            size: self.size,
+        }
     }
 }
 
@@ -198,6 +204,7 @@ fn moving_average(x: &[f64], width: usize) -> Vec<f64> {
 
 /// One bin of a run: its point on the unit circle, the model's response, the implied pressure
 /// and probe noise densities, and its weight in the mean square.
+#[derive(Debug, Clone)]
 struct Bin {
     z: Complex,
     g: Complex,
@@ -206,42 +213,44 @@ struct Bin {
     weight: f64,
 }
 
-/// The error a cascade `(gain, sections)` run on the probe signal is expected to leave on the
-/// run whose spectrum is `spectrum` (RMS, pressure units), at its best latency in `lags`: the
-/// pressure part it does not restore and the probe noise it passes, the reference channel's own
-/// noise left out. The raw probe is the cascade `(1, [])`.
-#[must_use]
-pub fn predicted_on_run(
-    model: &Model,
-    gain: f64,
-    sections: &[[f64; 5]],
-    lags: RangeInclusive<usize>,
-    noise: &NoiseModel,
-    spectrum: &RunSpectrum,
-) -> f64 {
-    let bins = spectrum.implied(model, noise);
-    let mut noise_part = 0.0;
-    // Where the run has pressure: C G, the weighted density and the frequency.
-    let mut signal: Vec<(Complex, f64, f64)> = Vec::new();
-    for b in &bins {
-        let c = cascade_response(gain, sections, b.z);
-        noise_part += b.weight * c.norm_sqr() * b.sn;
-        if b.su > 0.0 {
-            signal.push((c * b.g, b.weight * b.su, b.z.im.atan2(b.z.re)));
+/// What a run implies through a model: the pressure's and the probe noise's densities at each
+/// bin of its spectrum ([`RunSpectrum::pressure`]), from which any compensator's error follows.
+#[derive(Debug, Clone)]
+pub struct RunPressure {
+    bins: Vec<Bin>,
+    size: usize,
+}
+
+impl RunPressure {
+    /// The error a cascade `(gain, sections)` run on the probe signal is expected to leave on
+    /// the run (RMS, pressure units), at its best latency in `lags`: the pressure part it does
+    /// not restore and the probe noise it passes, the reference channel's own noise left out.
+    /// The raw probe is the cascade `(1, [])`.
+    #[must_use]
+    pub fn predicted(&self, gain: f64, sections: &[[f64; 5]], lags: RangeInclusive<usize>) -> f64 {
+        let mut noise_part = 0.0;
+        // Where the run has pressure: C G, the weighted density and the frequency.
+        let mut signal: Vec<(Complex, f64, f64)> = Vec::new();
+        for b in &self.bins {
+            let c = cascade_response(gain, sections, b.z);
+            noise_part += b.weight * c.norm_sqr() * b.sn;
+            if b.su > 0.0 {
+                signal.push((c * b.g, b.weight * b.su, b.z.im.atan2(b.z.re)));
+            }
         }
+        let band_part = lags
+            .map(|lag| {
+                let l = lag as f64;
+                signal
+                    .iter()
+                    .map(|(cg, su, w)| {
+                        (*cg - Complex::new((w * l).cos(), -(w * l).sin())).norm_sqr() * su
+                    })
+                    .sum::<f64>()
+            })
+            .fold(f64::INFINITY, f64::min);
+        ((band_part + noise_part) / self.size.max(1) as f64).sqrt()
     }
-    let band_part = lags
-        .map(|lag| {
-            let l = lag as f64;
-            signal
-                .iter()
-                .map(|(cg, su, w)| {
-                    (*cg - Complex::new((w * l).cos(), -(w * l).sin())).norm_sqr() * su
-                })
-                .sum::<f64>()
-        })
-        .fold(f64::INFINITY, f64::min);
-    ((band_part + noise_part) / spectrum.size.max(1) as f64).sqrt()
 }
 
 #[cfg(test)]
@@ -329,8 +338,9 @@ mod tests {
         for (u, inverse_wins) in [(slow, false), (fast, true)] {
             let y = probe(&u, &mut seed);
             let s = RunSpectrum::measure(&y).unwrap();
-            let comp = predicted_on_run(&m, 10.0, &inverse, 0..=2, &noise, &s);
-            let raw = predicted_on_run(&m, 1.0, &[], 0..=40, &noise, &s);
+            let pressure = s.pressure(&m, &noise);
+            let comp = pressure.predicted(10.0, &inverse, 0..=2);
+            let raw = pressure.predicted(1.0, &[], 0..=40);
             assert_eq!(comp < raw, inverse_wins, "comp {comp} raw {raw}");
             // The measured errors agree on the verdict.
             let mut u_hat = Vec::with_capacity(y.len());

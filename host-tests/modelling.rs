@@ -1,6 +1,7 @@
 //! The modelling loop on step tests with hidden effects: for every case the diagnosis names the
 //! hidden kind first (or `none`), and adding it cuts the validation error at least 3x or to
-//! within 1.5x of the noise floor. The cases are in `common/hidden.rs`; the score table in
+//! within 1.5x of the noise floor; an offset the plain fit removes by itself leaves nothing to
+//! name. The cases are in `common/hidden.rs`; the score table in
 //! BENCHMARKS.md comes from `examples/bench_diagnose.rs` on the same cases. The `physics ...`
 //! cases are simulated by the physics module; their step tests, and the physical cases kept
 //! apart from the criterion, are checked against what the physics predicts.

@@ -816,11 +816,14 @@ pub struct Outcome {
     /// Residual against amplitude across the tests (the plain model's structure fitted to
     /// each alone).
     pub signature: Option<unlag::modelling::diagnose::AmplitudeSignature>,
+    /// The effects the plain fit found by itself (a clear offset before the step).
+    pub found: Vec<unlag::modelling::effects::EffectKind>,
 }
 
 impl Outcome {
     /// The loop worked: the hidden kind named first, and adding it cut the error 3x or to
-    /// within 1.5x of the noise floor (for `none`: nothing to add).
+    /// within 1.5x of the noise floor (for `none`: nothing to add); or the plain fit found it
+    /// by itself, nothing else is named and the plain model is within 1.5x of the floor.
     ///
     /// # Panics
     /// When `kind` names nothing a diagnosis can name.
@@ -830,6 +833,11 @@ impl Outcome {
         use unlag::modelling::effects::EffectKind;
         let kind: Finding = kind.parse().expect("a kind a diagnosis names");
         let first = self.named.first().copied();
+        // An effect the plain fit already found and removed (an offset the quiet segment
+        // shows): nothing is left to name, and the plain model is at the noise floor.
+        if kind.effect().is_some_and(|k| self.found.contains(&k)) {
+            return first == Some(Finding::Nothing) && self.before <= 1.5 * self.floor;
+        }
         // `temperature` and `temperature-viscous` are one effect with two damping laws.
         let same = first == Some(kind)
             || (kind == EffectKind::Temperature
@@ -901,6 +909,7 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
         after,
         floor,
         signature,
+        found: fx.iter().map(Effect::kind).collect(),
     }
 }
 

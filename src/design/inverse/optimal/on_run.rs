@@ -258,14 +258,6 @@ mod tests {
     use super::*;
     use crate::fit::step::NoiseSource;
 
-    /// Deterministic uniform noise in [-0.5, 0.5).
-    fn uniform(seed: &mut u64) -> f64 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (*seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    }
-
     fn white(std: f64) -> NoiseModel {
         NoiseModel {
             probe_white_std: std,
@@ -278,11 +270,11 @@ mod tests {
 
     #[test]
     fn white_noise_reads_its_variance_in_every_bin() {
-        let mut seed = 3;
         let std = 0.01;
         // Longer than a segment: two parts, averaged.
-        let y: Vec<f64> = (0..(SEGMENT + SEGMENT / 2))
-            .map(|_| std * 12f64.sqrt() * uniform(&mut seed))
+        let y: Vec<f64> = crate::testing::gaussian(SEGMENT + SEGMENT / 2, 3)
+            .iter()
+            .map(|n| std * n)
             .collect();
         let s = RunSpectrum::measure(&y).unwrap();
         let mean_square = s
@@ -318,16 +310,16 @@ mod tests {
         };
         let inverse = [[1.0, -0.9, 0.0, 0.0, 0.0]];
         let noise = white(1e-3);
-        let probe = |u: &[f64], seed: &mut u64| -> Vec<f64> {
+        let probe = |u: &[f64], seed: u64| -> Vec<f64> {
             let mut state = u.first().copied().unwrap_or(0.0);
             u.iter()
-                .map(|v| {
+                .zip(crate::testing::gaussian(u.len(), seed))
+                .map(|(v, n)| {
                     state = 0.9 * state + 0.1 * v;
-                    state + 1e-3 * 12f64.sqrt() * uniform(seed)
+                    state + 1e-3 * n
                 })
                 .collect()
         };
-        let mut seed = 11;
         // Slow: a sine at 0.5 Hz. Fast: a square wave at 20 Hz.
         let slow: Vec<f64> = (0..100_000)
             .map(|k| (2.0 * PI * 0.5 * k as f64 / 1000.0).sin())
@@ -335,8 +327,8 @@ mod tests {
         let fast: Vec<f64> = (0..100_000)
             .map(|k| if (k / 25) % 2 == 0 { 1.0 } else { -1.0 })
             .collect();
-        for (u, inverse_wins) in [(slow, false), (fast, true)] {
-            let y = probe(&u, &mut seed);
+        for (u, inverse_wins, seed) in [(slow, false, 11), (fast, true, 12)] {
+            let y = probe(&u, seed);
             let s = RunSpectrum::measure(&y).unwrap();
             let pressure = s.pressure(&m, &noise);
             let comp = pressure.predicted(10.0, &inverse, 0..=2);

@@ -42,7 +42,7 @@ use crate::fit::model::Model;
 use crate::poly::Complex;
 
 mod error_budget;
-mod on_run;
+pub mod on_run;
 mod smoother;
 mod spectra;
 

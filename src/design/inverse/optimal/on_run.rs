@@ -26,11 +26,11 @@ pub const SEGMENT: usize = 1 << 20;
 pub const MIN_SAMPLES: usize = 256;
 
 /// Independent periodogram values averaged into each bin's detection (about; at least).
-const AVERAGED: f64 = 16.0;
+pub const AVERAGED: f64 = 16.0;
 
 /// A bin counts as the pressure's when its smoothed density stands this many standard
 /// deviations of the smoothed noise above the noise.
-const DETECTION_SIGMAS: f64 = 4.0;
+pub const DETECTION_SIGMAS: f64 = 4.0;
 
 /// A run's probe spectrum: the periodogram of the whole record (or of parts of at most
 /// [`SEGMENT`] samples, averaged), each part closed by a raised-cosine bridge from its last
@@ -124,7 +124,8 @@ impl RunSpectrum {
     }
 
     /// Weight of bin `k` in the mean square (the bins between DC and `pi` stand for two).
-    fn weight(&self, k: usize) -> f64 {
+    #[must_use]
+    pub fn weight(&self, k: usize) -> f64 {
         if k == 0 || k + 1 == self.omega.len() {
             1.0
         } else {

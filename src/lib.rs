@@ -2,14 +2,15 @@
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![warn(missing_docs)]
 
-// Data flow, one room per stage, each importing only the rooms above it in this list:
-// trace -> fit -> design -> export -> board. The modelling loop reads what fit and design
-// produce; `file` composes the stage outputs into the model file; `pipeline` runs the stages
-// in order (fit a probe, design its compensator, retarget it, compensate a record); export
-// and the report read them; the CLI parses, asks the pipeline and prints.
-// Errors: a room with its own error enum (`trace::TraceError`) imports nothing above it;
-// `error::Error` composes those for the rooms that do not have their own yet, and the CLI
-// adds the flag that fixes a problem (`cli::describe`).
+// Data flow, one room per stage: trace -> fit -> design -> export -> board. The modelling loop
+// reads what fit and design produce; `file` composes the stage outputs into the model file;
+// `pipeline` runs the stages in order (fit a probe, design its compensator, retarget it,
+// compensate a record); export and the report read them; the CLI parses, asks the pipeline
+// and prints. Imports go one way: in the order board, trace, error, poly, fit, physics,
+// design, modelling, file, pipeline, export, report, cli, each room imports only rooms before
+// it. Errors: trace, fit, design, physics, modelling and export each have their own enum,
+// which `error::Error` carries (as `Error::Trace` or `Error::Stage`) without importing the
+// stages; the CLI adds the flag that fixes a problem (`cli::describe`).
 // Everything but `board` is host side, behind the `std` feature.
 
 pub mod board;

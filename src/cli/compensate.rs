@@ -118,13 +118,13 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
         );
         console::note(args.json, &msg);
     }
-    if let Some(f) = &c.fall_back {
+    if let (Some(f), Some(stored)) = (&c.fall_back, &c.predicted) {
         let msg = format!(
             "note: on {} the model file's compensator is predicted to leave {:.2}x the raw probe's error \
              (from the run's own probe spectrum and the stored noise), so {} ran instead ({:.2}x, host only); \
              for a board running runs like this one: `unlag invert {} TEST.csv --signal {} -o ...`",
             name(&args.file),
-            f.stored.ratio(),
+            stored.ratio(),
             f.what,
             f.chosen.ratio(),
             args.model.display(),

@@ -103,7 +103,7 @@ pub struct Compensated {
     /// The fixed-point run's clamps and saturation, when the fixed-point compensator ran.
     pub fixed: Option<FixedRunSummary>,
     /// What the run's own probe spectrum predicts for the model file's compensator and the raw
-    /// probe.
+    /// probe ([`inverse::check::on_run`]).
     pub predicted: Option<inverse::check::RunCheck>,
     /// The compensator that ran instead of the model file's, predicted not to beat the raw
     /// probe on this run.
@@ -150,18 +150,17 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
     // The guarantee on a run that has no reference to judge on: a stored design that the run's
     // own probe spectrum predicts not to beat the raw probe gives way to the one of least
     // predicted error (host only; fixed point keeps to the delay alone or the raw probe).
-    let fall_back = match (design, arithmetic) {
-        (Some(d), a) if !offline && nonlinear == 0.0 => {
-            inverse::check::fall_back_on_run(d, m, &y_probe, a != Arithmetic::Fixed)
-        }
-        _ => None,
-    };
-    let predicted = match &fall_back {
-        Some(f) => Some(f.stored),
-        None => design
-            .filter(|_| !offline)
-            .and_then(|d| inverse::check::on_run(d, m, &y_probe)),
-    };
+    let judgement = design.filter(|_| !offline).and_then(|d| {
+        let candidates = match arithmetic {
+            // The board adds the correction to the stored design's output.
+            _ if nonlinear != 0.0 => inverse::check::RunCandidates::JudgeOnly,
+            Arithmetic::Fixed => inverse::check::RunCandidates::Calibration,
+            _ => inverse::check::RunCandidates::Redesigns,
+        };
+        inverse::check::on_run(d, m, &y_probe, candidates)
+    });
+    let predicted = judgement.as_ref().map(|j| j.stored);
+    let fall_back = judgement.and_then(|j| j.fall_back);
     let design = fall_back.as_ref().map(|f| &f.design).or(design);
     let arithmetic = match arithmetic {
         Arithmetic::Fixed if fall_back.is_some() => Arithmetic::F64,
@@ -505,8 +504,9 @@ mod tests {
         let c = run(&f, &t, Compensation::Designed(Arithmetic::F64)).unwrap();
         let fell = c.fall_back.as_ref().expect("a fall-back");
         assert!(
-            fell.stored.ratio() >= inverse::check::RUN_MARGIN,
-            "{fell:?}"
+            c.predicted.unwrap().ratio() >= inverse::check::RUN_MARGIN,
+            "{:?}",
+            c.predicted
         );
         assert!(fell.chosen.ratio() < 1.0, "{fell:?}");
         let e = c.error.unwrap();

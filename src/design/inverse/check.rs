@@ -141,11 +141,11 @@ impl RunCheck {
 }
 
 /// A design's run check keeps it when its predicted error is below this fraction of the raw
-/// probe's; otherwise [`fall_back_on_run`] looks for one that is.
+/// probe's; otherwise [`on_run`] looks for one that is.
 pub const RUN_MARGIN: f64 = 0.95;
 
-/// A run's probe spectrum with the noise a design was made for: what [`on_run`] and
-/// [`fall_back_on_run`] judge designs with.
+/// A run's probe spectrum through the model and the noise a design was made for: what
+/// [`on_run`] judges designs with.
 struct RunJudge<'a> {
     model: &'a Model,
     noise: NoiseModel,
@@ -178,15 +178,15 @@ impl<'a> RunJudge<'a> {
     }
 }
 
-/// Predicts the error of `design` and of the raw probe on the probe signal `y` of a run from
-/// its own spectrum and the design's stored noise ([`optimal::RunPressure`]): `None` for a design without a noise model,
-/// one that passes the probe on, or a record too short for a spectrum.
-#[must_use]
-pub fn on_run(design: &Design, model: &Model, y: &[f64]) -> Option<RunCheck> {
-    if design.passes_probe() {
-        return None;
-    }
-    RunJudge::new(design, model, y).map(|j| j.judge(design))
+/// Which designs the run check may run instead of the stored one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunCandidates {
+    /// None: the stored design is only judged.
+    JudgeOnly,
+    /// The delay alone and the raw probe (no redesign: fixed point has no plan for one).
+    Calibration,
+    /// Those, and the stored optimum under a prior ten to ten thousand times quieter.
+    Redesigns,
 }
 
 /// A compensator chosen for a run on which the stored one is predicted not to beat the raw
@@ -198,33 +198,44 @@ pub struct RunFallBack {
     /// It, in words: `the optimum under a prior 100 times quieter (-3 dB band 12000 Hz)`, `the
     /// delay alone`, `the probe passed through`.
     pub what: String,
-    /// The stored design's prediction on the run.
-    pub stored: RunCheck,
-    /// The chosen design's.
+    /// Its prediction on the run.
     pub chosen: RunCheck,
 }
 
-/// When the stored optimal `design` is predicted on the run `y` (its own probe spectrum, see
-/// [`on_run`]) not to beat the raw probe by [`RUN_MARGIN`], the design of least predicted error
-/// on the run among the same optimum under a quieter prior (ten to ten thousand times, the band
-/// narrowing with it; only when `redesign`), the delay alone and the probe passed through.
-/// `None` when the stored design is kept (no other is predicted to do better) or cannot be
-/// judged.
+/// What the run check found on a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunJudgement {
+    /// The stored design's prediction on the run, beside the raw probe's.
+    pub stored: RunCheck,
+    /// The design run instead, when the stored one is not predicted to beat the raw probe by
+    /// [`RUN_MARGIN`] and another is predicted to do better than it.
+    pub fall_back: Option<RunFallBack>,
+}
+
+/// Judges the stored `design` on the probe signal `y` of a run, from the run's own spectrum
+/// and the design's stored noise ([`optimal::RunPressure`]), beside the raw probe; when it is
+/// not predicted to beat the raw probe by [`RUN_MARGIN`], chooses among `candidates` the design
+/// of least predicted error, if that is less than the stored one's. `None` for a design
+/// without a noise model, one that passes the probe on, or a record too short for a spectrum.
 #[must_use]
-pub fn fall_back_on_run(
+pub fn on_run(
     design: &Design,
     model: &Model,
     y: &[f64],
-    redesign: bool,
-) -> Option<RunFallBack> {
+    candidates: RunCandidates,
+) -> Option<RunJudgement> {
     if design.passes_probe() {
         return None;
     }
     let judge = RunJudge::new(design, model, y)?;
     let stored = judge.judge(design);
-    if stored.ratio() < RUN_MARGIN {
-        return None;
+    if stored.ratio() < RUN_MARGIN || candidates == RunCandidates::JudgeOnly {
+        return Some(RunJudgement {
+            stored,
+            fall_back: None,
+        });
     }
+    let redesign = candidates == RunCandidates::Redesigns;
     let mut candidates: Vec<(String, Design)> = Vec::new();
     if let (true, Some(prior)) = (redesign, design.prior) {
         let options = OptimalOptions {
@@ -259,7 +270,7 @@ pub fn fall_back_on_run(
             .map(|d| ("the probe passed through".to_string(), d)),
     );
     // The stored design stays unless another is predicted to do better on this run.
-    candidates
+    let fall_back = candidates
         .into_iter()
         .map(|(what, d)| (judge.judge(&d), what, d))
         .filter(|(c, _, _)| c.design < stored.design)
@@ -267,9 +278,9 @@ pub fn fall_back_on_run(
         .map(|(chosen, what, design)| RunFallBack {
             design,
             what,
-            stored,
             chosen,
-        })
+        });
+    Some(RunJudgement { stored, fall_back })
 }
 
 /// Reconstructions of every test, and the worst error ratio against the raw probe.

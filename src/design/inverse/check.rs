@@ -148,21 +148,19 @@ pub const RUN_MARGIN: f64 = 0.95;
 /// [`on_run`] judges designs with.
 struct RunJudge<'a> {
     model: &'a Model,
-    noise: NoiseModel,
     pressure: optimal::RunPressure,
     raw: f64,
 }
 
 impl<'a> RunJudge<'a> {
     fn new(design: &Design, model: &'a Model, y: &[f64]) -> Option<Self> {
-        let noise = design.noise?;
-        let pressure = optimal::RunSpectrum::measure(y)?.pressure(model, &noise);
+        let noise = design.noise.as_ref()?;
+        let pressure = optimal::RunSpectrum::measure(y)?.pressure(model, noise);
         let latency = design.latency_samples.round().max(0.0) as usize;
         let (_, raw_lags) = super::comparison_lags(Some(design), latency, latency, model.delay);
         let raw = pressure.predicted(1.0, &[], raw_lags);
         Some(Self {
             model,
-            noise,
             pressure,
             raw,
         })
@@ -237,7 +235,7 @@ pub fn on_run(
     }
     let redesign = candidates == RunCandidates::Redesigns;
     let mut candidates: Vec<(String, Design)> = Vec::new();
-    if let (true, Some(prior)) = (redesign, design.prior) {
+    if let (true, Some(prior), Some(noise)) = (redesign, design.prior, design.noise) {
         let options = OptimalOptions {
             max_latency_samples: Some(design.latency_samples.round().max(0.0) as usize),
             lowpass: design.lowpass,
@@ -249,7 +247,7 @@ pub fn on_run(
                 increment_std: prior.increment_std / f64::sqrt(quieter),
                 ..prior
             };
-            if let Ok(d) = optimal::design(model, &judge.noise, &p, &options) {
+            if let Ok(d) = optimal::design(model, &noise, &p, &options) {
                 let what = format!(
                     "the optimum under a prior {quieter} times quieter (-3 dB band {:.0} Hz)",
                     d.lowpass_hz

@@ -5,9 +5,10 @@
 //! `unlag export`, and by a board that wants to echo its set) and [`parse`], the board-side
 //! parser, with their fixed-point kin [`encode_fixed`], [`parse_fixed`], [`encode_direct`] and
 //! [`parse_direct`]. The header and the CRC are written by one writer and read and checked by
-//! one reader for every number format; each format adds only what lies between them. All of
-//! it is `no_std`, allocation-free and panic-free. The parser checks every field and
-//! answers a corrupted, truncated or incompatible blob with a typed [`BlobError`]; a parsed
+//! one reader for every number format ([`read_header`] gives its fields to a caller that
+//! describes a blob); each format adds only what lies between them. All of it is `no_std`,
+//! allocation-free and panic-free. The parser checks every field and answers a corrupted,
+//! truncated or incompatible blob with a typed [`BlobError`]; a parsed
 //! [`CoefficientSet`] is valid (finite, stable), so [`CoefficientSet::update`] swaps to a new set
 //! only when the whole set is valid and keeps the old one otherwise.
 //!
@@ -103,6 +104,7 @@ mod header;
 pub use direct::{encode_direct, parse_direct, DirectCoefficientSet};
 pub use fixed::{encode_fixed, parse_fixed, FixedCoefficientSet};
 pub use float::{encode, encode_nonlinear, parse, CoefficientSet, NonlinearCorrection};
+pub use header::{read_header, BlobHeader};
 
 /// The first four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"UNLG";

@@ -4,10 +4,29 @@
 //!
 //! Each compensator's coefficients are the configuration and its state the state, as the
 //! crate already splits them: `Split::new(coefficients, state)` is a stateful processor, and
-//! `(Split::new(a, sa) * Split::new(b, sb)).minor::<f32>()` runs `a` then `b`. Every method
-//! forwards to the compensator's own `process` or `process_in_place`: the same bits, the
-//! Cortex-M kernels where the target has them, panic-free (a block whose input and output
-//! differ in length is processed over the shorter).
+//! `(Split::new(a, sa) * Split::new(b, sb)).minor::<f32>()` runs `a` then `b`. The processors:
+//!
+//! | configuration | state | sample |
+//! |---|---|---|
+//! | [`CascadeCoefficients`] | [`CascadeState`] | `f32`, `f64` |
+//! | [`InverseCoefficients`] | [`InverseState`] | `f32`, `f64` |
+//! | [`FixedCascade`] | [`FixedState`] | `i32` |
+//! | [`DirectCascade`] | [`DirectState`] | `i32` |
+//! | [`NonlinearDampingCoefficients`] | [`NonlinearDampingState`] | `f32`, `f64` |
+//! | [`TemperatureBank`] | [`BankChannel`] | `f32`, `f64` |
+//!
+//! Every method gives the compensator's own bits. The first four forward to their own
+//! `process` and `process_in_place` (the Cortex-M kernels where the target has them); the last
+//! two have no `process_in_place`, so their blocks run their `process` sample by sample. All
+//! are panic-free: a block whose input and output differ in length is processed over the
+//! shorter.
+//!
+//! The nonlinear-damping correction takes the probe sample and gives the term to add to the
+//! linear compensator's output for the same sample (in place: each probe sample is replaced by
+//! its term). A temperature bank's temperature is not an input of its processor: the
+//! processor runs the set the channel is on (and the set warming up, if any), and the board
+//! gives the channel the measured temperature between blocks with
+//! [`TemperatureBank::set_temperature`] on the `Split`'s `state`.
 
 #![deny(
     clippy::indexing_slicing,
@@ -22,8 +41,8 @@
 use dsp_process::{SplitInplace, SplitProcess};
 
 use super::compensator::{
-    CascadeCoefficients, CascadeState, InverseCoefficients, InverseState,
-    NonlinearDampingCoefficients, NonlinearDampingState, Sample,
+    BankChannel, CascadeCoefficients, CascadeState, InverseCoefficients, InverseState,
+    NonlinearDampingCoefficients, NonlinearDampingState, Sample, TemperatureBank,
 };
 use super::fixed::direct::{DirectCascade, DirectState};
 use super::fixed::{FixedCascade, FixedState};
@@ -71,15 +90,58 @@ split_process!(T, InverseCoefficients<T, M>, InverseState<T, M>, [T: Sample, con
 split_process!(i32, FixedCascade<N>, FixedState<N>, [const N: usize]);
 split_process!(i32, DirectCascade<N>, DirectState<N>, [const N: usize]);
 
-/// The nonlinear-damping correction: the probe sample in, the term to add to `u_hat` out.
-impl<T: Sample, const N: usize> SplitProcess<T, T, NonlinearDampingState<T, N>>
-    for NonlinearDampingCoefficients<T, N>
-{
-    #[inline]
-    fn process(&self, state: &mut NonlinearDampingState<T, N>, y: T) -> T {
-        NonlinearDampingCoefficients::process(self, state, y)
-    }
+/// Implements both traits for a compensator that has a per-sample `process` taking
+/// `(&self, &mut State, x)` and no `process_in_place`: a block and an in-place block run
+/// `process` sample by sample (over the shorter of input and output).
+macro_rules! split_process_per_sample {
+    ($(#[$doc:meta])* $sample:ty, $coefficients:ty, $state:ty, [$($generics:tt)*]) => {
+        $(#[$doc])*
+        impl<$($generics)*> SplitProcess<$sample, $sample, $state> for $coefficients {
+            #[inline]
+            fn process(&self, state: &mut $state, x: $sample) -> $sample {
+                <$coefficients>::process(self, state, x)
+            }
+
+            #[inline]
+            fn block(&self, state: &mut $state, x: &[$sample], y: &mut [$sample]) {
+                for (y, &x) in y.iter_mut().zip(x) {
+                    *y = <$coefficients>::process(self, state, x);
+                }
+            }
+        }
+
+        $(#[$doc])*
+        impl<$($generics)*> SplitInplace<$sample, $state> for $coefficients {
+            #[inline]
+            fn inplace(&self, state: &mut $state, xy: &mut [$sample]) {
+                for v in xy.iter_mut() {
+                    *v = <$coefficients>::process(self, state, *v);
+                }
+            }
+        }
+    };
 }
+
+split_process_per_sample!(
+    /// The nonlinear-damping correction: each probe sample in, the term to add to the linear
+    /// compensator's output for the same sample out; in place, each probe sample is replaced
+    /// by its term. The same bits as [`NonlinearDampingCoefficients::process`].
+    T,
+    NonlinearDampingCoefficients<T, N>,
+    NonlinearDampingState<T, N>,
+    [T: Sample, const N: usize]
+);
+split_process_per_sample!(
+    /// The temperature bank on one channel: each sample through the set the channel is on, and
+    /// through the set warming up, if any ([`TemperatureBank::process`], the same bits). The
+    /// temperature is not an input here: the processor runs the set in use, and the board
+    /// gives the channel the measured temperature between samples or blocks with
+    /// [`TemperatureBank::set_temperature`] on the channel (a `Split`'s `state`).
+    T,
+    TemperatureBank<T, SETS, N>,
+    BankChannel<T, N>,
+    [T: Sample, const SETS: usize, const N: usize]
+);
 
 #[cfg(test)]
 mod tests {
@@ -165,6 +227,105 @@ mod tests {
         let mut own = FixedState::default();
         for v in [0, 1000, -2000, i32::MAX / 4] {
             assert_eq!(q.process(v), f.process(&mut own, v));
+        }
+    }
+
+    /// A one-section low-pass for the correction, and a probe signal with steps both ways.
+    fn correction() -> (NonlinearDampingCoefficients<f32, 1>, [f32; 10]) {
+        let c = NonlinearDampingCoefficients::new(0.3, 0.5, &[[1.0, 0.0, 0.0, -0.5, 0.0]]).unwrap();
+        (c, [0.0, 1.0, 1.5, 1.5, -2.0, 0.25, 3.0, 3.0, 0.0, -1.0])
+    }
+
+    #[test]
+    fn a_split_correction_gives_the_corrections_own_bits() {
+        let (c, x) = correction();
+        let mut own = c.equilibrium(0.0);
+        let expected = x.map(|v| c.process(&mut own, v));
+        assert!(
+            expected.iter().filter(|&&e| e != 0.0).count() > 5,
+            "{expected:?}"
+        );
+        let mut p = Split::new(c, c.equilibrium(0.0));
+        let one_by_one = x.map(|v| p.process(v));
+        let mut q = Split::new(c, c.equilibrium(0.0));
+        let mut y = [0.0f32; 10];
+        q.block(&x, &mut y);
+        // In place: each probe sample replaced by its correction term.
+        let mut r = Split::new(c, c.equilibrium(0.0));
+        let mut xy = x;
+        r.inplace(&mut xy);
+        for k in 0..x.len() {
+            let bits = expected[k].to_bits();
+            assert_eq!(one_by_one[k].to_bits(), bits, "process, sample {k}");
+            assert_eq!(y[k].to_bits(), bits, "block, sample {k}");
+            assert_eq!(xy[k].to_bits(), bits, "inplace, sample {k}");
+        }
+        // The states end alike, so the next block continues the same.
+        assert_eq!((p.state, q.state, r.state), (own, own, own));
+        // A block of unequal lengths: over the shorter, the rest of the output untouched.
+        let mut s = Split::new(c, c.equilibrium(0.0));
+        let mut y = [9.0f32; 4];
+        s.block(&x[..2], &mut y);
+        assert_eq!(y[..2], expected[..2]);
+        assert_eq!(y[2..], [9.0, 9.0]);
+    }
+
+    /// Two one-section low-passes at 273 K and 313 K, handed over with a warm-up of `w`.
+    fn bank(w: u32) -> TemperatureBank<f32, 2, 1> {
+        let sets = [[[0.5, 0.0, 0.0, -0.5, 0.0]], [[0.4, 0.0, 0.0, -0.6, 0.0]]];
+        TemperatureBank::new(&[273.0, 313.0], &[1.0, 1.0], &sets, 20.0, w).unwrap()
+    }
+
+    #[test]
+    fn a_split_bank_gives_the_banks_own_bits_across_a_handover() {
+        let x: [f32; 24] = core::array::from_fn(|k| (k as f32 * 0.7).sin() + 1.0);
+        // The temperature is set between blocks of 8: warm at the second block, back to cold
+        // at the third (a warm-up of 5 finishes inside the second block).
+        let temperatures = [273.0, 310.0, 275.0];
+        for w in [0, 5] {
+            let b = bank(w);
+            let mut own = b.channel(273.0, 0.0);
+            let mut expected = [0.0f32; 24];
+            let mut selected = [0; 3];
+            for (i, (block, t)) in expected.chunks_mut(8).zip(temperatures).enumerate() {
+                b.set_temperature(&mut own, t);
+                for (e, &v) in block.iter_mut().zip(&x[8 * i..]) {
+                    *e = b.process(&mut own, v);
+                }
+                selected[i] = own.selected();
+            }
+            assert_eq!(selected, [0, 1, 0], "warm-up {w}");
+            // Through process, block and inplace, the temperature given to the Split's state.
+            let mut p = Split::new(b.clone(), b.channel(273.0, 0.0));
+            let mut q = p.clone();
+            let mut r = p.clone();
+            let (mut one_by_one, mut y, mut xy) = ([0.0f32; 24], [0.0f32; 24], x);
+            let blocks = one_by_one
+                .chunks_mut(8)
+                .zip(y.chunks_mut(8))
+                .zip(xy.chunks_mut(8))
+                .zip(x.chunks(8).zip(temperatures));
+            for (((o, y), xy), (x, t)) in blocks {
+                p.config.set_temperature(&mut p.state, t);
+                q.config.set_temperature(&mut q.state, t);
+                r.config.set_temperature(&mut r.state, t);
+                for (o, &v) in o.iter_mut().zip(x) {
+                    *o = p.process(v);
+                }
+                q.block(x, y);
+                r.inplace(xy);
+            }
+            for k in 0..x.len() {
+                let bits = expected[k].to_bits();
+                assert_eq!(
+                    one_by_one[k].to_bits(),
+                    bits,
+                    "warm-up {w}, process, sample {k}"
+                );
+                assert_eq!(y[k].to_bits(), bits, "warm-up {w}, block, sample {k}");
+                assert_eq!(xy[k].to_bits(), bits, "warm-up {w}, inplace, sample {k}");
+            }
+            assert_eq!((p.state, q.state, r.state), (own, own, own));
         }
     }
 

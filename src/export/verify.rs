@@ -47,21 +47,14 @@ pub struct BlobSummary {
 /// # Errors
 /// The board parser's [`BlobError`].
 pub fn read(bytes: &[u8]) -> Result<BlobSummary, BlobError> {
-    let format_code = bytes.get(6).copied().unwrap_or(0);
-    let crc = |b: &[u8]| {
-        b.get(b.len().saturating_sub(4)..)
-            .and_then(|t| <[u8; 4]>::try_from(t).ok())
-            .map_or(0, u32::from_le_bytes)
-    };
-    let version = bytes
-        .get(4..6)
-        .and_then(|t| <[u8; 2]>::try_from(t).ok())
-        .map_or(0, u16::from_le_bytes);
+    // The frame, read and checked by the board's own header reader (the one its parsers start
+    // with, so a blob it refuses gets the parsers' error); the number format picks the parser.
+    let header = blob::read_header(bytes)?;
     // The two fixed-point forms carry the same header fields; only their parsers differ.
     let fixed = |number_format, sample_rate_hz, delay_samples, sections, full_scale, exponent| {
         BlobSummary {
             bytes: bytes.len(),
-            format_version: version,
+            format_version: header.format_version,
             number_format,
             sample_rate_hz,
             delay_samples,
@@ -73,31 +66,33 @@ pub fn read(bytes: &[u8]) -> Result<BlobSummary, BlobError> {
             nonlinear: false,
             full_scale: Some(full_scale),
             output_exponent: Some(exponent),
-            crc32: crc(bytes),
+            crc32: header.crc32,
         }
     };
-    if format_code == (NumberFormat::FixedDirect { frac_bits: 0 }).code() {
-        let s = blob::parse_direct::<CAPACITY>(bytes)?;
-        return Ok(fixed(
-            "fixed-direct",
-            s.sample_rate_hz,
-            s.delay_samples,
-            s.sections,
-            s.full_scale,
-            s.output_exponent,
-        ));
-    }
-    // Not f32: the fixed-point parser reads it, or refuses an unknown code with its error.
-    if format_code != NumberFormat::F32.code() {
-        let s = blob::parse_fixed::<CAPACITY>(bytes)?;
-        return Ok(fixed(
-            "fixed",
-            s.sample_rate_hz,
-            s.delay_samples,
-            s.sections,
-            s.full_scale,
-            s.output_exponent,
-        ));
+    match header.number_format {
+        NumberFormat::FixedDirect { .. } => {
+            let s = blob::parse_direct::<CAPACITY>(bytes)?;
+            return Ok(fixed(
+                "fixed-direct",
+                s.sample_rate_hz,
+                s.delay_samples,
+                s.sections,
+                s.full_scale,
+                s.output_exponent,
+            ));
+        }
+        NumberFormat::Fixed { .. } => {
+            let s = blob::parse_fixed::<CAPACITY>(bytes)?;
+            return Ok(fixed(
+                "fixed",
+                s.sample_rate_hz,
+                s.delay_samples,
+                s.sections,
+                s.full_scale,
+                s.output_exponent,
+            ));
+        }
+        NumberFormat::F32 => {}
     }
     let set = blob::parse::<CAPACITY>(bytes)?;
     // Valid, so the fields are where the layout says: gain at 24, sections from 28.
@@ -123,7 +118,7 @@ pub fn read(bytes: &[u8]) -> Result<BlobSummary, BlobError> {
     });
     Ok(BlobSummary {
         bytes: bytes.len(),
-        format_version: version,
+        format_version: header.format_version,
         number_format: "f32",
         sample_rate_hz: set.sample_rate_hz,
         delay_samples: set.delay_samples,
@@ -135,7 +130,7 @@ pub fn read(bytes: &[u8]) -> Result<BlobSummary, BlobError> {
         nonlinear: set.nonlinear.is_some(),
         full_scale: None,
         output_exponent: None,
-        crc32: crc(bytes),
+        crc32: header.crc32,
     })
 }
 
@@ -190,6 +185,88 @@ mod tests {
         assert_eq!(r.number_format, "fixed-direct");
         assert_eq!((r.sections, r.delay_samples), (1, 3));
         assert_eq!((r.full_scale, r.output_exponent), (Some(1000.0), Some(-1)));
+    }
+
+    /// `read` before it took the header from the board's reader: the number format from byte 6
+    /// (0 when absent) picked the parser, the version came from bytes 4..6 and the CRC from the
+    /// last four bytes. The outcome it had: the parser's error, or version and CRC.
+    fn by_the_bytes(bytes: &[u8]) -> Result<(u16, u32), BlobError> {
+        match bytes.get(6).copied().unwrap_or(0) {
+            0 => blob::parse::<CAPACITY>(bytes).map(drop)?,
+            2 => blob::parse_direct::<CAPACITY>(bytes).map(drop)?,
+            _ => blob::parse_fixed::<CAPACITY>(bytes).map(drop)?,
+        }
+        let n = bytes.len();
+        Ok((
+            u16::from_le_bytes([bytes[4], bytes[5]]),
+            u32::from_le_bytes(bytes[n - 4..].try_into().unwrap()),
+        ))
+    }
+
+    /// Every blob form, cut at every length and with every header byte changed (the CRC made
+    /// right again, so that the field checks behind it are reached): the summary's version and
+    /// CRC, and every error, are what reading the bytes directly gave.
+    #[test]
+    fn the_header_reader_gives_what_the_bytes_gave() {
+        use crate::fixed::direct::DirectSection;
+        use crate::fixed::FixedSection;
+        let s = [[1.0f32, -0.5, 0.0, -0.8, 0.0]];
+        let mut f32_v1 = vec![0u8; blob::encoded_len(1)];
+        blob::encode(&mut f32_v1, 1e4, 3, 2.0, &s).unwrap();
+        let mut f32_v2 = vec![0u8; blob::encoded_len_nonlinear(1, 1)];
+        let correction = blob::NonlinearCorrection {
+            gain: 0.5,
+            lowpass_gain: 1.0,
+            lowpass: &[[0.5, 0.0, 0.0, -0.5, 0.0]],
+        };
+        blob::encode_nonlinear(&mut f32_v2, 1e4, 3, 2.0, &s, &correction).unwrap();
+        let mut fixed = vec![0u8; blob::encoded_len_fixed(1)];
+        blob::encode_fixed(&mut fixed, 1e4, 3, 1e3, -1, &[FixedSection::IDENTITY]).unwrap();
+        let mut direct = vec![0u8; blob::encoded_len_direct(1)];
+        blob::encode_direct(&mut direct, 1e4, 3, 1e3, -1, &[DirectSection::IDENTITY]).unwrap();
+        let mut cases = 0;
+        let mut refused = std::collections::BTreeSet::new();
+        for whole in [f32_v1, f32_v2, fixed, direct] {
+            let mut variants: Vec<Vec<u8>> =
+                (0..=whole.len()).map(|n| whole[..n].to_vec()).collect();
+            for at in 0..blob::HEADER_LEN {
+                for value in [0u8, 1, 2, 3, 0x80, 0xff, whole[at] ^ 1] {
+                    let mut b = whole.clone();
+                    b[at] = value;
+                    let n = b.len() - blob::CRC_LEN;
+                    let crc = blob::crc32(&b[..n]);
+                    b[n..].copy_from_slice(&crc.to_le_bytes());
+                    variants.push(b);
+                }
+            }
+            for b in variants {
+                let got = read(&b).map(|r| (r.format_version, r.crc32));
+                assert_eq!(got, by_the_bytes(&b), "{b:?}");
+                if let Err(e) = got {
+                    refused.insert(
+                        format!("{e:?}")
+                            .split([' ', '('])
+                            .next()
+                            .unwrap()
+                            .to_owned(),
+                    );
+                }
+                cases += 1;
+            }
+        }
+        assert!(cases > 500, "{cases}");
+        // The header checks behind the CRC were reached, not only the CRC and the length.
+        for kind in [
+            "BadMagic",
+            "UnsupportedVersion",
+            "UnsupportedNumberFormat",
+            "ReservedNotZero",
+            "InvalidSampleRate",
+            "UnsupportedFractionalBits",
+            "Truncated",
+        ] {
+            assert!(refused.contains(kind), "{kind} not reached: {refused:?}");
+        }
     }
 
     #[test]

@@ -4,7 +4,8 @@
 //!
 //! The number formats differ only in what lies between the header and the CRC (see the layout
 //! in [`super`]); their encoders hand [`write`] a closure that writes it, their parsers read it
-//! from [`Header::rest`].
+//! from [`Header::rest`]. [`read_header`] is the same reader for a caller outside the blob
+//! module: the frame's version, number format and stored CRC, without parsing the body.
 
 use super::{
     crc32, encoded_len, encoded_len_direct, encoded_len_fixed, encoded_len_nonlinear, BlobError,
@@ -173,6 +174,8 @@ pub(super) struct Header<'a> {
     pub(super) sections: usize,
     /// The blob's length, checked against the fields.
     len: usize,
+    /// The CRC-32 stored at the end (checked against the contents).
+    stored_crc: u32,
     /// The bytes after the header (offset 24 on), CRC excluded.
     pub(super) rest: Reader<'a>,
 }
@@ -263,6 +266,7 @@ pub(super) fn read(bytes: &[u8]) -> Result<Header<'_>, BlobError> {
         delay_samples,
         sections,
         len: expected,
+        stored_crc: stored,
         rest: Reader {
             rest,
             offset: after_header,
@@ -270,7 +274,67 @@ pub(super) fn read(bytes: &[u8]) -> Result<Header<'_>, BlobError> {
     })
 }
 
+/// What the frame of a blob says about it: the fields every number format shares, read and
+/// checked by the reader the parsers start with ([`read_header`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct BlobHeader {
+    /// Format version (offset 4): [`FORMAT_VERSION`], or [`FORMAT_VERSION_NONLINEAR`] for an
+    /// `f32` blob with the nonlinear-damping correction.
+    pub format_version: u16,
+    /// The number format (offset 6) with the fractional bits stored at offset 7.
+    pub number_format: NumberFormat,
+    /// The CRC-32 stored at the end of the blob, equal to the one computed over its contents.
+    pub crc32: u32,
+}
+
+/// Reads and checks the frame of `bytes` as every parser does before it reads the body: magic,
+/// version, total length, CRC-32, the reserved field at offset 22 and the sample rate, then the
+/// number format code, which must be one this crate knows. No field of the body is read, so a
+/// blob this accepts can still be refused by its format's parser ([`super::parse`],
+/// [`super::parse_fixed`], [`super::parse_direct`]: capacity, fractional bits, version of a
+/// fixed-point blob, coefficients); a blob this refuses, every parser refuses with the same
+/// error. `no_std`, allocation-free and panic-free.
+///
+/// # Errors
+/// The [`BlobError`] of the parsers' header checks, and
+/// [`BlobError::UnsupportedNumberFormat`] for an unknown number format code.
+///
+/// ```
+/// use unlag::blob::{self, NumberFormat};
+/// let mut buf = [0u8; blob::encoded_len(1)];
+/// let n = blob::encode(&mut buf, 10_000.0, 3, 0.5, &[[1.0, -0.5, 0.0, -0.25, 0.0]]).unwrap();
+/// let header = blob::read_header(&buf[..n]).unwrap();
+/// assert_eq!(header.format_version, blob::FORMAT_VERSION);
+/// assert_eq!(header.number_format, NumberFormat::F32);
+/// assert_eq!(header.crc32, blob::crc32(&buf[..n - blob::CRC_LEN]));
+/// ```
+pub fn read_header(bytes: &[u8]) -> Result<BlobHeader, BlobError> {
+    let header = read(bytes)?;
+    Ok(BlobHeader {
+        format_version: header.version,
+        number_format: header.number_format()?,
+        crc32: header.stored_crc,
+    })
+}
+
 impl Header<'_> {
+    /// The number format the code at offset 6 names, with the fractional bits at offset 7;
+    /// [`BlobError::UnsupportedNumberFormat`] for a code this crate does not know.
+    fn number_format(&self) -> Result<NumberFormat, BlobError> {
+        let frac_bits = self.frac_bits;
+        [
+            NumberFormat::F32,
+            NumberFormat::Fixed { frac_bits },
+            NumberFormat::FixedDirect { frac_bits },
+        ]
+        .into_iter()
+        .find(|format| format.code() == self.format_code)
+        .ok_or(BlobError::UnsupportedNumberFormat {
+            code: self.format_code,
+        })
+    }
+
     /// The checks of the parser for `format` on a board with room for `capacity` sections,
     /// in order: the number format, the version (fixed point has version 1 only), the
     /// fractional bits (zero for `f32`, the format's own for fixed point), the section count.

@@ -686,6 +686,40 @@ fn case_files(kind: &str, dir: &std::path::Path) -> (String, String, common::hid
     )
 }
 
+/// An offset the plain fit reads by itself is in the model file, and the diagnosis says the
+/// model carries it rather than leaving the user with `none` alone: `carried` in `--json`,
+/// one line in the text.
+#[test]
+fn the_diagnosis_lists_what_the_plain_fit_already_carries() {
+    let dir = std::env::temp_dir().join(format!("unlag-carried-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (est, val, _) = case_files("offset", &dir);
+    let m = dir.join("plain.toml");
+    let m = m.to_str().unwrap();
+    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
+    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    assert_eq!(d["carried"], serde_json::json!(["offset"]), "{d}");
+    assert!(
+        d["candidates"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|c| c["kind"] != "offset"),
+        "{d}"
+    );
+    let (ok, text, err) = unlag(&["diagnose", m, &est, &val]);
+    assert!(ok, "{err}");
+    assert!(text.contains("the model already carries: offset"), "{text}");
+    // A model without effects carries nothing.
+    let bare = dir.join("bare.toml");
+    let bare = bare.to_str().unwrap();
+    let (e2, v2, _) = case_files("none", &dir);
+    unlag_json(&["fit", &e2, "--order", "2", "-o", bare, "--json"]);
+    let d = unlag_json(&["diagnose", bare, &e2, &v2, "--json"]);
+    assert_eq!(d["carried"], serde_json::json!([]), "{d}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `coloured-noise` says which error falls (the one-step-ahead prediction error) and states the
 /// parameter uncertainty before and after: before from white noise, after from the noise its
 /// AR model whitens (issue 14, item 2).

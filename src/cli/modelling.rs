@@ -331,6 +331,12 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
     Ok(())
 }
 
+/// The kinds of the effects a model file already carries (the fit's own readings, such as a
+/// pre-step offset, and what `--add` put there), as `--add` names them.
+fn carried(file: &ModelFile) -> Vec<String> {
+    file.effects.iter().map(|e| e.kind().to_string()).collect()
+}
+
 /// `unlag diagnose`: candidates for the missing effect, best first.
 ///
 /// # Errors
@@ -368,6 +374,7 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
     if args.json {
         let v = json!({
             "model": name(&args.model),
+            "carried": carried(&l.file),
             "tests": tests_json(&evidence)?,
             "candidates": candidates_json(&candidates)?,
         });
@@ -388,6 +395,13 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
             e.fit_percent,
             pct(e.nrmse),
             pct(e.noise_floor)
+        );
+    }
+    let carried = carried(&l.file);
+    if !carried.is_empty() {
+        crate::outln!(
+            "the model already carries: {} (in the model file, from the fit or an --add; not a candidate)",
+            carried.join(", ")
         );
     }
     crate::outln!(

@@ -2,7 +2,8 @@
 //! probe's second mode is written and opened in headless Chromium. Every plot must be present
 //! with data drawn in it, the page must load without a console error, a screenshot must be
 //! taken, and the page's text must carry the diagnosed effect and the error numbers that
-//! `unlag diagnose --json` and `unlag compare --json` report.
+//! `unlag diagnose --json` and `unlag compare --json` report, and each compensated signal's
+//! errors as `unlag compensate --json` reports them.
 //!
 //! Chromium (Debian package `chromium`) is required in CI (`CI=true`, or
 //! `UNLAG_REQUIRE_CHROMIUM=1` as `.ci/run` sets): the test fails there without it. Elsewhere it
@@ -208,6 +209,45 @@ fn report_of_a_model_missing_a_mode_opens_in_chromium() {
     let top = &diagnose["candidates"][0];
     let effect = top["kind"].as_str().unwrap();
     assert_ne!(effect, "none", "the missing mode went undiagnosed: {top}");
+
+    // The compensated signal of each test is what `unlag compensate` gives on it: its errors
+    // and alignment in the figure's caption and the summary table.
+    for (i, t) in [&t1, &t2].into_iter().enumerate() {
+        let out = tmp(&format!("compensated-{}.csv", i + 1));
+        let c: Value = serde_json::from_str(&ok(&[
+            "compensate",
+            model,
+            t,
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ]))
+        .unwrap();
+        let id = format!("id=\"compensated-{}\"", i + 1);
+        let figure = &html[html.find(&id).expect("no compensated figure")..];
+        let caption =
+            &figure[figure.find("<figcaption>").unwrap()..figure.find("</figure>").unwrap()];
+        let (u_hat, raw) = (
+            pct(c["nrmse_u_hat"].as_f64().unwrap()),
+            pct(c["nrmse_raw"].as_f64().unwrap()),
+        );
+        assert!(
+            caption.contains(&format!(
+                "Error against the reference {u_hat} (raw probe at its best alignment: {raw})"
+            )),
+            "`unlag compensate` says {c}; the report: {caption}"
+        );
+        let lag = c["alignment_samples"].as_u64().unwrap();
+        assert!(
+            caption.contains(&format!("advanced by {lag} samples")),
+            "{caption}"
+        );
+        assert!(
+            caption.contains(c["compensator"].as_str().unwrap()),
+            "{c}: {caption}"
+        );
+        assert!(html.contains(&format!("{u_hat} / {raw}")), "summary table");
+    }
 
     let Some(browser) = chromium() else { return };
     let profile = tmp("chromium-profile");

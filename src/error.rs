@@ -364,6 +364,8 @@ pub enum Parameter {
     Arithmetic,
     /// The step tests a request is given.
     Tests,
+    /// The sample rate a model is resampled to.
+    SampleRate,
 }
 
 impl std::fmt::Display for Parameter {
@@ -379,6 +381,7 @@ impl std::fmt::Display for Parameter {
             Self::Offline => "offline reconstruction",
             Self::Arithmetic => "arithmetic",
             Self::Tests => "step tests",
+            Self::SampleRate => "sample rate",
         })
     }
 }

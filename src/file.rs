@@ -427,4 +427,42 @@ mod tests {
         let back: ModelFile = toml::from_str(&text).unwrap();
         assert_eq!(back, f);
     }
+
+    /// The fit's method is stored by its name, read back as the method, and written as it
+    /// was read; an unknown name is refused at its line with the names there are.
+    #[test]
+    fn the_fit_method_round_trips_by_name_and_an_unknown_one_is_refused() {
+        let shipped = include_str!("../examples/data/board_model.toml");
+        let path = Path::new("board_model.toml");
+        let f = ModelFile::parse(path, shipped).unwrap();
+        assert_eq!(f.fit.as_ref().unwrap().method, crate::fit::Method::Oe);
+        for method in crate::fit::Method::ALL {
+            let text = shipped.replacen(
+                "method = \"oe\"",
+                &format!("method = \"{}\"", method.name()),
+                1,
+            );
+            let f = ModelFile::parse(path, &text).unwrap();
+            assert_eq!(f.fit.as_ref().unwrap().method, method);
+            let written = f.to_toml().unwrap();
+            assert!(
+                written.contains(&format!("\n[fit]\nmethod = \"{}\"\n", method.name())),
+                "{written}"
+            );
+            assert_eq!(ModelFile::parse(path, &written).unwrap(), f);
+        }
+        let unknown = shipped.replacen("method = \"oe\"", "method = \"lsq\"", 1);
+        let e = ModelFile::parse(path, &unknown).unwrap_err();
+        let Error::ModelAt {
+            line, ref message, ..
+        } = e
+        else {
+            panic!("{e:?}");
+        };
+        assert_eq!(line, 11, "{e}");
+        assert!(
+            message.contains("unknown fit method `lsq`: one of oe, bj, sm, arx"),
+            "{e}"
+        );
+    }
 }

@@ -94,7 +94,8 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     let c = pipeline::compensate(&CompensateRequest {
         file: &file,
         model_path: &args.model,
-        trace: &trace,
+        probe: &trace.y,
+        reference: trace.u.as_deref(),
         compensation,
     })?;
     // A clamped input or a saturation is never hidden.

@@ -14,6 +14,7 @@ use crate::file::ModelFile;
 use crate::fit::analysis::{self, Analysis};
 use crate::fit::continuous::{self, Continuous};
 use crate::fit::model::Model;
+use crate::pipeline::{self, ResampleRequest};
 use crate::poly::{self, Complex};
 
 /// Arguments of `unlag inspect`.
@@ -275,61 +276,28 @@ fn print_continuous(ct: &Result<Continuous>, fs: f64) {
     }
 }
 
-/// `unlag resample`: re-discretises a model file at another sample rate, step invariant, the
-/// delay included, and writes the new model file atomically.
+/// `unlag resample`: the model file at another sample rate ([`pipeline::resample`]), written
+/// atomically, and what changed printed.
 ///
 /// The fit report and sources are kept (they describe where the model came from); a
 /// compensator designed at the old rate is dropped, because its coefficients belong to that
 /// rate: run `unlag invert` on the new file.
 ///
 /// # Errors
-/// The model file's errors, an invalid `--fs`, a model without a continuous-time equivalent
+/// An invalid `--fs`, the model file's errors, a model without a continuous-time equivalent
 /// (named by its pole), or the output file's.
 pub fn run_resample(args: &ResampleArgs) -> Result<()> {
-    if !(args.fs.is_finite() && args.fs > 0.0 && args.fs <= crate::trace::MAX_SAMPLE_RATE_HZ) {
-        return Err(Error::InvalidArgument {
-            what: "--fs",
-            message: format!(
-                "must be a sample rate in Hz above 0 and at most {:e}, not {:?}",
-                crate::trace::MAX_SAMPLE_RATE_HZ,
-                args.fs
-            ),
-        });
-    }
+    // The rate is checked before the model file is read, as a parsed argument.
+    pipeline::check_sample_rate(args.fs)?;
     let file = ModelFile::load(&args.model)?;
-    let old = &file.model;
-    let cannot = |reason: String| Error::Model {
-        path: args.model.clone(),
-        message: format!("cannot resample: {reason}"),
-    };
-    let ct = Continuous::from_model(old).map_err(|e| {
-        if let Some(crate::fit::FitError::Continuous(reason)) = e.stage() {
-            cannot(reason.to_string())
-        } else if let Some(p) = e.stage::<crate::poly::PolyError>() {
-            cannot(p.reason())
-        } else {
-            e
-        }
+    let r = pipeline::resample(&ResampleRequest {
+        file: &file,
+        model_path: &args.model,
+        sample_rate_hz: args.fs,
     })?;
-    let new = ct.discretise(args.fs)?;
-    let agreement = continuous::step_agreement(old, &new.model);
-    let vs_continuous = {
-        let n = (agreement.instants.max(1) as f64 * (args.fs / old.fs).max(1.0)).ceil() as usize;
-        let n = n.clamp(16, continuous::MAX_AGREEMENT_SAMPLES);
-        let s = continuous::step_response(&new.model, n);
-        let scale = ct.dc_gain.abs().max(f64::MIN_POSITIVE);
-        s.iter()
-            .enumerate()
-            .map(|(k, v)| (v - ct.step(k as f64 / args.fs)).abs() / scale)
-            .fold(0.0, f64::max)
-    };
-    let dropped_inverse = file.inverse.is_some();
-    let mut out = ModelFile {
-        model: new.model.clone(),
-        ..file.clone()
-    };
-    out.inverse = None;
-    out.save(&args.output)?;
+    r.file.save(&args.output)?;
+    let (old, new, agreement) = (&file.model, &r.discretised, r.agreement);
+    let vs_continuous = r.max_error_vs_continuous;
     if args.json {
         let v = json!({
             "output": args.output.display().to_string(),
@@ -342,10 +310,10 @@ pub fn run_resample(args: &ResampleArgs) -> Result<()> {
             "delay_note": new.delay_note,
             "step_agreement": serde_json::to_value(agreement).map_err(json_err)?,
             "max_error_vs_continuous": vs_continuous,
-            "continuous": serde_json::to_value(&ct).map_err(json_err)?,
+            "continuous": serde_json::to_value(&r.continuous).map_err(json_err)?,
             "model": serde_json::to_value(&new.model).map_err(json_err)?,
             "warnings": new.warnings,
-            "dropped_inverse": dropped_inverse,
+            "dropped_inverse": r.dropped_inverse,
         });
         crate::outln!("{v}");
         return Ok(());
@@ -385,7 +353,7 @@ pub fn run_resample(args: &ResampleArgs) -> Result<()> {
     for w in &new.warnings {
         crate::outln!("  warning: {w}");
     }
-    if dropped_inverse {
+    if r.dropped_inverse {
         crate::outln!(
             "  the compensator designed at {} Hz was not carried over: run `unlag invert` on the new file",
             old.fs

@@ -153,6 +153,7 @@ pub fn describe(e: &Error) -> String {
             Parameter::Offline => "--offline",
             Parameter::Arithmetic => "--arithmetic",
             Parameter::Tests => "FILE",
+            Parameter::SampleRate => "--fs",
         };
         return format!("invalid {flag}: {message}");
     }
@@ -473,6 +474,15 @@ mod tests {
         };
         assert_eq!(e.to_string(), "invalid full scale: must be positive");
         assert_eq!(describe(&e), "invalid --full-scale: must be positive");
+        let rate = crate::pipeline::check_sample_rate(-3.0).unwrap_err();
+        assert_eq!(
+            rate.to_string(),
+            "invalid sample rate: must be a sample rate in Hz above 0 and at most 1e9, not -3.0"
+        );
+        assert_eq!(
+            describe(&rate),
+            "invalid --fs: must be a sample rate in Hz above 0 and at most 1e9, not -3.0"
+        );
         let missing = Error::from(TraceError::MissingColumn {
             path: "a.csv".into(),
             column: "p".into(),

@@ -65,10 +65,7 @@ fn tests(l: &Loaded) -> Result<Vec<Test<'_>>> {
 }
 
 pub(crate) fn method_of(file: &ModelFile) -> Method {
-    file.fit
-        .as_ref()
-        .and_then(|f| Method::from_name(&f.method))
-        .unwrap_or(Method::Oe)
+    file.fit.as_ref().map_or(Method::Oe, |f| f.method)
 }
 
 fn print_evidence(evidence: &[TestEvidence]) {

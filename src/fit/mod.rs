@@ -27,52 +27,11 @@ pub mod step;
 mod uncertainty;
 
 pub use error::{ContinuousError, FitError};
-pub use model::Model;
+pub use model::{Method, Model};
 
 use crate::error::{Error, Result};
 use crate::fit::model::{DelayRow, FitReport, OrderRow};
 use arx::Data;
-
-/// Identification method.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Method {
-    /// Output error (simulation error) by Levenberg-Marquardt from Steiglitz-McBride: unbiased
-    /// under white measurement noise.
-    Oe,
-    /// Box-Jenkins with an autoregressive noise model: output error, then alternately an AR
-    /// model `D` of what the dynamics leave and an output-error refit of the dynamics on the
-    /// data whitened by `D` (the one-step-ahead prediction error). For coloured probe noise,
-    /// which plain output error partly takes for dynamics; for white residuals exactly output
-    /// error. The default.
-    #[default]
-    Bj,
-    /// Steiglitz-McBride iterations only.
-    Sm,
-    /// The paper's direct least squares on the ARX equation (eq. 5). Biased by measurement
-    /// noise; kept for comparison with the paper.
-    Arx,
-}
-
-impl Method {
-    /// Name used in files and on the command line.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Oe => "oe",
-            Self::Bj => "bj",
-            Self::Sm => "sm",
-            Self::Arx => "arx",
-        }
-    }
-
-    /// The method a name stands for ([`Method::name`]'s inverse).
-    #[must_use]
-    pub fn from_name(name: &str) -> Option<Self> {
-        [Self::Oe, Self::Bj, Self::Sm, Self::Arx]
-            .into_iter()
-            .find(|m| m.name() == name)
-    }
-}
 
 /// How to choose the order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -649,7 +608,7 @@ pub fn fit(
         }
     }
     let report = FitReport {
-        method: options.method.name().into(),
+        method: options.method,
         order_selection: match options.order {
             Order::Fixed(_) => "fixed".into(),
             Order::Auto { max } if window.is_some() => format!(

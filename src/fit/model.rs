@@ -3,7 +3,8 @@
 //! This module owns [`Model`] (sample rate, delay, `a`, `b` in the crate's one sign convention,
 //! see [`crate::compensator`]), what can be computed from it on the host (simulation from the
 //! reference, DC gain, poles and zeros, compensation through the board's code), and the fit's
-//! report ([`FitReport`]); the model file that stores them is [`crate::file`].
+//! report ([`FitReport`]) with its identification [`Method`]; the model file that stores them
+//! is [`crate::file`].
 
 use serde::{Deserialize, Serialize};
 
@@ -218,13 +219,82 @@ pub struct Source {
     pub noise_floor: f64,
 }
 
+/// Identification method; stored in the model file's fit report and given on the command
+/// line by its name ([`Method::name`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(into = "&'static str", try_from = "String")]
+pub enum Method {
+    /// Output error (simulation error) by Levenberg-Marquardt from Steiglitz-McBride: unbiased
+    /// under white measurement noise.
+    Oe,
+    /// Box-Jenkins with an autoregressive noise model: output error, then alternately an AR
+    /// model `D` of what the dynamics leave and an output-error refit of the dynamics on the
+    /// data whitened by `D` (the one-step-ahead prediction error). For coloured probe noise,
+    /// which plain output error partly takes for dynamics; for white residuals exactly output
+    /// error. The default.
+    #[default]
+    Bj,
+    /// Steiglitz-McBride iterations only.
+    Sm,
+    /// The paper's direct least squares on the ARX equation (eq. 5). Biased by measurement
+    /// noise; kept for comparison with the paper.
+    Arx,
+}
+
+impl Method {
+    /// Every method, in the order their names are listed.
+    pub const ALL: [Self; 4] = [Self::Oe, Self::Bj, Self::Sm, Self::Arx];
+
+    /// Name used in files and on the command line.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Oe => "oe",
+            Self::Bj => "bj",
+            Self::Sm => "sm",
+            Self::Arx => "arx",
+        }
+    }
+
+    /// The method a name stands for ([`Method::name`]'s inverse).
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|m| m.name() == name)
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A method is written by its name.
+impl From<Method> for &'static str {
+    fn from(method: Method) -> Self {
+        method.name()
+    }
+}
+
+/// A method is read from its name; another name is refused with the names there are.
+impl TryFrom<String> for Method {
+    type Error = String;
+
+    fn try_from(name: String) -> std::result::Result<Self, String> {
+        Self::from_name(&name).ok_or_else(|| {
+            let names: Vec<&str> = Self::ALL.into_iter().map(Self::name).collect();
+            format!("unknown fit method `{name}`: one of {}", names.join(", "))
+        })
+    }
+}
+
 /// How the model was fitted, and how well.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FitReport {
-    /// `oe` (output error, the default), `sm` (Steiglitz-McBride) or `arx` (the paper's
-    /// direct least squares).
-    pub method: String,
+    /// The identification method, stored by its name: `bj` (Box-Jenkins, the default), `oe`
+    /// (output error), `sm` (Steiglitz-McBride) or `arx` (the paper's direct least squares).
+    pub method: Method,
     /// How the order was chosen: `auto (...)` or `fixed`.
     pub order_selection: String,
     /// Order-selection table: one row per order tried.

@@ -9,7 +9,6 @@ use crate::error::{Advice, Error, Result};
 use crate::file::ModelFile;
 use crate::fit;
 use crate::modelling::effects;
-use crate::trace::Trace;
 
 /// Arithmetic of a compensator run on the host.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -45,8 +44,11 @@ pub struct CompensateRequest<'a> {
     pub file: &'a ModelFile,
     /// Where the model file was read from, for messages.
     pub model_path: &'a Path,
-    /// The recording: the probe signal, and the reference when it has one.
-    pub trace: &'a Trace,
+    /// The recording's probe signal.
+    pub probe: &'a [f64],
+    /// The recording's reference, when it has one (the error of `u_hat` is measured against
+    /// it).
+    pub reference: Option<&'a [f64]>,
     /// Which compensator.
     pub compensation: Compensation,
 }
@@ -125,12 +127,13 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
     let CompensateRequest {
         file,
         model_path,
-        trace,
+        probe,
+        reference,
         compensation,
     } = *request;
     let m = &file.model;
     let additive = effects::Additive::of(&file.effects);
-    let y_probe = additive.removed_from(&trace.y, m.fs);
+    let y_probe = additive.removed_from(probe, m.fs);
     let (design, arithmetic, offline) = match compensation {
         Compensation::Designed(a) => (file.inverse.as_ref(), a, false),
         Compensation::Direct(a) => (None, a, false),
@@ -258,12 +261,10 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
     }
     // A reference that does not move above its noise says nothing about u_hat: no error, no
     // verdict (a run without a step is compensated all the same).
-    let still_reference = trace
-        .u
-        .as_ref()
+    let still_reference = reference
         .filter(|u| fit::step::excitation(u) < fit::step::MIN_EXCITATION)
         .is_some();
-    let error = trace.u.as_ref().filter(|_| !still_reference).map(|u| {
+    let error = reference.filter(|_| !still_reference).map(|u| {
         let u = &effects::observed(&file.effects, m.fs, u);
         let prefilter = if design.is_some() {
             effects::prefilter_delay(&file.effects, m.fs)
@@ -279,7 +280,7 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
             .max(0.0) as usize;
         let (lags, raw_lags) = inverse::comparison_lags(design, nominal, causal, m.delay);
         let (e, lag) = inverse::aligned_error(u, &u_hat, lags);
-        let (raw, _) = inverse::aligned_error(u, &trace.y, raw_lags);
+        let (raw, _) = inverse::aligned_error(u, probe, raw_lags);
         ReferenceError { u_hat: e, raw, lag }
     });
     Ok(Compensated {
@@ -327,7 +328,7 @@ mod tests {
     use crate::design::quantise::FixedPlan;
     use crate::file::FORMAT_VERSION;
     use crate::modelling::effects::Effect;
-    use crate::trace::Columns;
+    use crate::trace::{Columns, Trace};
 
     /// A recording of `u` and `y` at 10 kHz, as read from a CSV file.
     fn trace(u: &[f64], y: &[f64]) -> Trace {
@@ -371,7 +372,8 @@ mod tests {
         compensate(&CompensateRequest {
             file,
             model_path: Path::new("probe.toml"),
-            trace,
+            probe: &trace.y,
+            reference: trace.u.as_deref(),
             compensation,
         })
     }

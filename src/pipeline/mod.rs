@@ -1,7 +1,8 @@
 //! The library's pipeline from step tests to the board's coefficients: the probe's model fitted
 //! from its tests ([`fit_probe`]), its compensator designed ([`design_compensator`]), a stored
-//! compensator designed anew for a rescaled model ([`retarget`]), and a recording compensated
-//! with a model file ([`compensate`]).
+//! compensator designed anew for a rescaled model ([`retarget`]), a recording compensated
+//! with a model file ([`compensate`]), and a model file put at another sample rate
+//! ([`resample`]).
 //!
 //! Every compensator goes through one sequence: the design (checked on the tests against the
 //! raw probe, or a stored design's shape redone), the sensor-resonance prefilter put in front
@@ -11,6 +12,7 @@
 mod compensate;
 mod design;
 mod fit;
+mod resample;
 
 pub use compensate::{
     compensate, Arithmetic, CompensateRequest, Compensated, Compensation, FixedRunSummary,
@@ -21,6 +23,7 @@ pub use design::{
     Roles, Shape,
 };
 pub use fit::{add_effects, carried_effects, fit_probe, FitRequest};
+pub use resample::{check_sample_rate, resample, ResampleRequest, Resampled};
 
 /// The probe and step tests the pipeline's unit tests run on.
 #[cfg(test)]

@@ -13,6 +13,7 @@ use crate::error::Result;
 use crate::fit::Test;
 use crate::modelling::effects;
 use crate::modelling::evidence::TestEvidence;
+use crate::pipeline::ReferenceError;
 
 /// The samples around the step where the probe's answer happens: from a little before the
 /// onset until the model has settled within 2 % of the step (at least 40 samples, at most a
@@ -32,13 +33,15 @@ pub(super) fn step_window(ev: &TestEvidence, y_model: &[f64]) -> std::ops::Range
     lo..(onset + span).min(n)
 }
 
+/// The section of test `number`; the compensated signal's errors against the reference (as
+/// `unlag compensate` gives them), when there is one, for the summary table.
 pub(super) fn per_test(
     h: &mut String,
     inputs: &Inputs<'_>,
     number: usize,
     test: &Test<'_>,
     ev: &TestEvidence,
-) -> Result<()> {
+) -> Result<Option<ReferenceError>> {
     let file = inputs.file;
     let model = &file.model;
     let fs = model.fs;
@@ -146,10 +149,10 @@ pub(super) fn per_test(
     // is made (a shock-tube record is millions of samples).
     drop(residual);
     drop(y_model);
-    compensated(h, inputs, number, test, window)?;
+    let reconstruction = compensated(h, inputs, number, test, window)?;
     spectrum(h, inputs, number, ev)?;
     correlations(h, number, ev)?;
-    Ok(())
+    Ok(reconstruction)
 }
 
 fn spectrum(h: &mut String, inputs: &Inputs<'_>, number: usize, ev: &TestEvidence) -> Result<()> {

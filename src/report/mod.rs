@@ -9,7 +9,8 @@
 //! and their product (with the physical prediction when the model file has a `[probe]`
 //! geometry), the pole-zero map, the modes table, the error history and the ranked candidates.
 //! It presents; the numbers come from [`crate::modelling::evidence`], [`crate::modelling::diagnose`],
-//! [`crate::fit::analysis`] and [`crate::design::inverse`]. The charts are in [`plot`].
+//! [`crate::fit::analysis`], [`crate::design::inverse`] and [`crate::pipeline`] (the compensated
+//! signal, as `unlag compensate` gives it). The charts are in [`plot`].
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -27,7 +28,6 @@ mod history;
 pub mod plot;
 mod poles;
 
-use compensated::compensated_signal;
 use each_test::per_test;
 use frequency::bode;
 use history::{candidates, history};
@@ -186,12 +186,17 @@ pub fn render(inputs: &Inputs<'_>) -> Result<String> {
         "<nav><a href=\"#tests\">tests</a><a href=\"#frequency\">frequency response</a>\
          <a href=\"#poles\">poles and modes</a><a href=\"#loop\">error history and candidates</a></nav>"
     );
-    summary_table(&mut h, inputs);
-
-    h.push_str("<h2 id=\"tests\">The model against each test</h2>\n");
+    // Each test's section first, for the summary table above them: it holds the errors of
+    // the compensated signals, made once (a shock-tube record is millions of samples).
+    let mut sections = String::new();
+    sections.push_str("<h2 id=\"tests\">The model against each test</h2>\n");
+    let mut reconstructions = Vec::with_capacity(inputs.tests.len());
     for (i, (test, ev)) in inputs.tests.iter().zip(inputs.evidence).enumerate() {
-        per_test(&mut h, inputs, i + 1, test, ev)?;
+        reconstructions.push(per_test(&mut sections, inputs, i + 1, test, ev)?);
     }
+    summary_table(&mut h, inputs, &reconstructions);
+    h.push_str(&sections);
+    drop(sections);
     h.push_str("<h2 id=\"frequency\">Frequency response</h2>\n");
     bode(&mut h, inputs)?;
     h.push_str("<h2 id=\"poles\">Poles, zeros and modes</h2>\n");
@@ -238,7 +243,13 @@ fn verdict(h: &mut String, inputs: &Inputs<'_>) {
     }
 }
 
-fn summary_table(h: &mut String, inputs: &Inputs<'_>) {
+/// The table of the tests; `reconstructions[i]` is the compensated signal's errors on
+/// `inputs.tests[i]`.
+fn summary_table(
+    h: &mut String,
+    inputs: &Inputs<'_>,
+    reconstructions: &[Option<crate::pipeline::ReferenceError>],
+) {
     h.push_str(
         "<p>The noise floor is what a correct model leaves: the probe's noise and the \
          reference's own noise through the model (both channels are sensors). Ljung-Box tests \
@@ -249,10 +260,10 @@ fn summary_table(h: &mut String, inputs: &Inputs<'_>) {
          <th>error (nrmse)</th><th>noise floor</th><th>error / floor</th><th>Ljung-Box p</th>\
          <th>reconstruction u&#770; / raw probe</th></tr>\n",
     );
-    for (e, test) in inputs.evidence.iter().zip(inputs.tests) {
-        let rec = compensated_signal(inputs, test).map_or_else(
+    for (e, rec) in inputs.evidence.iter().zip(reconstructions) {
+        let rec = rec.map_or_else(
             || "&ndash;".to_string(),
-            |c| format!("{} / {}", pct(c.error), pct(c.raw_error)),
+            |r| format!("{} / {}", pct(r.u_hat), pct(r.raw)),
         );
         let _ = writeln!(
             h,

@@ -864,7 +864,7 @@ fn run_loop(cases: &[Case], s: &Settings) -> Result<(), Box<dyn Error>> {
                 let dir = s.out.join(format!("case-{:03}", case.id));
                 let mut ignored = Outcome::default();
                 let o = match make_files(case, &dir, &s.unlag, &mut ignored) {
-                    Ok(_) => modelling_loop::run(&s.unlag, &dir),
+                    Ok(_) => modelling_loop::run(&s.unlag, &dir, case.kind),
                     Err(e) => modelling_loop::LoopOutcome {
                         failure: Some(format!("simulation: {e}")),
                         ..Default::default()
@@ -876,7 +876,11 @@ fn run_loop(cases: &[Case], s: &Settings) -> Result<(), Box<dyn Error>> {
                     case.family.name(),
                     case.kind.name(),
                     o.named.join(", "),
-                    if o.right(case.kind) { "right" } else { "wrong" }
+                    if o.right_or_carried(case.kind) {
+                        "right"
+                    } else {
+                        "wrong"
+                    }
                 );
                 if let Ok(mut r) = rows.lock() {
                     r.push((case.clone(), o));

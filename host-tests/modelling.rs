@@ -720,6 +720,97 @@ fn the_diagnosis_lists_what_the_plain_fit_already_carries() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The path of a trace kept from the drawn bank (`examples/bench_bank.rs`, seed 13) under
+/// `host-tests/data/bank/`.
+fn bank_trace(name: &str) -> String {
+    format!("{}/host-tests/data/bank/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Bank case 104: a capillary (overdamped, 6.7 kHz sampling) with a hidden line mode near
+/// 50 Hz, validated on a valve test. The leak's trial and the mode's both take the ringing
+/// (both add poles), and the leak used to go first for its fewer parameters; but the plain
+/// model's static gain is 1.004, and a leak lowers it (`1 / (1 + R G)`): the mode goes first.
+#[test]
+fn a_mode_goes_before_a_leak_that_ties_with_it_when_the_static_gain_is_not_below_one() {
+    let dir = std::env::temp_dir().join(format!("unlag-mode-leak-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (est, val) = (bank_trace("mode-est.csv"), bank_trace("mode-val.csv"));
+    let m = dir.join("plain.toml");
+    let m = m.to_str().unwrap();
+    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
+    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let c = d["candidates"].as_array().unwrap();
+    assert_eq!(c[0]["kind"], "mode", "{d}");
+    let leak = c
+        .iter()
+        .find(|c| c["kind"] == "leak")
+        .expect("the leak still offered");
+    assert!(
+        leak["evidence"]["dc_gain"].as_f64().unwrap() >= 0.998,
+        "{leak}"
+    );
+    assert!(
+        leak["reading"].as_str().unwrap().contains("not below 1"),
+        "{leak}"
+    );
+    // The two are close, and the diagnosis says what would tell them apart.
+    assert!(
+        c[0]["separated_by"]
+            .as_str()
+            .is_some_and(|t| t.contains("DC gain under 1")),
+        "{d}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Bank case 088: a pneumatic line (50 Hz) with quadratic losses, one step to fit on and a
+/// wake traverse to validate on. No pair of steps shows how the damping grows with the step, so
+/// the signature that names nonlinear damping cannot be read; the residual on the traverse
+/// stays 12x above the floor and used to be `unexplained`. The trial alone now names it, says
+/// so, and adding it brings the traverse's error down to near its floor.
+#[test]
+fn nonlinear_damping_is_named_by_its_trial_when_no_two_steps_show_its_signature() {
+    let dir = std::env::temp_dir().join(format!("unlag-nonlinear-wake-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (est, val) = (
+        bank_trace("nonlinear-est.csv"),
+        bank_trace("nonlinear-wake.csv"),
+    );
+    let m = dir.join("plain.toml");
+    let m = m.to_str().unwrap();
+    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
+    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let first = &d["candidates"][0];
+    assert_eq!(first["kind"], "nonlinear-damping", "{d}");
+    assert_eq!(first["evidence"]["amplitude_signature"], false, "{first}");
+    assert!(
+        first["reading"]
+            .as_str()
+            .unwrap()
+            .contains("steps of two or more sizes would confirm it"),
+        "{first}"
+    );
+    let validation = |extra: &[&str]| {
+        let out = dir.join("v.toml");
+        let mut args = vec!["fit", &est, &val, "--order", "2", "--json", "-o"];
+        args.push(out.to_str().unwrap());
+        args.extend_from_slice(extra);
+        let v = unlag_json(&args);
+        (
+            v["sources"][1]["nrmse"].as_f64().unwrap(),
+            v["sources"][1]["noise_floor"].as_f64().unwrap(),
+        )
+    };
+    let (before, floor) = validation(&[]);
+    let (after, _) = validation(&["--add", "nonlinear-damping"]);
+    assert!(before > 5.0 * floor, "{before} against a floor of {floor}");
+    assert!(
+        before / after >= 3.0 && after <= 1.5 * floor,
+        "{before} -> {after}, floor {floor}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `coloured-noise` says which error falls (the one-step-ahead prediction error) and states the
 /// parameter uncertainty before and after: before from white noise, after from the noise its
 /// AR model whitens (issue 14, item 2).

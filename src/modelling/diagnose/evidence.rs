@@ -270,6 +270,10 @@ pub struct ScaleEstimate {
 /// The evidence of amplitude-dependent damping, across tests of different step sizes.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct NonlinearDamping {
+    /// Whether the tests showed the amplitude signature (the damping rising with the step);
+    /// `false`: the trial alone named it, and the fields of the signature are what the tests
+    /// gave (empty or NaN where they gave nothing).
+    pub amplitude_signature: bool,
     /// The tests' step amplitudes, smallest first.
     pub amplitudes: Vec<f64>,
     /// The damping of each test fitted alone.

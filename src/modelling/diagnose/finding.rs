@@ -167,7 +167,9 @@ pub fn separating_test(a: Finding, b: Finding) -> String {
         k.effect()
             .is_some_and(|k| k.family() == EffectKind::Temperature)
     };
-    if pair(Drift, Offset) || pair(Leak, Drift) {
+    if pair(Leak, Mode) {
+        "a longer record after the step (a leak settles below the step, its DC gain under 1; a mode rings out at its frequency and settles at the step)".into()
+    } else if pair(Drift, Offset) || pair(Leak, Drift) {
         "a longer record after the step (a drift keeps growing, an offset stays, a leak settles)"
             .into()
     } else if pair(ColouredNoise, Drift) || pair(ColouredNoise, Offset) {

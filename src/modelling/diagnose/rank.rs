@@ -25,6 +25,17 @@ pub const FLOOR_OVERRULED: f64 = 1.4;
 /// equally well, the simpler one ranks first (an offset before a drift, a leak before a mode).
 pub const PARAMETER_PENALTY: f64 = 0.03;
 
+/// A leak lowers the probe's static gain (`1 / (1 + R G)` for a leaking cavity, below 1 for a
+/// leaking side volume too); a thermal creep, the other slow pole the `leak` effect models,
+/// does not. A model whose DC gain is this or above shows no leaking volume: a leak that only
+/// ties with a mode whose peak stands [`MODE_PEAK_OVER_CREEP_DB`] out of the floor goes after
+/// it.
+pub const LEAK_DC_GAIN_BELOW: f64 = 0.998;
+
+/// A residual peak this far above the floor (dB) is a resonance, which a slow creep does not
+/// leave.
+pub const MODE_PEAK_OVER_CREEP_DB: f64 = 20.0;
+
 /// Two peaks within this relative distance are at the same frequency.
 pub const SAME_FREQUENCY: f64 = 0.15;
 
@@ -74,10 +85,13 @@ pub fn diagnose(
     let white = evidence.iter().all(|e| e.autocorrelation.p_value > 0.01);
     let at_floor = evidence.iter().all(TestEvidence::at_noise_floor);
     let mut out: Vec<Candidate> = Vec::new();
+    // Candidates offered so far (`out` is borrowed by `offer` until the last offer).
+    let offered = std::cell::Cell::new(0usize);
     let mut offer =
         |kind: EffectKind, after: f64, evidence: Evidence, reading: String, change: Remedy| {
             let ratio = before / after;
             if after.is_finite() && ratio >= MIN_IMPROVEMENT {
+                offered.set(offered.get() + 1);
                 out.push(Candidate {
                     kind: Finding::Missing(kind),
                     score: ratio.ln() - PARAMETER_PENALTY * kind.parameters() as f64,
@@ -261,10 +275,16 @@ pub fn diagnose(
             },
             format!(
                 "after the step the residual creeps slowly ({:+.2} % of the step at the end of the \
-                 record) and the model's DC gain is {:.4}: a leaking cavity or side volume, a \
+                 record) and the model's DC gain is {:.4}{}: a leaking cavity or side volume, a \
                  second, slow time scale",
                 100.0 * creep,
-                current.model.dc_gain()
+                current.model.dc_gain(),
+                if current.model.dc_gain() < LEAK_DC_GAIN_BELOW {
+                    ""
+                } else {
+                    " (not below 1, as a leaking volume's is: a thermal creep, or the trial \
+                     fitting something else)"
+                }
             ),
             Remedy::Add(Effect::Leak),
         );
@@ -454,11 +474,13 @@ pub fn diagnose(
 
     // nonlinear damping: across tests, the damping rises with the step and the residual of
     // each test's own linear fit grows faster than the step.
+    let mut nonlinear_tried = false;
     if !have.nonlinear && tests.len() > 1 {
         let across = per_test(current, tests, evidence);
         if let Some(sig) =
             amplitude_signature(&across).filter(AmplitudeSignature::nonlinear_damping)
         {
+            nonlinear_tried = true;
             if let Some((after, fx)) = trial(Effect::NonlinearDamping { gain: 0.0 }, &base) {
                 let gain = effects::nonlinear_gain(&fx);
                 let (a0, a1) = (
@@ -473,6 +495,7 @@ pub fn diagnose(
                     EffectKind::NonlinearDamping,
                     after,
                     Evidence::NonlinearDamping(NonlinearDamping {
+                        amplitude_signature: true,
                         amplitudes: sig.amplitudes.clone(),
                         damping: sig.damping.clone(),
                         damping_rise: sig.damping_rise,
@@ -482,7 +505,11 @@ pub fn diagnose(
                         residual_per_step: sig.residual_per_step.clone(),
                     }),
                     format!(
-                        "the damping fitted to each test alone rises from {z0:.3} at a step of                          {a0:.3} to {z1:.3} at {a1:.3} ({:+.3} per unit step), and what a linear                          fit leaves grows as |step|^{:.2} (a linear probe: 1): amplitude-dependent                          losses, orifice or turbulent flow at large steps (quadratic loss                          {gain:.3e} s^2 per unit)",
+                        "the damping fitted to each test alone rises from {z0:.3} at a step of \
+                         {a0:.3} to {z1:.3} at {a1:.3} ({:+.3} per unit step), and what a linear \
+                         fit leaves grows as |step|^{:.2} (a linear probe: 1): amplitude-dependent \
+                         losses, orifice or turbulent flow at large steps (quadratic loss \
+                         {gain:.3e} s^2 per unit)",
                         sig.damping_slope, sig.residual_exponent
                     ),
                     Remedy::Add(Effect::NonlinearDamping { gain: 0.0 }),
@@ -535,6 +562,48 @@ pub fn diagnose(
         );
     }
 
+    // nonlinear damping without its signature: when the residual is above the floor and no
+    // effect above lowered it, the tests may simply not show the signature (one step and an
+    // excitation that is not a step, such as a traverse). The trial alone then decides, and
+    // the reading says which test would confirm it.
+    if !at_floor && offered.get() == 0 && !have.nonlinear && !nonlinear_tried && tests.len() > 1 {
+        if let Some((after, fx)) = trial(Effect::NonlinearDamping { gain: 0.0 }, &base) {
+            let gain = effects::nonlinear_gain(&fx);
+            let sig = amplitude_signature(&per_test(current, tests, evidence));
+            offer(
+                EffectKind::NonlinearDamping,
+                after,
+                Evidence::NonlinearDamping(NonlinearDamping {
+                    amplitude_signature: false,
+                    amplitudes: sig
+                        .as_ref()
+                        .map(|s| s.amplitudes.clone())
+                        .unwrap_or_default(),
+                    damping: sig.as_ref().map(|s| s.damping.clone()).unwrap_or_default(),
+                    damping_rise: sig.as_ref().map_or(f64::NAN, |s| s.damping_rise),
+                    damping_slope_per_unit_step: sig.as_ref().map_or(f64::NAN, |s| s.damping_slope),
+                    gain_s2_per_unit: gain,
+                    residual_exponent: sig.as_ref().map_or(f64::NAN, |s| s.residual_exponent),
+                    residual_per_step: sig
+                        .as_ref()
+                        .map(|s| s.residual_per_step.clone())
+                        .unwrap_or_default(),
+                }),
+                format!(
+                    "no effect above lowers the held-out error, but quadratic losses do \
+                     ({:.3} % -> {:.3} %, quadratic loss {gain:.3e} s^2 per unit): \
+                     amplitude-dependent losses, read from the trial alone, for these tests do \
+                     not show their signature (the damping rising with the step and a linear \
+                     fit's residual growing faster than it); steps of two or more sizes would \
+                     confirm it",
+                    100.0 * before,
+                    100.0 * after
+                ),
+                Remedy::Add(Effect::NonlinearDamping { gain: 0.0 }),
+            );
+        }
+    }
+
     out.sort_by(|a, b| b.score.total_cmp(&a.score));
     // A resonance that shows in the reference as well is the transducers', not the line's:
     // the sensor resonance goes before a mode that would only model it.
@@ -548,6 +617,26 @@ pub fn diagnose(
                 let c = out.remove(s);
                 out.insert(m, c);
             }
+        }
+    }
+    // A leak lowers the static gain: with the DC gain at 1 or above (no leaking volume; a
+    // creep is still possible), a leak that ties with a mode whose residual peak is a clear
+    // resonance (both trials add poles that can take the same shape) goes after it.
+    if current.model.dc_gain() >= LEAK_DC_GAIN_BELOW
+        && out.first().is_some_and(|c| c.kind == EffectKind::Leak)
+    {
+        let top = out.first().map_or(0.0, |c| c.score);
+        if let Some(i) = out.iter().position(|c| {
+            c.kind == EffectKind::Mode
+                && c.score >= top - CLOSE_MARGIN
+                && matches!(
+                    c.evidence,
+                    Evidence::Mode(ModeEvidence::Peak { above_floor_db, .. })
+                        if above_floor_db >= MODE_PEAK_OVER_CREEP_DB
+                )
+        }) {
+            let c = out.remove(0);
+            out.insert(i, c);
         }
     }
     // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's

@@ -562,11 +562,12 @@ pub fn diagnose(
         );
     }
 
-    // nonlinear damping without its signature: when the residual is above the floor and no
-    // effect above lowered it, the tests may simply not show the signature (one step and an
-    // excitation that is not a step, such as a traverse). The trial alone then decides, and
-    // the reading says which test would confirm it.
-    if !at_floor && offered.get() == 0 && !have.nonlinear && !nonlinear_tried && tests.len() > 1 {
+    // nonlinear damping without its signature: when the residual is above the floor, the
+    // tests may simply not show the signature (one step and an excitation that is not a step,
+    // such as a traverse or a balloon). The trial alone then competes, and the reading says
+    // which test would confirm it.
+    if !at_floor && !have.nonlinear && !nonlinear_tried && tests.len() > 1 {
+        let alone = offered.get() == 0;
         if let Some((after, fx)) = trial(Effect::NonlinearDamping { gain: 0.0 }, &base) {
             let gain = effects::nonlinear_gain(&fx);
             let sig = amplitude_signature(&per_test(current, tests, evidence));
@@ -590,12 +591,16 @@ pub fn diagnose(
                         .unwrap_or_default(),
                 }),
                 format!(
-                    "no effect above lowers the held-out error, but quadratic losses do \
-                     ({:.3} % -> {:.3} %, quadratic loss {gain:.3e} s^2 per unit): \
+                    "{} ({:.3} % -> {:.3} %, quadratic loss {gain:.3e} s^2 per unit): \
                      amplitude-dependent losses, read from the trial alone, for these tests do \
                      not show their signature (the damping rising with the step and a linear \
                      fit's residual growing faster than it); steps of two or more sizes would \
                      confirm it",
+                    if alone {
+                        "no effect above lowers the held-out error, but quadratic losses do"
+                    } else {
+                        "quadratic losses lower the held-out error"
+                    },
                     100.0 * before,
                     100.0 * after
                 ),

@@ -811,6 +811,35 @@ fn nonlinear_damping_is_named_by_its_trial_when_no_two_steps_show_its_signature(
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Bank case 047: a capillary with a drift of 5 % of the step per second, two steps. A
+/// quadratic loss refitted on one step takes the drift's shape too and scores as well (within
+/// 0.03), but it is read from its trial alone, while the drift's ramp is seen: the drift goes
+/// first, and the two are named as close with the test that separates them.
+#[test]
+fn a_drift_goes_before_nonlinear_damping_read_from_its_trial_alone() {
+    let dir = std::env::temp_dir().join(format!("unlag-drift-nl-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (est, val) = (bank_trace("drift-est.csv"), bank_trace("drift-val.csv"));
+    let m = dir.join("plain.toml");
+    let m = m.to_str().unwrap();
+    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
+    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let c = d["candidates"].as_array().unwrap();
+    assert_eq!(c[0]["kind"], "drift", "{d}");
+    let nl = c
+        .iter()
+        .find(|c| c["kind"] == "nonlinear-damping")
+        .expect("nonlinear damping still offered");
+    assert_eq!(nl["evidence"]["amplitude_signature"], false, "{nl}");
+    assert!(
+        c[0]["separated_by"]
+            .as_str()
+            .is_some_and(|t| t.contains("steps of other sizes")),
+        "{d}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `coloured-noise` says which error falls (the one-step-ahead prediction error) and states the
 /// parameter uncertainty before and after: before from white noise, after from the noise its
 /// AR model whitens (issue 14, item 2).

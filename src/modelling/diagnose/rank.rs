@@ -644,6 +644,27 @@ pub fn diagnose(
             out.insert(i, c);
         }
     }
+    // Nonlinear damping read from its trial alone (no amplitude signature) goes after an effect
+    // whose own signature was seen and that scores within CLOSE_MARGIN of it: a quadratic loss
+    // refitted on one step can take the shape of a slower effect too.
+    let trial_alone = |c: &Candidate| {
+        matches!(
+            c.evidence,
+            Evidence::NonlinearDamping(NonlinearDamping {
+                amplitude_signature: false,
+                ..
+            })
+        )
+    };
+    if out.first().is_some_and(trial_alone) {
+        let top = out.first().map_or(0.0, |c| c.score);
+        if let Some(i) = out.iter().position(|c| {
+            !trial_alone(c) && c.kind != EffectKind::ColouredNoise && c.score >= top - CLOSE_MARGIN
+        }) {
+            let c = out.remove(0);
+            out.insert(i, c);
+        }
+    }
     // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
     // too: when an effect in the dynamics scores within CLOSE_MARGIN of it, the physics goes
     // first and the noise model is the last resort.

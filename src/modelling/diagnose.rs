@@ -32,6 +32,7 @@ use crate::modelling::evidence::TestEvidence;
 mod across;
 mod evidence;
 mod finding;
+mod order;
 mod rank;
 mod remedy;
 mod trial;
@@ -46,6 +47,7 @@ pub use evidence::{
     TemperatureShift, COLOURED_NOISE_FIT, SENSOR_RESONANCE_REMEDY,
 };
 pub use finding::{separating_test, Candidate, Finding, CLOSE_MARGIN};
+pub use order::{LEAK_DC_GAIN_BELOW, MODE_PEAK_OVER_CREEP_DB};
 pub use rank::{diagnose, FLOOR_OVERRULED, MIN_IMPROVEMENT, PARAMETER_PENALTY, SAME_FREQUENCY};
 pub use remedy::Remedy;
 pub use trial::TRIAL_WINDOW;

@@ -1,12 +1,13 @@
 //! The ranking: each candidate effect's signature read from the evidence and its trial run,
-//! the candidates ordered, and the verdict when none is offered (`none` or `unexplained`).
+//! scored, and the verdict when none is offered (`none` or `unexplained`); their order is
+//! [`super::order`]'s.
 
 use super::trial::{held_out, trial_window};
 use super::{
     amplitude_signature, mean, per_test, separating_test, temperature_evidence, AmplitudeSignature,
     Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping, Remedy, ScaleEstimate,
     SensorResonance, Spectrum, TemperatureShift, CLOSE_MARGIN, COLOURED_NOISE_FIT,
-    SENSOR_RESONANCE_REMEDY,
+    LEAK_DC_GAIN_BELOW, SENSOR_RESONANCE_REMEDY,
 };
 use crate::error::Result;
 use crate::fit::model::Uncertainty;
@@ -24,17 +25,6 @@ pub const FLOOR_OVERRULED: f64 = 1.4;
 /// Score charged per parameter an effect adds: between two effects that explain the data
 /// equally well, the simpler one ranks first (an offset before a drift, a leak before a mode).
 pub const PARAMETER_PENALTY: f64 = 0.03;
-
-/// A leak lowers the probe's static gain (`1 / (1 + R G)` for a leaking cavity, below 1 for a
-/// leaking side volume too); a thermal creep, the other slow pole the `leak` effect models,
-/// does not. A model whose DC gain is this or above shows no leaking volume: a leak that only
-/// ties with a mode whose peak stands [`MODE_PEAK_OVER_CREEP_DB`] out of the floor goes after
-/// it.
-pub const LEAK_DC_GAIN_BELOW: f64 = 0.998;
-
-/// A residual peak this far above the floor (dB) is a resonance, which a slow creep does not
-/// leave.
-pub const MODE_PEAK_OVER_CREEP_DB: f64 = 20.0;
 
 /// Two peaks within this relative distance are at the same frequency.
 pub const SAME_FREQUENCY: f64 = 0.15;
@@ -609,78 +599,7 @@ pub fn diagnose(
         }
     }
 
-    out.sort_by(|a, b| b.score.total_cmp(&a.score));
-    // A resonance that shows in the reference as well is the transducers', not the line's:
-    // the sensor resonance goes before a mode that would only model it.
-    if sensor_matched {
-        let s = out
-            .iter()
-            .position(|c| c.kind == EffectKind::SensorResonance);
-        let m = out.iter().position(|c| c.kind == EffectKind::Mode);
-        if let (Some(s), Some(m)) = (s, m) {
-            if m < s {
-                let c = out.remove(s);
-                out.insert(m, c);
-            }
-        }
-    }
-    // A leak lowers the static gain: with the DC gain at 1 or above (no leaking volume; a
-    // creep is still possible), a leak that ties with a mode whose residual peak is a clear
-    // resonance (both trials add poles that can take the same shape) goes after it.
-    if current.model.dc_gain() >= LEAK_DC_GAIN_BELOW
-        && out.first().is_some_and(|c| c.kind == EffectKind::Leak)
-    {
-        let top = out.first().map_or(0.0, |c| c.score);
-        if let Some(i) = out.iter().position(|c| {
-            c.kind == EffectKind::Mode
-                && c.score >= top - CLOSE_MARGIN
-                && matches!(
-                    c.evidence,
-                    Evidence::Mode(ModeEvidence::Peak { above_floor_db, .. })
-                        if above_floor_db >= MODE_PEAK_OVER_CREEP_DB
-                )
-        }) {
-            let c = out.remove(0);
-            out.insert(i, c);
-        }
-    }
-    // Nonlinear damping read from its trial alone (no amplitude signature) goes after an effect
-    // whose own signature was seen and that scores within CLOSE_MARGIN of it: a quadratic loss
-    // refitted on one step can take the shape of a slower effect too.
-    let trial_alone = |c: &Candidate| {
-        matches!(
-            c.evidence,
-            Evidence::NonlinearDamping(NonlinearDamping {
-                amplitude_signature: false,
-                ..
-            })
-        )
-    };
-    if out.first().is_some_and(trial_alone) {
-        let top = out.first().map_or(0.0, |c| c.score);
-        if let Some(i) = out.iter().position(|c| {
-            !trial_alone(c) && c.kind != EffectKind::ColouredNoise && c.score >= top - CLOSE_MARGIN
-        }) {
-            let c = out.remove(0);
-            out.insert(i, c);
-        }
-    }
-    // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
-    // too: when an effect in the dynamics scores within CLOSE_MARGIN of it, the physics goes
-    // first and the noise model is the last resort.
-    if out
-        .first()
-        .is_some_and(|c| c.kind == EffectKind::ColouredNoise)
-    {
-        let top = out.first().map_or(0.0, |c| c.score);
-        if let Some(i) = out
-            .iter()
-            .position(|c| c.kind != EffectKind::ColouredNoise && c.score >= top - CLOSE_MARGIN)
-        {
-            let c = out.remove(0);
-            out.insert(i, c);
-        }
-    }
+    super::order::order(&mut out, sensor_matched, current.model.dc_gain());
     // Nothing is missing when the residual is what both channels' noise leaves (at the floor,
     // correlated only as that noise is), or at the floor with no effect's trial lowering it.
     // A residual above the floor that no effect's trial lowers is not "none": something

@@ -1,0 +1,211 @@
+//! The order of the candidates: by score, then the physics that decides between two that
+//! score within [`CLOSE_MARGIN`] of each other.
+
+use super::{Candidate, Evidence, ModeEvidence, NonlinearDamping, CLOSE_MARGIN};
+use crate::modelling::effects::EffectKind;
+
+/// A leak lowers the probe's static gain (`1 / (1 + R G)` for a leaking cavity, below 1 for a
+/// leaking side volume too); a thermal creep, the other slow pole the `leak` effect models,
+/// does not. A model whose DC gain is this or above shows no leaking volume: a leak that only
+/// ties with a mode whose peak stands [`MODE_PEAK_OVER_CREEP_DB`] out of the floor goes after
+/// it.
+pub const LEAK_DC_GAIN_BELOW: f64 = 0.998;
+
+/// A residual peak this far above the floor (dB) is a resonance, which a slow creep does not
+/// leave.
+pub const MODE_PEAK_OVER_CREEP_DB: f64 = 20.0;
+
+/// Sorts the candidates by score, best first, then applies the rules for close ones, in order:
+/// a sensor resonance the reference shows (`sensor_matched`) before a mode that would only
+/// model it; a clear resonance before a leak that ties with it when the model's DC gain
+/// (`dc_gain`) is not below [`LEAK_DC_GAIN_BELOW`]; an effect whose signature was seen before
+/// nonlinear damping read from its trial alone; the physics before a noise model.
+pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64) {
+    out.sort_by(|a, b| b.score.total_cmp(&a.score));
+    // A resonance that shows in the reference as well is the transducers', not the line's:
+    // the sensor resonance goes before a mode that would only model it.
+    if sensor_matched {
+        let s = out
+            .iter()
+            .position(|c| c.kind == EffectKind::SensorResonance);
+        let m = out.iter().position(|c| c.kind == EffectKind::Mode);
+        if let (Some(s), Some(m)) = (s, m) {
+            if m < s {
+                let c = out.remove(s);
+                out.insert(m, c);
+            }
+        }
+    }
+    // A leak lowers the static gain: with the DC gain at 1 or above (no leaking volume; a
+    // creep is still possible), a leak that ties with a mode whose residual peak is a clear
+    // resonance (both trials add poles that can take the same shape) goes after it.
+    if dc_gain >= LEAK_DC_GAIN_BELOW {
+        yield_first(
+            out,
+            |c| c.kind == EffectKind::Leak,
+            |c| {
+                c.kind == EffectKind::Mode
+                    && matches!(
+                        c.evidence,
+                        Evidence::Mode(ModeEvidence::Peak { above_floor_db, .. })
+                            if above_floor_db >= MODE_PEAK_OVER_CREEP_DB
+                    )
+            },
+        );
+    }
+    // Nonlinear damping read from its trial alone (no amplitude signature) goes after an effect
+    // whose own signature was seen: a quadratic loss refitted on one step can take the shape
+    // of a slower effect too.
+    let trial_alone = |c: &Candidate| {
+        matches!(
+            c.evidence,
+            Evidence::NonlinearDamping(NonlinearDamping {
+                amplitude_signature: false,
+                ..
+            })
+        )
+    };
+    yield_first(out, trial_alone, |c| {
+        !trial_alone(c) && c.kind != EffectKind::ColouredNoise
+    });
+    // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
+    // too: when an effect in the dynamics scores within CLOSE_MARGIN of it, the physics goes
+    // first and the noise model is the last resort.
+    yield_first(
+        out,
+        |c| c.kind == EffectKind::ColouredNoise,
+        |c| c.kind != EffectKind::ColouredNoise,
+    );
+}
+
+/// When the first candidate is one `first` picks, it goes after the first candidate `before`
+/// picks that scores within [`CLOSE_MARGIN`] of it.
+fn yield_first(
+    out: &mut Vec<Candidate>,
+    first: impl Fn(&Candidate) -> bool,
+    before: impl Fn(&Candidate) -> bool,
+) {
+    if !out.first().is_some_and(&first) {
+        return;
+    }
+    let top = out.first().map_or(0.0, |c| c.score);
+    if let Some(i) = out
+        .iter()
+        .position(|c| before(c) && c.score >= top - CLOSE_MARGIN)
+    {
+        let c = out.remove(0);
+        out.insert(i, c);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::modelling::diagnose::{Finding, Remedy, Spectrum};
+
+    fn candidate(kind: EffectKind, score: f64, evidence: Evidence) -> Candidate {
+        Candidate {
+            kind: Finding::Missing(kind),
+            score,
+            evidence,
+            reading: String::new(),
+            change: Remedy::Nothing,
+            nrmse_before: 1.0,
+            nrmse_after: 1.0,
+            margin: 0.0,
+            separated_by: None,
+            uncertainty_before: None,
+            uncertainty_after: None,
+        }
+    }
+
+    fn peak(above_floor_db: f64) -> Evidence {
+        Evidence::Mode(ModeEvidence::Peak {
+            spectrum: Spectrum::Residual,
+            frequency_hz: 50.0,
+            above_floor_db,
+            q: 3.0,
+            test: "t.csv".into(),
+        })
+    }
+
+    fn leak() -> Evidence {
+        Evidence::Leak {
+            dc_gain: 1.0,
+            late_residual_over_step: 0.0,
+        }
+    }
+
+    fn kinds(out: &[Candidate]) -> Vec<Finding> {
+        out.iter().map(|c| c.kind).collect()
+    }
+
+    #[test]
+    fn a_leak_goes_after_a_clear_resonance_it_ties_with_only_when_the_gain_is_not_below_one() {
+        let make = |mode_db: f64, mode_score: f64| {
+            vec![
+                candidate(EffectKind::Mode, mode_score, peak(mode_db)),
+                candidate(EffectKind::Leak, 1.54, leak()),
+            ]
+        };
+        let mode_first = vec![
+            Finding::Missing(EffectKind::Mode),
+            Finding::Missing(EffectKind::Leak),
+        ];
+        let leak_first = vec![
+            Finding::Missing(EffectKind::Leak),
+            Finding::Missing(EffectKind::Mode),
+        ];
+        let mut out = make(39.0, 1.48);
+        order(&mut out, false, 1.004);
+        assert_eq!(kinds(&out), mode_first);
+        // A leaking volume: the gain is below 1, the leak keeps its place.
+        let mut out = make(39.0, 1.48);
+        order(&mut out, false, 0.95);
+        assert_eq!(kinds(&out), leak_first);
+        // A weak peak is no resonance a creep could not leave.
+        let mut out = make(7.0, 1.48);
+        order(&mut out, false, 1.004);
+        assert_eq!(kinds(&out), leak_first);
+        // Not close.
+        let mut out = make(39.0, 1.0);
+        order(&mut out, false, 1.004);
+        assert_eq!(kinds(&out), leak_first);
+    }
+
+    #[test]
+    fn nonlinear_damping_from_its_trial_alone_goes_after_a_close_effect_with_a_signature() {
+        let loss = |signature: bool| {
+            Evidence::NonlinearDamping(NonlinearDamping {
+                amplitude_signature: signature,
+                amplitudes: Vec::new(),
+                damping: Vec::new(),
+                damping_rise: f64::NAN,
+                damping_slope_per_unit_step: f64::NAN,
+                gain_s2_per_unit: 1e-9,
+                residual_exponent: f64::NAN,
+                residual_per_step: Vec::new(),
+            })
+        };
+        let drift = Evidence::Drift {
+            pre_step_slope_per_s: 0.05,
+            ramp_in_standard_errors: 12.0,
+            rate_per_s: 0.05,
+        };
+        for (signature, first) in [
+            (false, EffectKind::Drift),
+            (true, EffectKind::NonlinearDamping),
+        ] {
+            let mut out = vec![
+                candidate(EffectKind::Drift, 1.67, drift.clone()),
+                candidate(EffectKind::NonlinearDamping, 1.70, loss(signature)),
+            ];
+            order(&mut out, false, 1.0);
+            assert_eq!(
+                out[0].kind,
+                Finding::Missing(first),
+                "signature {signature}"
+            );
+        }
+    }
+}

@@ -439,6 +439,10 @@ pub enum Advice {
     ExportF32,
     /// Export one coefficient set per temperature instead of a bank.
     OnePerTemperature,
+    /// Design the model file's compensator (it has none).
+    DesignCompensator,
+    /// Design the model file's compensator before exporting it (it has none).
+    DesignBeforeExport,
 }
 
 /// The model-file line that adds a temperature effect by hand.
@@ -477,6 +481,8 @@ impl std::fmt::Display for Advice {
             Self::UseF32 => f.write_str("run it in f32"),
             Self::ExportF32 => f.write_str("export it as f32"),
             Self::OnePerTemperature => f.write_str("export one set per temperature"),
+            Self::DesignCompensator => f.write_str("design its compensator"),
+            Self::DesignBeforeExport => f.write_str("design its compensator first"),
         }
     }
 }

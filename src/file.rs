@@ -129,14 +129,24 @@ fn default_pressure_pa() -> f64 {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HistoryRow {
-    /// The effects the fit had (kinds), in the order added.
-    pub effects: Vec<String>,
+    /// The effects the fit had (kinds), in the order added; stored by name (`mode`,
+    /// `coloured-noise`, ...), an unknown name refused when the file is read.
+    pub effects: Vec<crate::modelling::effects::EffectKind>,
     /// Model order.
     pub order: usize,
     /// Delay (samples).
     pub delay: usize,
     /// Simulation error per test.
     pub tests: Vec<HistoryTest>,
+}
+
+impl HistoryRow {
+    /// The effects' names joined by `sep`: `mode, leak` for `", "`.
+    #[must_use]
+    pub fn effect_names(&self, sep: &str) -> String {
+        let names: Vec<&str> = self.effects.iter().map(|k| k.as_str()).collect();
+        names.join(sep)
+    }
 }
 
 /// One test's error in a history row.
@@ -464,5 +474,38 @@ mod tests {
             message.contains("unknown fit method `lsq`: one of oe, bj, sm, arx"),
             "{e}"
         );
+    }
+
+    /// A history row's effects are kinds, stored by their names as before: a known one
+    /// round-trips to the same bytes, an unknown one is refused with its name.
+    #[test]
+    fn history_effects_are_kinds_by_name_and_an_unknown_one_is_refused() {
+        use crate::modelling::effects::EffectKind;
+        let shipped = include_str!("../examples/data/board_model.toml");
+        let path = Path::new("board_model.toml");
+        let mut f = ModelFile::parse(path, shipped).unwrap();
+        assert_eq!(f.to_toml().unwrap(), shipped);
+        f.history.push(HistoryRow {
+            effects: vec![EffectKind::Mode, EffectKind::ColouredNoise],
+            order: 2,
+            delay: 3,
+            tests: vec![HistoryTest {
+                file: "est.csv".into(),
+                role: "estimation".into(),
+                nrmse: 0.25,
+            }],
+        });
+        let written = f.to_toml().unwrap();
+        assert!(
+            written.contains("effects = [\"mode\", \"coloured-noise\"]"),
+            "{written}"
+        );
+        let back = ModelFile::parse(path, &written).unwrap();
+        assert_eq!(back, f);
+        assert_eq!(back.to_toml().unwrap(), written);
+        assert_eq!(back.history[0].effect_names(", "), "mode, coloured-noise");
+        let unknown = written.replacen("\"coloured-noise\"]", "\"gremlins\"]", 1);
+        let e = ModelFile::parse(path, &unknown).unwrap_err().to_string();
+        assert!(e.contains("unknown effect kind 'gremlins'"), "{e}");
     }
 }

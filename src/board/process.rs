@@ -27,6 +27,31 @@
 //! processor runs the set the channel is on (and the set warming up, if any), and the board
 //! gives the channel the measured temperature between blocks with
 //! [`TemperatureBank::set_temperature`] on the `Split`'s `state`.
+//!
+//! A compensator as a processor, a block at a time, gives the bits of its own `process`:
+//!
+//! ```
+//! use dsp_process::{Inplace, Process, Split};
+//! use unlag::compensator::{CascadeCoefficients, CascadeState};
+//!
+//! // A first-order lag: u = 0.2 y + 0.8 u[-1].
+//! let c = CascadeCoefficients::<f32, 1>::new(0.2, &[[1.0, 0.0, 0.0, -0.8, 0.0]])?;
+//! let x: [f32; 6] = [0.0, 1.0, 1.0, 0.5, -0.25, 2.0];
+//! let mut own = CascadeState::default();
+//! let expected = x.map(|v| c.process(&mut own, v));
+//!
+//! let mut p = Split::new(c, CascadeState::default());
+//! let mut y = [0.0f32; 6];
+//! p.block(&x, &mut y);
+//! assert_eq!(y, expected);
+//! // The same in place, and the state carries on to the next block.
+//! let mut q = Split::new(c, CascadeState::default());
+//! let mut xy = x;
+//! q.inplace(&mut xy);
+//! assert_eq!(xy, expected);
+//! assert_eq!(p.state, q.state);
+//! # Ok::<(), unlag::compensator::InverseError>(())
+//! ```
 
 #![deny(
     clippy::indexing_slicing,

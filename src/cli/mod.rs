@@ -139,6 +139,10 @@ pub fn describe(e: &Error) -> String {
     use crate::error::Parameter;
     use crate::trace::{ColumnRole, TraceError};
     if let Error::Advised { error, advice } = e {
+        // A missing design at export has always been said in brackets.
+        if *advice == crate::error::Advice::DesignBeforeExport {
+            return format!("{} ({})", describe(error), spell(advice));
+        }
         return format!("{}: {}", describe(error), spell(advice));
     }
     if let Error::InvalidParameter { parameter, message } = e {
@@ -216,6 +220,8 @@ fn spell(advice: &crate::error::Advice) -> String {
         ),
         Advice::UseF32 => "use --arithmetic f32".into(),
         Advice::OnePerTemperature => "export one set per temperature with --temperature K".into(),
+        Advice::DesignCompensator => "run `unlag invert`".into(),
+        Advice::DesignBeforeExport => "run `unlag invert` first".into(),
         // Said the same way in both.
         Advice::ExportF32 => advice.to_string(),
     }
@@ -554,6 +560,8 @@ mod tests {
             Advice::UseF32,
             Advice::ExportF32,
             Advice::OnePerTemperature,
+            Advice::DesignCompensator,
+            Advice::DesignBeforeExport,
         ];
         for advice in every {
             let e = Error::InvalidParameter {
@@ -563,8 +571,47 @@ mod tests {
             .advised(advice);
             assert!(!e.to_string().contains("--"), "{e}");
             assert!(!e.to_string().contains("unlag "), "{e}");
-            assert!(describe(&e).starts_with("invalid FILE: give at least one step test: "));
+            let said = describe(&e);
+            assert!(
+                said.starts_with("invalid FILE: give at least one step test: ")
+                    || said.starts_with("invalid FILE: give at least one step test ("),
+                "{said}"
+            );
         }
+    }
+
+    /// A model file with no design: the library advises designing one, the command line says
+    /// `unlag invert` as it did when the library named it.
+    #[test]
+    fn a_missing_design_is_spelled_as_unlag_invert() {
+        use crate::pipeline::{compensate, CompensateRequest, Compensation};
+        let path = std::path::Path::new("m.toml");
+        let mut file = crate::file::ModelFile::parse(
+            path,
+            include_str!("../../examples/data/board_model.toml"),
+        )
+        .unwrap();
+        file.inverse = None;
+        let e = crate::export::image::BoardCoefficients::from_model_file(&file, path).unwrap_err();
+        assert!(!e.to_string().contains("unlag "), "{e}");
+        assert_eq!(
+            describe(&e),
+            "m.toml: no [inverse] compensator design to export (run `unlag invert` first)"
+        );
+        let e = compensate(&CompensateRequest {
+            file: &file,
+            model_path: path,
+            probe: &[0.0; 64],
+            reference: None,
+            compensation: Compensation::Offline,
+        })
+        .unwrap_err();
+        assert!(!e.to_string().contains("unlag "), "{e}");
+        assert_eq!(
+            describe(&e),
+            "invalid --offline: m.toml has no compensator design to take the noise and prior \
+             from: run `unlag invert`"
+        );
     }
 
     /// The design asks for a bandwidth in words; the command line names `--bandwidth`, as it

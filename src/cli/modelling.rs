@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::fit::{Method, Test};
 use crate::modelling::diagnose::{self, Candidate, Current, Remedy};
-use crate::modelling::effects::{Effect, DEFAULT_REFERENCE_K};
+use crate::modelling::effects::{Effect, EffectKind, DEFAULT_REFERENCE_K};
 use crate::modelling::evidence::TestEvidence;
 use crate::trace::Trace;
 
@@ -223,7 +223,7 @@ fn print_history(file: &ModelFile) {
     crate::outln!("error history of this model file (mean nrmse over its tests):");
     for (i, h) in file.history.iter().enumerate() {
         let mean = h.tests.iter().map(|t| t.nrmse).sum::<f64>() / h.tests.len().max(1) as f64;
-        let error = if h.effects.iter().any(|e| e == "coloured-noise") {
+        let error = if h.effects.contains(&EffectKind::ColouredNoise) {
             " (one-step-ahead prediction error: the model has a noise model)"
         } else {
             ""
@@ -233,7 +233,7 @@ fn print_history(file: &ModelFile) {
             i + 1,
             h.order,
             h.delay,
-            h.effects.join(", "),
+            h.effect_names(", "),
             pct(mean)
         );
     }

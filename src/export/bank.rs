@@ -165,11 +165,20 @@ impl BoardBank {
         for &t in &temperatures_k {
             let scaled = crate::pipeline::at_temperature(file, t)?;
             let set = BoardCoefficients::from_model_file(&scaled, path).map_err(|e| {
-                bad(format!(
+                // The advice (a missing design) stays advice, for the command line to spell.
+                let (e, advice) = match e {
+                    Error::Advised { error, advice } => (*error, Some(advice)),
+                    e => (e, None),
+                };
+                let e = bad(format!(
                     "at {t} K (model at {reference} K): {}",
                     e.to_string()
                         .trim_start_matches(&format!("{}: ", path.display()))
-                ))
+                ));
+                match advice {
+                    Some(advice) => e.advised(advice),
+                    None => e,
+                }
             })?;
             sets.push(set);
         }

@@ -271,10 +271,10 @@ fn bad(path: &Path, message: String) -> Error {
 /// The model file's `[inverse]` design, if the board may run it.
 fn design<'a>(file: &'a ModelFile, path: &Path) -> Result<&'a Design> {
     let Some(design) = &file.inverse else {
-        return Err(bad(
-            path,
-            "no [inverse] compensator design to export (run `unlag invert` first)".into(),
-        ));
+        return Err(
+            bad(path, "no [inverse] compensator design to export".into())
+                .advised(crate::error::Advice::DesignBeforeExport),
+        );
     };
     design.check_exportable()?;
     Ok(design)

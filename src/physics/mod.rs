@@ -18,9 +18,10 @@
 //! * [`compare`](mod@compare): the physical prediction of a probe, and how a fitted model disagrees with it.
 //!
 //! SI units throughout: m, m², m³, s, Hz, rad/s, Pa, K, kg/m³, Pa s. Time dependence is
-//! `e^{st}`; responses are `p_end/p_in`, phase negative for a lag. The formulas, their limits
-//! and the validation against the digitised Bergh-Tijdeman curves are in
-//! `../shared/physics/README.md` and `src/physics/NOTES.md`.
+//! `e^{st}`; responses are `p_end/p_in`, phase negative for a lag. The line model and the
+//! curves it is validated against (the host tests, digitised from its Figs. 9-20) are from
+//! H. Bergh and H. Tijdeman, *Theoretical and experimental results for the dynamic response of
+//! pressure measuring systems*, NLR-TR F.238, NLR Amsterdam, 1965.
 
 pub mod bessel;
 pub mod compare;

@@ -30,7 +30,7 @@
 //! (max error 2.8e-5 of the step), against the exact Bergh-Tijdeman step response from its poles
 //! and residues (1.8e-4 after seven front delays, where the check's own truncation to eight
 //! modes dominates; 9e-7 after 25 ms), and for causality (below 1e-10 of the step before the
-//! front). Numbers in `src/physics/NOTES.md`.
+//! front).
 //!
 //! This module owns the excitations ([`Excitation`]), the probe as a whole ([`Probe`]), the
 //! acquisition settings ([`Acquisition`]), the impulse response ([`impulse_response`]) and the

@@ -145,10 +145,11 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
         return Err(Error::InvalidParameter {
             parameter: crate::error::Parameter::Offline,
             message: format!(
-                "{} has no compensator design to take the noise and prior from: run `unlag invert`",
+                "{} has no compensator design to take the noise and prior from",
                 model_path.display()
             ),
-        });
+        }
+        .advised(Advice::DesignCompensator));
     }
     // The guarantee on a run that has no reference to judge on: a stored design that the run's
     // own probe spectrum predicts not to beat the raw probe gives way to the one of least

@@ -88,7 +88,7 @@ pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
         .collect();
     let mut history = request.history.clone();
     history.push(HistoryRow {
-        effects: effects.iter().map(|e| e.kind().to_string()).collect(),
+        effects: effects.iter().map(|e| e.kind()).collect(),
         order: fitted.model.order(),
         delay: fitted.model.delay,
         tests: sources
@@ -234,7 +234,7 @@ mod tests {
         })
         .unwrap();
         assert_eq!(searched.effects, [Effect::Delay { samples: 3 }]);
-        assert_eq!(searched.history[1].effects, ["delay"]);
+        assert_eq!(searched.history[1].effects, [EffectKind::Delay]);
         let given = fit_probe(&FitRequest {
             search_delay: true,
             effects: vec![Effect::Delay { samples: 4 }],

@@ -25,7 +25,7 @@ pub(super) fn history(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
             if r.effects.is_empty() {
                 format!("{}. order {}", i + 1, r.order)
             } else {
-                format!("{}. +{}", i + 1, r.effects.join("+"))
+                format!("{}. +{}", i + 1, r.effect_names("+"))
             }
         })
     };
@@ -142,7 +142,7 @@ pub(super) fn history(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
             i + 1,
             r.order,
             r.delay,
-            escape(&r.effects.join(", ")),
+            escape(&r.effect_names(", ")),
             errs.join("<br>")
         );
     }

@@ -14,6 +14,22 @@ use super::{CascadeCoefficients, CascadeState, InverseError, Sample};
 /// per squared sample difference); the low-pass is `N` sections, like the cascade. Per sample:
 /// one subtraction, two multiplies and the low-pass (5 multiplies per section, the gain folded
 /// into the first).
+///
+/// ```
+/// use unlag::compensator::NonlinearDampingCoefficients;
+///
+/// // g fs^2 = 0.3 through the one-section low-pass 0.5 / (1 - 0.5 z^-1).
+/// let c = NonlinearDampingCoefficients::<f32, 1>::new(0.3, 0.5, &[[1.0, 0.0, 0.0, -0.5, 0.0]])?;
+/// let mut state = c.equilibrium(0.0);
+/// // A steady probe needs no correction; a rise of 1 gives 0.3 * 0.5 * |1| * 1, then the
+/// // low-pass lets it decay by half per sample; a fall of 2 gives a negative term.
+/// let terms = [0.0f32, 1.0, 1.0, 1.0, -1.0].map(|y| c.process(&mut state, y));
+/// let expected = [0.0f32, 0.15, 0.075, 0.0375, 0.5 * 0.0375 - 0.15 * 4.0];
+/// for (t, e) in terms.iter().zip(expected) {
+///     assert!((t - e).abs() < 1e-6, "{terms:?}");
+/// }
+/// # Ok::<(), unlag::compensator::InverseError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NonlinearDampingCoefficients<T, const N: usize> {
     lowpass: CascadeCoefficients<T, N>,

@@ -8,8 +8,8 @@
 //! compensator `C` should make `C y` as close as possible to `u[k - L]` for a latency `L`
 //! the user accepts. With a prior for the pressure `u` (default: a random walk, whose spectrum
 //! falls like `1/f^2`, the spectrum of steps and ramps), the filter with the least mean-square
-//! error for that latency is the fixed-lag Kalman smoother (`../shared/reference/`
-//! optimal-reconstruction.md, section 3).
+//! error for that latency is the fixed-lag Kalman smoother (Mendel, *Optimal Seismic
+//! Deconvolution*, 1983, and the literature on input estimation by Kalman filtering).
 //!
 //! # Method
 //! 1. State space of the delay-free model (transposed direct form II), with the pressure `u`

@@ -61,7 +61,8 @@ impl TemperatureDamping {
 pub const VISCOUS_PRESSURE_PA: f64 = crate::physics::gas::STANDARD_PRESSURE;
 
 /// The factor on a tube-volume system's damping ratio from `reference_k` to `temperature_k`:
-/// `zeta = (4 / c_I) nu / (R^2 w_n)` (see `../shared/physics/README.md`, 1.3) with `w_n`
+/// `zeta = (4 / c_I) nu / (R^2 w_n)` (the lumped limit of Bergh and Tijdeman's 1965 line
+/// model, `c_I = 4/3` the Poiseuille inertance) with `w_n`
 /// scaling as the speed of sound, so `(nu(T) / nu(T_ref)) / sqrt(T / T_ref)`, air at
 /// [`VISCOUS_PRESSURE_PA`] ([`crate::physics::Gas::air`]: Sutherland viscosity, ideal-gas
 /// density). About 1.22 from 293.15 K to 343.15 K.

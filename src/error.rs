@@ -441,8 +441,6 @@ pub enum Advice {
     OnePerTemperature,
     /// Design the model file's compensator (it has none).
     DesignCompensator,
-    /// Design the model file's compensator before exporting it (it has none).
-    DesignBeforeExport,
 }
 
 /// The model-file line that adds a temperature effect by hand.
@@ -482,7 +480,6 @@ impl std::fmt::Display for Advice {
             Self::ExportF32 => f.write_str("export it as f32"),
             Self::OnePerTemperature => f.write_str("export one set per temperature"),
             Self::DesignCompensator => f.write_str("design its compensator"),
-            Self::DesignBeforeExport => f.write_str("design its compensator first"),
         }
     }
 }

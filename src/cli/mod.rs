@@ -139,10 +139,6 @@ pub fn describe(e: &Error) -> String {
     use crate::error::Parameter;
     use crate::trace::{ColumnRole, TraceError};
     if let Error::Advised { error, advice } = e {
-        // A missing design at export has always been said in brackets.
-        if *advice == crate::error::Advice::DesignBeforeExport {
-            return format!("{} ({})", describe(error), spell(advice));
-        }
         return format!("{}: {}", describe(error), spell(advice));
     }
     if let Error::InvalidParameter { parameter, message } = e {
@@ -221,7 +217,6 @@ fn spell(advice: &crate::error::Advice) -> String {
         Advice::UseF32 => "use --arithmetic f32".into(),
         Advice::OnePerTemperature => "export one set per temperature with --temperature K".into(),
         Advice::DesignCompensator => "run `unlag invert`".into(),
-        Advice::DesignBeforeExport => "run `unlag invert` first".into(),
         // Said the same way in both.
         Advice::ExportF32 => advice.to_string(),
     }
@@ -561,7 +556,6 @@ mod tests {
             Advice::ExportF32,
             Advice::OnePerTemperature,
             Advice::DesignCompensator,
-            Advice::DesignBeforeExport,
         ];
         for advice in every {
             let e = Error::InvalidParameter {
@@ -573,8 +567,7 @@ mod tests {
             assert!(!e.to_string().contains("unlag "), "{e}");
             let said = describe(&e);
             assert!(
-                said.starts_with("invalid FILE: give at least one step test: ")
-                    || said.starts_with("invalid FILE: give at least one step test ("),
+                said.starts_with("invalid FILE: give at least one step test: "),
                 "{said}"
             );
         }
@@ -596,7 +589,7 @@ mod tests {
         assert!(!e.to_string().contains("unlag "), "{e}");
         assert_eq!(
             describe(&e),
-            "m.toml: no [inverse] compensator design to export (run `unlag invert` first)"
+            "m.toml: no [inverse] compensator design to export: run `unlag invert`"
         );
         let e = compensate(&CompensateRequest {
             file: &file,

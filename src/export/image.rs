@@ -273,7 +273,7 @@ fn design<'a>(file: &'a ModelFile, path: &Path) -> Result<&'a Design> {
     let Some(design) = &file.inverse else {
         return Err(
             bad(path, "no [inverse] compensator design to export".into())
-                .advised(crate::error::Advice::DesignBeforeExport),
+                .advised(crate::error::Advice::DesignCompensator),
         );
     };
     design.check_exportable()?;

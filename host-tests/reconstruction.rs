@@ -410,3 +410,43 @@ fn a_slow_run_the_step_design_would_make_worse_gets_a_narrower_one_and_says_so()
         "{s}"
     );
 }
+
+/// A recorded trace of the drawn bank (`cargo run --release --example bench_bank`, seed 13).
+fn bank(name: &str) -> String {
+    format!("{}/host-tests/data/bank/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+#[test]
+fn a_dc_gain_the_fit_cannot_tell_from_one_does_not_rescale_the_run() {
+    // Bank case 067: a flush sensor at 1 MHz whose probe noise wanders (AR(1) of pole 0.9,
+    // 7.9 times the white level), fitted on a step 0 -> 1727 Pa, compensated on another
+    // (98 -> 1823 Pa). Low-frequency noise before the step reads the probe's resting level
+    // 21 Pa low, and the fit's DC gain came out 1.014 where the probe's is 1: the compensator
+    // divided every run by it, and u_hat was 1.09x further from the reference than the raw
+    // probe. The level's uncertainty counted with the noise's correlation is 0.6 %, so 1.014
+    // is within three standard deviations of 1, and the fit takes it as 1.
+    let d = dir("calibrated");
+    let model = d.join("model.toml");
+    let m = model.to_str().unwrap();
+    let f = json(&["fit", &bank("coloured-est.csv"), "-o", m, "--json"]);
+    let fitted = f["fit"]["calibrated_from"].as_f64().unwrap();
+    assert!((fitted - 1.0).abs() > 0.005, "{f}");
+    assert!((f["dc_gain"].as_f64().unwrap() - 1.0).abs() < 1e-9, "{f}");
+    let std = f["fit"]["uncertainty"]["dc_gain_std"].as_f64().unwrap();
+    assert!(std > 0.004 && (fitted - 1.0).abs() < 3.0 * std, "{f}");
+    let out = d.join("out.csv");
+    let c = json(&[
+        "compensate",
+        m,
+        &bank("coloured-val.csv"),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    let (u_hat, raw) = (
+        c["nrmse_u_hat"].as_f64().unwrap(),
+        c["nrmse_raw"].as_f64().unwrap(),
+    );
+    assert!(u_hat < 0.95 * raw, "{c}");
+    assert_eq!(c["verdict"], "better", "{c}");
+}

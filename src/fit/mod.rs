@@ -214,7 +214,9 @@ fn refine(whole: &[Data<'_>], model: &Model, method: Method) -> Result<(Vec<f64>
 
 /// The part of the DC gain's standard deviation that comes from the resting levels before
 /// the step, which the fit takes as known: `sqrt(var(y0) + g^2 var(u0)) / step`, each level's
-/// variance that of a mean of the samples before the step.
+/// variance that of a mean of the samples before the step, correlated as their own AR model
+/// says ([`noise::variance_of_mean`]): low-frequency noise before the step moves the level
+/// far more than independent samples would.
 fn level_part(p: &Prepared, dc_gain: f64) -> f64 {
     let (Some(u0), Some(y0)) = (p.u.get(..p.onset), p.y.get(..p.onset)) else {
         return 0.0;
@@ -224,8 +226,8 @@ fn level_part(p: &Prepared, dc_gain: f64) -> f64 {
     if u0.len() < 2 || step.abs() <= 0.0 || step.is_nan() {
         return 0.0;
     }
-    let var_of_mean = |x: &[f64]| step::mean_std(x).1.powi(2) / x.len() as f64;
-    (var_of_mean(y0) + dc_gain * dc_gain * var_of_mean(u0)).sqrt() / step.abs()
+    (noise::variance_of_mean(y0) + dc_gain * dc_gain * noise::variance_of_mean(u0)).sqrt()
+        / step.abs()
 }
 
 /// Rounds of the Box-Jenkins alternation (noise model, then dynamics on whitened data).
@@ -607,7 +609,7 @@ pub fn fit(
             val = validation.iter().map(|t| nrmse(&model, t.u, t.y)).collect();
         }
     }
-    let report = FitReport {
+    let mut report = FitReport {
         method: options.method,
         order_selection: match options.order {
             Order::Fixed(_) => "fixed".into(),
@@ -640,7 +642,19 @@ pub fn fit(
             u.dc_gain_std = u.dc_gain_std.hypot(level_part(&p, model.dc_gain()));
             u
         }),
+        calibrated_from: None,
     };
+    let fitted_dc = model.dc_gain();
+    if let Some(note) = report
+        .uncertainty
+        .as_ref()
+        .and_then(|u| calibrate(&mut model, u.dc_gain_std))
+    {
+        report.notes.push(note);
+        report.calibrated_from = Some(fitted_dc);
+        est = nrmse(&model, estimation.u, estimation.y);
+        val = validation.iter().map(|t| nrmse(&model, t.u, t.y)).collect();
+    }
     Ok(Fitted {
         model,
         report,
@@ -649,9 +663,70 @@ pub fn fit(
     })
 }
 
+/// A fitted DC gain within this many of its standard deviations of 1 is not evidence that the
+/// probe's static calibration differs from the reference's.
+pub const CALIBRATED_SIGMAS: f64 = 3.0;
+
+/// The calibration is judged only when the DC gain is known to this standard deviation (2 %):
+/// a less certain one is a model whose slow part the record does not determine (a slow
+/// pole-zero pair that a drift or a leak leaves), not a level read through noise.
+pub const CALIBRATION_MAX_STD: f64 = 0.02;
+
+/// Takes the DC gain as 1 when the fit cannot tell it from 1 ([`CALIBRATED_SIGMAS`] of
+/// `dc_gain_std`, itself at most [`CALIBRATION_MAX_STD`]): the numerator is scaled by
+/// `1 / G(1)`, the poles and zeros kept, and the note says so. A compensator made for a DC gain that is noise (a level read through
+/// low-frequency noise before the step) rescales every run's level by it, where the probe,
+/// calibrated against the same static pressure as the reference, reads it right. `None`
+/// (the model untouched) when the gain is exactly 1, clearly not 1, or not known.
+fn calibrate(model: &mut Model, dc_gain_std: f64) -> Option<String> {
+    let dc = model.dc_gain();
+    let off = (dc - 1.0).abs();
+    if !(dc.is_finite() && dc_gain_std.is_finite() && off > 0.0)
+        || off > CALIBRATED_SIGMAS * dc_gain_std
+        || dc_gain_std > CALIBRATION_MAX_STD
+    {
+        return None;
+    }
+    model.b.iter_mut().for_each(|b| *b /= dc);
+    Some(format!(
+        "the fitted DC gain {dc:.6} is within {CALIBRATED_SIGMAS} standard deviations ({dc_gain_std:.1e}) of 1: taken as 1 (a probe calibrated against the reference), the numerator scaled by {:.6}",
+        1.0 / dc
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_dc_gain_the_fit_cannot_tell_from_one_is_taken_as_one() {
+        let model = Model {
+            fs: 1000.0,
+            delay: 2,
+            a: vec![-0.9],
+            b: vec![0.101, 0.0],
+        };
+        assert!((model.dc_gain() - 1.01).abs() < 1e-12);
+        // 1 % off with a standard deviation of 0.5 %: two sigma, taken as 1.
+        let mut near = model.clone();
+        let note = calibrate(&mut near, 0.005).unwrap();
+        assert!((near.dc_gain() - 1.0).abs() < 1e-12, "{}", near.dc_gain());
+        assert_eq!((near.a.clone(), near.delay), (model.a.clone(), model.delay));
+        assert!(note.contains("1.010000"), "{note}");
+        // 1 % off with 0.1 %: ten sigma, a real calibration difference, kept.
+        let mut far = model.clone();
+        assert!(calibrate(&mut far, 0.001).is_none());
+        assert_eq!(far, model);
+        // A DC gain known to 10 %: the record does not determine the slow part.
+        let mut vague = model.clone();
+        assert!(calibrate(&mut vague, 0.1).is_none());
+        assert_eq!(vague, model);
+        // No uncertainty: nothing to judge by.
+        let mut unknown = model.clone();
+        assert!(calibrate(&mut unknown, f64::NAN).is_none());
+        assert!(calibrate(&mut unknown, 0.0).is_none());
+        assert_eq!(unknown, model);
+    }
 
     #[test]
     fn in_parallel_keeps_the_items_order() {

@@ -313,6 +313,10 @@ pub struct FitReport {
     /// How sure the fit is of what it found (one standard deviation), when it could say.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub uncertainty: Option<Uncertainty>,
+    /// The DC gain the data gave, when the fit took it as 1 because it could not tell it from
+    /// 1 (within [`crate::fit::CALIBRATED_SIGMAS`] of its standard deviation).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibrated_from: Option<f64>,
 }
 
 /// One standard deviation of what a fit found, from the Jacobian at the estimate and the

@@ -86,6 +86,24 @@ pub fn fit(v: &[f64], max_order: usize) -> ArNoise {
     }
 }
 
+/// The variance of the mean of `x`, its samples correlated as the AR model of order up to
+/// [`MAX_NOISE_ORDER`] fitted to them says: the spectral density at zero frequency over the
+/// length, `sigma_e^2 / (n D(1)^2)`, which is `var / n` for white samples and larger for
+/// low-frequency noise (an AR(1) of pole 0.9 gives 19 times `var / n`). Never more than the
+/// samples' own variance; 0 for fewer than two samples.
+#[must_use]
+pub fn variance_of_mean(x: &[f64]) -> f64 {
+    if x.len() < 2 {
+        return 0.0;
+    }
+    let n = x.len() as f64;
+    let model = fit(x, MAX_NOISE_ORDER);
+    let var = model.std * model.std;
+    let d1 = 1.0 + model.ar.iter().sum::<f64>();
+    let at_zero = model.innovation_std * model.innovation_std / (d1 * d1).max(1e-12);
+    (at_zero / n).min(var)
+}
+
 /// `D(q) x`: the one-step-ahead prediction error of `x` under the noise model (the first `p`
 /// samples use the samples there are).
 #[must_use]
@@ -151,6 +169,26 @@ pub(crate) fn lagged_products(a: &[f64], b: &[f64], (ma, mb): (f64, f64), lags: 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_mean_of_correlated_noise_is_less_sure_than_of_white() {
+        // AR(1) of pole 0.9: the variance of the mean of n samples is about
+        // var (1 + 0.9) / (1 - 0.9) / n, nineteen times the white formula.
+        let n = 20_000;
+        let e = crate::testing::gaussian(n, 5);
+        let mut v = Vec::with_capacity(n);
+        let mut s = 0.0;
+        for x in &e {
+            s = 0.9 * s + x;
+            v.push(s);
+        }
+        let var = v.iter().map(|x| x * x).sum::<f64>() / n as f64;
+        let ratio = variance_of_mean(&v) / (var / n as f64);
+        assert!((ratio / 19.0 - 1.0).abs() < 0.2, "{ratio}");
+        let white = variance_of_mean(&e) / (1.0 / n as f64);
+        assert!((white - 1.0).abs() < 0.1, "{white}");
+        assert_eq!(variance_of_mean(&[1.0]), 0.0);
+    }
 
     #[test]
     fn lagged_products_by_blocks_are_the_direct_sums() {

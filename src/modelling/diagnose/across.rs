@@ -25,6 +25,9 @@ pub struct PerTest {
     /// Each resonance of the test's own fit: `(natural frequency in Hz, damping)`, lowest
     /// first.
     pub resonances: Vec<(f64, f64)>,
+    /// Each real pole of the test's own fit as a corner frequency in Hz, lowest first: what
+    /// moves with the temperature of an overdamped probe (a capillary) that has no resonance.
+    pub corners: Vec<f64>,
     /// What the test's own (linear) fit leaves above the noise, RMS over `|step|`:
     /// `sqrt(max(rms^2 - noise^2, (noise / 10)^2)) / |step|`. A linear probe leaves the same
     /// share of every step; amplitude-dependent losses leave more of a larger one.
@@ -150,6 +153,8 @@ pub struct TemperatureEvidence {
     pub spread: f64,
     /// Damping ratio of the strongest test.
     pub damping_ratio: f64,
+    /// The probe has no resonance: the rows compare corner frequencies (real poles).
+    pub overdamped: bool,
 }
 
 impl TemperatureEvidence {
@@ -173,18 +178,34 @@ pub fn temperature_evidence(
     tests: &[Test<'_>],
     evidence: &[TestEvidence],
 ) -> Option<TemperatureEvidence> {
-    let model_modes = crate::fit::analysis::Analysis::new(current.model)
+    let mut model_modes = crate::fit::analysis::Analysis::new(current.model)
         .ok()?
         .resonance_pairs();
+    // An overdamped probe has no resonance: its corners move with the temperature instead,
+    // each as a mode of damping 1.
+    let overdamped = model_modes.is_empty();
+    if overdamped {
+        model_modes = corners(current.model)
+            .into_iter()
+            .map(|f| (f, 1.0))
+            .collect();
+    }
     if model_modes.is_empty() {
         return None;
     }
     let rows: Vec<TemperatureRow> = per_test(current, tests, evidence)
         .into_iter()
-        .filter(|p| !p.resonances.is_empty())
         .map(|p| {
-            let pairs: Vec<((f64, f64), (f64, f64))> = p
-                .resonances
+            let modes: Vec<(f64, f64)> = if overdamped {
+                p.corners.iter().map(|f| (*f, 1.0)).collect()
+            } else {
+                p.resonances.clone()
+            };
+            (p.file, modes)
+        })
+        .filter(|(_, modes)| !modes.is_empty())
+        .map(|(file, modes)| {
+            let pairs: Vec<((f64, f64), (f64, f64))> = modes
                 .iter()
                 .filter_map(|&(f, z)| {
                     model_modes
@@ -209,7 +230,7 @@ pub fn temperature_evidence(
                 .sum::<f64>()
                 / n;
             TemperatureRow {
-                file: p.file,
+                file,
                 modes: pairs
                     .iter()
                     .map(|((f, _), (g, _))| (*f, *g, f / g))
@@ -231,7 +252,29 @@ pub fn temperature_evidence(
         spread: strongest.spread,
         damping_ratio: strongest.damping_ratio,
         rows: rows.clone(),
+        overdamped,
     })
+}
+
+/// A real pole counts as the probe's response when its corner is at least this fraction of
+/// the fastest one: much slower ones are a leak or a drift, which a temperature does not move
+/// by the same factor.
+const MIN_CORNER_FRACTION: f64 = 1.0 / 30.0;
+
+/// The real poles of `model` in `(0, 1)` as corner frequencies `-ln(p) fs / 2 pi` in Hz, lowest
+/// first, those below [`MIN_CORNER_FRACTION`] of the fastest left out.
+fn corners(model: &crate::fit::Model) -> Vec<f64> {
+    let mut out: Vec<f64> = model
+        .poles()
+        .unwrap_or_default()
+        .iter()
+        .filter(|p| p.im.abs() < 1e-9 && p.re > 0.0 && p.re < 1.0)
+        .map(|p| -p.re.ln() * model.fs / (2.0 * std::f64::consts::PI))
+        .collect();
+    let fastest = out.iter().copied().fold(0.0, f64::max);
+    out.retain(|f| *f >= MIN_CORNER_FRACTION * fastest);
+    out.sort_by(f64::total_cmp);
+    out
 }
 
 /// Fits the current model's structure (order without effects, delay, method) to each test
@@ -276,11 +319,13 @@ pub fn per_test(
                 .map(|a| a.resonance_pairs())
                 .unwrap_or_default();
             resonances.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let corners = own.as_ref().map(|f| corners(&f.model)).unwrap_or_default();
             PerTest {
                 file: e.file.clone(),
                 step_size: e.step_size,
                 residual_per_step: e.residual_rms / e.step_size.abs().max(1e-300),
                 resonances,
+                corners,
                 own_residual_per_step: excess / e.step_size.abs().max(1e-300),
             }
         })

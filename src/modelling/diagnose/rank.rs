@@ -412,10 +412,12 @@ pub fn diagnose(
                         viscous_damping_ratio: viscous,
                     }),
                     format!(
-                        "every natural frequency of {file} fitted alone is {ratio:.3} times the \
-                         model's (spread across modes {:.1} %, damping x{:.2}): the same probe at \
+                        "every {} frequency of {file} fitted alone is {ratio:.3} times the \
+                         model's (spread across {} {:.1} %, damping x{:.2}): the same probe at \
                          another gas temperature, T/T_ref = {:.3} (speed of sound goes as the root \
                          of temperature); {law}",
+                        if t.overdamped { "corner" } else { "natural" },
+                        if t.overdamped { "poles" } else { "modes" },
                         100.0 * t.spread,
                         t.damping_ratio,
                         ratio * ratio

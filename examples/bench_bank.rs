@@ -1,5 +1,5 @@
-//! A bank of drawn step tests, run through the `unlag` binary as a new user would (issue 13,
-//! items 4-5: "a bank that is not the generator's echo").
+//! A bank of drawn step tests, run through the `unlag` binary as a new user would: a bank
+//! that is not the generator's echo.
 //!
 //! This example owns the bank: it draws at least 120 cases from a seed (three probe families,
 //! every hidden-effect kind and none, two generators), writes each case's estimation and
@@ -8,6 +8,11 @@
 //! `unlag compensate`), and prints per family and per kind how much better than the raw probe
 //! the compensated signal is, and how close to the oracle. `target/bank/results.csv` has one
 //! row per case with every drawn parameter and every error.
+//!
+//! The files beside it in `bench_bank/`: `case.rs` (what a case is), `draw.rs` (drawing the
+//! cases), `simulate.rs` (their tests and true models), `runner.rs` (one case through the
+//! binary), `report.rs` (the summary and `results.csv`) and `modelling_loop.rs` (`--loop`).
+//! This file owns the flags and runs the cases on its threads.
 //!
 //! ```sh
 //! cargo build --release --bin unlag

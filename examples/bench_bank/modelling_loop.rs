@@ -1,4 +1,4 @@
-//! The modelling loop on the bank (issue 14): from a second-order fit of the estimation test,
+//! The modelling loop on the bank: from a second-order fit of the estimation test,
 //! `unlag diagnose` names the missing effect from the estimation and validation tests; the
 //! first name is scored against the hidden kind, and `unlag fit --add` of that name is
 //! scored by the validation test's error before and after.

@@ -1,4 +1,4 @@
-//! Score table of the modelling loop (issue 7), a benchmark, not a test: for each case of
+//! Score table of the modelling loop, a benchmark, not a test: for each case of
 //! step tests with a hidden effect, the candidates `unlag diagnose` names, and the validation
 //! error before and after adding the first one; then, for every case, the residual against
 //! amplitude across its tests (what names `nonlinear-damping`). `host-tests/modelling.rs`

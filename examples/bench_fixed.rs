@@ -1,4 +1,4 @@
-//! Accuracy of the fixed-point compensator (issue 4), a benchmark, not a test.
+//! Accuracy of the fixed-point compensator, a benchmark, not a test.
 //!
 //! For three probes, from a few samples per period to a thousand (fs/fn about 16, 100 and
 //! 1000), the stable band-limited compensator is designed in f64 and run three ways on the same

@@ -1,5 +1,5 @@
-//! Host benchmark of issue 2 (a benchmark, not a test): fit time on `N = 1e6` samples of a
-//! 4th-order step test, and host compensation throughput.
+//! Host benchmark (a benchmark, not a test): fit time on `N = 1e6` samples of a 4th-order
+//! step test, and host compensation throughput.
 //!
 //! ```sh
 //! cargo run --release --example bench_host -- [--out DIR]

@@ -1,4 +1,5 @@
-//! Fixtures shared by the unit tests: deterministic noise, no crate and no OS entropy.
+//! Fixtures shared by the unit tests: deterministic noise (no crate and no OS entropy), a
+//! second-order probe, and a bare model file.
 
 /// `n` samples of unit-variance noise, close enough to Gaussian (the sum of 12 uniforms less
 /// 6) from an LCG seeded with `seed`.
@@ -39,4 +40,18 @@ pub(crate) fn second_order(
         b: vec![0.0, 0.6 * g, 0.4 * g],
     };
     (model, s)
+}
+
+/// The model file of `model` alone: no fit, sources, compensator, effects, history or probe.
+pub(crate) fn model_file(model: crate::fit::model::Model) -> crate::file::ModelFile {
+    crate::file::ModelFile {
+        format_version: crate::file::FORMAT_VERSION,
+        model,
+        fit: None,
+        sources: Vec::new(),
+        inverse: None,
+        effects: Vec::new(),
+        history: Vec::new(),
+        probe: None,
+    }
 }

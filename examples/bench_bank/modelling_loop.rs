@@ -1,4 +1,4 @@
-//! The modelling loop on the bank (issue 14): from a second-order fit of the estimation test,
+//! The modelling loop on the bank: from a second-order fit of the estimation test,
 //! `unlag diagnose` names the missing effect from the estimation and validation tests; the
 //! first name is scored against the hidden kind, and `unlag fit --add` of that name is
 //! scored by the validation test's error before and after.
@@ -6,7 +6,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::draw::{Case, Kind, KINDS};
+use super::case::{Case, Kind, KINDS};
 
 /// What the loop gave on one case.
 #[derive(Debug, Default, Clone)]
@@ -99,7 +99,7 @@ impl LoopOutcome {
 /// Runs the loop in the case's folder (its `est.csv` and `val.csv` made), `kind` hidden.
 pub fn run(bin: &Path, dir: &Path, kind: Kind) -> LoopOutcome {
     let mut o = LoopOutcome::default();
-    let run = |args: &[&str], log: &str| super::unlag(bin, dir, args, log);
+    let run = |args: &[&str], log: &str| super::runner::unlag(bin, dir, args, log);
     let diagnosis = run(
         &["fit", "--order", "2", "est.csv", "-o", "loop.toml"],
         "loop-fit.log",

@@ -6,7 +6,8 @@
 
 use std::f64::consts::PI;
 
-use super::draw::{Case, Effect, Generator, Rng, Test, REFERENCE_K};
+use super::case::{Case, Effect, Generator, Test, REFERENCE_K};
+use super::draw::Rng;
 use unlag::physics::{gas::Gas, simulate, Acquisition, Diaphragm, Element, Probe, Volume};
 
 /// One stage of a lumped probe, in cascade order.

@@ -121,21 +121,8 @@ pub fn resample(request: &ResampleRequest<'_>) -> Result<Resampled> {
 mod tests {
     use super::super::testing::probe;
     use super::*;
-    use crate::file::FORMAT_VERSION;
     use crate::fit::model::Model;
-
-    fn file(model: Model) -> ModelFile {
-        ModelFile {
-            format_version: FORMAT_VERSION,
-            model,
-            fit: None,
-            sources: Vec::new(),
-            inverse: None,
-            effects: Vec::new(),
-            history: Vec::new(),
-            probe: None,
-        }
-    }
+    use crate::testing::model_file;
 
     fn at(file: &ModelFile, fs: f64) -> Result<Resampled> {
         resample(&ResampleRequest {
@@ -147,7 +134,7 @@ mod tests {
 
     #[test]
     fn a_model_resampled_up_and_back_is_the_same_model() {
-        let mut f = file(probe());
+        let mut f = model_file(probe());
         let design = crate::design::inverse::design(
             &f.model,
             300.0,
@@ -181,7 +168,7 @@ mod tests {
 
     #[test]
     fn a_bad_rate_and_a_model_without_a_continuous_equivalent_are_refused() {
-        let f = file(probe());
+        let f = model_file(probe());
         for fs in [0.0, -3.0, f64::NAN, f64::INFINITY, 1e300] {
             let e = at(&f, fs).unwrap_err();
             assert!(
@@ -198,7 +185,7 @@ mod tests {
             assert!(!e.to_string().contains("--"), "{e}");
         }
         // A pole on the negative real axis has no continuous-time equivalent.
-        let ringing = file(Model {
+        let ringing = model_file(Model {
             fs: 10_000.0,
             delay: 1,
             a: vec![0.5],

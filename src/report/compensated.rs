@@ -339,16 +339,7 @@ mod tests {
             a: vec![-0.9],
             b: vec![0.02, 0.08],
         };
-        let f = ModelFile {
-            format_version: FORMAT_VERSION,
-            model: m,
-            fit: None,
-            sources: Vec::new(),
-            inverse: None,
-            effects: Vec::new(),
-            history: Vec::new(),
-            probe: None,
-        };
+        let f = crate::testing::model_file(m);
         let u = step(2000);
         let y = f.model.simulate(&u);
         let tests = [Test {

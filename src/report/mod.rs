@@ -313,19 +313,7 @@ mod tests {
     use super::each_test::step_window;
     use super::*;
     use crate::fit::model::Model;
-
-    fn file(model: Model) -> ModelFile {
-        ModelFile {
-            format_version: crate::file::FORMAT_VERSION,
-            model,
-            fit: None,
-            sources: Vec::new(),
-            inverse: None,
-            effects: Vec::new(),
-            history: Vec::new(),
-            probe: None,
-        }
-    }
+    use crate::testing::model_file;
 
     fn step_test(n: usize, model: &Model) -> (Vec<f64>, Vec<f64>) {
         let u: Vec<f64> = (0..n).map(|k| if k < n / 10 { 0.0 } else { 1.0 }).collect();
@@ -352,7 +340,7 @@ mod tests {
     fn a_100_000_sample_report_stays_under_2_mb() {
         let m = model();
         let (u, y) = step_test(100_000, &m);
-        let mut f = file(m.clone());
+        let mut f = model_file(m.clone());
         let options = crate::design::inverse::Options {
             bandwidth_hz: Some(500.0),
             lowpass: crate::design::inverse::LowpassKind::Bessel,
@@ -395,7 +383,7 @@ mod tests {
     fn the_page_names_the_diagnosis_and_the_errors() {
         let m = model();
         let (u, y) = step_test(2_000, &m);
-        let f = file(m.clone());
+        let f = model_file(m.clone());
         let tests = [Test {
             name: "a<b>.csv",
             u: &u,

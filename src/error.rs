@@ -439,6 +439,8 @@ pub enum Advice {
     ExportF32,
     /// Export one coefficient set per temperature instead of a bank.
     OnePerTemperature,
+    /// Export the fixed-point sets one temperature at a time (a bank is `f32` only).
+    FixedOnePerTemperature,
     /// Design the model file's compensator (it has none).
     DesignCompensator,
 }
@@ -479,6 +481,9 @@ impl std::fmt::Display for Advice {
             Self::UseF32 => f.write_str("run it in f32"),
             Self::ExportF32 => f.write_str("export it as f32"),
             Self::OnePerTemperature => f.write_str("export one set per temperature"),
+            Self::FixedOnePerTemperature => {
+                f.write_str("export the fixed-point sets one temperature at a time")
+            }
             Self::DesignCompensator => f.write_str("design its compensator"),
         }
     }

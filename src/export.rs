@@ -29,6 +29,7 @@ mod bin;
 mod c;
 mod error;
 pub mod image;
+mod request;
 mod rust;
 pub mod verify;
 
@@ -37,6 +38,7 @@ pub use image::{
     BoardCoefficients, BoardImage, BoardNonlinear, DirectBoardCoefficients, FixedBoardCoefficients,
     SetTiming,
 };
+pub use request::{prepare, ExportRequest, ExportSummary, Exported, Sets};
 
 use crate::error::Result;
 use crate::file::write_atomically;
@@ -127,18 +129,31 @@ pub fn export_file(
     number_format: NumberFormat,
     output: &Path,
 ) -> Result<Summary> {
+    let (bytes, summary) = render(file, model, format, number_format)?;
+    write_atomically(output, &bytes)?;
+    Ok(summary)
+}
+
+/// The compensator of `file` (from `model`) in `format` and `number_format`, rendered, and
+/// what it holds.
+fn render(
+    file: &ModelFile,
+    model: &Path,
+    format: Format,
+    number_format: NumberFormat,
+) -> Result<(Vec<u8>, Summary)> {
     let image = BoardImage::from_model_file(file, model, number_format)?;
     let bytes = image.render(format, &source_name(model))?;
-    write_atomically(output, &bytes)?;
     let timing = image.timing();
-    Ok(Summary {
+    let summary = Summary {
         number_format: image.number_format(),
         sample_rate_hz: timing.sample_rate_hz,
         delay_samples: timing.delay_samples,
         latency_samples: timing.latency_samples,
         sections: image.section_count(),
         bytes: bytes.len(),
-    })
+    };
+    Ok((bytes, summary))
 }
 
 /// The model file's name as the exported files' comments give it.

@@ -4,7 +4,8 @@
 //! [`ModelFile`] is what `unlag fit` writes and every later command reads. It sits above the
 //! stages it composes: the fit stage's [`Model`] and [`FitReport`], the design stage's
 //! [`Design`](crate::design::Design), the modelling loop's
-//! [`Effect`](crate::modelling::effects::Effect)s.
+//! [`Effect`](crate::modelling::effects::Effect)s; and it says the state a diagnosis of it starts
+//! from ([`ModelFile::current`]).
 
 mod write;
 pub use write::{write_atomically, write_atomically_with, WriteFailure};
@@ -15,6 +16,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::fit::model::{FitReport, Model, Source, Uncertainty, MAX_ORDER};
+use crate::fit::Method;
+use crate::modelling::diagnose::Current;
 use crate::trace::MAX_SAMPLE_RATE_HZ;
 
 /// Model file format version written by this crate.
@@ -172,6 +175,19 @@ impl ModelFile {
     #[must_use]
     pub fn uncertainty(&self) -> Option<&Uncertainty> {
         self.fit.as_ref()?.uncertainty.as_ref()
+    }
+
+    /// The state a diagnosis of this file starts from: its model and effects, the method it
+    /// was fitted with (output error when the file records no fit) and its stated
+    /// uncertainty. `unlag compare`, `unlag diagnose` and the report all start here.
+    #[must_use]
+    pub fn current(&self) -> Current<'_> {
+        Current {
+            model: &self.model,
+            effects: &self.effects,
+            method: self.fit.as_ref().map_or(Method::Oe, |f| f.method),
+            uncertainty: self.uncertainty(),
+        }
     }
 
     /// Renders the file as TOML.
@@ -436,6 +452,9 @@ mod tests {
         assert!(text.contains("delay = 3"), "{text}");
         let back: ModelFile = toml::from_str(&text).unwrap();
         assert_eq!(back, f);
+        // A file with no fit is diagnosed as an output-error fit.
+        assert_eq!(f.current().method, crate::fit::Method::Oe);
+        assert!(f.current().uncertainty.is_none());
     }
 
     /// The fit's method is stored by its name, read back as the method, and written as it
@@ -454,6 +473,7 @@ mod tests {
             );
             let f = ModelFile::parse(path, &text).unwrap();
             assert_eq!(f.fit.as_ref().unwrap().method, method);
+            assert_eq!(f.current().method, method);
             let written = f.to_toml().unwrap();
             assert!(
                 written.contains(&format!("\n[fit]\nmethod = \"{}\"\n", method.name())),

@@ -1,8 +1,9 @@
 //! `unlag export`: the designed compensator from a model file to a file the board builds in
 //! (`rust`, `c`) or receives over a serial link (`bin`).
 //!
-//! Owns only the arguments and what is printed; the rendering and the checks live in
-//! [`crate::export`] and [`crate::blob`].
+//! Owns only the arguments, the writing of the file and what is printed; the export's policy
+//! (which compensator may be exported, in which fixed-point form, at which temperatures), the
+//! rendering and the checks live in [`crate::export`] and [`crate::blob`].
 
 use std::path::PathBuf;
 
@@ -10,7 +11,7 @@ use clap::{Args, ValueEnum};
 use serde_json::json;
 
 use crate::error::{Error, Result};
-use crate::export::{self, Format, NumberFormat};
+use crate::export::{self, ExportRequest, ExportSummary, Format, NumberFormat, Sets};
 
 /// Arguments of `unlag export`.
 #[derive(Debug, Args)]
@@ -77,10 +78,11 @@ pub enum NumberFormatArg {
     Fixed,
 }
 
-/// Runs `unlag export`.
+/// Runs `unlag export`: the arguments as an [`export::ExportRequest`], the bytes it returns
+/// written atomically, and what they hold printed.
 ///
 /// # Errors
-/// See [`export::export`].
+/// Flags that do not go together, the model file's errors, [`export::prepare`]'s, and writing.
 pub fn run_export(args: &ExportArgs) -> Result<()> {
     let (format, name) = match args.format {
         FormatArg::Rust => (Format::Rust, "rust"),
@@ -104,42 +106,30 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
         });
     }
     let file = crate::file::ModelFile::load(&args.model)?;
-    let number_format = match (number_format, args.fixed_form) {
-        (NumberFormat::Fixed { full_scale }, Some(super::FixedFormArg::Direct)) => {
-            NumberFormat::FixedDirect { full_scale }
-        }
-        (NumberFormat::Fixed { full_scale }, None)
-            if file
-                .inverse
-                .as_ref()
-                .is_some_and(|d| d.fixed_direct.is_some() && d.fixed.is_none()) =>
-        {
-            NumberFormat::FixedDirect { full_scale }
-        }
-        (n, _) => n,
-    };
-    if let Some(check) = file.inverse.as_ref().and_then(|d| d.check.as_ref()) {
-        if check.verdict == crate::design::inverse::check::Verdict::NotBetter && !args.force {
-            return Err(Error::InvalidArgument {
-                what: "compensator",
-                message: format!(
-                    "{}: it is not better than the raw probe on the tests it was checked on (worst error ratio {:.2}); refusing to export it without --force",
-                    args.model.display(),
-                    check.worst_ratio
-                ),
-            });
-        }
+    let exported = export::prepare(&ExportRequest {
+        file: &file,
+        model: &args.model,
+        format,
+        number_format,
+        fixed_form: args.fixed_form.map(Into::into),
+        sets: match &args.temperatures {
+            Some(range) => Sets::Bank(range),
+            None => Sets::One {
+                temperature_k: args.temperature,
+            },
+        },
+        force: args.force,
+    })?;
+    crate::file::write_atomically(&args.output, &exported.bytes)?;
+    match &exported.summary {
+        ExportSummary::One(c) => print_one(args, name, c),
+        ExportSummary::Bank(c) => print_bank(args, name, c),
     }
-    if let Some(range) = &args.temperatures {
-        return run_export_bank(args, range, format, name);
-    }
-    let c = match args.temperature {
-        Some(t) => {
-            let file = crate::pipeline::at_temperature(&file, t)?;
-            export::export_file(&file, &args.model, format, number_format, &args.output)?
-        }
-        None => export::export_file(&file, &args.model, format, number_format, &args.output)?,
-    };
+    Ok(())
+}
+
+/// What `unlag export` wrote: one set.
+fn print_one(args: &ExportArgs, name: &str, c: &export::Summary) {
     if args.json {
         crate::outln!(
             "{}",
@@ -166,24 +156,10 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
             c.latency_samples
         );
     }
-    Ok(())
 }
 
-/// `unlag export --temperatures FROM:TO:STEP`: the temperature bank.
-fn run_export_bank(
-    args: &ExportArgs,
-    range: &str,
-    format: Format,
-    name: &'static str,
-) -> Result<()> {
-    let range = export::bank::TemperatureRange::parse(range)?;
-    if args.number_format != NumberFormatArg::F32 || args.full_scale.is_some() {
-        return Err(Error::InvalidArgument {
-            what: "--temperatures",
-            message: "a temperature bank is f32 only: export fixed-point sets one at a time with --temperature K".into(),
-        });
-    }
-    let c = export::bank::export_bank(&args.model, &range, format, &args.output)?;
+/// What `unlag export --temperatures FROM:TO:STEP` wrote: the temperature bank.
+fn print_bank(args: &ExportArgs, name: &str, c: &export::bank::BankSummary) {
     if args.json {
         crate::outln!(
             "{}",
@@ -210,5 +186,4 @@ fn run_export_bank(
             c.sample_rate_hz
         );
     }
-    Ok(())
 }

@@ -162,6 +162,14 @@ pub fn describe(e: &Error) -> String {
                 filter below; give the transducer's natural frequency: --add sensor-resonance=HZ"
             .into();
     }
+    if let Some(crate::export::ExportError::NotBetter { .. }) = e.stage() {
+        // The library refuses "unless forced"; the command line forces with a flag.
+        let text = e.to_string();
+        return match text.strip_suffix("unless forced") {
+            Some(head) => format!("{head}without --force"),
+            None => text,
+        };
+    }
     if let Some(crate::design::DesignError::NoUsableBandwidth) = e.stage() {
         // The library says "give a bandwidth"; the command line gives it with a flag.
         let text = e.to_string();
@@ -216,6 +224,9 @@ fn spell(advice: &crate::error::Advice) -> String {
         ),
         Advice::UseF32 => "use --arithmetic f32".into(),
         Advice::OnePerTemperature => "export one set per temperature with --temperature K".into(),
+        Advice::FixedOnePerTemperature => {
+            "export fixed-point sets one at a time with --temperature K".into()
+        }
         Advice::DesignCompensator => "run `unlag invert`".into(),
         // Said the same way in both.
         Advice::ExportF32 => advice.to_string(),
@@ -555,6 +566,7 @@ mod tests {
             Advice::UseF32,
             Advice::ExportF32,
             Advice::OnePerTemperature,
+            Advice::FixedOnePerTemperature,
             Advice::DesignCompensator,
         ];
         for advice in every {
@@ -571,6 +583,38 @@ mod tests {
                 "{said}"
             );
         }
+    }
+
+    /// The export's refusals say what the command line said when it refused them itself: a
+    /// compensator not better than the probe "without --force", a fixed-point bank with
+    /// `--temperature K`.
+    #[test]
+    fn the_export_refusals_read_as_before() {
+        use crate::error::Advice;
+        let not_better: Error = crate::export::ExportError::NotBetter {
+            model: "m.toml".into(),
+            worst_ratio: 1.234,
+        }
+        .into();
+        assert!(!not_better.to_string().contains("--"), "{not_better}");
+        assert_eq!(
+            describe(&not_better),
+            "invalid compensator: m.toml: it is not better than the raw probe on the tests it \
+             was checked on (worst error ratio 1.23); refusing to export it without --force"
+        );
+        assert_eq!(not_better.kind(), "invalid-argument");
+        assert_eq!(not_better.location(), (None, None, None));
+        let fixed_bank = Error::InvalidParameter {
+            parameter: Parameter::Temperatures,
+            message: "a temperature bank is f32 only".into(),
+        }
+        .advised(Advice::FixedOnePerTemperature);
+        assert_eq!(
+            describe(&fixed_bank),
+            "invalid --temperatures: a temperature bank is f32 only: export fixed-point sets one \
+             at a time with --temperature K"
+        );
+        assert_eq!(fixed_bank.kind(), "invalid-argument");
     }
 
     /// A model file with no design: the library advises designing one, the command line says

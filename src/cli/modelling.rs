@@ -8,8 +8,8 @@ use serde_json::json;
 use super::{json_err, name, pct, ColumnArgs};
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
-use crate::fit::{Method, Test};
-use crate::modelling::diagnose::{self, Candidate, Current, Remedy};
+use crate::fit::Test;
+use crate::modelling::diagnose::{self, Candidate, Remedy};
 use crate::modelling::effects::{Effect, EffectKind, DEFAULT_REFERENCE_K};
 use crate::modelling::evidence::TestEvidence;
 use crate::trace::Trace;
@@ -62,10 +62,6 @@ fn load(args: &LoopArgs) -> Result<Loaded> {
 
 fn tests(l: &Loaded) -> Result<Vec<Test<'_>>> {
     super::as_tests(&l.traces, &l.names)
-}
-
-pub(crate) fn method_of(file: &ModelFile) -> Method {
-    file.fit.as_ref().map_or(Method::Oe, |f| f.method)
 }
 
 fn print_evidence(evidence: &[TestEvidence]) {
@@ -291,12 +287,7 @@ fn tests_json(evidence: &[TestEvidence]) -> Result<serde_json::Value> {
 pub fn run_compare(args: &LoopArgs) -> Result<()> {
     let l = load(args)?;
     let tests = tests(&l)?;
-    let current = Current {
-        model: &l.file.model,
-        effects: &l.file.effects,
-        method: method_of(&l.file),
-        uncertainty: l.file.uncertainty(),
-    };
+    let current = l.file.current();
     let evidence = diagnose::evidence(&current, &tests);
     let across = diagnose::per_test(&current, &tests, &evidence);
     if let Some(path) = &args.report {
@@ -347,12 +338,7 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
             message: "give at least one step test".into(),
         });
     }
-    let current = Current {
-        model: &l.file.model,
-        effects: &l.file.effects,
-        method: method_of(&l.file),
-        uncertainty: l.file.uncertainty(),
-    };
+    let current = l.file.current();
     let evidence = diagnose::evidence(&current, &tests);
     let candidates = diagnose::diagnose(&current, &tests, &evidence)?;
     if let Some(path) = &args.report {

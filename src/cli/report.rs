@@ -16,7 +16,7 @@ use super::{name, ColumnArgs};
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::fit::Test;
-use crate::modelling::diagnose::{self, Current};
+use crate::modelling::diagnose;
 use crate::report::{self, Inputs};
 
 /// Arguments of `unlag report`.
@@ -152,12 +152,7 @@ pub(crate) fn write_report(
             message: "give at least one step test for the report".into(),
         });
     }
-    let current = Current {
-        model: &file.model,
-        effects: &file.effects,
-        method: super::modelling::method_of(file),
-        uncertainty: file.uncertainty(),
-    };
+    let current = file.current();
     progress.step("report: measuring the residuals");
     let evidence = diagnose::evidence(&current, tests);
     progress.step("report: diagnosing (trial refits)");

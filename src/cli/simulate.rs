@@ -1,5 +1,6 @@
 //! `unlag simulate`: the model's probe output, its effects included, from a recording's
-//! reference, against the recorded probe.
+//! reference, against the recorded probe. Owns the arguments, the files and what is printed;
+//! the simulation is [`crate::pipeline::simulate`]'s.
 
 use std::path::PathBuf;
 
@@ -7,9 +8,9 @@ use clap::Args;
 use serde_json::json;
 
 use super::{check_rate, name, pct, ColumnArgs};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::file::ModelFile;
-use crate::fit;
+use crate::pipeline::{self, SimulateRequest};
 use crate::trace::Trace;
 
 /// Arguments of `unlag simulate`.
@@ -36,43 +37,30 @@ pub struct SimulateArgs {
     pub json: bool,
 }
 
-/// `unlag simulate`.
+/// `unlag simulate`: the recording and the model file read, [`pipeline::simulate`] asked,
+/// the simulated probe written beside the recording's columns and its error printed.
 ///
 /// # Errors
-/// The model file's and the trace's errors, and a `--temperature` the model has no law for.
+/// The model file's and the trace's errors, and [`pipeline::simulate`]'s (a `--temperature`
+/// the model has no law for).
 pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
     let file = ModelFile::load(&args.model)?;
     let trace = Trace::read(&args.file, &args.columns.columns(true))?;
     check_rate(&file, &trace)?;
-    let u = trace.input()?;
-    // The whole model: dynamics plus effects (an offset or drift estimated on this test).
-    let scale = match (
-        args.temperature,
-        crate::modelling::effects::reference_k(&file.effects),
-    ) {
-        (Some(t), Some(reference)) => Some(crate::modelling::effects::scale_for(t, reference)?),
-        (Some(_), None) => {
-            return Err(Error::InvalidArgument {
-                what: "--temperature",
-                message: "the model file has no temperature effect, so no reference \
-                          temperature: refit with `unlag fit ... --add temperature`"
-                    .into(),
-            })
-        }
-        (None, _) => None,
-    };
-    let y_model =
-        crate::modelling::effects::predict_with(&file.model, &file.effects, u, &trace.y, scale);
-    let observed = crate::modelling::effects::observed(&file.effects, file.model.fs, &trace.y);
-    let error = fit::nrmse_of(&observed, &y_model);
+    let simulated = pipeline::simulate(&SimulateRequest {
+        file: &file,
+        u: trace.input()?,
+        y: &trace.y,
+        temperature_k: args.temperature,
+    })?;
     crate::file::write_atomically_with(&args.output, |out| {
-        Ok(trace.write_csv_with(out, &[("y_model", &y_model)])?)
+        Ok(trace.write_csv_with(out, &[("y_model", &simulated.y_model)])?)
     })?;
     if args.json {
         let v = json!({
             "output": name(&args.output),
             "samples": trace.len(),
-            "nrmse": error,
+            "nrmse": simulated.nrmse,
         });
         crate::outln!("{v}");
         return Ok(());
@@ -81,7 +69,7 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
         "simulated {} samples of {}: model against measurement nrmse {}",
         trace.len(),
         trace.path.display(),
-        pct(error)
+        pct(simulated.nrmse)
     );
     crate::outln!("wrote {}", args.output.display());
     Ok(())

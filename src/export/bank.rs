@@ -298,11 +298,30 @@ pub fn export_bank(
     output: &Path,
 ) -> Result<BankSummary> {
     if format == Format::Bin {
-        // Refused before the (slow) design of every set.
+        // Refused before the model file is read.
         return Err(not_a_blob());
     }
     let file = ModelFile::load(model)?;
-    let bank = BoardBank::from_model_file(&file, model, range)?;
+    let (bytes, summary) = render_bank(&file, model, range, format)?;
+    write_atomically(output, &bytes)?;
+    Ok(summary)
+}
+
+/// The bank of `file` (from `model`) over `range`, rendered in `format`, and what it holds.
+///
+/// # Errors
+/// [`Format::Bin`] (refused before the slow design of every set), then as [`export_bank`].
+pub(super) fn render_bank(
+    file: &ModelFile,
+    model: &Path,
+    range: &TemperatureRange,
+    format: Format,
+) -> Result<(Vec<u8>, BankSummary)> {
+    if format == Format::Bin {
+        // Refused before the (slow) design of every set.
+        return Err(not_a_blob());
+    }
+    let bank = BoardBank::from_model_file(file, model, range)?;
     let mut summary = BankSummary {
         temperatures_k: bank.temperatures_k.clone(),
         sections: bank.section_count(),
@@ -311,9 +330,8 @@ pub fn export_bank(
         bytes: 0,
     };
     let bytes = BoardImage::from(bank).render(format, &super::source_name(model))?;
-    write_atomically(output, &bytes)?;
     summary.bytes = bytes.len();
-    Ok(summary)
+    Ok((bytes, summary))
 }
 
 #[cfg(test)]

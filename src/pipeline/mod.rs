@@ -1,8 +1,8 @@
 //! The library's pipeline from step tests to the board's coefficients: the probe's model fitted
 //! from its tests ([`fit_probe`]), its compensator designed ([`design_compensator`]), a stored
 //! compensator designed anew for a rescaled model ([`retarget`]), a recording compensated
-//! with a model file ([`compensate`]), and a model file put at another sample rate
-//! ([`resample`]).
+//! with a model file ([`compensate`]), a model file's probe simulated on a recording
+//! ([`simulate`]), and a model file put at another sample rate ([`resample`]).
 //!
 //! Every compensator goes through one sequence: the design (checked on the tests against the
 //! raw probe, or a stored design's shape redone), the sensor-resonance prefilter put in front
@@ -13,6 +13,7 @@ mod compensate;
 mod design;
 mod fit;
 mod resample;
+mod simulate;
 
 pub use compensate::{
     compensate, Arithmetic, CompensateRequest, Compensated, Compensation, FixedRunSummary,
@@ -24,6 +25,7 @@ pub use design::{
 };
 pub use fit::{add_effects, carried_effects, fit_probe, FitRequest};
 pub use resample::{check_sample_rate, resample, ResampleRequest, Resampled};
+pub use simulate::{simulate, SimulateRequest, Simulated};
 
 /// The probe and step tests the pipeline's unit tests run on.
 #[cfg(test)]

@@ -64,6 +64,19 @@ use core::fmt;
 /// bits, the same bits as the `i32` fields.
 pub use ::fixed::types::I2F30;
 
+/// Q1.31, the format of every sample in and out of [`FixedCascade`] and
+/// [`direct::DirectCascade`]: `fixed`'s signed 32-bit number with 31 fractional bits, the same
+/// bits as the `i32` codes, range `[-1, 1)`.
+///
+/// The two ends are fractions of different scales. The input is Q1.31 of the ADC's full
+/// scale `F` the host planned for (`y = F` is `1.0`, the code `2^31`, one past the range: a
+/// reading at `+F` saturates to the largest code, `1 - 2^-31`). The output is Q1.31 of
+/// `F * 2^e`, where `e` is the plan's output exponent (`FixedPlan::output_exponent` on the
+/// host, [`super::blob::FixedCoefficientSet::output_exponent`] on the board, beside
+/// `full_scale`): the host's scaling picks `e` so that the output keeps its headroom, per
+/// design, so it is a run-time value and not part of the type.
+pub use ::fixed::types::I1F31;
+
 /// Fractional bits of the state matrix `a` and the input vector `b` (Q2.30).
 pub const STATE_BITS: u32 = 30;
 
@@ -363,6 +376,34 @@ impl<const N: usize> FixedCascade<N> {
         }
     }
 
+    /// [`Self::process`] with the sample formats as types: the input is Q1.31 of the full
+    /// scale `F`, the output Q1.31 of `F * 2^e` with the plan's output exponent `e` (see
+    /// [`I1F31`]). The same bits as [`Self::process`] (`to_bits` in, `from_bits` out), at no
+    /// cost; the block functions stay on `i32` codes, the words an ADC's DMA writes.
+    ///
+    /// ```
+    /// use unlag::fixed::{FixedCascade, FixedSection, FixedState, I1F31};
+    ///
+    /// // The host's plan for F = 4000 Pa with output exponent e = 1: a section that halves the
+    /// // codes (y = Qr(0.5 u)) while the output's unit doubles, one bit of headroom at gain 1.
+    /// let (full_scale, output_exponent) = (4000.0, 1);
+    /// let halve = FixedSection { d: 1 << 29, ..FixedSection::IDENTITY };
+    /// let c = FixedCascade::<1>::new(&[halve])?;
+    /// let mut state = FixedState::default();
+    ///
+    /// let reading = 1000.0; // Pa
+    /// let u = I1F31::from_num(reading / full_scale); // 0.25 of F, the code 2^29
+    /// let y = c.process_q(&mut state, u);
+    /// assert_eq!(y.to_num::<f64>(), 0.125); // of F * 2^e
+    /// assert_eq!(y.to_num::<f64>() * full_scale * 2f64.powi(output_exponent), 1000.0); // Pa
+    /// assert_eq!(y.to_bits(), c.process(&mut state, u.to_bits())); // the same bits as i32
+    /// # Ok::<(), unlag::fixed::FixedError>(())
+    /// ```
+    #[inline]
+    pub fn process_q(&self, state: &mut FixedState<N>, input: I1F31) -> I1F31 {
+        I1F31::from_bits(self.process(state, input.to_bits()))
+    }
+
     /// [`Self::process`] in portable Rust, on every target: the reference the Cortex-M
     /// kernel is checked against.
     #[inline]
@@ -418,6 +459,13 @@ impl<const N: usize> FixedCascade<N> {
             v = f64::from(libm::round(y) as i32);
         }
         state
+    }
+
+    /// [`Self::equilibrium`] for an input in Q1.31 of the full scale (see [`I1F31`]).
+    #[must_use]
+    #[inline]
+    pub fn equilibrium_q(&self, input: I1F31) -> FixedState<N> {
+        self.equilibrium(input.to_bits())
     }
 
     /// The sections, identities included.
@@ -500,6 +548,47 @@ mod tests {
             c: [q30(0.5), q30(0.25)],
             d: q30(0.5),
             shift: 30,
+        }
+    }
+
+    /// Deterministic codes over the whole `i32` range, the extremes included.
+    fn codes(n: usize) -> impl Iterator<Item = i32> {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        [i32::MIN, i32::MAX, 0, -1]
+            .into_iter()
+            .chain((0..n).map(move |_| {
+                seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+                (seed >> 32) as i32 >> (seed % 4) // full scale and quieter stretches
+            }))
+    }
+
+    #[test]
+    fn typed_samples_are_the_i32_path_bit_for_bit() {
+        let c = FixedCascade::<3>::new(&[rotation(0.999, 0.01), rotation(0.9, 2.0)]).unwrap();
+        let start = I1F31::from_num(0.25);
+        let (mut typed, mut plain) = (c.equilibrium_q(start), c.equilibrium(start.to_bits()));
+        assert_eq!(typed, plain);
+        for u in codes(400) {
+            let y = c.process_q(&mut typed, I1F31::from_bits(u));
+            assert_eq!(y.to_bits(), c.process(&mut plain, u));
+            assert_eq!(typed, plain);
+        }
+    }
+
+    #[test]
+    fn direct_typed_samples_are_the_i32_path_bit_for_bit() {
+        let s = direct::DirectSection {
+            b: [q30(0.25), q30(0.5), q30(0.25)].map(|v| v / 64),
+            neg_a: [q30(1.9), q30(-0.95)],
+        };
+        let c = direct::DirectCascade::<3>::new(&[s, s]).unwrap();
+        let start = I1F31::from_num(-0.5);
+        let (mut typed, mut plain) = (c.equilibrium_q(start), c.equilibrium(start.to_bits()));
+        assert_eq!(typed, plain);
+        for u in codes(400) {
+            let y = c.process_q(&mut typed, I1F31::from_bits(u));
+            assert_eq!(y.to_bits(), c.process(&mut plain, u));
+            assert_eq!(typed, plain);
         }
     }
 

@@ -509,6 +509,57 @@ mod tests {
         }
     }
 
+    /// The typed sample path (`process_q`, `equilibrium_q`) computes the board's integers
+    /// bit for bit on planned cascades of both forms, and its Q1.31 means what the plans say:
+    /// the input a fraction of the full scale, the output of `full_scale * 2^output_exponent`.
+    #[test]
+    fn typed_samples_run_the_board_integers_bit_for_bit() {
+        use crate::fixed::direct::{DirectCascade, DirectState};
+        use crate::fixed::I1F31;
+
+        let design = line_design(1e6, 80e3, 0.2, 150e3);
+        let full_scale = 2.0;
+        let y: Vec<f64> = (0..400)
+            .map(|k| 0.9 * (0.05 * f64::from(k)).sin() + if k > 150 { 0.5 } else { -0.3 })
+            .map(|v: f64| v.clamp(-full_scale, full_scale))
+            .collect();
+        let codes: Vec<i32> = y
+            .iter()
+            .map(|&v| I1F31::saturating_from_num(v / full_scale).to_bits())
+            .collect();
+        let start = I1F31::from_bits(codes[0]);
+
+        let plan = FixedPlan::new(&design, full_scale).unwrap();
+        let c = FixedCascade::<8>::new(&plan.board_sections()).unwrap();
+        let (mut typed, mut plain): (FixedState<8>, _) =
+            (c.equilibrium_q(start), c.equilibrium(codes[0]));
+        assert_eq!(typed, plain);
+        let mut moved = 0.0f64;
+        for &u in &codes {
+            let out = c.process_q(&mut typed, I1F31::from_bits(u));
+            assert_eq!(out.to_bits(), c.process(&mut plain, u));
+            assert_eq!(typed, plain);
+            let meaning = out.to_num::<f64>() * full_scale * 2f64.powi(plan.output_exponent);
+            assert_eq!(meaning, plan.from_code(out.to_bits()));
+            moved = moved.max(meaning.abs());
+        }
+        assert!(moved > 0.1 && !typed.overflowed());
+
+        let plan = direct::DirectPlan::new(&design, full_scale).unwrap();
+        let c = DirectCascade::<8>::new(&plan.board_sections()).unwrap();
+        let (mut typed, mut plain): (DirectState<8>, _) =
+            (c.equilibrium_q(start), c.equilibrium(codes[0]));
+        assert_eq!(typed, plain);
+        for &u in &codes {
+            let out = c.process_q(&mut typed, I1F31::from_bits(u));
+            assert_eq!(out.to_bits(), c.process(&mut plain, u));
+            assert_eq!(typed, plain);
+            let meaning = out.to_num::<f64>() * full_scale * 2f64.powi(plan.output_exponent);
+            assert_eq!(meaning, plan.from_code(out.to_bits()));
+        }
+        assert!(!typed.overflowed());
+    }
+
     #[test]
     fn refuses_a_bad_full_scale() {
         let design = line_design(1e4, 95.0, 0.2, 300.0);

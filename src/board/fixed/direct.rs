@@ -62,7 +62,7 @@
 
 use core::fmt;
 
-use super::I2F30;
+use super::{I1F31, I2F30};
 
 /// Fractional bits of every coefficient (Q2.30).
 pub const COEFFICIENT_BITS: u32 = 30;
@@ -344,6 +344,35 @@ impl<const N: usize> DirectCascade<N> {
         self.process_portable(state, input)
     }
 
+    /// [`Self::process`] with the sample formats as types: the input is Q1.31 of the full
+    /// scale `F`, the output Q1.31 of `F * 2^e` with the plan's output exponent `e` (see
+    /// [`I1F31`]). The same bits as [`Self::process`] (`to_bits` in, `from_bits` out), at no
+    /// cost; the block functions stay on `i32` codes, the words an ADC's DMA writes.
+    ///
+    /// ```
+    /// use unlag::fixed::direct::{DirectCascade, DirectSection, DirectState};
+    /// use unlag::fixed::I1F31;
+    ///
+    /// // The host's plan for F = 4000 Pa with output exponent e = 1: a section that halves the
+    /// // codes (y[n] = 0.5 x[n]) while the output's unit doubles, one bit of headroom at gain 1.
+    /// let (full_scale, output_exponent) = (4000.0, 1);
+    /// let halve = DirectSection { b: [1 << 29, 0, 0], neg_a: [0, 0] };
+    /// let c = DirectCascade::<1>::new(&[halve])?;
+    /// let mut state = DirectState::default();
+    ///
+    /// let reading = -1000.0; // Pa
+    /// let u = I1F31::from_num(reading / full_scale); // -0.25 of F, the code -2^29
+    /// let y = c.process_q(&mut state, u);
+    /// assert_eq!(y.to_num::<f64>(), -0.125); // of F * 2^e
+    /// assert_eq!(y.to_num::<f64>() * full_scale * 2f64.powi(output_exponent), -1000.0); // Pa
+    /// assert_eq!(y.to_bits(), c.process(&mut state, u.to_bits())); // the same bits as i32
+    /// # Ok::<(), unlag::fixed::direct::DirectError>(())
+    /// ```
+    #[inline]
+    pub fn process_q(&self, state: &mut DirectState<N>, input: I1F31) -> I1F31 {
+        I1F31::from_bits(self.process(state, input.to_bits()))
+    }
+
     /// [`Self::process`] in portable Rust, on every target: the reference the Cortex-M
     /// kernels are checked against.
     #[inline]
@@ -412,6 +441,13 @@ impl<const N: usize> DirectCascade<N> {
             v = f64::from(y);
         }
         state
+    }
+
+    /// [`Self::equilibrium`] for an input in Q1.31 of the full scale (see [`I1F31`]).
+    #[must_use]
+    #[inline]
+    pub fn equilibrium_q(&self, input: I1F31) -> DirectState<N> {
+        self.equilibrium(input.to_bits())
     }
 
     /// The sections, identities included.

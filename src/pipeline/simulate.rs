@@ -66,16 +66,7 @@ mod tests {
     use super::*;
 
     fn file() -> ModelFile {
-        ModelFile {
-            format_version: crate::file::FORMAT_VERSION,
-            model: super::super::testing::probe(),
-            fit: None,
-            sources: Vec::new(),
-            inverse: None,
-            effects: Vec::new(),
-            history: Vec::new(),
-            probe: None,
-        }
+        crate::testing::model_file(super::super::testing::probe())
     }
 
     /// The model's own answer to a step is simulated with no error, and a temperature is

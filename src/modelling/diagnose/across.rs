@@ -129,6 +129,21 @@ pub fn amplitude_signature(per_test: &[PerTest]) -> Option<AmplitudeSignature> {
 /// a temperature.
 pub const MIN_FREQUENCY_SHIFT: f64 = 1.03;
 
+/// Largest common factor of the frequencies a temperature can explain: the speed of sound goes
+/// as the root of the gas temperature, so 2 is a gas four times hotter (or colder) than the
+/// model's. A larger shift is another probe or another structure, and a temperature trial
+/// would only lend its free time scale to it (a leak's slow corner, 0.14 times the model's on
+/// a drawn case, read as T/T_ref = 0.02).
+pub const MAX_FREQUENCY_SHIFT: f64 = 2.0;
+
+/// Whether a common frequency factor is one a temperature can explain: at least
+/// [`MIN_FREQUENCY_SHIFT`] away from 1 and at most [`MAX_FREQUENCY_SHIFT`].
+#[must_use]
+pub fn temperature_shift(ratio: f64) -> bool {
+    let shift = ratio.ln().abs();
+    shift >= MIN_FREQUENCY_SHIFT.ln() && shift <= MAX_FREQUENCY_SHIFT.ln()
+}
+
 /// The per-test evidence of a temperature change.
 #[derive(Debug, Clone, Serialize)]
 pub struct TemperatureRow {
@@ -245,7 +260,7 @@ pub fn temperature_evidence(
         .iter()
         .max_by(|a, b| a.ratio.ln().abs().total_cmp(&b.ratio.ln().abs()))?;
     let shift = strongest.ratio.ln().abs();
-    let ok = shift >= MIN_FREQUENCY_SHIFT.ln()
+    let ok = temperature_shift(strongest.ratio)
         && strongest.spread <= shift / 3.0 + 0.005
         && strongest.damping_ratio.ln().abs() <= 2.0 * shift + 0.1;
     ok.then(|| TemperatureEvidence {
@@ -330,4 +345,19 @@ pub fn per_test(
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_temperature_moves_frequencies_by_a_plausible_factor() {
+        assert!(!temperature_shift(1.01));
+        assert!(temperature_shift(1.05) && temperature_shift(1.0 / 1.05));
+        assert!(temperature_shift(1.9) && temperature_shift(0.55));
+        // A leak's corner at 0.14 times the model's: T/T_ref = 0.02 is no gas temperature.
+        assert!(!temperature_shift(0.14) && !temperature_shift(2.5));
+        assert!(!temperature_shift(f64::NAN));
+    }
 }

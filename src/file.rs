@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::fit::model::{FitReport, Model, Source, Uncertainty, MAX_ORDER};
-use crate::fit::Method;
+use crate::fit::{Method, TestRole};
 use crate::modelling::diagnose::Current;
 use crate::trace::MAX_SAMPLE_RATE_HZ;
 
@@ -158,8 +158,8 @@ impl HistoryRow {
 pub struct HistoryTest {
     /// File name.
     pub file: String,
-    /// `estimation` or `validation`.
-    pub role: String,
+    /// What the test was used for, written `estimation` or `validation`.
+    pub role: TestRole,
     /// Normalised RMS simulation error (effects included).
     pub nrmse: f64,
 }
@@ -511,7 +511,7 @@ mod tests {
             delay: 3,
             tests: vec![HistoryTest {
                 file: "est.csv".into(),
-                role: "estimation".into(),
+                role: TestRole::Estimation,
                 nrmse: 0.25,
             }],
         });

@@ -27,7 +27,7 @@ pub mod step;
 mod uncertainty;
 
 pub use error::{ContinuousError, FitError};
-pub use model::{Method, Model};
+pub use model::{Method, Model, TestRole};
 
 use crate::error::{Error, Result};
 use crate::fit::model::{DelayRow, FitReport, OrderRow};

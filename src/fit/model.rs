@@ -211,12 +211,80 @@ pub struct Source {
     pub file: String,
     /// SHA-256 of the file's bytes.
     pub sha256: String,
-    /// `estimation` or `validation`.
-    pub role: String,
+    /// What the test was used for, written `estimation` or `validation`.
+    pub role: TestRole,
     /// Simulation error on this trace: RMS(y - y_model) / range(y).
     pub nrmse: f64,
     /// Noise floor of the probe channel on this trace: RMS noise / range(y).
     pub noise_floor: f64,
+}
+
+/// What a step test is to a fit: the first file given is the estimation test, the model
+/// fitted on it; any others are validation tests, held out to choose the order and judge it.
+/// Stored and printed by its name ([`TestRole::as_str`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(into = "&'static str", try_from = "String")]
+pub enum TestRole {
+    /// The test the model is fitted on.
+    Estimation,
+    /// A held-out test.
+    Validation,
+}
+
+impl TestRole {
+    /// Both roles, in the order their names are listed.
+    pub const ALL: [Self; 2] = [Self::Estimation, Self::Validation];
+
+    /// The role of the `i`-th test given (from 0): the first is the estimation test.
+    #[must_use]
+    pub fn of_index(i: usize) -> Self {
+        if i == 0 {
+            Self::Estimation
+        } else {
+            Self::Validation
+        }
+    }
+
+    /// Name used in files, JSON and printed tables.
+    #[must_use]
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Estimation => "estimation",
+            Self::Validation => "validation",
+        }
+    }
+
+    /// The role a name stands for ([`TestRole::as_str`]'s inverse).
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|r| r.as_str() == name)
+    }
+}
+
+impl std::fmt::Display for TestRole {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // `pad`, not `write_str`: printed tables align the role with `{:<11}`.
+        f.pad(self.as_str())
+    }
+}
+
+/// A role is written by its name.
+impl From<TestRole> for &'static str {
+    fn from(role: TestRole) -> Self {
+        role.as_str()
+    }
+}
+
+/// A role is read from its name; another name is refused with the names there are.
+impl TryFrom<String> for TestRole {
+    type Error = String;
+
+    fn try_from(name: String) -> std::result::Result<Self, String> {
+        Self::from_name(&name).ok_or_else(|| {
+            let names: Vec<&str> = Self::ALL.into_iter().map(Self::as_str).collect();
+            format!("unknown test role `{name}`: one of {}", names.join(", "))
+        })
+    }
 }
 
 /// Identification method; stored in the model file's fit report and given on the command
@@ -437,6 +505,40 @@ pub fn resting_level(x: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A role is stored as the same word it always was, both ways, in JSON and in a model
+    /// file; another word is refused with the words there are.
+    #[test]
+    fn a_test_role_round_trips_by_its_name_and_an_unknown_one_is_refused() {
+        #[derive(Debug, PartialEq, Serialize, Deserialize)]
+        struct Row {
+            role: TestRole,
+        }
+        for (role, name) in [
+            (TestRole::Estimation, "estimation"),
+            (TestRole::Validation, "validation"),
+        ] {
+            assert_eq!(role.as_str(), name);
+            assert_eq!(role.to_string(), name);
+            assert_eq!(format!("{role:<11}|"), format!("{name:<11}|"));
+            let json = serde_json::to_string(&role).unwrap();
+            assert_eq!(json, format!("\"{name}\""));
+            assert_eq!(serde_json::from_str::<TestRole>(&json).unwrap(), role);
+            let toml_text = toml::to_string(&Row { role }).unwrap();
+            assert_eq!(toml_text, format!("role = \"{name}\"\n"));
+            assert_eq!(toml::from_str::<Row>(&toml_text).unwrap(), Row { role });
+        }
+        assert_eq!(TestRole::of_index(0), TestRole::Estimation);
+        assert_eq!(TestRole::of_index(1), TestRole::Validation);
+        assert_eq!(TestRole::of_index(7), TestRole::Validation);
+        let err = serde_json::from_str::<TestRole>("\"training\"").unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("unknown test role `training`: one of estimation, validation"),
+            "{err}"
+        );
+        assert!(toml::from_str::<Row>("role = \"Estimation\"\n").is_err());
+    }
 
     fn m2() -> Model {
         Model {

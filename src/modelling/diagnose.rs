@@ -25,7 +25,7 @@
 //! residuals, or when no candidate's trial helps.
 
 use crate::fit::model::{Model, Uncertainty};
-use crate::fit::{Method, Test};
+use crate::fit::{Method, Test, TestRole};
 use crate::modelling::effects::{self, Effect};
 use crate::modelling::evidence::TestEvidence;
 
@@ -86,7 +86,7 @@ pub fn evidence(current: &Current<'_>, tests: &[Test<'_>]) -> Vec<TestEvidence> 
             let ym = effects::predict(current.model, current.effects, t.u, t.y);
             TestEvidence::measure(
                 t.name,
-                if i == 0 { "estimation" } else { "validation" },
+                TestRole::of_index(i),
                 current.model,
                 (
                     &effects::observed(current.effects, fs, t.u),

@@ -16,7 +16,7 @@ use rustfft::num_complex::Complex64;
 use rustfft::FftPlanner;
 use serde::Serialize;
 
-use crate::fit::model::Model;
+use crate::fit::model::{Model, TestRole};
 use crate::fit::step;
 use crate::fit::step::NoiseSource;
 
@@ -340,8 +340,8 @@ pub struct Trend {
 pub struct TestEvidence {
     /// The test's file name.
     pub file: String,
-    /// `estimation` or `validation`.
-    pub role: String,
+    /// What the test was used for, written `estimation` or `validation`.
+    pub role: TestRole,
     /// Samples.
     pub samples: usize,
     /// `100 (1 - |y - y_model| / |y - mean(y)|)`.
@@ -619,7 +619,7 @@ impl TestEvidence {
     #[must_use]
     pub fn measure(
         file: &str,
-        role: &str,
+        role: TestRole,
         model: &Model,
         (u, y): (&[f64], &[f64]),
         y_model: &[f64],
@@ -651,7 +651,7 @@ impl TestEvidence {
         let pre = &r[..onset];
         Self {
             file: file.to_string(),
-            role: role.to_string(),
+            role,
             samples: n,
             fit_percent: 100.0 * (1.0 - res / dev),
             nrmse: crate::fit::nrmse_of(&y[..n], &y_model[..n]),
@@ -744,7 +744,7 @@ mod tests {
         let m = slow_probe();
         let (u, y) = noisy_step(8000, 0.02, 0.005);
         let ym = m.simulate(&u);
-        let e = TestEvidence::measure("t", "estimation", &m, (&u, &y), &ym);
+        let e = TestEvidence::measure("t", TestRole::Estimation, &m, (&u, &y), &ym);
         let r: Vec<f64> = y.iter().zip(&ym).map(|(a, b)| a - b).collect();
         // Judged against white noise the correct model fails...
         assert!(autocorrelation(&r, ACF_LAGS).p_value < 1e-6);
@@ -773,7 +773,7 @@ mod tests {
         };
         let (u, y) = noisy_step(8000, 0.02, 0.005);
         let ym = wrong.simulate(&u);
-        let e = TestEvidence::measure("t", "estimation", &wrong, (&u, &y), &ym);
+        let e = TestEvidence::measure("t", TestRole::Estimation, &wrong, (&u, &y), &ym);
         assert!(e.autocorrelation.p_value < 1e-6, "{:?}", e.autocorrelation);
         assert!(!e.at_noise_floor());
     }

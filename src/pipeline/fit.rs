@@ -4,7 +4,7 @@
 use crate::error::{Error, Result};
 use crate::file::{HistoryRow, HistoryTest, ModelFile, ProbeGeometry, FORMAT_VERSION};
 use crate::fit::model::Source;
-use crate::fit::{self, Options, Order, Test};
+use crate::fit::{self, Options, Order, Test, TestRole};
 use crate::modelling::effects::{self, Effect, EffectKind};
 
 /// A fit of the probe's model to its step tests (`unlag fit`).
@@ -80,7 +80,7 @@ pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
         .map(|(i, (test, digest))| Source {
             file: test.name.to_string(),
             sha256: digest.clone(),
-            role: if i == 0 { "estimation" } else { "validation" }.into(),
+            role: TestRole::of_index(i),
             // With a noise model, the one-step-ahead prediction error (said when printed).
             nrmse: effects::judged_nrmse(&fitted.model, &effects, test.u, test.y),
             noise_floor: fit::noise_floor(test.y, fit::step::quiet_until(test.u)),
@@ -95,7 +95,7 @@ pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
             .iter()
             .map(|s| HistoryTest {
                 file: s.file.clone(),
-                role: s.role.clone(),
+                role: s.role,
                 nrmse: s.nrmse,
             })
             .collect(),

@@ -53,7 +53,7 @@ pub(super) fn per_test(
         h,
         "<h3>Test {number}: {} ({}): error {} against a noise floor of {}</h3>",
         escape(&ev.file),
-        escape(&ev.role),
+        ev.role,
         pct(ev.nrmse),
         pct(ev.noise_floor)
     );

@@ -126,14 +126,7 @@ pub(super) fn history(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
         let errs: Vec<String> = r
             .tests
             .iter()
-            .map(|t| {
-                format!(
-                    "{} ({}): {}",
-                    escape(&t.file),
-                    escape(&t.role),
-                    pct(t.nrmse)
-                )
-            })
+            .map(|t| format!("{} ({}): {}", escape(&t.file), t.role, pct(t.nrmse)))
             .collect();
         let _ = writeln!(
             h,

@@ -271,7 +271,7 @@ fn summary_table(
              <td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{:.2}</td>\
              <td class=\"num\">{}</td><td class=\"num\">{rec}</td></tr>",
             escape(&e.file),
-            escape(&e.role),
+            e.role,
             e.samples,
             e.fit_percent,
             pct(e.nrmse),
@@ -312,7 +312,7 @@ fn push_figure(h: &mut String, id: &str, svg: &str, caption: &str) {
 mod tests {
     use super::each_test::step_window;
     use super::*;
-    use crate::fit::model::Model;
+    use crate::fit::model::{Model, TestRole};
     use crate::testing::model_file;
 
     fn step_test(n: usize, model: &Model) -> (Vec<f64>, Vec<f64>) {
@@ -356,7 +356,7 @@ mod tests {
         let ym = m.simulate(&u);
         let ev = [TestEvidence::measure(
             "long.csv",
-            "estimation",
+            TestRole::Estimation,
             &m,
             (&u, &y),
             &ym,
@@ -392,7 +392,7 @@ mod tests {
         let ym = m.simulate(&u);
         let ev = [TestEvidence::measure(
             "a<b>.csv",
-            "estimation",
+            TestRole::Estimation,
             &m,
             (&u, &y),
             &ym,
@@ -446,7 +446,7 @@ mod tests {
         let m = model();
         let (u, y) = step_test(5_000, &m);
         let ym = m.simulate(&u);
-        let ev = TestEvidence::measure("t", "estimation", &m, (&u, &y), &ym);
+        let ev = TestEvidence::measure("t", TestRole::Estimation, &m, (&u, &y), &ym);
         let w = step_window(&ev, &ym);
         assert!(
             w.start < ev.step_onset && w.end > ev.step_onset + 40,

@@ -279,13 +279,17 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     progress.step("writing the model");
     file.save(&args.output)?;
     let report_bytes = match &args.report {
-        Some(path) => Some(report::write_report(
-            path,
-            &name(&args.output),
-            &file,
-            &tests,
-            &progress,
-        )?),
+        Some(path) => {
+            let diagnosis = report::diagnosis(&file, &tests, false, &progress)?;
+            Some(report::write_report(
+                path,
+                &name(&args.output),
+                &file,
+                &tests,
+                &diagnosis,
+                &progress,
+            )?)
+        }
         None => None,
     };
     progress.finish();

@@ -26,7 +26,10 @@ pub use design::{
     Roles, Shape,
 };
 pub use diagnose::{diagnose, DiagnoseRequest, DiagnoseStage, Diagnosis};
-pub use fit::{add_effects, carried_effects, fit_probe, FitRequest};
+pub use fit::{
+    add_effects, carried_effects, check_excitation, check_model_rate, check_same_rate, fit_probe,
+    FitRequest,
+};
 pub use resample::{check_sample_rate, resample, ResampleRequest, Resampled};
 pub use simulate::{simulate, SimulateRequest, Simulated};
 

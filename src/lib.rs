@@ -5,7 +5,7 @@
 // Data flow, one room per stage: trace -> fit -> design -> export -> board. The modelling loop
 // reads what fit and design produce; `file` composes the stage outputs into the model file;
 // `pipeline` runs the stages in order (fit a probe, design its compensator, retarget it,
-// compensate a record) and resamples a model; export and the report read them; the CLI
+// compensate a record), resamples a model and diagnoses one against its tests; export and the report read them; the CLI
 // parses, asks the pipeline and prints. Imports go one way: in the order board, trace, error, poly, fit, physics,
 // design, modelling, file, pipeline, export, report, cli, each room imports only rooms before
 // it. Errors: trace, fit, design, physics, modelling and export each have their own enum,

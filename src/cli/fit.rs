@@ -151,25 +151,6 @@ impl FitArgs {
     }
 }
 
-/// Refuses held-out tests sampled at another rate than the estimation test.
-fn same_rate(est: &Trace, val: &[Trace]) -> Result<()> {
-    for t in val {
-        let rel = (t.sample_rate_hz - est.sample_rate_hz).abs() / est.sample_rate_hz;
-        if rel > crate::trace::MAX_JITTER {
-            return Err(Error::Mismatch {
-                path: t.path.clone(),
-                message: format!(
-                    "sampled at {:.6} Hz but the estimation test {} at {:.6} Hz: resample one of them",
-                    t.sample_rate_hz,
-                    est.path.display(),
-                    est.sample_rate_hz
-                ),
-            });
-        }
-    }
-    Ok(())
-}
-
 /// `unlag fit`: the model fitted to the tests (continuing the output model file's modelling
 /// loop), its compensator designed, the model file written, and the optional report.
 ///
@@ -194,14 +175,22 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         .iter()
         .map(|f| read_test(f, &columns))
         .collect::<Result<Vec<_>>>()?;
-    let Some((est, val)) = traces.split_first() else {
+    let Some((est, _)) = traces.split_first() else {
         return Err(Error::InvalidArgument {
             what: "FILE",
             message: "give at least one step test".into(),
         });
     };
-    same_rate(est, val)?;
     let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
+    let rates: Vec<f64> = traces.iter().map(|t| t.sample_rate_hz).collect();
+    // Refused before the model file and the effects are looked at.
+    pipeline::check_same_rate(
+        &names
+            .iter()
+            .map(String::as_str)
+            .zip(rates.iter().copied())
+            .collect::<Vec<_>>(),
+    )?;
     let tests = as_tests(&traces, &names)?;
     // The modelling loop: the output file's effects and history carry over.
     let previous = args.previous()?;
@@ -239,7 +228,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     let mut file = pipeline::fit_probe(&FitRequest {
         tests: &tests,
         digests: &digests,
-        fs: est.sample_rate_hz,
+        sample_rates_hz: &rates,
         options,
         effects,
         search_delay,
@@ -279,13 +268,17 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     progress.step("writing the model");
     file.save(&args.output)?;
     let report_bytes = match &args.report {
-        Some(path) => Some(report::write_report(
-            path,
-            &name(&args.output),
-            &file,
-            &tests,
-            &progress,
-        )?),
+        Some(path) => {
+            let diagnosis = report::diagnosis(&file, &tests, false, &progress)?;
+            Some(report::write_report(
+                path,
+                &name(&args.output),
+                &file,
+                &tests,
+                &diagnosis,
+                &progress,
+            )?)
+        }
         None => None,
     };
     progress.finish();

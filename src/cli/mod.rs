@@ -13,7 +13,6 @@ use serde_json::json;
 
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
-use crate::fit::step;
 use crate::fit::Test;
 use crate::trace::{Columns, Trace};
 
@@ -252,28 +251,23 @@ pub(crate) fn as_tests<'a>(traces: &'a [Trace], names: &'a [String]) -> Result<V
 }
 
 /// Reads a test the model is fitted or judged on: a trace whose reference moves above its
-/// noise (a step, or another change). A record with no excitation tells nothing about the
-/// probe and would only mislead the order and band choices, so it is refused.
+/// noise ([`pipeline::check_excitation`]), refused as soon as it is read.
 ///
 /// # Errors
 /// The trace's errors, and [`Error::NoStep`] for a reference without excitation.
 pub(crate) fn read_test(path: &Path, columns: &Columns) -> Result<Trace> {
     let t = Trace::read(path, columns)?;
     if let Ok(u) = t.input() {
-        let e = step::excitation(u);
-        if e < step::MIN_EXCITATION {
-            return Err(Error::NoStep {
-                path: t.path.clone(),
+        crate::pipeline::check_excitation(&t.path, u).map_err(|e| match e {
+            // The library does not know the column's position in the file; the trace does.
+            Error::NoStep { path, reason, .. } => Error::NoStep {
+                path,
                 column: t.u_column.unwrap_or(0),
                 name: columns.input.clone(),
-                reason: format!(
-                    "the reference does not move above its noise (its spread is {e:.2} times \
-                     the noise; at least {} is needed): a test without a step or other change \
-                     tells nothing about the probe",
-                    step::MIN_EXCITATION
-                ),
-            });
-        }
+                reason,
+            },
+            e => e,
+        })?;
     }
     Ok(t)
 }
@@ -312,19 +306,10 @@ pub(crate) fn json_err(e: serde_json::Error) -> Error {
     }
 }
 
-/// Refuses a trace sampled at another rate than the model's (beyond the jitter a clock has).
+/// Refuses a trace sampled at another rate than the model's
+/// ([`pipeline::check_model_rate`]).
 pub(crate) fn check_rate(file: &ModelFile, trace: &Trace) -> Result<()> {
-    let rel = (trace.sample_rate_hz - file.model.fs).abs() / file.model.fs;
-    if rel > crate::trace::MAX_JITTER {
-        return Err(Error::Mismatch {
-            path: trace.path.clone(),
-            message: format!(
-                "sampled at {:.6} Hz but the model is for {:.6} Hz",
-                trace.sample_rate_hz, file.model.fs
-            ),
-        });
-    }
-    Ok(())
+    crate::pipeline::check_model_rate(file, &trace.path, trace.sample_rate_hz)
 }
 
 /// Prints a failed command's error as one JSON object on standard output (`--json`):

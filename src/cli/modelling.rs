@@ -6,12 +6,13 @@ use clap::Args;
 use serde_json::json;
 
 use super::{json_err, name, pct, ColumnArgs};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::file::ModelFile;
 use crate::fit::Test;
 use crate::modelling::diagnose::{self, Candidate, Remedy};
-use crate::modelling::effects::{Effect, EffectKind, DEFAULT_REFERENCE_K};
+use crate::modelling::effects::EffectKind;
 use crate::modelling::evidence::TestEvidence;
+use crate::pipeline::{self, DiagnoseRequest, Diagnosis};
 use crate::trace::Trace;
 
 /// Arguments of `unlag compare` and `unlag diagnose`.
@@ -235,42 +236,12 @@ fn print_history(file: &ModelFile) {
     }
 }
 
-/// A candidate's change as the command that makes it: `unlag fit ... --add leak   (model
-/// file: effects = [{ kind = "leak" }])`, `unlag fit ... --delay 27   (model file: ...)`,
-/// `unlag fit ... --order auto   (or a higher --order N)`, `none`.
-pub(crate) fn change_text(r: &Remedy) -> String {
-    let file = r.model_file().unwrap_or_default();
-    if let Some(d) = r.delay() {
-        return format!("unlag fit ... --delay {d}   (model file: {file})");
-    }
-    match (r, r.kind()) {
-        (Remedy::RaiseOrder, _) => "unlag fit ... --order auto   (or a higher --order N)".into(),
-        (Remedy::Add(e), Some(kind)) => {
-            // What `--add` takes: the kind, with the value the diagnosis gives.
-            let add = match e {
-                Effect::SensorResonance {
-                    natural_frequency_hz: f,
-                    ..
-                } if *f > 0.0 => format!("{kind}={f:.0}"),
-                Effect::Temperature { reference_k, .. }
-                    if reference_k.to_bits() != DEFAULT_REFERENCE_K.to_bits() =>
-                {
-                    format!("{kind}={reference_k}")
-                }
-                _ => kind.to_string(),
-            };
-            format!("unlag fit ... --add {add}   (model file: {file})")
-        }
-        _ => "none".into(),
-    }
-}
-
 /// The candidates as `--json` writes them, each `change` the command that makes it.
 fn candidates_json(candidates: &[Candidate]) -> Result<serde_json::Value> {
     let mut v = serde_json::to_value(candidates).map_err(json_err)?;
     if let Some(rows) = v.as_array_mut() {
         for (row, c) in rows.iter_mut().zip(candidates) {
-            row["change"] = json!(change_text(&c.change));
+            row["change"] = json!(c.change.command());
         }
     }
     Ok(v)
@@ -287,19 +258,29 @@ fn tests_json(evidence: &[TestEvidence]) -> Result<serde_json::Value> {
 pub fn run_compare(args: &LoopArgs) -> Result<()> {
     let l = load(args)?;
     let tests = tests(&l)?;
-    let current = l.file.current();
-    let evidence = diagnose::evidence(&current, &tests);
-    let across = diagnose::per_test(&current, &tests, &evidence);
-    if let Some(path) = &args.report {
-        let progress = super::report::Progress::start(args.json, super::report::REPORT_STAGES);
-        super::report::write_report(path, &name(&args.model), &l.file, &tests, &progress)?;
-    }
+    // With a report, the candidates it shows are ranked too (and told to the progress).
+    let d = match &args.report {
+        Some(path) => {
+            let progress = super::report::Progress::start(args.json, super::report::REPORT_STAGES);
+            let d = super::report::diagnosis(&l.file, &tests, true, &progress)?;
+            super::report::write_report(path, &name(&args.model), &l.file, &tests, &d, &progress)?;
+            d
+        }
+        None => pipeline::diagnose(&DiagnoseRequest {
+            file: &l.file,
+            tests: &tests,
+            across: true,
+            rank: false,
+            on_stage: &|_| {},
+        })?,
+    };
+    let (evidence, across) = (&d.evidence, &d.across);
     if args.json {
         let mut v = json!({
             "model": name(&args.model),
-            "tests": tests_json(&evidence)?,
+            "tests": tests_json(evidence)?,
             "across_tests": across,
-            "amplitude_signature": diagnose::amplitude_signature(&across),
+            "amplitude_signature": diagnose::amplitude_signature(across),
             "history": l.file.history,
             "candidates": Vec::<Candidate>::new(),
         });
@@ -309,8 +290,8 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
         crate::outln!("{v}");
         return Ok(());
     }
-    print_evidence(&evidence);
-    print_across(&across);
+    print_evidence(evidence);
+    print_across(across);
     print_history(&l.file);
     crate::outln!("run `unlag diagnose` with the same arguments to rank the missing effects");
     if let Some(path) = &args.report {
@@ -332,15 +313,17 @@ fn carried(file: &ModelFile) -> Vec<String> {
 pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
     let l = load(args)?;
     let tests = tests(&l)?;
-    if tests.is_empty() {
-        return Err(Error::InvalidArgument {
-            what: "TEST.csv",
-            message: "give at least one step test".into(),
-        });
-    }
-    let current = l.file.current();
-    let evidence = diagnose::evidence(&current, &tests);
-    let candidates = diagnose::diagnose(&current, &tests, &evidence)?;
+    let Diagnosis {
+        evidence,
+        candidates,
+        ..
+    } = pipeline::diagnose(&DiagnoseRequest {
+        file: &l.file,
+        tests: &tests,
+        across: false,
+        rank: true,
+        on_stage: &|_| {},
+    })?;
     if let Some(path) = &args.report {
         crate::report::write(
             path,
@@ -350,7 +333,7 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
                 tests: &tests,
                 evidence: &evidence,
                 candidates: &candidates,
-                change_text,
+                change_text: Remedy::command,
             },
         )?;
     }
@@ -403,7 +386,7 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
         if let Some(text) = c.uncertainty_text() {
             crate::outln!("    {text}");
         }
-        crate::outln!("    change: {}", change_text(&c.change));
+        crate::outln!("    change: {}", c.change.command());
         if let Some(test) = &c.separated_by {
             crate::outln!(
                 "    close to the next ({:.2} in score): to tell them apart, {test}",
@@ -415,83 +398,4 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
         crate::outln!("wrote the report {}: open it in a browser", path.display());
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::modelling::effects::{SensorRemedy, TemperatureDamping};
-
-    /// The command text of every kind of change, as `unlag diagnose` has always printed it.
-    #[test]
-    fn each_change_reads_as_the_command_that_makes_it() {
-        let bare = |e: Effect, kind: &str| {
-            (
-                Remedy::Add(e),
-                format!(
-                    "unlag fit ... --add {kind}   (model file: effects = [{{ kind = \"{kind}\" }}])"
-                ),
-            )
-        };
-        let cases = [
-            (
-                Remedy::Add(Effect::Mode {
-                    near_hz: Some(303.4),
-                }),
-                r#"unlag fit ... --add mode   (model file: effects = [{ kind = "mode", near_hz = 303 }])"#.to_string(),
-            ),
-            bare(Effect::Mode { near_hz: None }, "mode"),
-            bare(Effect::Offset { value: 0.0 }, "offset"),
-            bare(
-                Effect::Drift {
-                    value: 0.0,
-                    rate_per_s: 0.0,
-                },
-                "drift",
-            ),
-            bare(Effect::Leak, "leak"),
-            bare(Effect::NonlinearDamping { gain: 0.0 }, "nonlinear-damping"),
-            bare(
-                Effect::ColouredNoise {
-                    ar: Vec::new(),
-                    innovation_std: 0.0,
-                },
-                "coloured-noise",
-            ),
-            (
-                Remedy::Add(Effect::SensorResonance {
-                    natural_frequency_hz: 2998.2,
-                    prefilter_hz: 0.0,
-                    remedy: SensorRemedy::Modes,
-                }),
-                r#"unlag fit ... --add sensor-resonance=2998   (model file: effects = [{ kind = "sensor-resonance", natural_frequency_hz = 2998, remedy = "modes" }])"#.into(),
-            ),
-            (
-                Remedy::Add(Effect::Temperature {
-                    reference_k: DEFAULT_REFERENCE_K,
-                    damping: TemperatureDamping::Constant,
-                }),
-                r#"unlag fit ... --add temperature   (model file: effects = [{ kind = "temperature", reference_k = 293.15 }]; the estimation test's temperature)"#.into(),
-            ),
-            (
-                Remedy::Add(Effect::Temperature {
-                    reference_k: DEFAULT_REFERENCE_K,
-                    damping: TemperatureDamping::Viscous,
-                }),
-                r#"unlag fit ... --add temperature-viscous   (model file: effects = [{ kind = "temperature", reference_k = 293.15, damping = "viscous" }]; the estimation test's temperature)"#.into(),
-            ),
-            (
-                Remedy::SetDelay { samples: 27 },
-                r#"unlag fit ... --delay 27   (model file: effects = [{ kind = "delay", samples = 27 }])"#.into(),
-            ),
-            (
-                Remedy::RaiseOrder,
-                "unlag fit ... --order auto   (or a higher --order N)".into(),
-            ),
-            (Remedy::Nothing, "none".into()),
-        ];
-        for (r, text) in cases {
-            assert_eq!(change_text(&r), text, "{r:?}");
-        }
-    }
 }

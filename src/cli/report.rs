@@ -16,7 +16,8 @@ use super::{name, ColumnArgs};
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::fit::Test;
-use crate::modelling::diagnose;
+use crate::modelling::diagnose::Remedy;
+use crate::pipeline::{self, DiagnoseRequest, DiagnoseStage, Diagnosis};
 use crate::report::{self, Inputs};
 
 /// Arguments of `unlag report`.
@@ -131,32 +132,54 @@ impl Drop for Progress {
     }
 }
 
-/// The stages [`write_report`] reports to its [`Progress`].
+/// The stages [`diagnosis`] and [`write_report`] report to their [`Progress`].
 pub(crate) const REPORT_STAGES: u64 = 3;
 
-/// Measures the evidence, runs the diagnosis and writes the report to `output`; returns the
-/// report's size in bytes.
+/// The diagnosis of `file` on `tests` that the report draws ([`pipeline::diagnose`], the
+/// candidates ranked), each stage told to `progress`; `across` also fits each test alone
+/// (for `unlag compare`).
 ///
 /// # Errors
-/// The diagnosis' and the report's errors.
-pub(crate) fn write_report(
-    output: &Path,
-    model_name: &str,
+/// [`Error::InvalidArgument`] without a test; the diagnosis' errors.
+pub(crate) fn diagnosis(
     file: &ModelFile,
     tests: &[Test<'_>],
+    across: bool,
     progress: &Progress,
-) -> Result<usize> {
+) -> Result<Diagnosis> {
     if tests.is_empty() {
         return Err(Error::InvalidArgument {
             what: "TEST.csv",
             message: "give at least one step test for the report".into(),
         });
     }
-    let current = file.current();
-    progress.step("report: measuring the residuals");
-    let evidence = diagnose::evidence(&current, tests);
-    progress.step("report: diagnosing (trial refits)");
-    let candidates = diagnose::diagnose(&current, tests, &evidence)?;
+    pipeline::diagnose(&DiagnoseRequest {
+        file,
+        tests,
+        across,
+        rank: true,
+        on_stage: &|stage| {
+            progress.step(match stage {
+                DiagnoseStage::Candidates => "report: diagnosing (trial refits)",
+                _ => "report: measuring the residuals",
+            });
+        },
+    })
+}
+
+/// Writes the report of `file`, its `tests` and their `diagnosis` to `output`; returns the
+/// report's size in bytes.
+///
+/// # Errors
+/// The report's errors.
+pub(crate) fn write_report(
+    output: &Path,
+    model_name: &str,
+    file: &ModelFile,
+    tests: &[Test<'_>],
+    diagnosis: &Diagnosis,
+    progress: &Progress,
+) -> Result<usize> {
     progress.step("report: drawing");
     report::write(
         output,
@@ -164,9 +187,9 @@ pub(crate) fn write_report(
             model_name,
             file,
             tests,
-            evidence: &evidence,
-            candidates: &candidates,
-            change_text: super::modelling::change_text,
+            evidence: &diagnosis.evidence,
+            candidates: &diagnosis.candidates,
+            change_text: Remedy::command,
         },
     )
 }
@@ -190,7 +213,15 @@ pub fn run_report(args: &ReportArgs) -> Result<()> {
     }
     let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
     let tests = super::as_tests(&traces, &names)?;
-    let bytes = write_report(&args.output, &name(&args.model), &file, &tests, &progress)?;
+    let diagnosis = diagnosis(&file, &tests, false, &progress)?;
+    let bytes = write_report(
+        &args.output,
+        &name(&args.model),
+        &file,
+        &tests,
+        &diagnosis,
+        &progress,
+    )?;
     progress.finish();
     if args.json {
         crate::outln!(

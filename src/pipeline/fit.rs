@@ -1,10 +1,13 @@
-//! The fit of the probe's model in the modelling loop: the effects a refit carries and adds,
-//! and the model file a fit makes (sources, error history).
+//! The fit of the probe's model in the modelling loop: the tests a fit accepts (a reference
+//! that moves, one sample rate), the effects a refit carries and adds, and the model file a
+//! fit makes (sources, error history).
+
+use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::file::{HistoryRow, HistoryTest, ModelFile, ProbeGeometry, FORMAT_VERSION};
 use crate::fit::model::Source;
-use crate::fit::{self, Options, Order, Test, TestRole};
+use crate::fit::{self, step, Options, Order, Test, TestRole};
 use crate::modelling::effects::{self, Effect, EffectKind};
 
 /// A fit of the probe's model to its step tests (`unlag fit`).
@@ -15,8 +18,9 @@ pub struct FitRequest<'a> {
     pub tests: &'a [Test<'a>],
     /// The SHA-256 of each test's file, in the same order.
     pub digests: &'a [String],
-    /// The tests' sample rate (Hz).
-    pub fs: f64,
+    /// Each test's sample rate (Hz), in the same order: the estimation test's is the model's,
+    /// and the held-out tests must share it ([`check_same_rate`]).
+    pub sample_rates_hz: &'a [f64],
     /// Method, order and delay.
     pub options: Options,
     /// The effects to fit with ([`carried_effects`], [`add_effects`]).
@@ -35,7 +39,9 @@ pub struct FitRequest<'a> {
 /// compensator yet ([`super::design_compensator`] designs it).
 ///
 /// # Errors
-/// [`Error::InvalidArgument`] without a test, or with a digest missing; the fit's errors
+/// [`Error::InvalidParameter`] without a test; [`Error::InvalidArgument`] with a digest or a
+/// sample rate missing; [`check_excitation`]'s for a test whose reference does not move,
+/// [`check_same_rate`]'s for a held-out test at another rate; the fit's errors
 /// ([`effects::fit_with`]).
 pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
     let Some((estimation, validation)) = request.tests.split_first() else {
@@ -54,6 +60,27 @@ pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
             ),
         });
     }
+    if request.sample_rates_hz.len() != request.tests.len() {
+        return Err(Error::InvalidArgument {
+            what: "sample rates",
+            message: format!(
+                "{} sample rates for {} tests",
+                request.sample_rates_hz.len(),
+                request.tests.len()
+            ),
+        });
+    }
+    for test in request.tests {
+        check_excitation(Path::new(test.name), test.u)?;
+    }
+    let rated: Vec<(&str, f64)> = request
+        .tests
+        .iter()
+        .map(|t| t.name)
+        .zip(request.sample_rates_hz.iter().copied())
+        .collect();
+    check_same_rate(&rated)?;
+    let fs = request.sample_rates_hz[0];
     let search_delay = request.search_delay
         && !request
             .effects
@@ -62,7 +89,7 @@ pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
     let (fitted, mut effects) = effects::fit_with(
         estimation,
         validation,
-        request.fs,
+        fs,
         &request.options,
         &request.effects,
     )?;
@@ -110,6 +137,73 @@ pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
         history,
         probe: request.probe.clone(),
     })
+}
+
+/// Refuses a test whose reference (`u`, of the test at `path`) does not move above its noise
+/// (a step, or another change): a record with no excitation tells nothing about the probe
+/// and would only mislead the order and band choices.
+///
+/// # Errors
+/// [`Error::NoStep`] for a reference without excitation, its column unknown here (0, no
+/// name: the caller that read the file knows them).
+pub fn check_excitation(path: &Path, u: &[f64]) -> Result<()> {
+    let e = step::excitation(u);
+    if e < step::MIN_EXCITATION {
+        return Err(Error::NoStep {
+            path: path.to_path_buf(),
+            column: 0,
+            name: String::new(),
+            reason: format!(
+                "the reference does not move above its noise (its spread is {e:.2} times \
+                 the noise; at least {} is needed): a test without a step or other change \
+                 tells nothing about the probe",
+                step::MIN_EXCITATION
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Refuses held-out tests sampled at another rate than the estimation test (the first), each
+/// given as its name and its sample rate (Hz), beyond the jitter a clock has
+/// ([`crate::trace::rate_differs`]).
+///
+/// # Errors
+/// [`Error::Mismatch`] naming the first test at another rate.
+pub fn check_same_rate(tests: &[(&str, f64)]) -> Result<()> {
+    let Some(((est, est_hz), val)) = tests.split_first() else {
+        return Ok(());
+    };
+    for (name, hz) in val {
+        if crate::trace::rate_differs(*hz, *est_hz) {
+            return Err(Error::Mismatch {
+                path: name.into(),
+                message: format!(
+                    "sampled at {hz:.6} Hz but the estimation test {est} at {est_hz:.6} Hz: \
+                     resample one of them"
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a record sampled at another rate than the model file's, beyond the jitter a clock
+/// has ([`crate::trace::rate_differs`]).
+///
+/// # Errors
+/// [`Error::Mismatch`] naming the record at `path`.
+pub fn check_model_rate(file: &ModelFile, path: &Path, rate_hz: f64) -> Result<()> {
+    if crate::trace::rate_differs(rate_hz, file.model.fs) {
+        return Err(Error::Mismatch {
+            path: path.to_path_buf(),
+            message: format!(
+                "sampled at {rate_hz:.6} Hz but the model is for {:.6} Hz",
+                file.model.fs
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// The effects a refit starts from: those of the model it continues, less its modes when the
@@ -188,7 +282,7 @@ mod tests {
         let request = FitRequest {
             tests: &tests,
             digests: &digests,
-            fs: 10_000.0,
+            sample_rates_hz: &[10_000.0, 10_000.0],
             options: Options {
                 method: Method::Oe,
                 order: Order::Fixed(1),
@@ -244,6 +338,40 @@ mod tests {
         assert_eq!(given.model.delay, 4);
         assert_eq!(given.effects, [Effect::Delay { samples: 4 }]);
 
+        // A library caller gets the command line's checks on the tests: one sample rate, and
+        // a reference that moves.
+        let other_rate = fit_probe(&FitRequest {
+            sample_rates_hz: &[10_000.0, 5_000.0],
+            ..request.clone()
+        })
+        .unwrap_err();
+        assert_eq!(
+            other_rate.to_string(),
+            "val.csv: sampled at 5000.000000 Hz but the estimation test est.csv at \
+             10000.000000 Hz: resample one of them"
+        );
+        let flat = vec![1.0; ue.len()];
+        let still = [
+            Test {
+                name: "est.csv",
+                u: &ue,
+                y: &ye,
+            },
+            Test {
+                name: "flat.csv",
+                u: &flat,
+                y: &yv,
+            },
+        ];
+        let no_step = fit_probe(&FitRequest {
+            tests: &still,
+            ..request.clone()
+        })
+        .unwrap_err();
+        assert!(
+            matches!(&no_step, Error::NoStep { path, .. } if path.as_path() == Path::new("flat.csv")),
+            "{no_step}"
+        );
         assert!(matches!(
             fit_probe(&FitRequest {
                 digests: &digests[..1],

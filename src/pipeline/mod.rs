@@ -2,7 +2,8 @@
 //! from its tests ([`fit_probe`]), its compensator designed ([`design_compensator`]), a stored
 //! compensator designed anew for a rescaled model ([`retarget`]), a recording compensated
 //! with a model file ([`compensate`]), a model file's probe simulated on a recording
-//! ([`simulate`]), and a model file put at another sample rate ([`resample`]).
+//! ([`simulate`]), a model file put at another sample rate ([`resample`]), and a model file
+//! judged against its tests, the missing effects ranked ([`diagnose()`]).
 //!
 //! Every compensator goes through one sequence: the design (checked on the tests against the
 //! raw probe, or a stored design's shape redone), the sensor-resonance prefilter put in front
@@ -11,6 +12,7 @@
 
 mod compensate;
 mod design;
+mod diagnose;
 mod fit;
 mod resample;
 mod simulate;
@@ -23,7 +25,11 @@ pub use design::{
     at_temperature, design_compensator, retarget, Compensator, CompensatorRequest, CompensatorSpec,
     Roles, Shape,
 };
-pub use fit::{add_effects, carried_effects, fit_probe, FitRequest};
+pub use diagnose::{diagnose, DiagnoseRequest, DiagnoseStage, Diagnosis};
+pub use fit::{
+    add_effects, carried_effects, check_excitation, check_model_rate, check_same_rate, fit_probe,
+    FitRequest,
+};
 pub use resample::{check_sample_rate, resample, ResampleRequest, Resampled};
 pub use simulate::{simulate, SimulateRequest, Simulated};
 

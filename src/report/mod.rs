@@ -43,12 +43,12 @@ pub struct Inputs<'a> {
     pub file: &'a ModelFile,
     /// The step tests; the first is the estimation test.
     pub tests: &'a [Test<'a>],
-    /// The residual evidence per test ([`crate::modelling::diagnose::evidence`]).
+    /// The residual evidence per test ([`crate::pipeline::diagnose()`]).
     pub evidence: &'a [TestEvidence],
-    /// The ranked candidates ([`crate::modelling::diagnose::diagnose`]).
+    /// The ranked candidates ([`crate::pipeline::diagnose()`]).
     pub candidates: &'a [Candidate],
     /// How a candidate's change is worded: `|r| r.to_string()` for the library's words
-    /// ([`Remedy`]'s `Display`); a front end passes the command that makes it.
+    /// ([`Remedy`]'s `Display`), [`Remedy::command`] for the `unlag` command that makes it.
     pub change_text: fn(&Remedy) -> String,
 }
 

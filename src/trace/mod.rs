@@ -32,6 +32,13 @@ const SIZING_ROWS: usize = 64;
 /// Allowed deviation of one time step from the mean step.
 pub const MAX_JITTER: f64 = 0.01;
 
+/// Whether a record sampled at `rate_hz` is at another rate than `expected_hz`: further from it
+/// than the jitter a clock has ([`MAX_JITTER`], relative to `expected_hz`).
+#[must_use]
+pub fn rate_differs(rate_hz: f64, expected_hz: f64) -> bool {
+    (rate_hz - expected_hz).abs() / expected_hz > MAX_JITTER
+}
+
 /// Which columns hold what, and the sample rate when there is no time column.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Columns {

@@ -1,13 +1,14 @@
 //! The change a candidate asks for, as a type: [`Remedy`]. Its text ([`Display`]) is in the
-//! library's words and the model file's terms; a front end words it as its own command.
+//! library's words and the model file's terms; [`Remedy::command`] words it as the `unlag`
+//! command that makes it (what the command line and its report tell the user to type).
 //!
 //! [`Display`]: core::fmt::Display
 
 use serde::{Serialize, Serializer};
 
-#[cfg(test)]
-use crate::modelling::effects::DEFAULT_REFERENCE_K;
-use crate::modelling::effects::{Effect, EffectKind, SensorRemedy, TemperatureDamping};
+use crate::modelling::effects::{
+    Effect, EffectKind, SensorRemedy, TemperatureDamping, DEFAULT_REFERENCE_K,
+};
 
 /// The change that adds what a candidate names.
 ///
@@ -122,6 +123,37 @@ impl Remedy {
         };
         Some(format!("effects = [{entry}]"))
     }
+
+    /// The change as the `unlag` command that makes it: `unlag fit ... --add leak   (model
+    /// file: effects = [{ kind = "leak" }])`, `unlag fit ... --delay 27   (model file: ...)`,
+    /// `unlag fit ... --order auto   (or a higher --order N)`, `none`.
+    #[must_use]
+    pub fn command(&self) -> String {
+        let file = self.model_file().unwrap_or_default();
+        if let Some(d) = self.delay() {
+            return format!("unlag fit ... --delay {d}   (model file: {file})");
+        }
+        match (self, self.kind()) {
+            (Self::RaiseOrder, _) => "unlag fit ... --order auto   (or a higher --order N)".into(),
+            (Self::Add(e), Some(kind)) => {
+                // What `--add` takes: the kind, with the value the diagnosis gives.
+                let add = match e {
+                    Effect::SensorResonance {
+                        natural_frequency_hz: f,
+                        ..
+                    } if *f > 0.0 => format!("{kind}={f:.0}"),
+                    Effect::Temperature { reference_k, .. }
+                        if reference_k.to_bits() != DEFAULT_REFERENCE_K.to_bits() =>
+                    {
+                        format!("{kind}={reference_k}")
+                    }
+                    _ => kind.to_string(),
+                };
+                format!("unlag fit ... --add {add}   (model file: {file})")
+            }
+            _ => "none".into(),
+        }
+    }
 }
 
 impl core::fmt::Display for Remedy {
@@ -201,5 +233,78 @@ mod tests {
             Remedy::Add(Effect::Delay { samples: 3 }).to_string(),
             Remedy::SetDelay { samples: 3 }.to_string()
         );
+    }
+
+    /// The command text of every kind of change, as `unlag diagnose` has always printed it.
+    #[test]
+    fn each_change_reads_as_the_command_that_makes_it() {
+        let bare = |e: Effect, kind: &str| {
+            (
+                Remedy::Add(e),
+                format!(
+                    "unlag fit ... --add {kind}   (model file: effects = [{{ kind = \"{kind}\" }}])"
+                ),
+            )
+        };
+        let cases = [
+            (
+                Remedy::Add(Effect::Mode {
+                    near_hz: Some(303.4),
+                }),
+                r#"unlag fit ... --add mode   (model file: effects = [{ kind = "mode", near_hz = 303 }])"#.to_string(),
+            ),
+            bare(Effect::Mode { near_hz: None }, "mode"),
+            bare(Effect::Offset { value: 0.0 }, "offset"),
+            bare(
+                Effect::Drift {
+                    value: 0.0,
+                    rate_per_s: 0.0,
+                },
+                "drift",
+            ),
+            bare(Effect::Leak, "leak"),
+            bare(Effect::NonlinearDamping { gain: 0.0 }, "nonlinear-damping"),
+            bare(
+                Effect::ColouredNoise {
+                    ar: Vec::new(),
+                    innovation_std: 0.0,
+                },
+                "coloured-noise",
+            ),
+            (
+                Remedy::Add(Effect::SensorResonance {
+                    natural_frequency_hz: 2998.2,
+                    prefilter_hz: 0.0,
+                    remedy: SensorRemedy::Modes,
+                }),
+                r#"unlag fit ... --add sensor-resonance=2998   (model file: effects = [{ kind = "sensor-resonance", natural_frequency_hz = 2998, remedy = "modes" }])"#.into(),
+            ),
+            (
+                Remedy::Add(Effect::Temperature {
+                    reference_k: DEFAULT_REFERENCE_K,
+                    damping: TemperatureDamping::Constant,
+                }),
+                r#"unlag fit ... --add temperature   (model file: effects = [{ kind = "temperature", reference_k = 293.15 }]; the estimation test's temperature)"#.into(),
+            ),
+            (
+                Remedy::Add(Effect::Temperature {
+                    reference_k: DEFAULT_REFERENCE_K,
+                    damping: TemperatureDamping::Viscous,
+                }),
+                r#"unlag fit ... --add temperature-viscous   (model file: effects = [{ kind = "temperature", reference_k = 293.15, damping = "viscous" }]; the estimation test's temperature)"#.into(),
+            ),
+            (
+                Remedy::SetDelay { samples: 27 },
+                r#"unlag fit ... --delay 27   (model file: effects = [{ kind = "delay", samples = 27 }])"#.into(),
+            ),
+            (
+                Remedy::RaiseOrder,
+                "unlag fit ... --order auto   (or a higher --order N)".into(),
+            ),
+            (Remedy::Nothing, "none".into()),
+        ];
+        for (r, text) in cases {
+            assert_eq!(r.command(), text, "{r:?}");
+        }
     }
 }

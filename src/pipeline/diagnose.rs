@@ -1,0 +1,101 @@
+//! A model file judged against its step tests: the residual evidence measured on each test,
+//! the same structure fitted to each test alone, and the missing effects ranked by trial
+//! refits ([`diagnose()`]). `unlag compare`, `unlag diagnose` and the report all ask here.
+
+use crate::error::{Error, Result};
+use crate::file::ModelFile;
+use crate::fit::Test;
+use crate::modelling::diagnose::{self, Candidate, PerTest};
+use crate::modelling::evidence::TestEvidence;
+
+/// The stages of a [`diagnose()`] that may take long, as [`DiagnoseRequest::on_stage`] hears
+/// them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum DiagnoseStage {
+    /// Measuring the residual evidence on every test.
+    Evidence,
+    /// Ranking the candidates: the trial refits.
+    Candidates,
+}
+
+/// A model file and the tests to judge it on.
+#[derive(Clone, Copy)]
+pub struct DiagnoseRequest<'a> {
+    /// The model file: its model, effects, method and stated uncertainty
+    /// ([`ModelFile::current`]) are where the diagnosis starts.
+    pub file: &'a ModelFile,
+    /// The step tests; the first is the estimation test (refitted on by the trials), the
+    /// others are held out.
+    pub tests: &'a [Test<'a>],
+    /// Also fit the same structure to each test alone ([`Diagnosis::across`]).
+    pub across: bool,
+    /// Also rank the missing effects by trial refits ([`Diagnosis::candidates`]).
+    pub rank: bool,
+    /// Told as each long stage starts (a front end's progress indication).
+    pub on_stage: &'a dyn Fn(DiagnoseStage),
+}
+
+impl core::fmt::Debug for DiagnoseRequest<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("DiagnoseRequest")
+            .field("tests", &self.tests.len())
+            .field("across", &self.across)
+            .field("rank", &self.rank)
+            .finish_non_exhaustive()
+    }
+}
+
+/// What a [`diagnose()`] found.
+#[derive(Debug, Clone)]
+pub struct Diagnosis {
+    /// The residual evidence, one per test in the request's order.
+    pub evidence: Vec<TestEvidence>,
+    /// The structure fitted to each test alone, when asked ([`DiagnoseRequest::across`]);
+    /// empty otherwise.
+    pub across: Vec<PerTest>,
+    /// The candidates for the missing effect, best first, when asked
+    /// ([`DiagnoseRequest::rank`]); empty otherwise.
+    pub candidates: Vec<Candidate>,
+}
+
+/// Measures the evidence of the model file on the tests, then (as asked) fits each test
+/// alone and ranks the missing effects.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] (`TEST.csv`) when ranking without a test;
+/// [`diagnose::diagnose`]'s errors.
+pub fn diagnose(request: &DiagnoseRequest<'_>) -> Result<Diagnosis> {
+    let DiagnoseRequest {
+        file,
+        tests,
+        across,
+        rank,
+        on_stage,
+    } = *request;
+    if rank && tests.is_empty() {
+        return Err(Error::InvalidArgument {
+            what: "TEST.csv",
+            message: "give at least one step test".into(),
+        });
+    }
+    let current = file.current();
+    on_stage(DiagnoseStage::Evidence);
+    let evidence = diagnose::evidence(&current, tests);
+    let across = if across {
+        diagnose::per_test(&current, tests, &evidence)
+    } else {
+        Vec::new()
+    };
+    let candidates = if rank {
+        on_stage(DiagnoseStage::Candidates);
+        diagnose::diagnose(&current, tests, &evidence)?
+    } else {
+        Vec::new()
+    };
+    Ok(Diagnosis {
+        evidence,
+        across,
+        candidates,
+    })
+}

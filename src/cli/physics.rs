@@ -15,7 +15,7 @@ use crate::physics::helmholtz::{EndKind, HoleCavity};
 use crate::physics::line::{CavityThermal, Element, Line, Tube, Volume};
 use crate::physics::nonlinear::{equivalent_resistance, MinorLosses};
 use crate::physics::sensor::{Butterworth, Diaphragm};
-use crate::physics::simulate::{simulate, Acquisition, Adc, Excitation, Probe};
+use crate::physics::simulate::{simulate, Acquisition, Adc, Excitation, Probe, Quantisation};
 
 /// How the end of a recessed hole meets the space beyond it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -402,6 +402,24 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         Some(text) => pair(text, "--hum", "PA,HZ")?,
         None => (0.0, 50.0),
     };
+    let adc = match (args.adc_bits, &args.adc_range) {
+        (Some(bits), Some(text)) => {
+            let (min_pa, max_pa) = pair(text, "--adc-range", "MIN,MAX in Pa")?;
+            Some(Quantisation::Fixed(Adc {
+                bits,
+                min_pa,
+                max_pa,
+            }))
+        }
+        (Some(bits), None) => Some(Quantisation::FromSignals { bits }),
+        (None, Some(_)) => {
+            return Err(Error::InvalidArgument {
+                what: "--adc-range",
+                message: "needs --adc-bits".into(),
+            })
+        }
+        (None, None) => None,
+    };
     let acquisition = Acquisition {
         sample_rate_hz: args.fs,
         duration_s: args.duration,
@@ -409,7 +427,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         oversample: args.oversample,
         probe_noise_pa: args.noise,
         reference_noise_pa: args.reference_noise,
-        adc: None,
+        adc,
         reference_sensor,
         seed: args.seed,
         probe_gain_error: args.gain_error,
@@ -417,7 +435,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         hum_hz,
         drift_pa_per_s: args.drift,
     };
-    let mut test = simulate(&probe, &excitation, &acquisition)?;
+    let test = simulate(&probe, &excitation, &acquisition)?;
     let asked = args.fs * args.oversample as f64;
     if test.impulse.rate_hz < asked {
         crate::errln!(
@@ -436,39 +454,6 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             );
         }
     }
-    let adc = match args.adc_bits {
-        Some(bits) => {
-            let (min_pa, max_pa) = match &args.adc_range {
-                Some(text) => pair(text, "--adc-range", "MIN,MAX in Pa")?,
-                None => {
-                    let all = test.reference.iter().chain(&test.probe);
-                    let lo = all.clone().copied().fold(f64::INFINITY, f64::min);
-                    let hi = all.copied().fold(f64::NEG_INFINITY, f64::max);
-                    let span = (hi - lo).max(1e-9);
-                    (lo - 0.1 * span, hi + 0.1 * span)
-                }
-            };
-            let adc = Adc {
-                bits,
-                min_pa,
-                max_pa,
-            };
-            adc.validate()?;
-            for v in test.reference.iter_mut().chain(test.probe.iter_mut()) {
-                *v = adc.quantise(*v);
-            }
-            Some(adc)
-        }
-        None => {
-            if args.adc_range.is_some() {
-                return Err(Error::InvalidArgument {
-                    what: "--adc-range",
-                    message: "needs --adc-bits".into(),
-                });
-            }
-            None
-        }
-    };
     let mut csv = String::with_capacity(test.t.len() * 48);
     csv.push_str("t,u,y\n");
     for ((t, u), y) in test.t.iter().zip(&test.reference).zip(&test.probe) {
@@ -484,7 +469,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             "front_delay_s": sys.line.front_delay_s(&sys.gas),
             "dc_gain": sys.line.dc_gain(&sys.gas),
             "minor_loss_resistance_pa_s_per_m3": sys.minor_loss_resistance,
-            "adc_lsb_pa": adc.map(|a| a.lsb_pa()),
+            "adc_lsb_pa": test.adc.map(|a| a.lsb_pa()),
             "method": {
                 "internal_rate_hz": ir.rate_hz,
                 "fft_length": ir.fft_length,
@@ -520,7 +505,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         ir.noncausal_energy,
         ir.taper_start_hz
     );
-    if let Some(a) = adc {
+    if let Some(a) = test.adc {
         crate::outln!(
             "  ADC {} bits over [{}, {}] Pa, LSB {:.4e} Pa",
             a.bits,

@@ -6,9 +6,10 @@ use std::path::PathBuf;
 use clap::Args;
 use serde_json::{json, Value};
 
-use super::physics::{System, SystemArgs};
+use super::physics::SystemArgs;
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
+use crate::physics::system::ProbeSystem;
 use crate::physics::{compare, predict, Prediction};
 
 /// Arguments of `unlag predict`.
@@ -28,7 +29,7 @@ pub struct PredictArgs {
     pub json: bool,
 }
 
-fn prediction_json(sys: &System, p: &Prediction) -> Value {
+fn prediction_json(sys: &ProbeSystem, p: &Prediction) -> Value {
     json!({
         "modes": p.modes.iter().map(|m| json!({
             "natural_frequency_hz": m.natural_frequency_hz,

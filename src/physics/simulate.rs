@@ -46,7 +46,10 @@ use super::PhysicsError;
 use crate::error::{Error, Result};
 
 mod excitation;
-pub use excitation::Excitation;
+pub use excitation::{
+    Excitation, Facility, FacilitySettings, BALLOON_FALL_S, SHOCK_RISE_S, TUNNEL_FRACTION,
+    VALVE_CHAMBER, VALVE_OPENING_S,
+};
 
 /// Lowest oversampling [`simulate`] falls back to when the response outlasts the longest FFT
 /// at the asked one.

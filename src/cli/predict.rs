@@ -155,7 +155,7 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
             h.poiseuille_damping(g),
             h.effective_length_m(),
             h.neck_volume_ratio(),
-            if h.neck_volume_ratio() > 0.3 {
+            if h.neck_too_large_for_closed_form() {
                 " (too large for the closed form: trust the exact modes)"
             } else {
                 ""

@@ -298,24 +298,6 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         Some(text) => pair(text, "--hum", "PA,HZ")?,
         None => (0.0, 50.0),
     };
-    let adc = match (args.adc_bits, &args.adc_range) {
-        (Some(bits), Some(text)) => {
-            let (min_pa, max_pa) = pair(text, "--adc-range", "MIN,MAX in Pa")?;
-            Some(Quantisation::Fixed(Adc {
-                bits,
-                min_pa,
-                max_pa,
-            }))
-        }
-        (Some(bits), None) => Some(Quantisation::FromSignals { bits }),
-        (None, Some(_)) => {
-            return Err(Error::InvalidArgument {
-                what: "--adc-range",
-                message: "needs --adc-bits".into(),
-            })
-        }
-        (None, None) => None,
-    };
     let acquisition = Acquisition {
         sample_rate_hz: args.fs,
         duration_s: args.duration,
@@ -323,7 +305,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         oversample: args.oversample,
         probe_noise_pa: args.noise,
         reference_noise_pa: args.reference_noise,
-        adc,
+        adc: None,
         reference_sensor,
         seed: args.seed,
         probe_gain_error: args.gain_error,
@@ -331,7 +313,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         hum_hz,
         drift_pa_per_s: args.drift,
     };
-    let test = simulate(&probe, &excitation, &acquisition)?;
+    let mut test = simulate(&probe, &excitation, &acquisition)?;
     let asked = args.fs * args.oversample as f64;
     if test.impulse.rate_hz < asked {
         crate::errln!(
@@ -350,6 +332,29 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             );
         }
     }
+    // The ADC is asked for after the simulation, as the range may come from its signals.
+    let adc = match args.adc_bits {
+        Some(bits) => Some(test.quantise(match &args.adc_range {
+            Some(text) => {
+                let (min_pa, max_pa) = pair(text, "--adc-range", "MIN,MAX in Pa")?;
+                Quantisation::Fixed(Adc {
+                    bits,
+                    min_pa,
+                    max_pa,
+                })
+            }
+            None => Quantisation::FromSignals { bits },
+        })?),
+        None => {
+            if args.adc_range.is_some() {
+                return Err(Error::InvalidArgument {
+                    what: "--adc-range",
+                    message: "needs --adc-bits".into(),
+                });
+            }
+            None
+        }
+    };
     let mut csv = String::with_capacity(test.t.len() * 48);
     csv.push_str("t,u,y\n");
     for ((t, u), y) in test.t.iter().zip(&test.reference).zip(&test.probe) {
@@ -365,7 +370,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             "front_delay_s": sys.line.front_delay_s(&sys.gas),
             "dc_gain": sys.line.dc_gain(&sys.gas),
             "minor_loss_resistance_pa_s_per_m3": sys.minor_loss_resistance,
-            "adc_lsb_pa": test.adc.map(|a| a.lsb_pa()),
+            "adc_lsb_pa": adc.map(|a| a.lsb_pa()),
             "method": {
                 "internal_rate_hz": ir.rate_hz,
                 "fft_length": ir.fft_length,
@@ -401,7 +406,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         ir.noncausal_energy,
         ir.taper_start_hz
     );
-    if let Some(a) = test.adc {
+    if let Some(a) = adc {
         crate::outln!(
             "  ADC {} bits over [{}, {}] Pa, LSB {:.4e} Pa",
             a.bits,

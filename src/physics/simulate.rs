@@ -490,6 +490,30 @@ pub struct SimulatedTest {
     pub adc: Option<Adc>,
 }
 
+impl SimulatedTest {
+    /// Quantises both channels (noise included) as `quantisation` says and records the ADC
+    /// in [`Self::adc`]; for a test simulated without an ADC ([`simulate`] calls it when the
+    /// acquisition has one).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for an invalid ADC (for [`Quantisation::FromSignals`], with
+    /// the range taken from the signals).
+    pub fn quantise(&mut self, quantisation: Quantisation) -> Result<Adc> {
+        let adc = match quantisation {
+            Quantisation::Fixed(adc) => adc,
+            Quantisation::FromSignals { bits } => {
+                Adc::spanning(bits, &[&self.reference, &self.probe])
+            }
+        };
+        adc.validate()?;
+        for v in self.reference.iter_mut().chain(self.probe.iter_mut()) {
+            *v = adc.quantise(*v);
+        }
+        self.adc = Some(adc);
+        Ok(adc)
+    }
+}
+
 /// A deterministic Gaussian noise source (SplitMix64 and Box-Muller).
 #[derive(Debug, Clone)]
 struct Noise {
@@ -617,7 +641,7 @@ pub fn simulate(
             })
             .collect()
     };
-    let mut reference = add_noise(&reference_clean, acquisition.reference_noise_pa);
+    let reference = add_noise(&reference_clean, acquisition.reference_noise_pa);
     // Additive and static errors of the probe channel, before noise and ADC.
     let event = acquisition.event_time_s;
     let with_errors: Vec<f64> = probe_clean
@@ -631,30 +655,20 @@ pub fn simulate(
             (1.0 + acquisition.probe_gain_error) * v + hum + drift
         })
         .collect();
-    let mut probe_out = add_noise(&with_errors, acquisition.probe_noise_pa);
-    let adc = match acquisition.adc {
-        Some(Quantisation::Fixed(adc)) => Some(adc),
-        Some(Quantisation::FromSignals { bits }) => {
-            let adc = Adc::spanning(bits, &[&reference, &probe_out]);
-            adc.validate()?;
-            Some(adc)
-        }
-        None => None,
-    };
-    if let Some(adc) = &adc {
-        for v in reference.iter_mut().chain(probe_out.iter_mut()) {
-            *v = adc.quantise(*v);
-        }
-    }
-    Ok(SimulatedTest {
+    let probe_out = add_noise(&with_errors, acquisition.probe_noise_pa);
+    let mut test = SimulatedTest {
         t: (0..n_rec).map(|k| k as f64 / fs).collect(),
         reference,
         probe: probe_out,
         excitation: excitation_samples,
         probe_clean,
         impulse: ir,
-        adc,
-    })
+        adc: None,
+    };
+    if let Some(q) = acquisition.adc {
+        test.quantise(q)?;
+    }
+    Ok(test)
 }
 
 #[cfg(test)]

@@ -947,11 +947,14 @@ fn facility_excitations_noise_and_adc() {
     let mut noisy = Acquisition::new(20_000.0, 0.1);
     noisy.probe_noise_pa = 2.0;
     noisy.reference_noise_pa = 1.0;
-    noisy.adc = Some(Adc {
-        bits: 10,
-        min_pa: -200.0,
-        max_pa: 1800.0,
-    });
+    noisy.adc = Some(
+        Adc {
+            bits: 10,
+            min_pa: -200.0,
+            max_pa: 1800.0,
+        }
+        .into(),
+    );
     let valve = Excitation::Valve {
         amplitude_pa: 1000.0,
         opening_s: 1e-3,

@@ -354,7 +354,7 @@ pub enum Parameter {
     Bandwidth,
     /// The ADC's full scale, for a fixed-point plan.
     FullScale,
-    /// The gas temperature a design is retargeted to.
+    /// A gas temperature: a probe's, or the one a design is retargeted to.
     Temperature,
     /// The temperature table of a bank.
     Temperatures,
@@ -366,6 +366,26 @@ pub enum Parameter {
     Tests,
     /// The sample rate a model is resampled to.
     SampleRate,
+    /// A probe's mean gas pressure.
+    MeanPressure,
+    /// The volume at a probe's closed end.
+    EndVolume,
+    /// The length of a probe's recessed hole.
+    HoleLength,
+    /// The diameter of a probe's recessed hole.
+    HoleDiameter,
+    /// The end volume as the cavity of a probe's recessed hole.
+    HoleCavity,
+    /// The length of one of a probe's tubes.
+    TubeLength,
+    /// The diameter of one of a probe's tubes.
+    TubeDiameter,
+    /// A probe's tubes together.
+    Tubes,
+    /// The radius of a probe's thermally relaxing end cavity.
+    CavityRadius,
+    /// The rise (or fall, or opening) time of an excitation.
+    RiseTime,
 }
 
 impl std::fmt::Display for Parameter {
@@ -382,6 +402,16 @@ impl std::fmt::Display for Parameter {
             Self::Arithmetic => "arithmetic",
             Self::Tests => "step tests",
             Self::SampleRate => "sample rate",
+            Self::MeanPressure => "mean pressure",
+            Self::EndVolume => "end volume",
+            Self::HoleLength => "hole length",
+            Self::HoleDiameter => "hole diameter",
+            Self::HoleCavity => "hole cavity volume",
+            Self::TubeLength => "tube length",
+            Self::TubeDiameter => "tube diameter",
+            Self::Tubes => "tubing",
+            Self::CavityRadius => "cavity radius",
+            Self::RiseTime => "rise time",
         })
     }
 }

@@ -13,7 +13,6 @@ use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::fit::analysis::{self, Analysis};
 use crate::fit::continuous::{self, Continuous};
-use crate::fit::model::Model;
 use crate::pipeline::{self, ResampleRequest};
 use crate::poly::{self, Complex};
 
@@ -112,26 +111,22 @@ fn frequencies(args: &InspectArgs, fs: f64) -> Result<Vec<f64>> {
         });
     }
     if f.is_empty() {
-        let (lo, hi) = (fs / 1000.0, fs / 2.0);
-        let n = (4.0 * (hi / lo).log10()).ceil() as usize;
-        f.push(0.0);
-        f.extend((0..=n).map(|k| lo * (hi / lo).powf(k as f64 / n as f64)));
+        f = analysis::default_frequencies(fs);
     }
     f.sort_by(f64::total_cmp);
     Ok(f)
 }
 
-fn response_rows(model: &Model, freqs: &[f64]) -> Vec<serde_json::Value> {
-    analysis::frequency_response(model, freqs)
-        .into_iter()
-        .zip(freqs)
-        .map(|((mag, phase), f)| {
+fn response_rows(points: &[analysis::ResponsePoint]) -> Vec<serde_json::Value> {
+    points
+        .iter()
+        .map(|p| {
             json!({
-                "frequency_hz": f,
-                "magnitude": mag,
-                "magnitude_db": 20.0 * mag.log10(),
-                "phase_rad": phase,
-                "phase_deg": phase.to_degrees(),
+                "frequency_hz": p.frequency_hz,
+                "magnitude": p.magnitude,
+                "magnitude_db": p.magnitude_db,
+                "phase_rad": p.phase_rad,
+                "phase_deg": p.phase_deg,
             })
         })
         .collect()
@@ -149,7 +144,7 @@ pub fn run_inspect(args: &InspectArgs) -> Result<()> {
     let file = ModelFile::load(&args.model)?;
     let m = &file.model;
     let analysis = Analysis::new(m)?;
-    let freqs = frequencies(args, m.fs)?;
+    let response = analysis::response_points(m, &frequencies(args, m.fs)?);
     let ct = Continuous::from_model(m);
     if args.json {
         let (continuous, why) = match &ct {
@@ -161,7 +156,7 @@ pub fn run_inspect(args: &InspectArgs) -> Result<()> {
             "analysis": serde_json::to_value(&analysis).map_err(json_err)?,
             "continuous": continuous,
             "continuous_error": why,
-            "frequency_response": response_rows(m, &freqs),
+            "frequency_response": response_rows(&response),
         });
         crate::outln!("{v}");
         // The analysis shows which pole is outside; the exit status says the model is unusable.
@@ -177,14 +172,13 @@ pub fn run_inspect(args: &InspectArgs) -> Result<()> {
         "dB",
         "phase [deg]"
     );
-    for ((mag, phase), f) in analysis::frequency_response(m, &freqs)
-        .into_iter()
-        .zip(&freqs)
-    {
+    for p in &response {
         crate::outln!(
-            "  {f:>12.3} {mag:>12.6} {:>10.3} {:>12.3}",
-            20.0 * mag.log10(),
-            phase.to_degrees()
+            "  {:>12.3} {:>12.6} {:>10.3} {:>12.3}",
+            p.frequency_hz,
+            p.magnitude,
+            p.magnitude_db,
+            p.phase_deg
         );
     }
     m.check_stable(&args.model.display().to_string())

@@ -153,8 +153,21 @@ pub fn describe(e: &Error) -> String {
             Parameter::Arithmetic => "--arithmetic",
             Parameter::Tests => "FILE",
             Parameter::SampleRate => "--fs",
+            Parameter::MeanPressure => "--pressure",
+            Parameter::EndVolume => "--volume",
+            Parameter::HoleLength => "--hole length",
+            Parameter::HoleDiameter => "--hole diameter",
+            Parameter::HoleCavity => "--volume (the hole's cavity)",
+            Parameter::TubeLength => "--line length",
+            Parameter::TubeDiameter => "--line diameter",
+            Parameter::Tubes => "--line",
+            Parameter::CavityRadius => "--cavity-radius",
+            Parameter::RiseTime => "--rise",
         };
         return format!("invalid {flag}: {message}");
+    }
+    if let Some(crate::physics::PhysicsError::NoTube) = e.stage() {
+        return "invalid --line: give at least one --line LENGTH,DIAMETER (or a --hole)".into();
     }
     if let Some(crate::modelling::ModellingError::NoSensorResonance) = e.stage() {
         return "invalid sensor-resonance: the estimation test's reference shows no resonance to \

@@ -10,12 +10,12 @@ use clap::{Args, ValueEnum};
 use serde_json::json;
 
 use crate::error::{Error, Result};
-use crate::physics::gas::Gas;
-use crate::physics::helmholtz::{EndKind, HoleCavity};
-use crate::physics::line::{CavityThermal, Element, Line, Tube, Volume};
-use crate::physics::nonlinear::{equivalent_resistance, MinorLosses};
+use crate::physics::helmholtz::EndKind;
 use crate::physics::sensor::{Butterworth, Diaphragm};
-use crate::physics::simulate::{simulate, Acquisition, Adc, Excitation, Probe};
+use crate::physics::simulate::{
+    simulate, Acquisition, Adc, Excitation, Facility, FacilitySettings, Probe, Quantisation,
+};
+use crate::physics::system::{ProbeSpec, ProbeSystem};
 
 /// How the end of a recessed hole meets the space beyond it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -88,138 +88,48 @@ fn pair(text: &str, what: &'static str, form: &str) -> Result<(f64, f64)> {
     }
 }
 
-/// Longest tubing, all lines together, that `simulate-test` and `predict` take.
-const MAX_LINE_LENGTH_M: f64 = 50.0;
-
-fn positive(value: f64, what: &'static str) -> Result<f64> {
-    if value.is_finite() && value > 0.0 {
-        Ok(value)
-    } else {
-        Err(Error::InvalidArgument {
-            what,
-            message: format!("{value} must be finite and positive"),
-        })
-    }
-}
-
-/// The probe described on the command line.
-pub(super) struct System {
-    pub(super) line: Line,
-    pub(super) gas: Gas,
-    pub(super) hole: Option<HoleCavity>,
-    pub(super) diaphragm: Option<Diaphragm>,
-    pub(super) minor_loss_resistance: Option<f64>,
-}
-
 impl SystemArgs {
-    /// The probe described, its arguments checked.
-    pub(super) fn build(&self) -> Result<System> {
-        positive(self.temperature, "--temperature")?;
-        positive(self.pressure, "--pressure")?;
-        let gas = Gas::air(self.temperature, self.pressure);
-        gas.validate()?;
-        if self.lines.is_empty() && self.hole.is_none() {
-            return Err(Error::InvalidArgument {
-                what: "--line",
-                message: "give at least one --line LENGTH,DIAMETER (or a --hole)".into(),
-            });
-        }
-        if !(self.volume.is_finite() && self.volume >= 0.0) {
-            return Err(Error::InvalidArgument {
-                what: "--volume",
-                message: format!("{} m^3 must be finite and non-negative", self.volume),
-            });
-        }
-        let mut line = Line::new();
-        let mut hole = None;
-        if let Some(h) = &self.hole {
-            let (l, d) = pair(h, "--hole", "LENGTH,DIAMETER in m")?;
-            positive(l, "--hole length")?;
-            positive(d, "--hole diameter")?;
-            positive(self.volume, "--volume (the hole's cavity)")?;
-            let end = match self.hole_end {
-                EndArg::Flanged => EndKind::Flanged,
-                EndArg::Unflanged => EndKind::Unflanged,
-                EndArg::None => EndKind::None,
-            };
-            let hc = HoleCavity {
-                hole_length_m: l,
-                hole_diameter_m: d,
-                cavity_volume_m3: self.volume,
-                outer_end: end,
-                inner_end: end,
-            };
-            // The hole's elements without its cavity (the end volume below is the cavity).
-            line.elements.extend(
-                hc.line(&gas)
-                    .elements
-                    .into_iter()
-                    .filter(|e| !matches!(e, Element::Volume(_))),
-            );
-            hole = Some(hc);
-        }
-        let mut total = 0.0;
-        for text in &self.lines {
-            let (l, d) = pair(text, "--line", "LENGTH,DIAMETER in m")?;
-            positive(l, "--line length")?;
-            positive(d, "--line diameter")?;
-            total += l;
-            line.elements.push(Element::Tube(Tube::with_diameter(l, d)));
-        }
-        if total > MAX_LINE_LENGTH_M {
-            return Err(Error::InvalidArgument {
-                what: "--line",
-                message: format!(
-                    "the lines add up to {total} m; the simulator takes up to {MAX_LINE_LENGTH_M} m \
-                     of tubing (a longer line rings for minutes of simulated time)"
-                ),
-            });
-        }
-        let thermal = match self.cavity_radius {
-            Some(r) => CavityThermal::Relaxing {
-                radius_m: positive(r, "--cavity-radius")?,
-            },
-            None => CavityThermal::Polytropic(self.cavity_k),
+    /// The probe described, its arguments parsed; the library checks and assembles it.
+    pub(super) fn build(&self) -> Result<ProbeSystem> {
+        let hole = match &self.hole {
+            Some(h) => Some(pair(h, "--hole", "LENGTH,DIAMETER in m")?),
+            None => None,
         };
-        line.elements.push(Element::Volume(Volume {
-            volume_m3: self.volume,
-            sigma: self.sigma,
-            thermal,
-            leak_m3_per_s_pa: self.leak,
-        }));
-        line.validate()?;
-        let mut minor_loss_resistance = None;
-        if let Some(k) = self.minor_loss {
-            let q = equivalent_resistance(
-                &line,
-                &gas,
-                &MinorLosses {
-                    k,
-                    step_amplitude_pa: self.amplitude.abs(),
-                },
-            )?;
-            minor_loss_resistance = Some(q.resistance_pa_s_per_m3);
-            line = q.line;
-        }
+        let tubes = self
+            .lines
+            .iter()
+            .map(|text| pair(text, "--line", "LENGTH,DIAMETER in m"))
+            .collect::<Result<Vec<_>>>()?;
         let diaphragm = match &self.diaphragm {
             Some(text) => {
                 let (f, z) = pair(text, "--diaphragm", "FN,ZETA (Hz, -)")?;
-                let d = Diaphragm {
+                Some(Diaphragm {
                     natural_frequency_hz: f,
                     damping: z,
-                };
-                d.validate()?;
-                Some(d)
+                })
             }
             None => None,
         };
-        Ok(System {
-            line,
-            gas,
+        ProbeSpec {
+            tubes,
+            volume_m3: self.volume,
             hole,
+            hole_end: match self.hole_end {
+                EndArg::Flanged => EndKind::Flanged,
+                EndArg::Unflanged => EndKind::Unflanged,
+                EndArg::None => EndKind::None,
+            },
+            temperature_k: self.temperature,
+            pressure_pa: self.pressure,
+            sigma: self.sigma,
+            cavity_k: self.cavity_k,
+            cavity_radius_m: self.cavity_radius,
+            leak_m3_per_s_pa: self.leak,
+            minor_loss_k: self.minor_loss,
+            step_amplitude_pa: self.amplitude,
             diaphragm,
-            minor_loss_resistance,
-        })
+        }
+        .build()
     }
 }
 
@@ -320,42 +230,28 @@ pub struct SimulateTestArgs {
 }
 
 fn excitation_of(args: &SimulateTestArgs) -> Result<Excitation> {
-    let a = args.system.amplitude;
-    let rise = match args.rise {
-        Some(r) => Some(positive(r, "--rise")?),
+    let chamber = match &args.chamber {
+        Some(c) => Some(pair(c, "--chamber", "HZ,FRACTION")?),
         None => None,
     };
-    let e = match args.excitation {
-        ExcitationArg::Shock => Excitation::ShockTube {
-            amplitude_pa: a,
-            rise_s: rise.unwrap_or(1e-6),
-        },
-        ExcitationArg::Balloon => Excitation::Balloon {
-            amplitude_pa: a,
-            fall_s: rise.unwrap_or(700e-6),
-        },
-        ExcitationArg::Valve => {
-            let (chamber_hz, chamber_fraction) = match &args.chamber {
-                Some(c) => pair(c, "--chamber", "HZ,FRACTION")?,
-                None => (850.0, 0.0),
-            };
-            Excitation::Valve {
-                amplitude_pa: a,
-                opening_s: rise.unwrap_or(200e-6),
-                chamber_hz,
-                chamber_fraction,
-            }
-        }
-        ExcitationArg::Wake => Excitation::CascadeWake {
-            wake_depth_pa: a,
+    let facility = match args.excitation {
+        ExcitationArg::Shock => Facility::ShockTube,
+        ExcitationArg::Balloon => Facility::Balloon,
+        ExcitationArg::Valve => Facility::Valve,
+        ExcitationArg::Wake => Facility::CascadeWake,
+    };
+    Excitation::of_facility(
+        facility,
+        &FacilitySettings {
+            amplitude_pa: args.system.amplitude,
+            rise_s: args.rise,
+            chamber,
             wake_hz: args.wake_hz,
             wake_width: args.wake_width,
-            tunnel_amplitude_pa: args.tunnel_amplitude.unwrap_or(0.05 * a),
+            tunnel_amplitude_pa: args.tunnel_amplitude,
             tunnel_hz: args.tunnel_hz,
         },
-    };
-    e.validate()?;
-    Ok(e)
+    )
 }
 
 /// Runs `unlag simulate-test`.
@@ -436,29 +332,19 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             );
         }
     }
+    // The ADC is asked for after the simulation, as the range may come from its signals.
     let adc = match args.adc_bits {
-        Some(bits) => {
-            let (min_pa, max_pa) = match &args.adc_range {
-                Some(text) => pair(text, "--adc-range", "MIN,MAX in Pa")?,
-                None => {
-                    let all = test.reference.iter().chain(&test.probe);
-                    let lo = all.clone().copied().fold(f64::INFINITY, f64::min);
-                    let hi = all.copied().fold(f64::NEG_INFINITY, f64::max);
-                    let span = (hi - lo).max(1e-9);
-                    (lo - 0.1 * span, hi + 0.1 * span)
-                }
-            };
-            let adc = Adc {
-                bits,
-                min_pa,
-                max_pa,
-            };
-            adc.validate()?;
-            for v in test.reference.iter_mut().chain(test.probe.iter_mut()) {
-                *v = adc.quantise(*v);
+        Some(bits) => Some(test.quantise(match &args.adc_range {
+            Some(text) => {
+                let (min_pa, max_pa) = pair(text, "--adc-range", "MIN,MAX in Pa")?;
+                Quantisation::Fixed(Adc {
+                    bits,
+                    min_pa,
+                    max_pa,
+                })
             }
-            Some(adc)
-        }
+            None => Quantisation::FromSignals { bits },
+        })?),
         None => {
             if args.adc_range.is_some() {
                 return Err(Error::InvalidArgument {

@@ -6,9 +6,10 @@ use std::path::PathBuf;
 use clap::Args;
 use serde_json::{json, Value};
 
-use super::physics::{System, SystemArgs};
+use super::physics::SystemArgs;
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
+use crate::physics::system::ProbeSystem;
 use crate::physics::{compare, predict, Prediction};
 
 /// Arguments of `unlag predict`.
@@ -28,7 +29,7 @@ pub struct PredictArgs {
     pub json: bool,
 }
 
-fn prediction_json(sys: &System, p: &Prediction) -> Value {
+fn prediction_json(sys: &ProbeSystem, p: &Prediction) -> Value {
     json!({
         "modes": p.modes.iter().map(|m| json!({
             "natural_frequency_hz": m.natural_frequency_hz,
@@ -154,7 +155,7 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
             h.poiseuille_damping(g),
             h.effective_length_m(),
             h.neck_volume_ratio(),
-            if h.neck_volume_ratio() > 0.3 {
+            if h.neck_too_large_for_closed_form() {
                 " (too large for the closed form: trust the exact modes)"
             } else {
                 ""

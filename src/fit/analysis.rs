@@ -2,7 +2,9 @@
 //! their margins, DC gain, resonances, delay, and the frequency response (the paper's eq. 6).
 //!
 //! This module owns [`Analysis`] (everything computed once from a [`Model`], serialisable to
-//! JSON for `unlag inspect --json`) and [`frequency_response`]. It does not own the
+//! JSON for `unlag inspect --json`) and the frequency response: [`frequency_response`], its
+//! points in dB and degrees ([`response_points`]) and the default grid
+//! ([`default_frequencies`]). It does not own the
 //! continuous-time equivalent with its residues and fractional delay: that is
 //! [`crate::fit::continuous`].
 //!
@@ -389,6 +391,53 @@ fn factor_phase(r: Complex, w: f64) -> f64 {
     }
 }
 
+/// The frequencies a model's response is shown at unless others are asked for: 0 Hz, then
+/// [`DEFAULT_POINTS_PER_DECADE`] points per decade, log-spaced, from `fs`/1000 to `fs`/2
+/// (both included).
+#[must_use]
+pub fn default_frequencies(fs: f64) -> Vec<f64> {
+    let (lo, hi) = (fs / 1000.0, fs / 2.0);
+    let n = (DEFAULT_POINTS_PER_DECADE * (hi / lo).log10()).ceil() as usize;
+    let mut f = Vec::with_capacity(n + 2);
+    f.push(0.0);
+    f.extend((0..=n).map(|k| lo * (hi / lo).powf(k as f64 / n as f64)));
+    f
+}
+
+/// Points per decade of [`default_frequencies`].
+pub const DEFAULT_POINTS_PER_DECADE: f64 = 4.0;
+
+/// One point of a frequency response ([`response_points`]), in linear and table units.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ResponsePoint {
+    /// Frequency \[Hz\].
+    pub frequency_hz: f64,
+    /// `|H|` [-].
+    pub magnitude: f64,
+    /// `20 log10 |H|` \[dB\].
+    pub magnitude_db: f64,
+    /// Unwrapped phase \[rad\] (as [`frequency_response`]).
+    pub phase_rad: f64,
+    /// The same phase in degrees.
+    pub phase_deg: f64,
+}
+
+/// [`frequency_response`] at `freqs_hz`, each point also in dB and degrees.
+#[must_use]
+pub fn response_points(model: &Model, freqs_hz: &[f64]) -> Vec<ResponsePoint> {
+    frequency_response(model, freqs_hz)
+        .into_iter()
+        .zip(freqs_hz)
+        .map(|((magnitude, phase_rad), &frequency_hz)| ResponsePoint {
+            frequency_hz,
+            magnitude,
+            magnitude_db: 20.0 * magnitude.log10(),
+            phase_rad,
+            phase_deg: phase_rad.to_degrees(),
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -407,6 +456,21 @@ mod tests {
             a,
             b: vec![0.5 * g, 0.3 * g, 0.2 * g],
         }
+    }
+
+    #[test]
+    fn default_grid_and_points_in_db_and_degrees() {
+        let f = default_frequencies(10_000.0);
+        // 0 Hz, then 4 per decade over 10 Hz .. 5 kHz (2.7 decades: 11 steps, 12 points).
+        assert_eq!(f.len(), 13);
+        assert_eq!(f[0], 0.0);
+        assert!((f[1] - 10.0).abs() < 1e-9 && (f[12] - 5000.0).abs() < 1e-9);
+        let m = second_order(10_000.0, 500.0, 0.3, 2);
+        let p = response_points(&m, &[0.0, 400.0]);
+        assert!(p[0].magnitude_db.abs() < 1e-9);
+        let (mag, phase) = frequency_response(&m, &[400.0])[0];
+        assert_eq!(p[1].magnitude_db, 20.0 * mag.log10());
+        assert_eq!(p[1].phase_deg, phase.to_degrees());
     }
 
     #[test]

@@ -47,10 +47,21 @@ pub enum PhysicsError {
     /// The prediction compared with a model has no mode.
     #[error("comparison: the prediction has no mode")]
     NoPredictedMode,
+    /// A probe was described with neither a tube nor a hole.
+    #[error("the probe needs at least one tube (or a hole)")]
+    NoTube,
     /// The fitted model compared with a prediction has no mode.
     #[error("comparison: the fitted model has no mode (no complex pole pair, fewer than two real poles)")]
     NoFittedMode,
 }
 
-impl crate::error::StageError for PhysicsError {}
+impl crate::error::StageError for PhysicsError {
+    fn kind(&self) -> &'static str {
+        match self {
+            // The request is wrong, not the arithmetic.
+            Self::NoTube => "invalid-argument",
+            _ => "numerical",
+        }
+    }
+}
 crate::error::stage_error!(PhysicsError);

@@ -18,6 +18,10 @@ use super::line::{Element, Line, SeriesImpedance, Tube, Volume};
 use super::lumped::POISEUILLE_INERTANCE;
 use crate::error::{Error, Result};
 
+/// Largest neck/cavity volume ratio ([`HoleCavity::neck_volume_ratio`]) at which the closed
+/// form is trusted [-].
+pub const CLOSED_FORM_MAX_NECK_RATIO: f64 = 0.3;
+
 /// How an end of the hole meets the space beyond it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum EndKind {
@@ -113,6 +117,14 @@ impl HoleCavity {
         self.area_m2() * self.hole_length_m / self.cavity_volume_m3
     }
 
+    /// Whether the neck is too large for the closed form ([`Self::helmholtz_frequency_hz`],
+    /// [`Self::poiseuille_damping`]): its volume is more than [`CLOSED_FORM_MAX_NECK_RATIO`]
+    /// of the cavity's. Then trust the exact modes of [`Self::line`].
+    #[must_use]
+    pub fn neck_too_large_for_closed_form(&self) -> bool {
+        self.neck_volume_ratio() > CLOSED_FORM_MAX_NECK_RATIO
+    }
+
     /// Closed-form Helmholtz frequency `f_H = (a/2π)√(A/(V L_eff))` \[Hz\].
     #[must_use]
     pub fn helmholtz_frequency_hz(&self, gas: &Gas) -> f64 {
@@ -177,5 +189,12 @@ mod tests {
         };
         let want = gas.speed_of_sound() / (2.0 * core::f64::consts::PI) * 2.0_f64.sqrt();
         assert!((hc.helmholtz_frequency_hz(&gas) / want - 1.0).abs() < 1e-12);
+        // Neck 1e-4 · 0.05 = 5e-6 m³ of a 1e-3 m³ cavity: the closed form holds.
+        assert!(!hc.neck_too_large_for_closed_form());
+        let small = HoleCavity {
+            cavity_volume_m3: 1e-5,
+            ..hc
+        };
+        assert!(small.neck_too_large_for_closed_form());
     }
 }

@@ -15,6 +15,7 @@
 //! * [`sensor`]: the transducer's diaphragm resonance and the DAQ anti-alias filter;
 //! * [`nonlinear`]: amplitude-dependent (quadratic orifice) losses, by describing function;
 //! * [`simulate`](mod@simulate): time-domain step tests (excitations, channels, noise, ADC, delay);
+//! * [`system`]: a probe described by its parts, checked and assembled into its line;
 //! * [`compare`](mod@compare): the physical prediction of a probe, and how a fitted model disagrees with it.
 //!
 //! SI units throughout: m, m², m³, s, Hz, rad/s, Pa, K, kg/m³, Pa s. Time dependence is
@@ -35,6 +36,7 @@ pub mod modes;
 pub mod nonlinear;
 pub mod sensor;
 pub mod simulate;
+pub mod system;
 
 pub use compare::{compare, predict, Comparison, Prediction};
 pub use error::PhysicsError;
@@ -45,3 +47,4 @@ pub use lumped::{lumped, Lumped, POISEUILLE_INERTANCE};
 pub use modes::{find_modes, Mode, ModeAnalysis};
 pub use sensor::{Butterworth, Diaphragm};
 pub use simulate::{simulate, Acquisition, Excitation, Probe, SimulatedTest};
+pub use system::{ProbeSpec, ProbeSystem, MAX_LINE_LENGTH_M};

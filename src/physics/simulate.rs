@@ -33,8 +33,8 @@
 //! front).
 //!
 //! This module owns the excitations ([`Excitation`]), the probe as a whole ([`Probe`]), the
-//! acquisition settings ([`Acquisition`]), the impulse response ([`impulse_response`]) and the
-//! simulated test ([`simulate`]).
+//! acquisition settings ([`Acquisition`], with the ADC policy [`Quantisation`]), the impulse
+//! response ([`impulse_response`]) and the simulated test ([`simulate`]).
 
 use num_complex::Complex64;
 
@@ -46,7 +46,10 @@ use super::PhysicsError;
 use crate::error::{Error, Result};
 
 mod excitation;
-pub use excitation::Excitation;
+pub use excitation::{
+    Excitation, Facility, FacilitySettings, BALLOON_FALL_S, SHOCK_RISE_S, TUNNEL_FRACTION,
+    VALVE_CHAMBER, VALVE_OPENING_S,
+};
 
 /// Lowest oversampling [`simulate`] falls back to when the response outlasts the longest FFT
 /// at the asked one.
@@ -174,6 +177,45 @@ impl Adc {
         let k = ((x - self.min_pa) / q).round().clamp(0.0, levels);
         self.min_pa + k * q
     }
+
+    /// A `bits` ADC over the range of `signals` widened by [`ADC_RANGE_MARGIN`] of their span
+    /// on each side (a span below 1e-9 Pa counts as 1e-9 Pa). Not validated.
+    #[must_use]
+    pub fn spanning(bits: u32, signals: &[&[f64]]) -> Self {
+        let all = signals.iter().flat_map(|s| s.iter().copied());
+        let lo = all.clone().fold(f64::INFINITY, f64::min);
+        let hi = all.fold(f64::NEG_INFINITY, f64::max);
+        let span = (hi - lo).max(1e-9);
+        Self {
+            bits,
+            min_pa: lo - ADC_RANGE_MARGIN * span,
+            max_pa: hi + ADC_RANGE_MARGIN * span,
+        }
+    }
+}
+
+/// Margin of an ADC range taken from the signals ([`Quantisation::FromSignals`]), as a
+/// fraction of their span on each side.
+pub const ADC_RANGE_MARGIN: f64 = 0.1;
+
+/// How both channels are quantised.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Quantisation {
+    /// By this ADC.
+    Fixed(Adc),
+    /// By a `bits` ADC over the range of both recorded channels (noise and probe-channel
+    /// errors included) plus [`ADC_RANGE_MARGIN`] of their span each side ([`Adc::spanning`]);
+    /// the ADC is checked once its range is known.
+    FromSignals {
+        /// Resolution \[bits\] (1..=32).
+        bits: u32,
+    },
+}
+
+impl From<Adc> for Quantisation {
+    fn from(adc: Adc) -> Self {
+        Self::Fixed(adc)
+    }
 }
 
 /// How the step test is recorded.
@@ -192,7 +234,7 @@ pub struct Acquisition {
     /// Standard deviation of the white noise on the reference channel \[Pa\].
     pub reference_noise_pa: f64,
     /// ADC of both channels, if quantised.
-    pub adc: Option<Adc>,
+    pub adc: Option<Quantisation>,
     /// The reference transducer's own resonance, if modelled.
     pub reference_sensor: Option<Diaphragm>,
     /// Seed of the noise generator.
@@ -282,7 +324,7 @@ impl Acquisition {
         if !noise_ok {
             return bad("noise", "must be finite and non-negative".into());
         }
-        if let Some(a) = &self.adc {
+        if let Some(Quantisation::Fixed(a)) = &self.adc {
             a.validate()?;
         }
         let errors_ok = [self.probe_gain_error, self.hum_pa, self.drift_pa_per_s]
@@ -444,6 +486,32 @@ pub struct SimulatedTest {
     pub probe_clean: Vec<f64>,
     /// The probe's impulse response used, with its error measures.
     pub impulse: ImpulseResponse,
+    /// The ADC that quantised both channels, if any (its range resolved).
+    pub adc: Option<Adc>,
+}
+
+impl SimulatedTest {
+    /// Quantises both channels (noise included) as `quantisation` says and records the ADC
+    /// in [`Self::adc`]; for a test simulated without an ADC ([`simulate`] calls it when the
+    /// acquisition has one).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for an invalid ADC (for [`Quantisation::FromSignals`], with
+    /// the range taken from the signals).
+    pub fn quantise(&mut self, quantisation: Quantisation) -> Result<Adc> {
+        let adc = match quantisation {
+            Quantisation::Fixed(adc) => adc,
+            Quantisation::FromSignals { bits } => {
+                Adc::spanning(bits, &[&self.reference, &self.probe])
+            }
+        };
+        adc.validate()?;
+        for v in self.reference.iter_mut().chain(self.probe.iter_mut()) {
+            *v = adc.quantise(*v);
+        }
+        self.adc = Some(adc);
+        Ok(adc)
+    }
 }
 
 /// A deterministic Gaussian noise source (SplitMix64 and Box-Muller).
@@ -562,22 +630,18 @@ pub fn simulate(
     let mut noise = Noise {
         state: acquisition.seed,
     };
-    let mut finish = |x: &[f64], sigma: f64| -> Vec<f64> {
+    let mut add_noise = |x: &[f64], sigma: f64| -> Vec<f64> {
         x.iter()
             .map(|&v| {
-                let v = if sigma > 0.0 {
+                if sigma > 0.0 {
                     v + sigma * noise.gauss()
                 } else {
                     v
-                };
-                match &acquisition.adc {
-                    Some(adc) => adc.quantise(v),
-                    None => v,
                 }
             })
             .collect()
     };
-    let reference = finish(&reference_clean, acquisition.reference_noise_pa);
+    let reference = add_noise(&reference_clean, acquisition.reference_noise_pa);
     // Additive and static errors of the probe channel, before noise and ADC.
     let event = acquisition.event_time_s;
     let with_errors: Vec<f64> = probe_clean
@@ -591,15 +655,20 @@ pub fn simulate(
             (1.0 + acquisition.probe_gain_error) * v + hum + drift
         })
         .collect();
-    let probe_out = finish(&with_errors, acquisition.probe_noise_pa);
-    Ok(SimulatedTest {
+    let probe_out = add_noise(&with_errors, acquisition.probe_noise_pa);
+    let mut test = SimulatedTest {
         t: (0..n_rec).map(|k| k as f64 / fs).collect(),
         reference,
         probe: probe_out,
         excitation: excitation_samples,
         probe_clean,
         impulse: ir,
-    })
+        adc: None,
+    };
+    if let Some(q) = acquisition.adc {
+        test.quantise(q)?;
+    }
+    Ok(test)
 }
 
 #[cfg(test)]
@@ -618,6 +687,14 @@ mod tests {
         assert_eq!(adc.quantise(2.6), 3.0);
         assert_eq!(adc.quantise(100.0), 7.0);
         assert_eq!(adc.quantise(-5.0), 0.0);
+    }
+
+    #[test]
+    fn adc_range_from_the_signals_has_a_margin() {
+        let adc = Adc::spanning(8, &[&[0.0, 1.0], &[-1.0, 9.0]]);
+        assert_eq!((adc.min_pa, adc.max_pa), (-2.0, 10.0));
+        let flat = Adc::spanning(8, &[&[3.0]]);
+        assert!(flat.max_pa > flat.min_pa);
     }
 
     #[test]

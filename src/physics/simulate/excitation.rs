@@ -1,7 +1,55 @@
 //! The excitations of real facilities (shock tube, burst balloon, fast valve, wind-tunnel
-//! wake, ...) as pressure histories evaluated analytically at any time.
+//! wake, ...) as pressure histories evaluated analytically at any time, and each facility's
+//! default settings ([`Excitation::of_facility`]).
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Parameter, Result};
+
+/// A facility, for [`Excitation::of_facility`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Facility {
+    /// [`Excitation::ShockTube`].
+    ShockTube,
+    /// [`Excitation::Balloon`].
+    Balloon,
+    /// [`Excitation::Valve`].
+    Valve,
+    /// [`Excitation::CascadeWake`].
+    CascadeWake,
+}
+
+/// Rise time of a shock tube unless given \[s\].
+pub const SHOCK_RISE_S: f64 = 1e-6;
+/// Fall time of a burst balloon unless given \[s\].
+pub const BALLOON_FALL_S: f64 = 700e-6;
+/// Opening time of a fast valve unless given \[s\].
+pub const VALVE_OPENING_S: f64 = 200e-6;
+/// Chamber oscillation of a valve unless given: frequency \[Hz\] (VKI report) and fraction of
+/// the step [-] (none).
+pub const VALVE_CHAMBER: (f64, f64) = (850.0, 0.0);
+/// Tunnel oscillation amplitude of a cascade traverse unless given, as a fraction of the wake
+/// depth [-].
+pub const TUNNEL_FRACTION: f64 = 0.05;
+
+/// The settings of a facility's excitation; those left `None` take the facility's default.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FacilitySettings {
+    /// Step size, initial over-pressure or wake depth \[Pa\].
+    pub amplitude_pa: f64,
+    /// Rise (shock, valve) or fall (balloon) time \[s\]; default [`SHOCK_RISE_S`],
+    /// [`BALLOON_FALL_S`], [`VALVE_OPENING_S`].
+    pub rise_s: Option<f64>,
+    /// Valve chamber oscillation (frequency \[Hz\], fraction of the step); default
+    /// [`VALVE_CHAMBER`].
+    pub chamber: Option<(f64, f64)>,
+    /// Wake passing frequency \[Hz\].
+    pub wake_hz: f64,
+    /// Wake width as a fraction of the pitch [-].
+    pub wake_width: f64,
+    /// Tunnel oscillation amplitude \[Pa\]; default [`TUNNEL_FRACTION`] of the amplitude.
+    pub tunnel_amplitude_pa: Option<f64>,
+    /// Tunnel oscillation frequency \[Hz\].
+    pub tunnel_hz: f64,
+}
 
 /// The pressure history of a facility at the measuring point, as a deviation \[Pa\] from the
 /// level before the event; `t` is the time since the event \[s\].
@@ -97,6 +145,53 @@ fn raised_cosine(t: f64, duration: f64) -> f64 {
 }
 
 impl Excitation {
+    /// The excitation of `facility` with `settings`, defaults filled in, checked.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for a rise time that is not finite and positive; the errors
+    /// of [`Excitation::validate`].
+    pub fn of_facility(facility: Facility, settings: &FacilitySettings) -> Result<Self> {
+        let a = settings.amplitude_pa;
+        let rise = match settings.rise_s {
+            Some(r) if r.is_finite() && r > 0.0 => Some(r),
+            Some(r) => {
+                return Err(Error::InvalidParameter {
+                    parameter: Parameter::RiseTime,
+                    message: format!("{r} must be finite and positive"),
+                })
+            }
+            None => None,
+        };
+        let e = match facility {
+            Facility::ShockTube => Self::ShockTube {
+                amplitude_pa: a,
+                rise_s: rise.unwrap_or(SHOCK_RISE_S),
+            },
+            Facility::Balloon => Self::Balloon {
+                amplitude_pa: a,
+                fall_s: rise.unwrap_or(BALLOON_FALL_S),
+            },
+            Facility::Valve => {
+                let (chamber_hz, chamber_fraction) = settings.chamber.unwrap_or(VALVE_CHAMBER);
+                Self::Valve {
+                    amplitude_pa: a,
+                    opening_s: rise.unwrap_or(VALVE_OPENING_S),
+                    chamber_hz,
+                    chamber_fraction,
+                }
+            }
+            Facility::CascadeWake => Self::CascadeWake {
+                wake_depth_pa: a,
+                wake_hz: settings.wake_hz,
+                wake_width: settings.wake_width,
+                tunnel_amplitude_pa: settings.tunnel_amplitude_pa.unwrap_or(TUNNEL_FRACTION * a),
+                tunnel_hz: settings.tunnel_hz,
+            },
+        };
+        e.validate()?;
+        Ok(e)
+    }
+
     /// A shock-tube step of `amplitude_pa` with a 1 µs rise.
     #[must_use]
     pub fn shock_tube(amplitude_pa: f64) -> Self {

@@ -64,7 +64,8 @@ pub struct Diagnosis {
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] (`TEST.csv`) when ranking without a test;
-/// [`diagnose::diagnose`]'s errors.
+/// [`super::check_excitation`]'s for a test whose reference does not move (it tells nothing
+/// about the probe, as for [`super::fit_probe`]); [`diagnose::diagnose`]'s errors.
 pub fn diagnose(request: &DiagnoseRequest<'_>) -> Result<Diagnosis> {
     let DiagnoseRequest {
         file,
@@ -78,6 +79,9 @@ pub fn diagnose(request: &DiagnoseRequest<'_>) -> Result<Diagnosis> {
             what: "TEST.csv",
             message: "give at least one step test".into(),
         });
+    }
+    for test in tests {
+        super::check_excitation(std::path::Path::new(test.name), test.u)?;
     }
     let current = file.current();
     on_stage(DiagnoseStage::Evidence);
@@ -98,4 +102,38 @@ pub fn diagnose(request: &DiagnoseRequest<'_>) -> Result<Diagnosis> {
         across,
         candidates,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_test_whose_reference_does_not_move_is_refused() {
+        let file = crate::testing::model_file(super::super::testing::probe());
+        // A reference resting at 1 with its noise, no step.
+        let flat: Vec<f64> = (0..400)
+            .map(|k| 1.0 + 1e-3 * f64::from(k * 7 % 5))
+            .collect();
+        let y: Vec<f64> = (0..400).map(|k| 1.0 + 1e-3 * f64::from(k % 7)).collect();
+        let tests = [Test {
+            name: "flat.csv",
+            u: &flat,
+            y: &y,
+        }];
+        let request = DiagnoseRequest {
+            file: &file,
+            tests: &tests,
+            across: false,
+            rank: false,
+            on_stage: &|_| {},
+        };
+        match diagnose(&request) {
+            Err(Error::NoStep { path, reason, .. }) => {
+                assert_eq!(path, std::path::Path::new("flat.csv"));
+                assert!(reason.contains("does not move"), "{reason}");
+            }
+            other => panic!("expected NoStep, got {other:?}"),
+        }
+    }
 }

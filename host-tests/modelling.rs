@@ -763,6 +763,43 @@ fn a_mode_goes_before_a_leak_that_ties_with_it_when_the_static_gain_is_not_below
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Bank case 040: a flush sensor whose probe noise is coloured (AR(1), pole 0.90, 10x the
+/// white level), validated on a wake traverse. Both the traverse's increments and the noise
+/// are slow, so their cross-correlation strays far beyond the white band by chance; read
+/// against that band, the residual looked caused by the input and the noise model was never
+/// tried (`unexplained`). Against Bartlett's band the noise model is tried, named, and lowers
+/// the traverse's error.
+#[test]
+fn coloured_noise_on_a_traverse_is_named_against_the_band_of_two_slow_series() {
+    let dir = std::env::temp_dir().join(format!("unlag-coloured-wake-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (est, val) = (
+        bank_trace("coloured-wake-est.csv"),
+        bank_trace("coloured-wake-val.csv"),
+    );
+    let m = dir.join("plain.toml");
+    let m = m.to_str().unwrap();
+    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
+    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let first = &d["candidates"][0];
+    assert_eq!(first["kind"], "coloured-noise", "{d}");
+    let (before, after) = (
+        first["nrmse_before"].as_f64().unwrap(),
+        first["nrmse_after"].as_f64().unwrap(),
+    );
+    assert!(before / after >= 1.5, "{before} -> {after}");
+    // The traverse's peak cross-correlation is outside the white band, inside Bartlett's.
+    let xc = &d["tests"][1]["cross_correlation"];
+    let (peak, band) = (
+        xc["peak"].as_f64().unwrap().abs(),
+        xc["band"].as_f64().unwrap(),
+    );
+    let n = (xc["values"].as_array().unwrap().len() * 4) as f64;
+    assert!(peak < 2.0 * band, "peak {peak}, band {band}");
+    assert!(band > 1.5 * 2.576 / n.sqrt(), "band {band}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Bank case 088: a pneumatic line (50 Hz) with quadratic losses, one step to fit on and a
 /// wake traverse to validate on. No pair of steps shows how the damping grows with the step, so
 /// the signature that names nonlinear damping cannot be read; the residual on the traverse

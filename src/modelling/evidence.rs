@@ -137,7 +137,8 @@ pub fn expected_residual(model: &Model, u: &[f64], y: &[f64], quiet: usize) -> E
 pub struct CrossCorrelation {
     /// Normalised cross-correlation at lags `0..values.len()` (residual after input).
     pub values: Vec<f64>,
-    /// 99 % band.
+    /// 99 % band when the residual does not depend on the input: `Z99 sqrt(c / N)`, `c`
+    /// Bartlett's factor of the two series' autocorrelations (1 when either is white).
     pub band: f64,
     /// Lag of the largest magnitude.
     pub peak_lag: usize,
@@ -515,11 +516,32 @@ pub fn cross_correlation(u: &[f64], r: &[f64], lags: usize) -> CrossCorrelation 
             }
         });
     CrossCorrelation {
-        band: Z99 / (n as f64).sqrt(),
+        band: Z99 * (bartlett_factor(&du[..n], &r[..n], lags.min(n)) / n as f64).sqrt(),
         values,
         peak_lag,
         peak,
     }
+}
+
+/// Bartlett's factor of the cross-correlation of two independent series, `1 + 2 sum_{j=1}^{M}
+/// rho_a(j) rho_b(j)` over `M = lags` (their autocorrelations): the variance of the estimated
+/// cross-correlation is this over `N`. Two white series give 1; a slowly varying input (a
+/// traverse's wakes) and a coloured residual give more, and their cross-correlation strays
+/// that much further from zero by chance. Never below 1: the band is not narrowed by
+/// autocorrelations of opposite sign (the differenced noise of a step test).
+fn bartlett_factor(a: &[f64], b: &[f64], lags: usize) -> f64 {
+    let acf = |x: &[f64]| -> Vec<f64> {
+        let m = mean(x);
+        let p = crate::fit::noise::lagged_products(x, x, (m, m), lags + 1);
+        let c0 = p.first().copied().unwrap_or(0.0);
+        if c0 > 0.0 {
+            p.iter().skip(1).map(|v| v / c0).collect()
+        } else {
+            Vec::new()
+        }
+    };
+    let sum: f64 = acf(a).iter().zip(acf(b)).map(|(x, y)| x * y).sum();
+    (1.0 + 2.0 * sum).max(1.0)
 }
 
 /// Periodogram of `x` (mean removed, no taper), zero-padded to a power of two of at least
@@ -710,6 +732,45 @@ mod tests {
         }
         let a = autocorrelation(&c, ACF_LAGS);
         assert!(a.p_value < 1e-6 && (a.values[0] - 0.8).abs() < 0.05);
+    }
+
+    #[test]
+    fn the_cross_correlation_band_widens_for_two_slow_independent_series() {
+        // Independent AR(1) series of pole 0.95: Bartlett's factor (1 + phi^2)/(1 - phi^2)
+        // is about 19.5. The input's increments are what is correlated, so the input is the
+        // running sum of an AR(1) series.
+        let n = 40_000;
+        let ar = |w: Vec<f64>| {
+            let mut x = w;
+            for k in 1..x.len() {
+                x[k] += 0.95 * x[k - 1];
+            }
+            x
+        };
+        let du = ar(noise(n, 11));
+        let u: Vec<f64> = du
+            .iter()
+            .scan(0.0, |s, d| {
+                *s += d;
+                Some(*s)
+            })
+            .collect();
+        let r = ar(noise(n, 12));
+        let lags = 400;
+        let c = cross_correlation(&u, &r, lags);
+        let factor = (c.band / Z99).powi(2) * n as f64;
+        assert!((12.0..30.0).contains(&factor), "{factor}");
+        // Against the widened band they look independent; against the white band they do not.
+        let outside = |band: f64| c.values.iter().filter(|v| v.abs() > band).count();
+        assert!(outside(c.band) <= lags / 20, "{}", outside(c.band));
+        assert!(outside(Z99 / (n as f64).sqrt()) > lags / 10);
+        // White against white keeps the white band.
+        let w = cross_correlation(&noise(n, 13), &noise(n, 14), lags);
+        assert!(
+            (w.band * (n as f64).sqrt() / Z99 - 1.0).abs() < 0.2,
+            "{}",
+            w.band
+        );
     }
 
     /// A slow first-order probe, `y = 0.05 u[k-1] + 0.95 y[k-1]` at 1 kHz.

@@ -16,12 +16,21 @@ pub const LEAK_DC_GAIN_BELOW: f64 = 0.998;
 pub const MODE_PEAK_OVER_CREEP_DB: f64 = 20.0;
 
 /// Sorts the candidates by score, best first, then applies the rules for close ones, in order:
-/// a sensor resonance the reference shows (`sensor_matched`) before a mode that would only
+/// the physics before a noise model; a sensor resonance the reference shows (`sensor_matched`) before a mode that would only
 /// model it; a clear resonance before a leak that ties with it when the model's DC gain
 /// (`dc_gain`) is not below [`LEAK_DC_GAIN_BELOW`]; an effect whose signature was seen before
-/// nonlinear damping read from its trial alone; the physics before a noise model.
+/// nonlinear damping read from its trial alone.
 pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64) {
     out.sort_by(|a, b| b.score.total_cmp(&a.score));
+    // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
+    // too: when an effect in the dynamics scores within CLOSE_MARGIN of it, the physics goes
+    // first and the noise model is the last resort. First, so that the rules below decide
+    // between the effects in the dynamics that come up.
+    yield_first(
+        out,
+        |c| c.kind == EffectKind::ColouredNoise,
+        |c| c.kind != EffectKind::ColouredNoise,
+    );
     // A resonance that shows in the reference as well is the transducers', not the line's:
     // the sensor resonance goes before a mode that would only model it.
     if sensor_matched {
@@ -68,18 +77,10 @@ pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64
     yield_first(out, trial_alone, |c| {
         !trial_alone(c) && c.kind != EffectKind::ColouredNoise
     });
-    // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
-    // too: when an effect in the dynamics scores within CLOSE_MARGIN of it, the physics goes
-    // first and the noise model is the last resort.
-    yield_first(
-        out,
-        |c| c.kind == EffectKind::ColouredNoise,
-        |c| c.kind != EffectKind::ColouredNoise,
-    );
 }
 
-/// When the first candidate is one `first` picks, it goes after the first candidate `before`
-/// picks that scores within [`CLOSE_MARGIN`] of it.
+/// When the first candidate is one `first` picks, the first candidate `before` picks that
+/// scores within [`CLOSE_MARGIN`] of it goes before it; the others keep their order.
 fn yield_first(
     out: &mut Vec<Candidate>,
     first: impl Fn(&Candidate) -> bool,
@@ -93,8 +94,8 @@ fn yield_first(
         .iter()
         .position(|c| before(c) && c.score >= top - CLOSE_MARGIN)
     {
-        let c = out.remove(0);
-        out.insert(i, c);
+        let c = out.remove(i);
+        out.insert(0, c);
     }
 }
 
@@ -171,6 +172,34 @@ mod tests {
         let mut out = make(39.0, 1.0);
         order(&mut out, false, 1.004);
         assert_eq!(kinds(&out), leak_first);
+    }
+
+    #[test]
+    fn the_rules_between_effects_apply_to_those_a_noise_model_yields_to() {
+        // A noise model on top, then a leak and a clear resonance that tie: the noise model
+        // goes last and the resonance before the leak, as without the noise model.
+        let mut out = vec![
+            candidate(EffectKind::Leak, 1.54, leak()),
+            candidate(
+                EffectKind::ColouredNoise,
+                1.64,
+                Evidence::ColouredNoise {
+                    fit: String::new(),
+                    lag1_autocorrelation: 0.98,
+                    ljung_box_p: 0.0,
+                },
+            ),
+            candidate(EffectKind::Mode, 1.48, peak(39.0)),
+        ];
+        order(&mut out, false, 1.004);
+        assert_eq!(
+            kinds(&out),
+            vec![
+                Finding::Missing(EffectKind::Mode),
+                Finding::Missing(EffectKind::Leak),
+                Finding::Missing(EffectKind::ColouredNoise),
+            ]
+        );
     }
 
     #[test]

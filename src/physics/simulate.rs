@@ -45,6 +45,7 @@ use super::sensor::{Butterworth, Diaphragm};
 use super::PhysicsError;
 use crate::error::{Error, Result};
 
+mod csv;
 mod excitation;
 pub use excitation::{
     Excitation, Facility, FacilitySettings, BALLOON_FALL_S, SHOCK_RISE_S, TUNNEL_FRACTION,

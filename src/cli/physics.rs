@@ -295,12 +295,14 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
     };
     let (hum_pa, hum_hz) = match &args.hum {
         Some(text) => pair(text, "--hum", "PA,HZ")?,
-        None => (0.0, 50.0),
+        None => Acquisition::NO_HUM,
     };
     let acquisition = Acquisition {
         sample_rate_hz: args.fs,
         duration_s: args.duration,
-        event_time_s: args.event_at.unwrap_or(0.1 * args.duration),
+        event_time_s: args
+            .event_at
+            .unwrap_or_else(|| Acquisition::default_event_time_s(args.duration)),
         oversample: args.oversample,
         probe_noise_pa: args.noise,
         reference_noise_pa: args.reference_noise,

@@ -11,7 +11,7 @@ use super::{as_tests, console, json_err, name, number, pct, read_test, report, C
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::fit::{Method, Options, Order};
-use crate::pipeline::{self, CompensatorRequest, FitRequest, Roles};
+use crate::pipeline::{self, FitDesignRequest, FitDesigned, FitStage};
 use crate::trace::Trace;
 
 /// Identification method on the command line.
@@ -194,30 +194,6 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     let tests = as_tests(&traces, &names)?;
     // The modelling loop: the output file's effects and history carry over.
     let previous = args.previous()?;
-    let (mut effects, dropped) = pipeline::carried_effects(
-        previous.as_ref().map_or(&[], |p| p.effects.as_slice()),
-        options.order,
-    );
-    if let Some(p) = previous
-        .as_ref()
-        .filter(|p| !p.effects.is_empty() || !p.history.is_empty())
-    {
-        let kept: Vec<&str> = effects.iter().map(|e| e.kind().as_str()).collect();
-        let msg = format!(
-            "continuing {}: keeping its effects [{}] and {} history row(s){} (--fresh starts over)",
-            args.output.display(),
-            kept.join(", "),
-            p.history.len(),
-            if dropped > 0 {
-                format!("; {dropped} mode effect(s) dropped because --order is given")
-            } else {
-                String::new()
-            }
-        );
-        console::note(args.json, &msg);
-    }
-    let search_delay = pipeline::add_effects(&mut effects, &args.add)?;
-    progress.step("fitting (orders on a window, then the whole record)");
     // The probe's geometry describes the hardware, not the fit: kept even with --fresh.
     let probe = if args.fresh {
         ModelFile::load(&args.output).ok().and_then(|p| p.probe)
@@ -225,46 +201,50 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         previous.as_ref().and_then(|p| p.probe.clone())
     };
     let digests: Vec<String> = traces.iter().map(|t| t.sha256.clone()).collect();
-    let mut file = pipeline::fit_probe(&FitRequest {
+    let on_stage = |stage: FitStage| match stage {
+        FitStage::Continuing {
+            kept,
+            history_rows,
+            dropped_modes,
+        } => {
+            let kept: Vec<&str> = kept.iter().map(|k| k.as_str()).collect();
+            let msg = format!(
+                "continuing {}: keeping its effects [{}] and {history_rows} history row(s){} \
+                 (--fresh starts over)",
+                args.output.display(),
+                kept.join(", "),
+                if dropped_modes > 0 {
+                    format!("; {dropped_modes} mode effect(s) dropped because --order is given")
+                } else {
+                    String::new()
+                }
+            );
+            console::note(args.json, &msg);
+        }
+        FitStage::Fitting => progress.step("fitting (orders on a window, then the whole record)"),
+        FitStage::Designing => progress.step("designing the compensator"),
+    };
+    let FitDesigned {
+        file,
+        no_compensator,
+        unplanned,
+    } = pipeline::fit_and_design(&FitDesignRequest {
         tests: &tests,
         digests: &digests,
         sample_rates_hz: &rates,
         options,
-        effects,
-        search_delay,
-        history: previous.map(|p| p.history).unwrap_or_default(),
-        probe,
-    })
-    .map_err(|e| match e {
-        // The library does not know the column's position in the file; the trace does.
-        Error::NoStep { path, reason, .. } => Error::NoStep {
-            column: est.u_column.unwrap_or(0),
-            name: columns.input.clone(),
-            path,
-            reason,
-        },
-        e => e,
+        previous: previous.as_ref(),
+        add: &args.add,
+        probe: probe.as_ref(),
+        reference_column: (est.u_column.unwrap_or(0), &columns.input),
+        spec: &|fs| args.inverse.spec(&args.columns, fs),
+        on_stage: &on_stage,
     })?;
     // The fit stands on its own: if no compensator can be designed, say why and keep the model.
-    progress.step("designing the compensator");
-    let spec = args.inverse.spec(&args.columns, file.model.fs)?;
-    let compensator = pipeline::design_compensator(&CompensatorRequest {
-        model: &file.model,
-        effects: &file.effects,
-        tests: &tests,
-        roles: Roles::Fit,
-        stored: None,
-        spec: &spec,
-        exportable: false,
-    })?;
-    file.inverse = match compensator.design {
-        Ok(d) => Some(d),
-        Err(e) => {
-            crate::errln!("warning: no compensator designed: {e}");
-            None
-        }
-    };
-    warn_unplanned(&compensator.unplanned);
+    if let Some(e) = no_compensator {
+        crate::errln!("warning: no compensator designed: {e}");
+    }
+    warn_unplanned(&unplanned);
     progress.step("writing the model");
     file.save(&args.output)?;
     let report_bytes = match &args.report {

@@ -3,7 +3,6 @@
 //! `unlag predict` shares, and the simulated step test written as a CSV (`t,u,y`, readable by
 //! `unlag fit`). The physics lives in [`crate::physics`]; `predict` is [`super::predict`].
 
-use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
@@ -296,12 +295,14 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
     };
     let (hum_pa, hum_hz) = match &args.hum {
         Some(text) => pair(text, "--hum", "PA,HZ")?,
-        None => (0.0, 50.0),
+        None => Acquisition::NO_HUM,
     };
     let acquisition = Acquisition {
         sample_rate_hz: args.fs,
         duration_s: args.duration,
-        event_time_s: args.event_at.unwrap_or(0.1 * args.duration),
+        event_time_s: args
+            .event_at
+            .unwrap_or_else(|| Acquisition::default_event_time_s(args.duration)),
         oversample: args.oversample,
         probe_noise_pa: args.noise,
         reference_noise_pa: args.reference_noise,
@@ -355,12 +356,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             None
         }
     };
-    let mut csv = String::with_capacity(test.t.len() * 48);
-    csv.push_str("t,u,y\n");
-    for ((t, u), y) in test.t.iter().zip(&test.reference).zip(&test.probe) {
-        let _ = writeln!(csv, "{t:.9},{u},{y}");
-    }
-    crate::file::write_atomically(&args.output, csv.as_bytes())?;
+    crate::file::write_atomically_with(&args.output, |out| Ok(test.write_csv(out)?))?;
     let ir = &test.impulse;
     if args.json {
         let v = json!({

@@ -45,6 +45,7 @@ use super::sensor::{Butterworth, Diaphragm};
 use super::PhysicsError;
 use crate::error::{Error, Result};
 
+mod csv;
 mod excitation;
 pub use excitation::{
     Excitation, Facility, FacilitySettings, BALLOON_FALL_S, SHOCK_RISE_S, TUNNEL_FRACTION,
@@ -250,14 +251,29 @@ pub struct Acquisition {
 }
 
 impl Acquisition {
-    /// `duration_s` at `sample_rate_hz`, event at 10 % of the record, 32× oversampling, no
-    /// noise, no ADC, ideal reference sensor.
+    /// Where the event falls when no time is given, as a fraction of the record: at 10 %,
+    /// leaving a stretch before it for the level and the noise to be measured on.
+    pub const DEFAULT_EVENT_FRACTION: f64 = 0.1;
+
+    /// No mains hum, as (amplitude \[Pa\], frequency \[Hz\]): amplitude 0, at the 50 Hz of
+    /// the mains (without effect at zero amplitude).
+    pub const NO_HUM: (f64, f64) = (0.0, 50.0);
+
+    /// The event's time \[s\] in a record of `duration_s` when none is given
+    /// ([`Self::DEFAULT_EVENT_FRACTION`] of it).
+    #[must_use]
+    pub fn default_event_time_s(duration_s: f64) -> f64 {
+        Self::DEFAULT_EVENT_FRACTION * duration_s
+    }
+
+    /// `duration_s` at `sample_rate_hz`, event at [`Self::DEFAULT_EVENT_FRACTION`] of the
+    /// record, 32× oversampling, no noise, no ADC, ideal reference sensor, no hum.
     #[must_use]
     pub fn new(sample_rate_hz: f64, duration_s: f64) -> Self {
         Self {
             sample_rate_hz,
             duration_s,
-            event_time_s: 0.1 * duration_s,
+            event_time_s: Self::default_event_time_s(duration_s),
             oversample: 32,
             probe_noise_pa: 0.0,
             reference_noise_pa: 0.0,
@@ -265,8 +281,8 @@ impl Acquisition {
             reference_sensor: None,
             seed: 1,
             probe_gain_error: 0.0,
-            hum_pa: 0.0,
-            hum_hz: 50.0,
+            hum_pa: Self::NO_HUM.0,
+            hum_hz: Self::NO_HUM.1,
             drift_pa_per_s: 0.0,
         }
     }

@@ -63,7 +63,7 @@ pub struct Diagnosis {
 /// alone and ranks the missing effects.
 ///
 /// # Errors
-/// [`Error::InvalidArgument`] (`TEST.csv`) when ranking without a test;
+/// [`Error::InvalidArgument`] (`tests`) when ranking without a test;
 /// [`super::check_excitation`]'s for a test whose reference does not move (it tells nothing
 /// about the probe, as for [`super::fit_probe`]); [`diagnose::diagnose`]'s errors.
 pub fn diagnose(request: &DiagnoseRequest<'_>) -> Result<Diagnosis> {
@@ -76,7 +76,7 @@ pub fn diagnose(request: &DiagnoseRequest<'_>) -> Result<Diagnosis> {
     } = *request;
     if rank && tests.is_empty() {
         return Err(Error::InvalidArgument {
-            what: "TEST.csv",
+            what: "tests",
             message: "give at least one step test".into(),
         });
     }
@@ -135,5 +135,15 @@ mod tests {
             }
             other => panic!("expected NoStep, got {other:?}"),
         }
+        // Ranking needs a test to refit on.
+        let none = diagnose(&DiagnoseRequest {
+            tests: &[],
+            rank: true,
+            ..request
+        });
+        assert!(
+            matches!(none, Err(Error::InvalidArgument { what: "tests", .. })),
+            "{none:?}"
+        );
     }
 }

@@ -1,5 +1,6 @@
 //! The library's pipeline from step tests to the board's coefficients: the probe's model fitted
-//! from its tests ([`fit_probe`]), its compensator designed ([`design_compensator`]), a stored
+//! from its tests ([`fit_probe`]), its compensator designed ([`design_compensator`]), both in
+//! one request continuing a model file ([`fit_and_design`]), a stored
 //! compensator designed anew for a rescaled model ([`retarget`]), a recording compensated
 //! with a model file ([`compensate`]), a model file's probe simulated on a recording
 //! ([`simulate`]), a model file put at another sample rate ([`resample`]), and a model file
@@ -14,6 +15,7 @@ mod compensate;
 mod design;
 mod diagnose;
 mod fit;
+mod fit_design;
 mod resample;
 mod simulate;
 
@@ -30,6 +32,7 @@ pub use fit::{
     add_effects, carried_effects, check_excitation, check_model_rate, check_same_rate, fit_probe,
     FitRequest,
 };
+pub use fit_design::{fit_and_design, FitDesignRequest, FitDesigned, FitStage};
 pub use resample::{check_sample_rate, resample, ResampleRequest, Resampled};
 pub use simulate::{simulate, SimulateRequest, Simulated};
 

@@ -329,7 +329,7 @@ fn print_fit(file: &ModelFile, est: &Trace) {
         "stable"
     );
     for o in &r.orders {
-        let crit = if r.order_selection.contains("held-out") {
+        let crit = if r.order_selection.rule() == Some(crate::fit::OrderRule::HeldOut) {
             pct(o.criterion)
         } else {
             number(o.criterion)

@@ -9,7 +9,7 @@ use super::{json_err, name, pct, ColumnArgs};
 use crate::error::Result;
 use crate::file::ModelFile;
 use crate::fit::Test;
-use crate::modelling::diagnose::{self, Candidate, Remedy};
+use crate::modelling::diagnose::{self, AmplitudeSignature, Candidate, Remedy};
 use crate::modelling::effects::EffectKind;
 use crate::modelling::evidence::TestEvidence;
 use crate::pipeline::{self, DiagnoseRequest, Diagnosis};
@@ -161,7 +161,7 @@ fn print_evidence(evidence: &[TestEvidence]) {
     }
 }
 
-fn print_across(across: &[diagnose::PerTest]) {
+fn print_across(across: &[diagnose::PerTest], signature: Option<&AmplitudeSignature>) {
     if across.len() < 2 {
         return;
     }
@@ -197,7 +197,7 @@ fn print_across(across: &[diagnose::PerTest]) {
             ratio
         );
     }
-    if let Some(s) = diagnose::amplitude_signature(across) {
+    if let Some(s) = signature {
         crate::outln!(
             "  residual against amplitude: damping {:+.3} per unit step ({:+.0} % from the smallest \
              step to the largest), own-fit residual ~ |step|^{:.2} (linear probe: 1){}",
@@ -274,13 +274,13 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
             on_stage: &|_| {},
         })?,
     };
-    let (evidence, across) = (&d.evidence, &d.across);
+    let (evidence, across, signature) = (&d.evidence, &d.across, &d.amplitude_signature);
     if args.json {
         let mut v = json!({
             "model": name(&args.model),
             "tests": tests_json(evidence)?,
             "across_tests": across,
-            "amplitude_signature": diagnose::amplitude_signature(across),
+            "amplitude_signature": signature,
             "history": l.file.history,
             "candidates": Vec::<Candidate>::new(),
         });
@@ -291,7 +291,7 @@ pub fn run_compare(args: &LoopArgs) -> Result<()> {
         return Ok(());
     }
     print_evidence(evidence);
-    print_across(across);
+    print_across(across, signature.as_ref());
     print_history(&l.file);
     crate::outln!("run `unlag diagnose` with the same arguments to rank the missing effects");
     if let Some(path) = &args.report {

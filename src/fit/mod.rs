@@ -23,11 +23,13 @@ mod error;
 pub mod model;
 pub mod noise;
 pub mod oe;
+pub mod selection;
 pub mod step;
 mod uncertainty;
 
 pub use error::{ContinuousError, FitError};
 pub use model::{Method, Model, TestRole};
+pub use selection::{OrderRule, OrderSelection, UnknownOrderSelection};
 
 use crate::error::{Error, Result};
 use crate::fit::model::{DelayRow, FitReport, OrderRow};
@@ -612,19 +614,16 @@ pub fn fit(
     let mut report = FitReport {
         method: options.method,
         order_selection: match options.order {
-            Order::Fixed(_) => "fixed".into(),
-            Order::Auto { max } if window.is_some() => format!(
-                "auto 1..={max}: {} on the first {SELECTION_WINDOW} samples from just before the step, the chosen order refined on the whole record",
-                if held_out {
-                    "smallest order within 5 % of the best mean held-out nrmse"
+            Order::Fixed(_) => OrderSelection::Fixed,
+            Order::Auto { max } => OrderSelection::Auto {
+                max,
+                rule: if held_out {
+                    OrderRule::HeldOut
                 } else {
-                    "lowest BIC"
-                }
-            ),
-            Order::Auto { max } if held_out => {
-                format!("auto 1..={max}: smallest order within 5 % of the best mean held-out nrmse")
-            }
-            Order::Auto { max } => format!("auto 1..={max}: lowest BIC on the estimation test"),
+                    OrderRule::Bic
+                },
+                window: window.map(|_| SELECTION_WINDOW),
+            },
         },
         orders: table,
         delay_selection: if options.delay.is_some() {

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::compensator::{Compensator, InverseCoefficients, Sample};
 use crate::error::{Error, Result};
-use crate::fit::FitError;
+use crate::fit::{FitError, OrderSelection};
 use crate::poly::{self, Complex};
 
 /// Largest model order the host compensator handles.
@@ -363,8 +363,9 @@ pub struct FitReport {
     /// The identification method, stored by its name: `bj` (Box-Jenkins, the default), `oe`
     /// (output error), `sm` (Steiglitz-McBride) or `arx` (the paper's direct least squares).
     pub method: Method,
-    /// How the order was chosen: `auto (...)` or `fixed`.
-    pub order_selection: String,
+    /// How the order was chosen, stored as its words (`fixed`, `auto 1..=6: lowest BIC on the
+    /// estimation test`, ...).
+    pub order_selection: OrderSelection,
     /// Order-selection table: one row per order tried.
     #[serde(default)]
     pub orders: Vec<OrderRow>,

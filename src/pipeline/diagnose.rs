@@ -1,11 +1,12 @@
 //! A model file judged against its step tests: the residual evidence measured on each test,
-//! the same structure fitted to each test alone, and the missing effects ranked by trial
+//! the same structure fitted to each test alone (and the residual against the step's amplitude
+//! across those fits), and the missing effects ranked by trial
 //! refits ([`diagnose()`]). `unlag compare`, `unlag diagnose` and the report all ask here.
 
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::fit::Test;
-use crate::modelling::diagnose::{self, Candidate, PerTest};
+use crate::modelling::diagnose::{self, AmplitudeSignature, Candidate, PerTest};
 use crate::modelling::evidence::TestEvidence;
 
 /// The stages of a [`diagnose()`] that may take long, as [`DiagnoseRequest::on_stage`] hears
@@ -28,7 +29,9 @@ pub struct DiagnoseRequest<'a> {
     /// The step tests; the first is the estimation test (refitted on by the trials), the
     /// others are held out.
     pub tests: &'a [Test<'a>],
-    /// Also fit the same structure to each test alone ([`Diagnosis::across`]).
+    /// Also fit the same structure to each test alone ([`Diagnosis::across`]), and read the
+    /// residual against the step's amplitude from those fits
+    /// ([`Diagnosis::amplitude_signature`]).
     pub across: bool,
     /// Also rank the missing effects by trial refits ([`Diagnosis::candidates`]).
     pub rank: bool,
@@ -54,6 +57,10 @@ pub struct Diagnosis {
     /// The structure fitted to each test alone, when asked ([`DiagnoseRequest::across`]);
     /// empty otherwise.
     pub across: Vec<PerTest>,
+    /// How the fitted damping and the own-fit residual change with the step's size across
+    /// [`Diagnosis::across`] ([`diagnose::amplitude_signature`]): `None` when not asked, or
+    /// without two tests with a resonance and steps of different sizes.
+    pub amplitude_signature: Option<AmplitudeSignature>,
     /// The candidates for the missing effect, best first, when asked
     /// ([`DiagnoseRequest::rank`]); empty otherwise.
     pub candidates: Vec<Candidate>,
@@ -91,6 +98,7 @@ pub fn diagnose(request: &DiagnoseRequest<'_>) -> Result<Diagnosis> {
     } else {
         Vec::new()
     };
+    let amplitude_signature = diagnose::amplitude_signature(&across);
     let candidates = if rank {
         on_stage(DiagnoseStage::Candidates);
         diagnose::diagnose(&current, tests, &evidence)?
@@ -100,6 +108,7 @@ pub fn diagnose(request: &DiagnoseRequest<'_>) -> Result<Diagnosis> {
     Ok(Diagnosis {
         evidence,
         across,
+        amplitude_signature,
         candidates,
     })
 }
@@ -145,5 +154,56 @@ mod tests {
             matches!(none, Err(Error::InvalidArgument { what: "tests", .. })),
             "{none:?}"
         );
+    }
+
+    #[test]
+    fn fitting_each_test_alone_reads_the_residual_against_amplitude() {
+        let (model, _) = crate::testing::second_order(300.0, 0.2, 10_000.0, 3);
+        let file = crate::testing::model_file(model.clone());
+        // Two steps of different sizes through the same resonant probe, with noise.
+        let traces: Vec<(Vec<f64>, Vec<f64>)> = [(1.0, 3), (2.5, 4)]
+            .into_iter()
+            .map(|(level, seed)| {
+                let u: Vec<f64> = (0..3000)
+                    .map(|k| if k < 600 { 0.0 } else { level })
+                    .collect();
+                let noise = crate::testing::gaussian(u.len(), seed);
+                let y = model
+                    .simulate(&u)
+                    .iter()
+                    .zip(noise)
+                    .map(|(y, n)| y + 1e-3 * n)
+                    .collect();
+                (u, y)
+            })
+            .collect();
+        let names = ["small.csv", "large.csv"];
+        let tests: Vec<Test<'_>> = traces
+            .iter()
+            .zip(names)
+            .map(|((u, y), name)| Test { name, u, y })
+            .collect();
+        let request = DiagnoseRequest {
+            file: &file,
+            tests: &tests,
+            across: true,
+            rank: false,
+            on_stage: &|_| {},
+        };
+        let d = diagnose(&request).unwrap();
+        let signature = d.amplitude_signature.expect("two steps of different sizes");
+        assert_eq!(
+            Some(&signature),
+            diagnose::amplitude_signature(&d.across).as_ref()
+        );
+        assert_eq!(signature.amplitudes.len(), 2);
+        // Not asked to fit each test alone: no signature either.
+        let d = diagnose(&DiagnoseRequest {
+            across: false,
+            ..request
+        })
+        .unwrap();
+        assert!(d.across.is_empty());
+        assert_eq!(d.amplitude_signature, None);
     }
 }

@@ -639,6 +639,7 @@ mod tests {
             probe: &[0.0; 64],
             reference: None,
             compensation: Compensation::Offline,
+            temperature_k: None,
         })
         .unwrap_err();
         assert!(!e.to_string().contains("unlag "), "{e}");

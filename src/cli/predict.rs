@@ -10,7 +10,7 @@ use super::physics::SystemArgs;
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::physics::system::ProbeSystem;
-use crate::physics::{compare, predict, Prediction};
+use crate::physics::{predict_and_compare, PredictRequest, Predicted, Prediction};
 
 /// Arguments of `unlag predict`.
 #[derive(Debug, Args)]
@@ -72,21 +72,17 @@ fn prediction_json(sys: &ProbeSystem, p: &Prediction) -> Value {
 /// # Errors
 /// Invalid arguments, a mode search that finds nothing, an unreadable model file.
 pub fn run_predict(args: &PredictArgs) -> Result<()> {
-    if !(1..=20).contains(&args.modes) {
-        return Err(Error::InvalidArgument {
-            what: "--modes",
-            message: format!("{} must be 1..=20", args.modes),
-        });
-    }
     let sys = args.system.build()?;
-    let p = predict(&sys.line, &sys.gas, args.modes)?;
-    let comparison = match &args.model {
-        Some(path) => {
-            let file = ModelFile::load(path)?;
-            Some(compare(&file.model, &p)?)
-        }
-        None => None,
-    };
+    let file = args.model.as_deref().map(ModelFile::load).transpose()?;
+    let Predicted {
+        prediction: p,
+        comparison,
+    } = predict_and_compare(&PredictRequest {
+        line: &sys.line,
+        gas: &sys.gas,
+        modes: args.modes,
+        model: file.as_ref().map(|f| &f.model),
+    })?;
     if args.json {
         let mut v = prediction_json(&sys, &p);
         if let Some(c) = &comparison {

@@ -38,7 +38,10 @@ pub mod sensor;
 pub mod simulate;
 pub mod system;
 
-pub use compare::{compare, predict, Comparison, Prediction};
+pub use compare::{
+    compare, predict, predict_and_compare, Comparison, PredictRequest, Predicted, Prediction,
+    MAX_MODES,
+};
 pub use error::PhysicsError;
 pub use gas::Gas;
 pub use helmholtz::{EndKind, HoleCavity};

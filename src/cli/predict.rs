@@ -10,7 +10,9 @@ use super::physics::SystemArgs;
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::physics::system::ProbeSystem;
-use crate::physics::{predict_and_compare, PredictRequest, Predicted, Prediction};
+use crate::physics::{
+    check_mode_count, predict_and_compare, PredictRequest, Predicted, Prediction,
+};
 
 /// Arguments of `unlag predict`.
 #[derive(Debug, Args)]
@@ -72,6 +74,8 @@ fn prediction_json(sys: &ProbeSystem, p: &Prediction) -> Value {
 /// # Errors
 /// Invalid arguments, a mode search that finds nothing, an unreadable model file.
 pub fn run_predict(args: &PredictArgs) -> Result<()> {
+    // A wrong count is told before the probe is built or the model file read.
+    check_mode_count(args.modes).map_err(Error::from)?;
     let sys = args.system.build()?;
     let file = args.model.as_deref().map(ModelFile::load).transpose()?;
     let Predicted {

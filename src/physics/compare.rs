@@ -70,15 +70,26 @@ impl Prediction {
 /// Most exact modes [`predict`] reports.
 pub const MAX_MODES: usize = 20;
 
+/// Checks that `count` exact modes can be reported (`1..=`[`MAX_MODES`]), as [`predict`] does
+/// first; for a front end that tells a wrong count before building the probe.
+///
+/// # Errors
+/// [`PhysicsError::ModeCount`].
+pub fn check_mode_count(count: usize) -> core::result::Result<(), PhysicsError> {
+    if (1..=MAX_MODES).contains(&count) {
+        Ok(())
+    } else {
+        Err(PhysicsError::ModeCount { count })
+    }
+}
+
 /// Predicts the first `count` exact modes, the front delay and the lumped approximation.
 ///
 /// # Errors
 /// [`PhysicsError::ModeCount`] for a `count` outside `1..=`[`MAX_MODES`]; errors of
 /// [`find_modes`].
 pub fn predict(line: &Line, gas: &Gas, count: usize) -> Result<Prediction> {
-    if !(1..=MAX_MODES).contains(&count) {
-        return Err(PhysicsError::ModeCount { count }.into());
-    }
+    check_mode_count(count)?;
     let analysis = find_modes(line, gas, count)?;
     Ok(Prediction {
         modes: analysis.modes,
@@ -354,7 +365,9 @@ mod tests {
         assert_eq!(both.prediction, alone.prediction);
         let c = both.comparison.unwrap();
         assert!((c.natural_frequency_ratio - 1.0).abs() < 1e-6, "{c:?}");
+        assert!(check_mode_count(1).is_ok() && check_mode_count(MAX_MODES).is_ok());
         for count in [0, MAX_MODES + 1] {
+            assert!(check_mode_count(count).is_err());
             let e = predict_and_compare(&PredictRequest {
                 modes: count,
                 ..request

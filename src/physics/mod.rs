@@ -39,8 +39,8 @@ pub mod simulate;
 pub mod system;
 
 pub use compare::{
-    compare, predict, predict_and_compare, Comparison, PredictRequest, Predicted, Prediction,
-    MAX_MODES,
+    check_mode_count, compare, predict, predict_and_compare, Comparison, PredictRequest, Predicted,
+    Prediction, MAX_MODES,
 };
 pub use error::PhysicsError;
 pub use gas::Gas;

@@ -8,7 +8,6 @@ use clap::{Args, ValueEnum};
 use serde_json::json;
 
 use super::{check_rate, console, name, pct, ColumnArgs};
-use crate::design::inverse;
 use crate::error::Result;
 use crate::file::ModelFile;
 use crate::pipeline::{self, CompensateRequest, Compensation, ReferenceError};
@@ -77,11 +76,6 @@ impl From<Arithmetic> for pipeline::Arithmetic {
 /// The model file's, the trace's and the compensator's errors.
 pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     let file = ModelFile::load(&args.model)?;
-    // A board given the gas temperature runs the coefficient set rescaled to it.
-    let file = match args.temperature {
-        Some(t) => crate::pipeline::at_temperature(&file, t)?,
-        None => file,
-    };
     let trace = Trace::read(&args.file, &args.columns.columns(false))?;
     check_rate(&file, &trace)?;
     let compensation = if args.offline {
@@ -97,6 +91,7 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
         probe: &trace.y,
         reference: trace.u.as_deref(),
         compensation,
+        temperature_k: args.temperature,
     })?;
     // A clamped input or a saturation is never hidden.
     if let Some(f) = &c.fixed {
@@ -134,7 +129,7 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
         console::note(args.json, &msg);
     }
     let (latency, what, error) = (c.latency_samples, c.compensator, c.error);
-    let design = file.inverse.as_ref().filter(|_| c.designed);
+    let not_better = c.stored_not_better.as_deref();
     crate::file::write_atomically_with(&args.output, |out| {
         Ok(trace.write_csv_with(out, &[("u_hat", &c.u_hat)])?)
     })?;
@@ -164,7 +159,7 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
             })),
         });
         crate::outln!("{v}");
-        warn_if_worse(args, design, error);
+        warn_if_worse(args, not_better, error);
         return Ok(());
     }
     crate::outln!(
@@ -183,27 +178,20 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
         );
     }
     crate::outln!("wrote {}", args.output.display());
-    warn_if_worse(args, design, error);
+    warn_if_worse(args, not_better, error);
     Ok(())
 }
 
 /// A compensated run further from its recorded reference than the raw probe is never passed
 /// over in silence: one line on stderr with both errors and the remedy. A design the fit's
 /// check already found no better than the raw probe (the delay alone, or the probe passed
-/// through) says so instead of a remedy.
-fn warn_if_worse(
-    args: &CompensateArgs,
-    design: Option<&inverse::Design>,
-    error: Option<ReferenceError>,
-) {
+/// through; `not_better` is its method) says so instead of a remedy.
+fn warn_if_worse(args: &CompensateArgs, not_better: Option<&str>, error: Option<ReferenceError>) {
     let Some(error) = error.filter(ReferenceError::worse) else {
         return;
     };
     let (e, raw) = (error.u_hat, error.raw);
-    let not_better = design
-        .and_then(|d| d.check.as_ref())
-        .is_some_and(|c| c.verdict == inverse::check::Verdict::NotBetter);
-    if not_better {
+    if let Some(method) = not_better {
         crate::errln!(
             "warning: on {} u_hat is no closer to the recorded reference than the raw probe ({} against {}): \
              {}'s compensator is {}, stored marked not-better (no design beat the raw probe on the fit's tests)",
@@ -211,7 +199,7 @@ fn warn_if_worse(
             pct(e),
             pct(raw),
             args.model.display(),
-            design.map_or("", |d| d.method.short())
+            method
         );
         return;
     }

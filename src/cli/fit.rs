@@ -115,7 +115,8 @@ impl FitArgs {
         })
     }
 
-    /// The model the fit continues: the output file's, unless `--fresh` or there is none. A
+    /// The model the fit replaces: the output file's, if there is one (under `--fresh`, only
+    /// if it loads; the library keeps only its probe geometry then). A
     /// file in the way that is not a model is never replaced silently; `--fresh` replaces a
     /// model (even a broken one), never a file that is not TOML at all (a recorded test).
     fn previous(&self) -> Result<Option<ModelFile>> {
@@ -135,7 +136,11 @@ impl FitArgs {
                 });
             }
         }
-        if self.fresh || self.output == Path::new("-") || !self.output.exists() {
+        if self.fresh {
+            // A fresh fit still keeps the probe's geometry of the model it replaces.
+            return Ok(ModelFile::load(&self.output).ok());
+        }
+        if self.output == Path::new("-") || !self.output.exists() {
             return Ok(None);
         }
         ModelFile::load(&self.output)
@@ -194,12 +199,6 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     let tests = as_tests(&traces, &names)?;
     // The modelling loop: the output file's effects and history carry over.
     let previous = args.previous()?;
-    // The probe's geometry describes the hardware, not the fit: kept even with --fresh.
-    let probe = if args.fresh {
-        ModelFile::load(&args.output).ok().and_then(|p| p.probe)
-    } else {
-        previous.as_ref().and_then(|p| p.probe.clone())
-    };
     let digests: Vec<String> = traces.iter().map(|t| t.sha256.clone()).collect();
     let on_stage = |stage: FitStage| match stage {
         FitStage::Continuing {
@@ -234,8 +233,8 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         sample_rates_hz: &rates,
         options,
         previous: previous.as_ref(),
+        fresh: args.fresh,
         add: &args.add,
-        probe: probe.as_ref(),
         reference_column: (est.u_column.unwrap_or(0), &columns.input),
         spec: &|fs| args.inverse.spec(&args.columns, fs),
         on_stage: &on_stage,

@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::fit::analysis::{self, Analysis};
 use crate::fit::continuous::{self, Continuous};
-use crate::pipeline::{self, ResampleRequest};
+use crate::pipeline::{self, InspectRequest, ResampleRequest};
 use crate::poly::{self, Complex};
 
 /// Arguments of `unlag inspect`.
@@ -99,7 +99,8 @@ fn parse_grid(text: &str) -> Result<Vec<f64>> {
     }
 }
 
-fn frequencies(args: &InspectArgs, fs: f64) -> Result<Vec<f64>> {
+/// The frequencies `--freqs` and `--grid` ask for, sorted; empty for the library's default.
+fn frequencies(args: &InspectArgs) -> Result<Vec<f64>> {
     let mut f = args.freqs.clone();
     if let Some(g) = &args.grid {
         f.extend(parse_grid(g)?);
@@ -109,9 +110,6 @@ fn frequencies(args: &InspectArgs, fs: f64) -> Result<Vec<f64>> {
             what: "--freqs",
             message: format!("frequencies must be finite and >= 0 Hz, got {bad}"),
         });
-    }
-    if f.is_empty() {
-        f = analysis::default_frequencies(fs);
     }
     f.sort_by(f64::total_cmp);
     Ok(f)
@@ -142,10 +140,17 @@ pub fn run_inspect(args: &InspectArgs) -> Result<()> {
         return inspect_blob(args, &bytes);
     }
     let file = ModelFile::load(&args.model)?;
-    let m = &file.model;
-    let analysis = Analysis::new(m)?;
-    let response = analysis::response_points(m, &frequencies(args, m.fs)?);
-    let ct = Continuous::from_model(m);
+    let name = args.model.display().to_string();
+    let pipeline::Inspected {
+        analysis,
+        response,
+        continuous: ct,
+        stability,
+    } = pipeline::inspect(&InspectRequest {
+        file: &file,
+        model_name: &name,
+        frequencies_hz: &frequencies(args)?,
+    })?;
     if args.json {
         let (continuous, why) = match &ct {
             Ok(c) => (serde_json::to_value(c).map_err(json_err)?, None),
@@ -160,10 +165,10 @@ pub fn run_inspect(args: &InspectArgs) -> Result<()> {
         });
         crate::outln!("{v}");
         // The analysis shows which pole is outside; the exit status says the model is unusable.
-        return m.check_stable(&args.model.display().to_string());
+        return stability;
     }
-    print_analysis(&args.model.display().to_string(), &analysis);
-    print_continuous(&ct, m.fs);
+    print_analysis(&name, &analysis);
+    print_continuous(&ct, file.model.fs);
     crate::outln!("frequency response (the paper's eq. 6, delay included):");
     crate::outln!(
         "  {:>12} {:>12} {:>10} {:>12}",
@@ -181,7 +186,7 @@ pub fn run_inspect(args: &InspectArgs) -> Result<()> {
             p.phase_deg
         );
     }
-    m.check_stable(&args.model.display().to_string())
+    stability
 }
 
 fn print_roots(what: &str, roots: &[analysis::Root]) {

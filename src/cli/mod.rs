@@ -169,6 +169,12 @@ pub fn describe(e: &Error) -> String {
     if let Some(crate::physics::PhysicsError::NoTube) = e.stage() {
         return "invalid --line: give at least one --line LENGTH,DIAMETER (or a --hole)".into();
     }
+    if let Some(crate::physics::PhysicsError::ModeCount { count }) = e.stage() {
+        return format!(
+            "invalid --modes: {count} must be 1..={}",
+            crate::physics::MAX_MODES
+        );
+    }
     if let Some(crate::modelling::ModellingError::NoSensorResonance) = e.stage() {
         return "invalid sensor-resonance: the estimation test's reference shows no resonance to \
                 filter below; give the transducer's natural frequency: --add sensor-resonance=HZ"
@@ -639,6 +645,7 @@ mod tests {
             probe: &[0.0; 64],
             reference: None,
             compensation: Compensation::Offline,
+            temperature_k: None,
         })
         .unwrap_err();
         assert!(!e.to_string().contains("unlag "), "{e}");

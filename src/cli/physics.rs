@@ -263,16 +263,23 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
     let anti_alias = match &args.anti_alias {
         Some(text) => {
             let (f, n) = pair(text, "--anti-alias", "HZ,ORDER")?;
-            if n.fract() != 0.0 || !(1.0..=12.0).contains(&n) {
-                return Err(Error::InvalidArgument {
-                    what: "--anti-alias",
-                    message: format!("order {n} must be a whole number 1..=12"),
-                });
+            // A whole number is parsed here; its range is the filter's.
+            let refused = || Error::InvalidArgument {
+                what: "--anti-alias",
+                message: format!(
+                    "order {n} must be a whole number 1..={}",
+                    Butterworth::MAX_ORDER
+                ),
+            };
+            if n.fract() != 0.0 || !(0.0..=f64::from(u32::MAX)).contains(&n) {
+                return Err(refused());
             }
-            Some(Butterworth {
+            let filter = Butterworth {
                 corner_hz: f,
                 order: n as u32,
-            })
+            };
+            filter.check_order().map_err(|_| refused())?;
+            Some(filter)
         }
         None => None,
     };
@@ -325,13 +332,11 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             test.impulse.taper_start_hz
         );
     }
-    if let Some(d) = &sys.diaphragm {
-        if d.natural_frequency_hz > test.impulse.taper_start_hz {
-            crate::errln!(
-                "warning: the diaphragm resonance at {} Hz is above the simulated band (taper from {:.0} Hz) and is filtered out: raise --oversample to see it",
-                d.natural_frequency_hz, test.impulse.taper_start_hz
-            );
-        }
+    if let Some(r) = test.resonance_above_band(&probe) {
+        crate::errln!(
+            "warning: the diaphragm resonance at {} Hz is above the simulated band (taper from {:.0} Hz) and is filtered out: raise --oversample to see it",
+            r.natural_frequency_hz, r.taper_start_hz
+        );
     }
     // The ADC is asked for after the simulation, as the range may come from its signals.
     let adc = match args.adc_bits {

@@ -10,7 +10,9 @@ use super::physics::SystemArgs;
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::physics::system::ProbeSystem;
-use crate::physics::{compare, predict, Prediction};
+use crate::physics::{
+    check_mode_count, predict_and_compare, PredictRequest, Predicted, Prediction,
+};
 
 /// Arguments of `unlag predict`.
 #[derive(Debug, Args)]
@@ -72,21 +74,19 @@ fn prediction_json(sys: &ProbeSystem, p: &Prediction) -> Value {
 /// # Errors
 /// Invalid arguments, a mode search that finds nothing, an unreadable model file.
 pub fn run_predict(args: &PredictArgs) -> Result<()> {
-    if !(1..=20).contains(&args.modes) {
-        return Err(Error::InvalidArgument {
-            what: "--modes",
-            message: format!("{} must be 1..=20", args.modes),
-        });
-    }
+    // A wrong count is told before the probe is built or the model file read.
+    check_mode_count(args.modes).map_err(Error::from)?;
     let sys = args.system.build()?;
-    let p = predict(&sys.line, &sys.gas, args.modes)?;
-    let comparison = match &args.model {
-        Some(path) => {
-            let file = ModelFile::load(path)?;
-            Some(compare(&file.model, &p)?)
-        }
-        None => None,
-    };
+    let file = args.model.as_deref().map(ModelFile::load).transpose()?;
+    let Predicted {
+        prediction: p,
+        comparison,
+    } = predict_and_compare(&PredictRequest {
+        line: &sys.line,
+        gas: &sys.gas,
+        modes: args.modes,
+        model: file.as_ref().map(|f| &f.model),
+    })?;
     if args.json {
         let mut v = prediction_json(&sys, &p);
         if let Some(c) = &comparison {

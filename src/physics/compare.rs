@@ -67,11 +67,29 @@ impl Prediction {
     }
 }
 
+/// Most exact modes [`predict`] reports.
+pub const MAX_MODES: usize = 20;
+
+/// Checks that `count` exact modes can be reported (`1..=`[`MAX_MODES`]), as [`predict`] does
+/// first; for a front end that tells a wrong count before building the probe.
+///
+/// # Errors
+/// [`PhysicsError::ModeCount`].
+pub fn check_mode_count(count: usize) -> core::result::Result<(), PhysicsError> {
+    if (1..=MAX_MODES).contains(&count) {
+        Ok(())
+    } else {
+        Err(PhysicsError::ModeCount { count })
+    }
+}
+
 /// Predicts the first `count` exact modes, the front delay and the lumped approximation.
 ///
 /// # Errors
-/// Errors of [`find_modes`].
+/// [`PhysicsError::ModeCount`] for a `count` outside `1..=`[`MAX_MODES`]; errors of
+/// [`find_modes`].
 pub fn predict(line: &Line, gas: &Gas, count: usize) -> Result<Prediction> {
+    check_mode_count(count)?;
     let analysis = find_modes(line, gas, count)?;
     Ok(Prediction {
         modes: analysis.modes,
@@ -246,6 +264,44 @@ pub fn compare(model: &Model, prediction: &Prediction) -> Result<Comparison> {
     })
 }
 
+/// A probe to predict, and the fitted model to compare with the prediction, if any.
+#[derive(Debug, Clone, Copy)]
+pub struct PredictRequest<'a> {
+    /// The probe's line.
+    pub line: &'a Line,
+    /// The gas in it.
+    pub gas: &'a Gas,
+    /// How many exact modes to report (`1..=`[`MAX_MODES`]).
+    pub modes: usize,
+    /// A fitted model to compare with the prediction.
+    pub model: Option<&'a Model>,
+}
+
+/// A probe's prediction and, when a model was given, how it disagrees with it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Predicted {
+    /// The prediction ([`predict`]).
+    pub prediction: Prediction,
+    /// The fitted model against it ([`compare`]), when a model was given.
+    pub comparison: Option<Comparison>,
+}
+
+/// Predicts the probe of `request` and compares the fitted model with it, if one is given.
+///
+/// # Errors
+/// Errors of [`predict`] and [`compare`].
+pub fn predict_and_compare(request: &PredictRequest<'_>) -> Result<Predicted> {
+    let prediction = predict(request.line, request.gas, request.modes)?;
+    let comparison = match request.model {
+        Some(m) => Some(compare(m, &prediction)?),
+        None => None,
+    };
+    Ok(Predicted {
+        prediction,
+        comparison,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -270,5 +326,57 @@ mod tests {
         assert_eq!(m.len(), 1);
         assert!((m[0].natural_frequency_hz / f - 1.0).abs() < 1e-9);
         assert!((m[0].damping / zeta - 1.0).abs() < 1e-9);
+    }
+
+    /// A fitted second-order model of the line's own first mode and delay agrees with the
+    /// prediction; without a model there is no comparison; a mode count outside
+    /// `1..=MAX_MODES` is refused before any search.
+    #[test]
+    fn a_probe_is_predicted_compared_and_its_mode_count_bounded() {
+        let gas = Gas::air(293.15, 101_325.0);
+        let line = Line::new().tube(0.6, 1.1e-3).volume(20e-9);
+        let request = PredictRequest {
+            line: &line,
+            gas: &gas,
+            modes: 2,
+            model: None,
+        };
+        let alone = predict_and_compare(&request).unwrap();
+        assert_eq!(alone.prediction.modes.len(), 2);
+        assert!(alone.comparison.is_none());
+        let first = ModeSummary::from(&alone.prediction.modes[0]);
+        let fs = 50_000.0;
+        let w = 2.0 * core::f64::consts::PI * first.natural_frequency_hz;
+        let zeta = first.damping.min(0.9);
+        let s = num_complex::Complex64::new(-zeta * w, w * (1.0 - zeta * zeta).sqrt());
+        let z = (s / fs).exp();
+        let a = vec![-2.0 * z.re, z.norm_sqr()];
+        let model = Model {
+            fs,
+            delay: (alone.prediction.delay_s * fs).round() as usize,
+            b: vec![1.0 + a[0] + a[1]],
+            a,
+        };
+        let both = predict_and_compare(&PredictRequest {
+            model: Some(&model),
+            ..request
+        })
+        .unwrap();
+        assert_eq!(both.prediction, alone.prediction);
+        let c = both.comparison.unwrap();
+        assert!((c.natural_frequency_ratio - 1.0).abs() < 1e-6, "{c:?}");
+        assert!(check_mode_count(1).is_ok() && check_mode_count(MAX_MODES).is_ok());
+        for count in [0, MAX_MODES + 1] {
+            assert!(check_mode_count(count).is_err());
+            let e = predict_and_compare(&PredictRequest {
+                modes: count,
+                ..request
+            })
+            .unwrap_err();
+            assert!(
+                matches!(e.stage(), Some(PhysicsError::ModeCount { count: c }) if *c == count),
+                "{e}"
+            );
+        }
     }
 }

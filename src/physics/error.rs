@@ -50,6 +50,18 @@ pub enum PhysicsError {
     /// A probe was described with neither a tube nor a hole.
     #[error("the probe needs at least one tube (or a hole)")]
     NoTube,
+    /// More or fewer exact modes were asked for than the prediction reports.
+    #[error("prediction: {count} exact modes asked for, not 1..={max}", max = super::compare::MAX_MODES)]
+    ModeCount {
+        /// The number asked for.
+        count: usize,
+    },
+    /// An anti-alias filter of an order outside its range.
+    #[error("anti-alias filter: order {order} is not 1..={max}", max = super::Butterworth::MAX_ORDER)]
+    FilterOrder {
+        /// The order given.
+        order: u32,
+    },
     /// The fitted model compared with a prediction has no mode.
     #[error("comparison: the fitted model has no mode (no complex pole pair, fewer than two real poles)")]
     NoFittedMode,
@@ -59,7 +71,7 @@ impl crate::error::StageError for PhysicsError {
     fn kind(&self) -> &'static str {
         match self {
             // The request is wrong, not the arithmetic.
-            Self::NoTube => "invalid-argument",
+            Self::NoTube | Self::ModeCount { .. } | Self::FilterOrder { .. } => "invalid-argument",
             _ => "numerical",
         }
     }

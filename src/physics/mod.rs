@@ -38,7 +38,10 @@ pub mod sensor;
 pub mod simulate;
 pub mod system;
 
-pub use compare::{compare, predict, Comparison, Prediction};
+pub use compare::{
+    check_mode_count, compare, predict, predict_and_compare, Comparison, PredictRequest, Predicted,
+    Prediction, MAX_MODES,
+};
 pub use error::PhysicsError;
 pub use gas::Gas;
 pub use helmholtz::{EndKind, HoleCavity};
@@ -46,5 +49,5 @@ pub use line::{CavityThermal, Element, Line, SeriesImpedance, Tube, Volume};
 pub use lumped::{lumped, Lumped, POISEUILLE_INERTANCE};
 pub use modes::{find_modes, Mode, ModeAnalysis};
 pub use sensor::{Butterworth, Diaphragm};
-pub use simulate::{simulate, Acquisition, Excitation, Probe, SimulatedTest};
+pub use simulate::{simulate, Acquisition, Excitation, Probe, ResonanceAboveBand, SimulatedTest};
 pub use system::{ProbeSpec, ProbeSystem, MAX_LINE_LENGTH_M};

@@ -9,6 +9,7 @@
 
 use num_complex::Complex64;
 
+use super::PhysicsError;
 use crate::error::{Error, Result};
 
 /// A second-order diaphragm resonance.
@@ -62,27 +63,45 @@ impl Diaphragm {
 pub struct Butterworth {
     /// Corner (−3 dB) frequency \[Hz\].
     pub corner_hz: f64,
-    /// Order `n` [-] (1..=12).
+    /// Order `n` [-] (1..=[`Self::MAX_ORDER`]).
     pub order: u32,
 }
 
 impl Butterworth {
-    /// Checks the corner is positive and the order 1..=12.
+    /// Highest order of the filter.
+    pub const MAX_ORDER: u32 = 12;
+
+    /// Checks the corner is positive and the order 1..=[`Self::MAX_ORDER`].
     ///
     /// # Errors
-    /// [`Error::InvalidArgument`].
+    /// [`Error::InvalidArgument`] for a corner that is not a positive number of Hz;
+    /// [`PhysicsError::FilterOrder`] for an order out of range ([`Self::check_order`]).
     pub fn validate(&self) -> Result<()> {
         let f_ok = self.corner_hz.is_finite() && self.corner_hz > 0.0;
-        if !(f_ok && (1..=12).contains(&self.order)) {
+        if !f_ok {
             return Err(Error::InvalidArgument {
                 what: "anti-alias filter",
                 message: format!(
-                    "corner {} Hz must be positive and order {} in 1..=12",
-                    self.corner_hz, self.order
+                    "corner {} Hz must be positive and order {} in 1..={}",
+                    self.corner_hz,
+                    self.order,
+                    Self::MAX_ORDER
                 ),
             });
         }
-        Ok(())
+        Ok(self.check_order()?)
+    }
+
+    /// Checks the order is 1..=[`Self::MAX_ORDER`].
+    ///
+    /// # Errors
+    /// [`PhysicsError::FilterOrder`].
+    pub fn check_order(&self) -> core::result::Result<(), PhysicsError> {
+        if (1..=Self::MAX_ORDER).contains(&self.order) {
+            Ok(())
+        } else {
+            Err(PhysicsError::FilterOrder { order: self.order })
+        }
     }
 
     /// `H(s)` [-] at complex frequency `s` [rad/s]; DC gain 1, `|H| = 1/√2` at the corner.
@@ -125,5 +144,29 @@ mod tests {
             assert!((h.norm() - core::f64::consts::FRAC_1_SQRT_2).abs() < 1e-12);
             assert!((b.response(Complex64::new(0.0, 0.0)) - 1.0).norm() < 1e-12);
         }
+    }
+
+    /// An order 1..=MAX_ORDER passes, one outside is refused with its typed error; a bad
+    /// corner is refused before the order.
+    #[test]
+    fn butterworth_order_range() {
+        let with = |corner_hz, order| Butterworth { corner_hz, order };
+        assert!(with(1000.0, 1).validate().is_ok());
+        assert!(with(1000.0, Butterworth::MAX_ORDER).validate().is_ok());
+        for order in [0, Butterworth::MAX_ORDER + 1] {
+            assert!(matches!(
+                with(1000.0, order).check_order(),
+                Err(PhysicsError::FilterOrder { order: o }) if o == order
+            ));
+            let e = with(1000.0, order).validate().unwrap_err();
+            assert!(
+                matches!(e.stage(), Some(PhysicsError::FilterOrder { .. })),
+                "{e}"
+            );
+        }
+        assert!(matches!(
+            with(0.0, 0).validate(),
+            Err(Error::InvalidArgument { .. })
+        ));
     }
 }

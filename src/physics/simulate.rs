@@ -45,8 +45,10 @@ use super::sensor::{Butterworth, Diaphragm};
 use super::PhysicsError;
 use crate::error::{Error, Result};
 
+mod band;
 mod csv;
 mod excitation;
+pub use band::ResonanceAboveBand;
 pub use excitation::{
     Excitation, Facility, FacilitySettings, BALLOON_FALL_S, SHOCK_RISE_S, TUNNEL_FRACTION,
     VALVE_CHAMBER, VALVE_OPENING_S,

@@ -39,8 +39,7 @@ pub enum Compensation {
 /// A recording to compensate with a model file.
 #[derive(Debug, Clone, Copy)]
 pub struct CompensateRequest<'a> {
-    /// The model file (at the recording's gas temperature, if it has a temperature effect:
-    /// [`at_temperature`](super::at_temperature)).
+    /// The model file.
     pub file: &'a ModelFile,
     /// Where the model file was read from, for messages.
     pub model_path: &'a Path,
@@ -51,6 +50,10 @@ pub struct CompensateRequest<'a> {
     pub reference: Option<&'a [f64]>,
     /// Which compensator.
     pub compensation: Compensation,
+    /// The recording's gas temperature (K), for a model with a `temperature` effect: the model
+    /// is scaled to it and its compensator designed anew ([`at_temperature`](super::at_temperature)),
+    /// as a board given that temperature runs it; `None` runs the file as it is.
+    pub temperature_k: Option<f64>,
 }
 
 /// The error of `u_hat` against the recorded reference, beside the raw probe's.
@@ -110,6 +113,10 @@ pub struct Compensated {
     /// The compensator that ran instead of the model file's, predicted not to beat the raw
     /// probe on this run.
     pub fall_back: Option<inverse::check::RunFallBack>,
+    /// The model file's design (at the request's temperature) was asked for and its stored
+    /// check found no design better than the raw probe on the fit's tests: its method, in
+    /// short.
+    pub stored_not_better: Option<String>,
 }
 
 /// Compensates the recording: the model's offset and drift removed from the probe signal
@@ -118,18 +125,27 @@ pub struct Compensated {
 /// best alignment near the latency (with a sensor resonance, the reference below it: the
 /// compensator does not and should not reproduce the reference transducer's own ringing).
 ///
+/// With a gas temperature, the model file is first put at it
+/// ([`at_temperature`](super::at_temperature)).
+///
 /// # Errors
 /// [`Error::InvalidArgument`] for the offline optimum without a stored optimal design, or
 /// fixed point without a plan or for the direct inverse; [`Error::UnsupportedOnBoard`] for
 /// fixed point with nonlinear damping; the model's and the compensator's refusals (a
-/// non-invertible model, a design the board cannot run).
+/// non-invertible model, a design the board cannot run); with a temperature,
+/// [`at_temperature`](super::at_temperature)'s.
 pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
+    let at_temperature = match request.temperature_k {
+        Some(t) => Some(super::at_temperature(request.file, t)?),
+        None => None,
+    };
+    let file = at_temperature.as_ref().unwrap_or(request.file);
     let CompensateRequest {
-        file,
         model_path,
         probe,
         reference,
         compensation,
+        ..
     } = *request;
     let m = &file.model;
     let additive = effects::Additive::of(&file.effects);
@@ -165,6 +181,10 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
     });
     let predicted = judgement.as_ref().map(|j| j.stored);
     let fall_back = judgement.and_then(|j| j.fall_back);
+    let stored_not_better = design
+        .and_then(|d| d.check.as_ref().map(|c| (d, c)))
+        .filter(|(_, c)| c.verdict == inverse::check::Verdict::NotBetter)
+        .map(|(d, _)| d.method.short().to_string());
     let design = fall_back.as_ref().map(|f| &f.design).or(design);
     let arithmetic = match arithmetic {
         Arithmetic::Fixed if fall_back.is_some() => Arithmetic::F64,
@@ -287,6 +307,7 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
     Ok(Compensated {
         predicted,
         fall_back: fall_back.clone(),
+        stored_not_better,
         u_hat,
         latency_samples: latency,
         compensator,
@@ -376,6 +397,7 @@ mod tests {
             probe: &trace.y,
             reference: trace.u.as_deref(),
             compensation,
+            temperature_k: None,
         })
     }
 
@@ -529,6 +551,45 @@ mod tests {
         assert!(kept.fall_back.is_none(), "{:?}", kept.fall_back);
         assert!(kept.predicted.unwrap().ratio() < inverse::check::RUN_MARGIN);
         assert!(!kept.error.unwrap().worse());
+    }
+
+    /// A gas temperature puts the model file at it before the run, as
+    /// [`at_temperature`](super::super::at_temperature) does; a model without a temperature
+    /// law refuses one.
+    #[test]
+    fn a_temperature_retargets_the_file_before_the_run() {
+        let (u, y) = step_test(1.0, 10);
+        let t = trace(&u, &y);
+        let mut warm = file(2.0);
+        warm.effects = vec![Effect::parse("temperature=293.15").unwrap()];
+        let request = CompensateRequest {
+            file: &warm,
+            model_path: Path::new("probe.toml"),
+            probe: &t.y,
+            reference: t.u.as_deref(),
+            compensation: Compensation::Designed(Arithmetic::F64),
+            temperature_k: Some(343.15),
+        };
+        let hot = compensate(&request).unwrap();
+        let retargeted = super::super::at_temperature(&warm, 343.15).unwrap();
+        let by_hand = compensate(&CompensateRequest {
+            file: &retargeted,
+            temperature_k: None,
+            ..request
+        })
+        .unwrap();
+        assert_eq!(hot, by_hand);
+        let as_stored = compensate(&CompensateRequest {
+            temperature_k: None,
+            ..request
+        })
+        .unwrap();
+        assert_ne!(hot.u_hat, as_stored.u_hat);
+        assert!(compensate(&CompensateRequest {
+            file: &file(2.0),
+            ..request
+        })
+        .is_err());
     }
 
     #[test]

@@ -8,7 +8,7 @@ use super::{
     CompensatorSpec, FitRequest, Roles,
 };
 use crate::error::{Error, Result};
-use crate::file::{ModelFile, ProbeGeometry};
+use crate::file::ModelFile;
 use crate::fit::{Options, Test};
 use crate::modelling::effects::{Effect, EffectKind};
 
@@ -45,13 +45,15 @@ pub struct FitDesignRequest<'a> {
     pub sample_rates_hz: &'a [f64],
     /// Method, order and delay.
     pub options: Options,
-    /// The model file this fit continues: its effects ([`carried_effects`]) and its error
-    /// history carry over. `None` starts afresh.
+    /// The model file this fit replaces, as it stands: unless [`Self::fresh`], the fit
+    /// continues it (its effects, [`carried_effects`], and its error history carry over); its
+    /// probe geometry, which describes the hardware and not the fit, is kept either way.
+    /// `None` when there is none.
     pub previous: Option<&'a ModelFile>,
+    /// Start afresh: of [`Self::previous`] only the probe's geometry is kept.
+    pub fresh: bool,
     /// The effects to add, by name ([`add_effects`]).
     pub add: &'a [String],
-    /// The probe's geometry, which describes the hardware and is kept whatever the fit.
-    pub probe: Option<&'a ProbeGeometry>,
     /// The estimation test's reference column in its file (1-based position, 0 when unknown,
     /// and name), which an [`Error::NoStep`] of the fit names: the tests here are samples,
     /// without their files' layout.
@@ -69,6 +71,7 @@ impl core::fmt::Debug for FitDesignRequest<'_> {
             .field("tests", &self.tests.len())
             .field("options", &self.options)
             .field("previous", &self.previous.is_some())
+            .field("fresh", &self.fresh)
             .field("add", &self.add)
             .field("reference_column", &self.reference_column)
             .finish_non_exhaustive()
@@ -99,7 +102,9 @@ pub struct FitDesigned {
 /// error but [`FitDesigned::no_compensator`].
 pub fn fit_and_design(request: &FitDesignRequest<'_>) -> Result<FitDesigned> {
     let on_stage = request.on_stage;
-    let previous = request.previous;
+    // The probe's geometry describes the hardware, not the fit: kept even afresh.
+    let probe = request.previous.and_then(|p| p.probe.clone());
+    let previous = request.previous.filter(|_| !request.fresh);
     let (mut effects, dropped_modes) = carried_effects(
         previous.map_or(&[], |p| p.effects.as_slice()),
         request.options.order,
@@ -122,7 +127,7 @@ pub fn fit_and_design(request: &FitDesignRequest<'_>) -> Result<FitDesigned> {
         effects,
         search_delay,
         history: previous.map(|p| p.history.clone()).unwrap_or_default(),
-        probe: request.probe.cloned(),
+        probe,
     })
     .map_err(|e| match e {
         Error::NoStep { path, reason, .. } => Error::NoStep {
@@ -216,8 +221,8 @@ mod tests {
                 delay: Some(3),
             },
             previous: None,
+            fresh: false,
             add: &[],
-            probe: None,
             reference_column: (2, "p_ref"),
             spec: &band_200,
             on_stage: &on_stage,
@@ -255,6 +260,33 @@ mod tests {
         let kinds: Vec<EffectKind> = continued.file.effects.iter().map(Effect::kind).collect();
         assert_eq!(kinds, [EffectKind::Offset, EffectKind::Drift]);
         assert_eq!(continued.file.history.len(), 2);
+
+        // Afresh from a file with the probe's geometry: nothing of the fit carries over but
+        // the geometry.
+        heard.borrow_mut().clear();
+        let geometry = crate::file::ProbeGeometry {
+            lines: vec![[0.6, 1.1e-3]],
+            volume_m3: 20e-9,
+            temperature_k: 293.15,
+            pressure_pa: 101_325.0,
+        };
+        previous.probe = Some(geometry.clone());
+        let fresh = fit_and_design(&FitDesignRequest {
+            previous: Some(&previous),
+            fresh: true,
+            ..request
+        })
+        .unwrap();
+        assert_eq!(*heard.borrow(), [FitStage::Fitting, FitStage::Designing]);
+        assert!(fresh.file.effects.is_empty());
+        assert_eq!(fresh.file.history.len(), 1);
+        assert_eq!(fresh.file.probe, Some(geometry.clone()));
+        let continued = fit_and_design(&FitDesignRequest {
+            previous: Some(&previous),
+            ..request
+        })
+        .unwrap();
+        assert_eq!(continued.file.probe, Some(geometry));
 
         // A band above Nyquist: the fit stands, the design's failure comes back typed.
         let too_wide = |_: f64| Ok(spec(1e9));

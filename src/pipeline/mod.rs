@@ -3,8 +3,9 @@
 //! one request continuing a model file ([`fit_and_design`]), a stored
 //! compensator designed anew for a rescaled model ([`retarget`]), a recording compensated
 //! with a model file ([`compensate`]), a model file's probe simulated on a recording
-//! ([`simulate`]), a model file put at another sample rate ([`resample`]), and a model file
-//! judged against its tests, the missing effects ranked ([`diagnose()`]).
+//! ([`simulate`]), a model file put at another sample rate ([`resample`]), a model file's
+//! analysis, frequency response and stability ([`inspect()`]), and a model file judged against
+//! its tests, the missing effects ranked ([`diagnose()`]).
 //!
 //! Every compensator goes through one sequence: the design (checked on the tests against the
 //! raw probe, or a stored design's shape redone), the sensor-resonance prefilter put in front
@@ -16,6 +17,7 @@ mod design;
 mod diagnose;
 mod fit;
 mod fit_design;
+mod inspect;
 mod resample;
 mod simulate;
 
@@ -33,6 +35,7 @@ pub use fit::{
     FitRequest,
 };
 pub use fit_design::{fit_and_design, FitDesignRequest, FitDesigned, FitStage};
+pub use inspect::{inspect, InspectRequest, Inspected};
 pub use resample::{check_sample_rate, resample, ResampleRequest, Resampled};
 pub use simulate::{simulate, SimulateRequest, Simulated};
 

@@ -32,6 +32,7 @@ fn compensated_signal(inputs: &Inputs<'_>, test: &Test<'_>) -> Result<Compensate
         probe: test.y,
         reference: Some(test.u),
         compensation: Compensation::Designed(Arithmetic::F32),
+        temperature_k: None,
     })
 }
 
@@ -247,6 +248,7 @@ mod tests {
             probe: y,
             reference: Some(u),
             compensation: Compensation::Designed(Arithmetic::F32),
+            temperature_k: None,
         })
         .unwrap()
     }

@@ -322,14 +322,13 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         drift_pa_per_s: args.drift,
     };
     let mut test = simulate(&probe, &excitation, &acquisition)?;
-    let asked = args.fs * args.oversample as f64;
-    if test.impulse.rate_hz < asked {
+    if let Some(r) = test.reduced_rate(&acquisition) {
         crate::errln!(
             "note: the response outlasts the longest FFT at {}x oversampling (a slow real pole); simulated at {:.0}x ({:.0} Hz), content above {:.0} Hz tapered off",
-            args.oversample,
-            test.impulse.rate_hz / args.fs,
-            test.impulse.rate_hz,
-            test.impulse.taper_start_hz
+            r.asked,
+            r.achieved,
+            r.rate_hz,
+            r.taper_start_hz
         );
     }
     if let Some(r) = test.resonance_above_band(&probe) {

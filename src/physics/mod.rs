@@ -49,5 +49,7 @@ pub use line::{CavityThermal, Element, Line, SeriesImpedance, Tube, Volume};
 pub use lumped::{lumped, Lumped, POISEUILLE_INERTANCE};
 pub use modes::{find_modes, Mode, ModeAnalysis};
 pub use sensor::{Butterworth, Diaphragm};
-pub use simulate::{simulate, Acquisition, Excitation, Probe, ResonanceAboveBand, SimulatedTest};
+pub use simulate::{
+    simulate, Acquisition, Excitation, Probe, ReducedRate, ResonanceAboveBand, SimulatedTest,
+};
 pub use system::{ProbeSpec, ProbeSystem, MAX_LINE_LENGTH_M};

@@ -48,7 +48,7 @@ use crate::error::{Error, Result};
 mod band;
 mod csv;
 mod excitation;
-pub use band::ResonanceAboveBand;
+pub use band::{ReducedRate, ResonanceAboveBand};
 pub use excitation::{
     Excitation, Facility, FacilitySettings, BALLOON_FALL_S, SHOCK_RISE_S, TUNNEL_FRACTION,
     VALVE_CHAMBER, VALVE_OPENING_S,

@@ -1,7 +1,22 @@
 //! What a simulated test leaves out of its band: a diaphragm resonance above where the
-//! impulse response is tapered, filtered out of the simulated probe.
+//! impulse response is tapered, filtered out of the simulated probe, and an internal rate
+//! lowered because the response outlasts the longest transform.
 
-use super::{Probe, SimulatedTest};
+use super::{Acquisition, Probe, SimulatedTest};
+
+/// The response outlasts the longest FFT at the oversampling asked for (a slow real pole): the
+/// test was simulated at a lower internal rate, its content above the taper tapered off.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReducedRate {
+    /// The oversampling asked for.
+    pub asked: usize,
+    /// The internal rate simulated \[Hz\].
+    pub rate_hz: f64,
+    /// That rate as a multiple of the sample rate.
+    pub achieved: f64,
+    /// Where the simulated band's taper starts \[Hz\].
+    pub taper_start_hz: f64,
+}
 
 /// The probe's diaphragm resonance lies above the simulated band and is filtered out of the
 /// test: a higher internal rate (more oversampling) would show it.
@@ -14,6 +29,19 @@ pub struct ResonanceAboveBand {
 }
 
 impl SimulatedTest {
+    /// The internal rate this test was simulated at when it is below the one `acquisition`
+    /// asked for (`oversample` times the sample rate); `None` when the rate asked was kept.
+    #[must_use]
+    pub fn reduced_rate(&self, acquisition: &Acquisition) -> Option<ReducedRate> {
+        let asked = acquisition.sample_rate_hz * acquisition.oversample as f64;
+        (self.impulse.rate_hz < asked).then(|| ReducedRate {
+            asked: acquisition.oversample,
+            rate_hz: self.impulse.rate_hz,
+            achieved: self.impulse.rate_hz / acquisition.sample_rate_hz,
+            taper_start_hz: self.impulse.taper_start_hz,
+        })
+    }
+
     /// The diaphragm resonance of `probe` (the probe this test was simulated with) when it
     /// lies above the start of the impulse response's taper, so that the test does not show
     /// it; `None` without a diaphragm or with it inside the band.
@@ -74,5 +102,40 @@ mod tests {
             damping: 0.03,
         });
         assert_eq!(test.resonance_above_band(&probe), None);
+    }
+
+    /// The internal rate is named when it fell below the oversampling asked for, not when it
+    /// was kept.
+    #[test]
+    fn a_rate_below_the_one_asked_is_named() {
+        let mut acquisition = Acquisition::new(10e3, 0.1);
+        acquisition.oversample = 40;
+        let test = SimulatedTest {
+            t: Vec::new(),
+            reference: Vec::new(),
+            probe: Vec::new(),
+            excitation: Vec::new(),
+            probe_clean: Vec::new(),
+            impulse: ImpulseResponse {
+                rate_hz: 400e3,
+                taps: Vec::new(),
+                fft_length: 0,
+                tail_energy: 0.0,
+                noncausal_energy: 0.0,
+                taper_start_hz: 100e3,
+            },
+            adc: None,
+        };
+        assert_eq!(test.reduced_rate(&acquisition), None);
+        acquisition.oversample = 64;
+        assert_eq!(
+            test.reduced_rate(&acquisition),
+            Some(ReducedRate {
+                asked: 64,
+                rate_hz: 400e3,
+                achieved: 40.0,
+                taper_start_hz: 100e3
+            })
+        );
     }
 }

@@ -129,7 +129,7 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
         console::note(args.json, &msg);
     }
     let (latency, what, error) = (c.latency_samples, c.compensator, c.error);
-    let not_better = c.stored_not_better.as_deref();
+    let not_better = c.stored_not_better.as_ref().map(|m| m.short());
     crate::file::write_atomically_with(&args.output, |out| {
         Ok(trace.write_csv_with(out, &[("u_hat", &c.u_hat)])?)
     })?;

@@ -114,9 +114,8 @@ pub struct Compensated {
     /// probe on this run.
     pub fall_back: Option<inverse::check::RunFallBack>,
     /// The model file's design (at the request's temperature) was asked for and its stored
-    /// check found no design better than the raw probe on the fit's tests: its method, in
-    /// short.
-    pub stored_not_better: Option<String>,
+    /// check found no design better than the raw probe on the fit's tests: its method.
+    pub stored_not_better: Option<inverse::DesignMethod>,
 }
 
 /// Compensates the recording: the model's offset and drift removed from the probe signal
@@ -184,7 +183,7 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
     let stored_not_better = design
         .and_then(|d| d.check.as_ref().map(|c| (d, c)))
         .filter(|(_, c)| c.verdict == inverse::check::Verdict::NotBetter)
-        .map(|(d, _)| d.method.short().to_string());
+        .map(|(d, _)| d.method.clone());
     let design = fall_back.as_ref().map(|f| &f.design).or(design);
     let arithmetic = match arithmetic {
         Arithmetic::Fixed if fall_back.is_some() => Arithmetic::F64,

@@ -7,8 +7,8 @@ use crate::modelling::effects::EffectKind;
 /// A leak lowers the probe's static gain (`1 / (1 + R G)` for a leaking cavity, below 1 for a
 /// leaking side volume too); a thermal creep, the other slow pole the `leak` effect models,
 /// does not. A model whose DC gain is this or above shows no leaking volume: a leak that only
-/// ties with a mode whose peak stands [`MODE_PEAK_OVER_CREEP_DB`] out of the floor goes after
-/// it.
+/// ties with a mode or a sensor resonance whose peak in the probe stands
+/// [`MODE_PEAK_OVER_CREEP_DB`] out of the floor goes after it.
 pub const LEAK_DC_GAIN_BELOW: f64 = 0.998;
 
 /// A residual peak this far above the floor (dB) is a resonance, which a slow creep does not
@@ -16,10 +16,11 @@ pub const LEAK_DC_GAIN_BELOW: f64 = 0.998;
 pub const MODE_PEAK_OVER_CREEP_DB: f64 = 20.0;
 
 /// Sorts the candidates by score, best first, then applies the rules for close ones, in order:
-/// the physics before a noise model; a sensor resonance the reference shows (`sensor_matched`) before a mode that would only
-/// model it; a clear resonance before a leak that ties with it when the model's DC gain
-/// (`dc_gain`) is not below [`LEAK_DC_GAIN_BELOW`]; an effect whose signature was seen before
-/// nonlinear damping read from its trial alone.
+/// the physics before a noise model; a sensor resonance the reference shows (`sensor_matched`)
+/// before a mode that would only model it; a clear resonance (a mode's or the transducers')
+/// before a leak that ties with it when the model's DC gain (`dc_gain`) is not below
+/// [`LEAK_DC_GAIN_BELOW`]; an effect whose signature was seen before nonlinear damping read
+/// from its trial alone.
 pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64) {
     out.sort_by(|a, b| b.score.total_cmp(&a.score));
     // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
@@ -46,19 +47,22 @@ pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64
         }
     }
     // A leak lowers the static gain: with the DC gain at 1 or above (no leaking volume; a
-    // creep is still possible), a leak that ties with a mode whose residual peak is a clear
-    // resonance (both trials add poles that can take the same shape) goes after it.
+    // creep is still possible), a leak that ties with a clear resonance in the probe's
+    // residual, a mode's or the transducers' (both trials add poles that can take the same
+    // shape), goes after it.
     if dc_gain >= LEAK_DC_GAIN_BELOW {
         yield_first(
             out,
             |c| c.kind == EffectKind::Leak,
-            |c| {
-                c.kind == EffectKind::Mode
-                    && matches!(
-                        c.evidence,
-                        Evidence::Mode(ModeEvidence::Peak { above_floor_db, .. })
-                            if above_floor_db >= MODE_PEAK_OVER_CREEP_DB
-                    )
+            |c| match &c.evidence {
+                Evidence::Mode(ModeEvidence::Peak { above_floor_db, .. }) => {
+                    c.kind == EffectKind::Mode && *above_floor_db >= MODE_PEAK_OVER_CREEP_DB
+                }
+                Evidence::SensorResonance(s) => {
+                    c.kind == EffectKind::SensorResonance
+                        && s.probe_above_floor_db >= MODE_PEAK_OVER_CREEP_DB
+                }
+                _ => false,
             },
         );
     }
@@ -200,6 +204,41 @@ mod tests {
                 Finding::Missing(EffectKind::ColouredNoise),
             ]
         );
+    }
+
+    #[test]
+    fn a_leak_goes_after_a_clear_transducer_resonance_it_ties_with() {
+        // Bank case 096: a flush hole whose transducers ring near 290 kHz (the reference at
+        // 291.5 kHz, the probe's residual 24 dB out at 272 kHz); the leak's trial scores 0.07
+        // more, with the model's DC gain at 1.
+        let sensor = |probe_db: f64| {
+            Evidence::SensorResonance(crate::modelling::diagnose::SensorResonance {
+                probe_above_floor_db: probe_db,
+                probe_peak_hz: 272e3,
+                probe_source: Spectrum::Residual,
+                reference_above_floor_db: 18.0,
+                reference_peak_hz: 291.5e3,
+                reference_q: 11.0,
+                reference_test: "est.csv".into(),
+                remedy: String::new(),
+            })
+        };
+        let first = |probe_db: f64, dc_gain: f64| {
+            let mut out = vec![
+                candidate(EffectKind::Leak, 0.69, leak()),
+                candidate(EffectKind::SensorResonance, 0.62, sensor(probe_db)),
+            ];
+            order(&mut out, true, dc_gain);
+            out[0].kind
+        };
+        assert_eq!(
+            first(24.0, 1.0),
+            Finding::Missing(EffectKind::SensorResonance)
+        );
+        // A leaking volume lowers the gain: the leak keeps its place; so it does against a
+        // weak peak.
+        assert_eq!(first(24.0, 0.95), Finding::Missing(EffectKind::Leak));
+        assert_eq!(first(8.0, 1.0), Finding::Missing(EffectKind::Leak));
     }
 
     #[test]

@@ -163,19 +163,7 @@ mod tests {
         // Two steps of different sizes through the same resonant probe, with noise.
         let traces: Vec<(Vec<f64>, Vec<f64>)> = [(1.0, 3), (2.5, 4)]
             .into_iter()
-            .map(|(level, seed)| {
-                let u: Vec<f64> = (0..3000)
-                    .map(|k| if k < 600 { 0.0 } else { level })
-                    .collect();
-                let noise = crate::testing::gaussian(u.len(), seed);
-                let y = model
-                    .simulate(&u)
-                    .iter()
-                    .zip(noise)
-                    .map(|(y, n)| y + 1e-3 * n)
-                    .collect();
-                (u, y)
-            })
+            .map(|(level, seed)| super::super::testing::step_test_through(&model, level, seed))
             .collect();
         let names = ["small.csv", "large.csv"];
         let tests: Vec<Test<'_>> = traces

@@ -253,25 +253,15 @@ pub fn add_effects(effects: &mut Vec<Effect>, kinds: &[String]) -> Result<bool> 
 
 #[cfg(test)]
 mod tests {
-    use super::super::testing::step_test;
+    use super::super::testing::{est_and_val, step_test};
     use super::*;
     use crate::fit::Method;
 
     #[test]
     fn a_fit_records_each_test_with_its_role_digest_and_a_history_row() {
-        let ((ue, ye), (uv, yv)) = (step_test(1.0, 1), step_test(1.0, 2));
-        let tests = [
-            Test {
-                name: "est.csv",
-                u: &ue,
-                y: &ye,
-            },
-            Test {
-                name: "val.csv",
-                u: &uv,
-                y: &yv,
-            },
-        ];
+        let (est, val) = (step_test(1.0, 1), step_test(1.0, 2));
+        let tests = est_and_val(&est, &val);
+        let ((ue, ye), (_, yv)) = (&est, &val);
         let digests = ["e".to_string(), "v".to_string()];
         let earlier = HistoryRow {
             effects: Vec::new(),
@@ -354,13 +344,13 @@ mod tests {
         let still = [
             Test {
                 name: "est.csv",
-                u: &ue,
-                y: &ye,
+                u: ue,
+                y: ye,
             },
             Test {
                 name: "flat.csv",
                 u: &flat,
-                y: &yv,
+                y: yv,
             },
         ];
         let no_step = fit_probe(&FitRequest {

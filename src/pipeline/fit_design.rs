@@ -167,7 +167,7 @@ pub fn fit_and_design(request: &FitDesignRequest<'_>) -> Result<FitDesigned> {
 mod tests {
     use std::cell::RefCell;
 
-    use super::super::testing::step_test;
+    use super::super::testing::{est_and_val, step_test};
     use super::super::Shape;
     use super::*;
     use crate::design::inverse::LowpassKind;
@@ -190,19 +190,9 @@ mod tests {
 
     #[test]
     fn a_fit_comes_back_with_its_compensator_or_why_there_is_none() {
-        let ((ue, ye), (uv, yv)) = (step_test(1.0, 1), step_test(1.0, 2));
-        let tests = [
-            Test {
-                name: "est.csv",
-                u: &ue,
-                y: &ye,
-            },
-            Test {
-                name: "val.csv",
-                u: &uv,
-                y: &yv,
-            },
-        ];
+        let (est, val) = (step_test(1.0, 1), step_test(1.0, 2));
+        let tests = est_and_val(&est, &val);
+        let ((ue, _), (_, yv)) = (&est, &val);
         let digests = ["e".to_string(), "v".to_string()];
         let heard = RefCell::new(Vec::new());
         let rates_asked = RefCell::new(Vec::new());
@@ -317,7 +307,7 @@ mod tests {
             Test {
                 name: "flat.csv",
                 u: &flat,
-                y: &yv,
+                y: yv,
             },
         ];
         let refused = fit_and_design(&FitDesignRequest {

@@ -43,6 +43,7 @@ pub use simulate::{simulate, SimulateRequest, Simulated};
 #[cfg(test)]
 mod testing {
     use crate::fit::model::Model;
+    use crate::fit::Test;
 
     /// A first-order probe (pole 0.95) behind 3 samples of delay, at 10 kHz.
     pub(super) fn probe() -> Model {
@@ -57,16 +58,41 @@ mod testing {
     /// A step from 0 to `level` at sample 600 of 3000, and the probe's answer with noise of
     /// 1e-3 (seeded).
     pub(super) fn step_test(level: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
+        step_test_through(&probe(), level, seed)
+    }
+
+    /// As [`step_test`], through `model`.
+    pub(super) fn step_test_through(model: &Model, level: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
         let u: Vec<f64> = (0..3000)
             .map(|k| if k < 600 { 0.0 } else { level })
             .collect();
         let noise = crate::testing::gaussian(u.len(), seed);
-        let y = probe()
+        let y = model
             .simulate(&u)
             .iter()
             .zip(noise)
             .map(|(y, n)| y + 1e-3 * n)
             .collect();
         (u, y)
+    }
+
+    /// An estimation and a validation test, `est.csv` and `val.csv`, on the samples of
+    /// `est` and `val`.
+    pub(super) fn est_and_val<'a>(
+        est: &'a (Vec<f64>, Vec<f64>),
+        val: &'a (Vec<f64>, Vec<f64>),
+    ) -> [Test<'a>; 2] {
+        [
+            Test {
+                name: "est.csv",
+                u: &est.0,
+                y: &est.1,
+            },
+            Test {
+                name: "val.csv",
+                u: &val.0,
+                y: &val.1,
+            },
+        ]
     }
 }

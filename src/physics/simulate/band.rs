@@ -64,11 +64,9 @@ mod tests {
     use crate::physics::simulate::ImpulseResponse;
     use crate::physics::{Diaphragm, Gas, Line};
 
-    /// A diaphragm above the taper's start is named with both frequencies; one below it, or
-    /// none, is not.
-    #[test]
-    fn a_resonance_above_the_taper_is_named() {
-        let test = SimulatedTest {
+    /// A test with no samples, simulated at 400 kHz with its taper from 100 kHz.
+    fn empty_test() -> SimulatedTest {
+        SimulatedTest {
             t: Vec::new(),
             reference: Vec::new(),
             probe: Vec::new(),
@@ -83,7 +81,14 @@ mod tests {
                 taper_start_hz: 100e3,
             },
             adc: None,
-        };
+        }
+    }
+
+    /// A diaphragm above the taper's start is named with both frequencies; one below it, or
+    /// none, is not.
+    #[test]
+    fn a_resonance_above_the_taper_is_named() {
+        let test = empty_test();
         let mut probe = Probe::new(
             Line::new().tube(0.6, 1.1e-3).volume(20e-9),
             Gas::air(293.15, 101_325.0),
@@ -110,22 +115,7 @@ mod tests {
     fn a_rate_below_the_one_asked_is_named() {
         let mut acquisition = Acquisition::new(10e3, 0.1);
         acquisition.oversample = 40;
-        let test = SimulatedTest {
-            t: Vec::new(),
-            reference: Vec::new(),
-            probe: Vec::new(),
-            excitation: Vec::new(),
-            probe_clean: Vec::new(),
-            impulse: ImpulseResponse {
-                rate_hz: 400e3,
-                taps: Vec::new(),
-                fft_length: 0,
-                tail_energy: 0.0,
-                noncausal_energy: 0.0,
-                taper_start_hz: 100e3,
-            },
-            adc: None,
-        };
+        let test = empty_test();
         assert_eq!(test.reduced_rate(&acquisition), None);
         acquisition.oversample = 64;
         assert_eq!(

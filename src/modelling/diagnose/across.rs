@@ -25,9 +25,10 @@ pub struct PerTest {
     /// Each resonance of the test's own fit: `(natural frequency in Hz, damping)`, lowest
     /// first.
     pub resonances: Vec<(f64, f64)>,
-    /// Each real pole of the test's own fit as a corner frequency in Hz, lowest first: what
-    /// moves with the temperature of an overdamped probe (a capillary) that has no resonance.
-    pub corners: Vec<f64>,
+    /// The time scales of the test's own fit that move with the temperature of an overdamped
+    /// probe (a capillary) that has no resonance, as frequencies in Hz: its dominant corner and
+    /// the corner of its whole lag at DC ([`time_scales`]).
+    pub time_scales: Vec<f64>,
     /// What the test's own (linear) fit leaves above the noise, RMS over `|step|`:
     /// `sqrt(max(rms^2 - noise^2, (noise / 10)^2)) / |step|`. A linear probe leaves the same
     /// share of every step; amplitude-dependent losses leave more of a larger one.
@@ -168,7 +169,7 @@ pub struct TemperatureEvidence {
     pub spread: f64,
     /// Damping ratio of the strongest test.
     pub damping_ratio: f64,
-    /// The probe has no resonance: the rows compare corner frequencies (real poles).
+    /// The probe has no resonance: the rows compare its time scales (dominant corner and whole lag, [`time_scales`]).
     pub overdamped: bool,
 }
 
@@ -196,11 +197,11 @@ pub fn temperature_evidence(
     let mut model_modes = crate::fit::analysis::Analysis::new(current.model)
         .ok()?
         .resonance_pairs();
-    // An overdamped probe has no resonance: its corners move with the temperature instead,
-    // each as a mode of damping 1.
+    // An overdamped probe has no resonance: its time scales move with the temperature
+    // instead, each as a mode of damping 1 ([`time_scales`]).
     let overdamped = model_modes.is_empty();
     if overdamped {
-        model_modes = corners(current.model)
+        model_modes = time_scales(current.model)
             .into_iter()
             .map(|f| (f, 1.0))
             .collect();
@@ -212,7 +213,7 @@ pub fn temperature_evidence(
         .into_iter()
         .map(|p| {
             let modes: Vec<(f64, f64)> = if overdamped {
-                p.corners.iter().map(|f| (*f, 1.0)).collect()
+                p.time_scales.iter().map(|f| (*f, 1.0)).collect()
             } else {
                 p.resonances.clone()
             };
@@ -220,15 +221,25 @@ pub fn temperature_evidence(
         })
         .filter(|(_, modes)| !modes.is_empty())
         .map(|(file, modes)| {
-            let pairs: Vec<((f64, f64), (f64, f64))> = modes
-                .iter()
-                .filter_map(|&(f, z)| {
-                    model_modes
-                        .iter()
-                        .min_by(|a, b| (a.0 / f).ln().abs().total_cmp(&(b.0 / f).ln().abs()))
-                        .map(|&m| ((f, z), m))
-                })
-                .collect();
+            // An overdamped probe's time scales pair in order; a resonance with the model's
+            // nearest.
+            let pairs: Vec<((f64, f64), (f64, f64))> = if overdamped {
+                modes
+                    .iter()
+                    .copied()
+                    .zip(model_modes.iter().copied())
+                    .collect()
+            } else {
+                modes
+                    .iter()
+                    .filter_map(|&(f, z)| {
+                        model_modes
+                            .iter()
+                            .min_by(|a, b| (a.0 / f).ln().abs().total_cmp(&(b.0 / f).ln().abs()))
+                            .map(|&m| ((f, z), m))
+                    })
+                    .collect()
+            };
             let n = pairs.len().max(1) as f64;
             let ln_ratio = pairs
                 .iter()
@@ -271,25 +282,48 @@ pub fn temperature_evidence(
     })
 }
 
-/// A real pole counts as the probe's response when its corner is at least this fraction of
-/// the fastest one: much slower ones are a leak or a drift, which a temperature does not move
-/// by the same factor.
-const MIN_CORNER_FRACTION: f64 = 1.0 / 30.0;
+/// The time scales of an overdamped `model` that a gas temperature moves by one factor, as
+/// frequencies in Hz: its dominant corner ([`dominant_corner`]) and the corner of its whole
+/// lag at DC, `fs / (2 pi tau)` with `tau` the group delay at zero frequency (delay, every
+/// pole and zero). A capillary's fast corner is not among them: it trades with the delay
+/// within the noise (a held-out test in a colder gas read 0.49 times the model's fast corner
+/// and 0.86 times its slow one, the delay taking the rest), while the whole lag, the area
+/// between the reference's step and the probe's, is what a step determines best. Empty
+/// without a corner or a positive lag.
+fn time_scales(model: &crate::fit::Model) -> Vec<f64> {
+    let lag = model.dc_group_delay().map(|d| d / model.fs);
+    match (dominant_corner(model), lag) {
+        (Some(f), Some(t)) if t > 0.0 => vec![f, 1.0 / (2.0 * std::f64::consts::PI * t)],
+        _ => Vec::new(),
+    }
+}
 
-/// The real poles of `model` in `(0, 1)` as corner frequencies `-ln(p) fs / 2 pi` in Hz, lowest
-/// first, those below [`MIN_CORNER_FRACTION`] of the fastest left out.
-fn corners(model: &crate::fit::Model) -> Vec<f64> {
-    let mut out: Vec<f64> = model
-        .poles()
-        .unwrap_or_default()
+/// The corner frequency in Hz of the real pole in `(0, 1)` that carries the largest share of
+/// `model`'s step response (the coefficient `C_i` of `p_i^n` in it): a capillary's slow
+/// corner, not a leak's slower one, which carries only the few per cent the leak takes from
+/// the DC gain, nor a fast corner next to the delay. `None` without such a pole (or with a
+/// repeated one).
+fn dominant_corner(model: &crate::fit::Model) -> Option<f64> {
+    use crate::poly::Complex;
+    let one = Complex::new(1.0, 0.0);
+    let poles = model.poles().ok()?;
+    poles
         .iter()
-        .filter(|p| p.im.abs() < 1e-9 && p.re > 0.0 && p.re < 1.0)
-        .map(|p| -p.re.ln() * model.fs / (2.0 * std::f64::consts::PI))
-        .collect();
-    let fastest = out.iter().copied().fold(0.0, f64::max);
-    out.retain(|f| *f >= MIN_CORNER_FRACTION * fastest);
-    out.sort_by(f64::total_cmp);
-    out
+        .enumerate()
+        .filter(|(_, p)| p.im.abs() < 1e-9 && p.re > 0.0 && p.re < 1.0)
+        .map(|(i, &p)| {
+            // Step response: H(z) / (1 - z^-1); its coefficient of p^n, the delay aside.
+            let others = poles
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .fold(one, |acc, (_, &q)| acc * (one - q / p));
+            let c = crate::poly::eval(&model.b, p) / (others * (one - one / p));
+            (c.norm(), p.re)
+        })
+        .filter(|(c, _)| c.is_finite())
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, p)| -p.ln() * model.fs / (2.0 * std::f64::consts::PI))
 }
 
 /// Fits the current model's structure (order without effects, delay, method) to each test
@@ -334,13 +368,16 @@ pub fn per_test(
                 .map(|a| a.resonance_pairs())
                 .unwrap_or_default();
             resonances.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let corners = own.as_ref().map(|f| corners(&f.model)).unwrap_or_default();
+            let time_scales = own
+                .as_ref()
+                .map(|f| time_scales(&f.model))
+                .unwrap_or_default();
             PerTest {
                 file: e.file.clone(),
                 step_size: e.step_size,
                 residual_per_step: e.residual_rms / e.step_size.abs().max(1e-300),
                 resonances,
-                corners,
+                time_scales,
                 own_residual_per_step: excess / e.step_size.abs().max(1e-300),
             }
         })
@@ -350,6 +387,7 @@ pub fn per_test(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fit::Model;
 
     #[test]
     fn a_temperature_moves_frequencies_by_a_plausible_factor() {
@@ -359,5 +397,61 @@ mod tests {
         // A leak's corner at 0.14 times the model's: T/T_ref = 0.02 is no gas temperature.
         assert!(!temperature_shift(0.14) && !temperature_shift(2.5));
         assert!(!temperature_shift(f64::NAN));
+    }
+
+    /// An overdamped probe: real poles at corners `f1` and `f2` Hz, unit DC gain, `delay`
+    /// samples; with a leak's pole-zero pair at `leak_hz` taking `leak_share` of the DC gain.
+    fn overdamped(fs: f64, f1: f64, f2: f64, delay: usize, leak: Option<(f64, f64)>) -> Model {
+        let pole = |f: f64| (-2.0 * std::f64::consts::PI * f / fs).exp();
+        let (p1, p2) = (pole(f1), pole(f2));
+        let mut a = vec![-(p1 + p2), p1 * p2];
+        let mut b = vec![0.0, 0.6, 0.4];
+        if let Some((f, share)) = leak {
+            // (1 - z0 z^-1) / (1 - q z^-1), DC gain (1 - z0) / (1 - q) = 1 - share.
+            let q = pole(f);
+            let z0 = 1.0 - (1.0 - share) * (1.0 - q);
+            a = vec![a[0] - q, a[1] - q * a[0], -q * a[1]];
+            b = vec![0.0, 0.6, 0.4 - 0.6 * z0, -0.4 * z0];
+        }
+        let g = (1.0 + a.iter().sum::<f64>()) / b.iter().sum::<f64>();
+        Model {
+            fs,
+            delay,
+            a,
+            b: b.iter().map(|v| v * g).collect(),
+        }
+    }
+
+    #[test]
+    fn the_dominant_corner_is_the_capillarys_slow_one_not_a_leaks() {
+        let plain = overdamped(3000.0, 4.0, 100.0, 20, None);
+        let f = dominant_corner(&plain).unwrap();
+        assert!((f / 4.0 - 1.0).abs() < 1e-9, "{f}");
+        // A leak at 0.3 Hz taking 5 % of the gain: slower, but a small share of the step.
+        let leaky = overdamped(3000.0, 4.0, 100.0, 20, Some((0.3, 0.05)));
+        let f = dominant_corner(&leaky).unwrap();
+        assert!((f / 4.0 - 1.0).abs() < 1e-9, "{f}");
+        // The whole lag: the delay and both time constants (no zero away from the origin).
+        let [_, lag] = time_scales(&plain)[..] else {
+            panic!("two time scales")
+        };
+        let tau = 20.0 / 3000.0 + (1.0 / 4.0 + 1.0 / 100.0) / (2.0 * std::f64::consts::PI);
+        assert!(
+            (lag * 2.0 * std::f64::consts::PI * tau - 1.0).abs() < 0.01,
+            "{lag}"
+        );
+    }
+
+    #[test]
+    fn both_time_scales_move_by_the_factor_that_scales_time() {
+        let model = overdamped(3000.0, 4.0, 100.0, 20, None);
+        for k in [0.8, 1.15] {
+            let scaled = crate::modelling::effects::scaled(&model, k).unwrap();
+            let (a, b) = (time_scales(&model), time_scales(&scaled));
+            assert_eq!((a.len(), b.len()), (2, 2));
+            for (x, y) in a.iter().zip(&b) {
+                assert!((y / x / k - 1.0).abs() < 0.02, "k {k}: {x} -> {y}");
+            }
+        }
     }
 }

@@ -412,12 +412,17 @@ pub fn diagnose(
                         viscous_damping_ratio: viscous,
                     }),
                     format!(
-                        "every {} frequency of {file} fitted alone is {ratio:.3} times the \
-                         model's (spread across {} {:.1} %, damping x{:.2}): the same probe at \
-                         another gas temperature, T/T_ref = {:.3} (speed of sound goes as the root \
-                         of temperature); {law}",
-                        if t.overdamped { "corner" } else { "natural" },
-                        if t.overdamped { "poles" } else { "modes" },
+                        "{} of {file} fitted alone {} {ratio:.3} times the model's (spread \
+                         across {} {:.1} %, damping x{:.2}): the same probe at another gas \
+                         temperature, T/T_ref = {:.3} (speed of sound goes as the root of \
+                         temperature); {law}",
+                        if t.overdamped {
+                            "the dominant corner and the whole lag's frequency"
+                        } else {
+                            "every natural frequency"
+                        },
+                        if t.overdamped { "are" } else { "is" },
+                        if t.overdamped { "the two" } else { "modes" },
                         100.0 * t.spread,
                         t.damping_ratio,
                         ratio * ratio

@@ -148,6 +148,52 @@ fn damped_pole(s: Complex, factor: f64) -> Complex {
     Complex::new(-w * (zeta - s.im.signum() * root), 0.0)
 }
 
+/// The poles `old` (already time-scaled) with the damping ratio of every mode times
+/// `factor`, its natural frequency kept. A complex pair moves as [`damped_pole`]. Real poles
+/// are the modes of an overdamped probe (a capillary): two of them, and no more, are one mode
+/// `w_n = sqrt(s1 s2)`, `zeta = -(s1 + s2) / (2 w_n)`, whose slow corner (about `w_n / 2 zeta`)
+/// moves by `1 / factor` and fast one by `factor`; a lone real pole is that slow corner in the
+/// limit of large damping and moves by `1 / factor` (a first-order capillary's `RC`, with `R`
+/// the Poiseuille resistance, which goes as the viscosity). Three or more real poles cannot be
+/// paired and are kept, as are the real poles of a probe that also resonates.
+fn moved_poles(old: &[Complex], factor: f64) -> Vec<Complex> {
+    let mut new: Vec<Complex> = old.iter().map(|&s| damped_pole(s, factor)).collect();
+    if factor == 1.0 {
+        return new;
+    }
+    let real: Vec<usize> = (0..old.len())
+        .filter(|&i| old[i].im.abs() <= 1e-12 * old[i].norm() && old[i].re < 0.0)
+        .collect();
+    if real.len() < old.len() {
+        // A resonant probe: its real poles (a leak, a fitted lag) are not an overdamped mode.
+        return new;
+    }
+    match real[..] {
+        [i] => new[i] = old[i] / factor,
+        [i, j] => {
+            let (slow, fast) = if old[i].re.abs() <= old[j].re.abs() {
+                (i, j)
+            } else {
+                (j, i)
+            };
+            let w = (old[i].re * old[j].re).sqrt();
+            let zeta = -(old[i].re + old[j].re) / (2.0 * w) * factor;
+            if zeta < 1.0 - CRITICAL_GAP {
+                let wd = w * (1.0 - zeta * zeta).sqrt();
+                new[slow] = Complex::new(-zeta * w, wd);
+                new[fast] = Complex::new(-zeta * w, -wd);
+            } else {
+                let zeta = zeta.max(1.0 + CRITICAL_GAP);
+                let root = (zeta * zeta - 1.0).sqrt();
+                new[slow] = Complex::new(-w * (zeta - root), 0.0);
+                new[fast] = Complex::new(-w * (zeta + root), 0.0);
+            }
+        }
+        _ => {}
+    }
+    new
+}
+
 fn scale_continuous(ct: &Continuous, k: f64, damping_factor: f64, fs: f64) -> Result<Model> {
     let mut out = ct.clone();
     let one = Complex::new(1.0, 0.0);
@@ -162,10 +208,7 @@ fn scale_continuous(ct: &Continuous, k: f64, damping_factor: f64, fs: f64) -> Re
         .iter()
         .map(|r| Complex::new(k * r.re, k * r.im))
         .collect();
-    let new: Vec<Complex> = old
-        .iter()
-        .map(|&s| damped_pole(s, damping_factor))
-        .collect();
+    let new = moved_poles(&old, damping_factor);
     // The damping moved: H'(s) = H(s / k) Q(s), Q(s) = C prod_j (s - old_j) / (s - new_j) with
     // C = prod_j new_j / old_j (Q(0) = 1: the DC gain kept; the zeros of H(s / k) kept). Its
     // residue at new_i, written so that it is k r_i when nothing moved.
@@ -211,8 +254,9 @@ pub fn scaled(model: &Model, k: f64) -> Result<Model> {
 
 /// As [`scaled`], and the damping ratio of every resonance (complex pole pair) multiplied by
 /// `damping_factor`, its natural frequency kept: the poles `s = -zeta w +- j w sqrt(1 - zeta^2)`
-/// move to `zeta' = damping_factor zeta` (two real poles beyond critical damping); real poles
-/// only scale by `k`. The zeros of `H(s / k)` and the DC gain are kept, the feedthrough (if
+/// move to `zeta' = damping_factor zeta` (two real poles beyond critical damping). An
+/// overdamped probe's one or two real poles move as its mode's damping does (see
+/// `moved_poles`); other real poles only scale by `k`. The zeros of `H(s / k)` and the DC gain are kept, the feedthrough (if
 /// any) is multiplied by the product of the new poles over the old.
 ///
 /// # Errors
@@ -304,6 +348,7 @@ pub fn estimate_scale_with(
 mod tests {
     use super::*;
     use crate::testing::second_order;
+    use std::f64::consts::PI;
 
     /// Scaling a second-order probe by `k` moves its poles to `exp(k s / fs)`, keeps its DC
     /// gain and divides its delay; scaling back by `1 / k` returns its step response.
@@ -418,5 +463,71 @@ mod tests {
             "{got:?} against {want:?}"
         );
         assert!((over.dc_gain() - 1.0).abs() < 1e-9);
+    }
+
+    /// Continuous poles of `m` (`fs ln z`), real parts, sorted.
+    fn real_poles(m: &Model) -> Vec<f64> {
+        let mut s: Vec<f64> = m
+            .poles()
+            .unwrap()
+            .iter()
+            .map(|z| {
+                assert!(z.im.abs() < 1e-12 && z.re > 0.0, "{z:?}");
+                z.re.ln() * m.fs
+            })
+            .collect();
+        s.sort_by(f64::total_cmp);
+        s
+    }
+
+    #[test]
+    fn an_overdamped_probes_two_real_poles_move_as_one_mode() {
+        // A capillary: corners 4 Hz and 100 Hz, one overdamped mode w_n = sqrt(s1 s2),
+        // 2 zeta w_n = -(s1 + s2).
+        let fs = 3000.0;
+        let z = |f: f64| (-2.0 * PI * f / fs).exp();
+        let a = vec![-(z(4.0) + z(100.0)), z(4.0) * z(100.0)];
+        let g = 1.0 + a[0] + a[1];
+        let m = Model {
+            fs,
+            delay: 12,
+            a,
+            b: vec![0.0, 0.6 * g, 0.4 * g],
+        };
+        let (k, f) = (1.09, 1.3);
+        let (old, new) = (real_poles(&m), real_poles(&scaled_with(&m, k, f).unwrap()));
+        // w_n goes as k, zeta as f: the product of the poles by k^2, their sum by k f.
+        let (p0, p1) = (old[0] * old[1], new[0] * new[1]);
+        let (s0, s1) = (old[0] + old[1], new[0] + new[1]);
+        assert!((p1 / p0 / (k * k) - 1.0).abs() < 1e-9, "{old:?} -> {new:?}");
+        assert!((s1 / s0 / (k * f) - 1.0).abs() < 1e-9, "{old:?} -> {new:?}");
+        // The slow corner slows (a viscosity up 30 % more than the sound speed), the fast one
+        // speeds up.
+        assert!(new[1].abs() < old[1].abs() && new[0].abs() > old[0].abs());
+        assert!((scaled_with(&m, k, f).unwrap().dc_gain() - 1.0).abs() < 1e-9);
+        // Damping kept: every pole by k.
+        let same = real_poles(&scaled_with(&m, k, 1.0).unwrap());
+        assert!(same
+            .iter()
+            .zip(&old)
+            .all(|(n, o)| (n / o / k - 1.0).abs() < 1e-9));
+    }
+
+    #[test]
+    fn a_first_order_capillarys_time_constant_goes_as_the_viscosity() {
+        let fs = 3000.0;
+        let p = (-2.0 * PI * 5.0 / fs).exp();
+        let m = Model {
+            fs,
+            delay: 3,
+            a: vec![-p],
+            b: vec![0.0, 1.0 - p],
+        };
+        let (k, f) = (1.09, 1.3);
+        let (old, new) = (real_poles(&m), real_poles(&scaled_with(&m, k, f).unwrap()));
+        assert!(
+            (new[0] / old[0] / (k / f) - 1.0).abs() < 1e-9,
+            "{old:?} -> {new:?}"
+        );
     }
 }

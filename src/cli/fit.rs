@@ -53,8 +53,9 @@ pub struct FitArgs {
     /// sensor-resonance (the transducers' modes;
     /// frequency found in the reference) or sensor-resonance=HZ, sensor-resonance-prefilter[=HZ]
     /// (the paper's prefilter instead), temperature (reference 293.15 K) or temperature=K
-    /// (the estimation test's gas temperature). Effects already in the output model file are
-    /// kept.
+    /// (the estimation test's gas temperature), temperature-viscous[=K] (the damping by the
+    /// viscous law) or temperature-diffusive[=K] (a capillary: every time scale by the
+    /// viscosity). Effects already in the output model file are kept.
     #[arg(long = "add", value_name = "KIND")]
     pub add: Vec<String>,
     /// Start afresh: ignore the effects and history of an existing output model file.

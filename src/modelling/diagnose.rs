@@ -13,7 +13,7 @@
 //!    the tests fitted alone that all move by one common factor against the model's, with the
 //!    damping about the same, for a temperature ([`temperature_evidence`]; both damping laws
 //!    of [`crate::modelling::effects::TemperatureDamping`] are tried and the better offered, its `change`
-//!    adding `temperature` or `temperature-viscous`); and across tests
+//!    adding `temperature`, `temperature-viscous` or `temperature-diffusive`); and across tests
 //!    ([`amplitude_signature`]), a damping that rises with the step's amplitude and a residual
 //!    that grows faster than the step, for nonlinear damping;
 //! 2. a trial: the model is refitted on the estimation test with the effect added

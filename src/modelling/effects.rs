@@ -15,7 +15,7 @@
 //! | `coloured-noise` | output-error fit (the noise needs no model then) | nothing |
 //! | `nonlinear-damping` | a quadratic loss `gain * \|dy/dt\| dy/dt` taken off the input the dynamics see (fitted by least squares, alternating with the linear part) | `gain * lowpass(\|dy\| dy)` added to the linear inverse ([`crate::compensator::NonlinearDampingCoefficients`]); f32 only, the fixed-point export refuses it |
 //! | `sensor-resonance` | both channels low-passed below the transducers' diaphragm resonance (Butterworth, order [`PREFILTER_ORDER`], at half the resonance, as the paper does) before fitting; the model describes the probe below it, and errors are measured on the prefiltered signals | the prefilter's sections run first, in the compensator's cascade |
-//! | `temperature` | the model belongs to `reference_k`; at a gas temperature `T` every natural frequency scales by `k = sqrt(T / reference_k)` (speed of sound) and the delay by `1 / k`, through the continuous-time model ([`scaled`]); the damping of every resonance is kept (`damping = "constant"`, `--add temperature`) or scaled by the viscous law `(nu(T) / nu(reference_k)) / k` of a tube-volume system (`damping = "viscous"`, `--add temperature-viscous`; [`TemperatureDamping`], [`scaled_with`]) | a coefficient set rescaled for the temperature it is given (`unlag export --temperature K`, swapped in as a blob), or a bank of sets by temperature for a board that measures it (`unlag export --temperatures FROM:TO:STEP`, [`crate::compensator::TemperatureBank`]: nearest set with hysteresis, state handed over without a step) |
+//! | `temperature` | the model belongs to `reference_k`; at a gas temperature `T` every natural frequency scales by `k = sqrt(T / reference_k)` (speed of sound) and the delay by `1 / k`, through the continuous-time model ([`scaled`]); the damping of every resonance is kept (`damping = "constant"`, `--add temperature`) or scaled by the viscous law `(nu(T) / nu(reference_k)) / k` of a tube-volume system (`damping = "viscous"`, `--add temperature-viscous`; [`TemperatureDamping`], [`scaled_with`]); an overdamped line (a capillary), where the pressure diffuses, has every time scale go as the viscosity instead, `k = mu(reference_k) / mu(T)`, slower when hotter (`damping = "diffusive"`, `--add temperature-diffusive`) | a coefficient set rescaled for the temperature it is given (`unlag export --temperature K`, swapped in as a blob), or a bank of sets by temperature for a board that measures it (`unlag export --temperatures FROM:TO:STEP`, [`crate::compensator::TemperatureBank`]: nearest set with hysteresis, state handed over without a step) |
 //!
 //! A test's temperature: `unlag simulate`, `unlag compensate` and `unlag export` take it as
 //! `--temperature K`. Where tests are judged against the model (`fit`, `compare`, `diagnose`)
@@ -224,11 +224,16 @@ impl Effect {
                 reference_k: DEFAULT_REFERENCE_K,
                 damping: TemperatureDamping::Viscous,
             },
+            EffectKind::TemperatureDiffusive => Self::Temperature {
+                reference_k: DEFAULT_REFERENCE_K,
+                damping: TemperatureDamping::Diffusive,
+            },
         })
     }
 
     /// The effect `unlag fit --add` names: a bare kind ([`Effect::fresh`]) or one with its
-    /// value (`delay=N`, `sensor-resonance[-prefilter]=HZ`, `temperature[-viscous]=K`);
+    /// value (`delay=N`, `sensor-resonance[-prefilter]=HZ`,
+    /// `temperature[-viscous|-diffusive]=K`);
     /// `None` for an unknown kind, a value that is not a positive number, or a bare `delay`.
     #[must_use]
     pub fn parse(kind: &str) -> Option<Self> {
@@ -262,10 +267,12 @@ impl Effect {
             _ if kind.starts_with("temperature") => {
                 let (damping, t) = if let Some(t) = kind.strip_prefix("temperature=") {
                     (TemperatureDamping::Constant, t)
+                } else if let Some(t) = kind.strip_prefix("temperature-viscous=") {
+                    (TemperatureDamping::Viscous, t)
                 } else {
                     (
-                        TemperatureDamping::Viscous,
-                        kind.strip_prefix("temperature-viscous=")?,
+                        TemperatureDamping::Diffusive,
+                        kind.strip_prefix("temperature-diffusive=")?,
                     )
                 };
                 let t: f64 = t.parse().ok()?;
@@ -335,7 +342,8 @@ mod tests {
 
     #[test]
     fn every_kind_has_the_text_of_before_in_every_form() {
-        // The strings of model files, `--json` and `--add` before the kinds were typed.
+        // The strings of model files, `--json` and `--add` before the kinds were typed, and
+        // the diffusive law's since.
         let texts = [
             "mode",
             "leak",
@@ -348,7 +356,9 @@ mod tests {
             "sensor-resonance-prefilter",
             "temperature",
             "temperature-viscous",
+            "temperature-diffusive",
         ];
+        assert_eq!(EffectKind::ALL.len(), texts.len());
         for (k, t) in EffectKind::ALL.into_iter().zip(texts) {
             assert_eq!(k.to_string(), t);
             assert_eq!(t.parse::<EffectKind>(), Ok(k));
@@ -374,7 +384,7 @@ mod tests {
         );
         // The parameters charged are those of before, per name.
         let charged: Vec<usize> = EffectKind::ALL.map(EffectKind::parameters).to_vec();
-        assert_eq!(charged, [4, 2, 1, 2, 0, 0, 1, 4, 0, 1, 1]);
+        assert_eq!(charged, [4, 2, 1, 2, 0, 0, 1, 4, 0, 1, 1, 1]);
     }
 
     #[test]
@@ -569,6 +579,66 @@ mod tests {
         assert_eq!(back.effects[0].kind(), EffectKind::Temperature);
         assert!(Effect::parse("temperature-viscous=-1").is_none());
         assert!(Effect::parse("temperature-sticky").is_none());
+        // The diffusive law, by name and with its reference.
+        let w = W {
+            effects: vec![Effect::parse("temperature-diffusive=300").unwrap()],
+        };
+        let text = toml::to_string(&w).unwrap();
+        assert!(text.contains("damping = \"diffusive\""), "{text}");
+        let back: W = toml::from_str(&text).unwrap();
+        assert_eq!(
+            temperature_law(&back.effects),
+            Some((300.0, TemperatureDamping::Diffusive))
+        );
+        assert_eq!(
+            Effect::parse("temperature-diffusive"),
+            Some(Effect::Temperature {
+                reference_k: DEFAULT_REFERENCE_K,
+                damping: TemperatureDamping::Diffusive
+            })
+        );
+    }
+
+    #[test]
+    fn a_hotter_gas_slows_a_capillary_and_quickens_a_resonant_line() {
+        let (hot, reference) = (343.15, 293.15);
+        // The speed of sound: 8 % faster.
+        let k = TemperatureDamping::Constant.scale(hot, reference).unwrap();
+        assert!((k - (hot / reference).sqrt()).abs() < 1e-15);
+        // The viscosity of air (Sutherland): 1.83e-5 Pa s at 20 C, 2.06e-5 at 70 C, within
+        // 1 % of the tabulated values; a Poiseuille line's time scales go as it.
+        let mu = crate::physics::gas::sutherland_viscosity;
+        assert!(
+            (mu(reference) / 1.825e-5 - 1.0).abs() < 0.01,
+            "{}",
+            mu(reference)
+        );
+        assert!((mu(hot) / 2.05e-5 - 1.0).abs() < 0.01, "{}", mu(hot));
+        let k = TemperatureDamping::Diffusive.scale(hot, reference).unwrap();
+        assert!(
+            (k - mu(reference) / mu(hot)).abs() < 1e-15 && k < 0.9,
+            "{k}"
+        );
+        // Each law's temperature is the inverse of its scale.
+        for law in [
+            TemperatureDamping::Constant,
+            TemperatureDamping::Viscous,
+            TemperatureDamping::Diffusive,
+        ] {
+            for t in [200.0, 293.15, 350.4, 600.0] {
+                let k = law.scale(t, reference).unwrap();
+                assert!(
+                    (law.temperature(k, reference) / t - 1.0).abs() < 1e-9,
+                    "{law:?} {t}"
+                );
+            }
+        }
+        assert!(TemperatureDamping::Diffusive
+            .scale(-5.0, reference)
+            .is_err());
+        assert!(TemperatureDamping::Diffusive
+            .temperature(1e9, reference)
+            .is_nan());
     }
 
     #[test]

@@ -444,7 +444,7 @@ pub fn at_temperature(file: &ModelFile, temperature_k: f64) -> Result<ModelFile>
         }
         .advised(crate::error::Advice::AddTemperature { by_hand: true })
     })?;
-    let k = effects::scale_for(temperature_k, reference)?;
+    let k = damping.scale(temperature_k, reference)?;
     let model = effects::scaled_with(&file.model, k, damping.factor(k, reference))?;
     let inverse = match &file.inverse {
         Some(d) => {
@@ -534,6 +534,40 @@ mod tests {
                 .fold(0.0, f64::max);
             assert!(worst < 1e-6, "{spelling}: {worst}");
         }
+    }
+
+    #[test]
+    fn a_capillarys_coefficient_set_for_a_hotter_gas_is_slower() {
+        // An overdamped probe: corners 4 Hz and 100 Hz.
+        let fs = 3000.0;
+        let z = |f: f64| (-2.0 * std::f64::consts::PI * f / fs).exp();
+        let a = vec![-(z(4.0) + z(100.0)), z(4.0) * z(100.0)];
+        let g = 1.0 + a[0] + a[1];
+        let m = crate::fit::Model {
+            fs,
+            delay: 12,
+            a,
+            b: vec![0.0, 0.6 * g, 0.4 * g],
+        };
+        let mut file = crate::testing::model_file(m.clone());
+        file.effects = vec![Effect::parse("temperature-diffusive").unwrap()];
+        let hot = at_temperature(&file, 343.15).unwrap();
+        let mu = crate::physics::gas::sutherland_viscosity;
+        let k = mu(293.15) / mu(343.15);
+        let corners = |m: &crate::fit::Model| {
+            let mut c: Vec<f64> = m.poles().unwrap().iter().map(|p| -p.re.ln()).collect();
+            c.sort_by(f64::total_cmp);
+            c
+        };
+        for (old, new) in corners(&m).iter().zip(corners(&hot.model)) {
+            assert!((new / old / k - 1.0).abs() < 1e-9, "{old} -> {new}");
+        }
+        // Slower: the step response lags the reference's more.
+        assert!(hot.model.dc_group_delay().unwrap() > 1.1 * m.dc_group_delay().unwrap());
+        assert_eq!(
+            effects::temperature_law(&hot.effects),
+            Some((343.15, effects::TemperatureDamping::Diffusive))
+        );
     }
 
     fn spec(shape: Shape, full_scale: Option<f64>) -> CompensatorSpec {

@@ -237,7 +237,7 @@ pub fn add_effects(effects: &mut Vec<Effect>, kinds: &[String]) -> Result<bool> 
         let e = Effect::parse(kind).ok_or_else(|| Error::InvalidParameter {
             parameter: crate::error::Parameter::Effect,
             message: format!(
-                "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, sensor-resonance-prefilter[=HZ], temperature=K, temperature-viscous[=K]",
+                "unknown effect '{kind}': one of {}, or delay=N, sensor-resonance=HZ, sensor-resonance-prefilter[=HZ], temperature=K, temperature-viscous[=K], temperature-diffusive[=K]",
                 effects::KINDS
                     .iter()
                     .map(|k| k.as_str())

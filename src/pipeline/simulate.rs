@@ -35,7 +35,8 @@ pub struct Simulated {
 /// # Errors
 /// [`Error::InvalidParameter`] ([`Parameter::Temperature`], advised to add the temperature
 /// effect) when a temperature is given and the model has no `temperature` effect;
-/// [`effects::scale_for`]'s for a temperature that is not a positive number of kelvin.
+/// [`effects::scale_for`]'s for a temperature that is not a positive number of kelvin. The
+/// scale at that temperature follows the effect's law ([`effects::TemperatureDamping::scale`]).
 pub fn simulate(request: &SimulateRequest<'_>) -> Result<Simulated> {
     let SimulateRequest {
         file,
@@ -43,8 +44,8 @@ pub fn simulate(request: &SimulateRequest<'_>) -> Result<Simulated> {
         y,
         temperature_k,
     } = *request;
-    let scale = match (temperature_k, effects::reference_k(&file.effects)) {
-        (Some(t), Some(reference)) => Some(effects::scale_for(t, reference)?),
+    let scale = match (temperature_k, effects::temperature_law(&file.effects)) {
+        (Some(t), Some((reference, law))) => Some(law.scale(t, reference)?),
         (Some(_), None) => {
             return Err(Error::InvalidParameter {
                 parameter: Parameter::Temperature,

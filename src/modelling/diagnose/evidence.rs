@@ -246,7 +246,9 @@ pub struct TemperatureShift {
     pub per_test: Vec<TemperatureRow>,
     /// The model's reference temperature (K).
     pub reference_k: f64,
-    /// `common_ratio` squared: `T / T_ref`.
+    /// `T / T_ref` that `common_ratio` implies under the law offered: its square for the speed
+    /// of sound's (`temperature`, `temperature-viscous`), through the viscosity for
+    /// `temperature-diffusive`.
     pub temperature_ratio: f64,
     /// The strongest test.
     pub test: String,

@@ -98,7 +98,7 @@ impl PartialEq<EffectKind> for Finding {
 pub struct Candidate {
     /// What it names: an effect, exactly what `unlag fit --add` takes (`mode`, `leak`,
     /// `offset`, `drift`, `delay`, `coloured-noise`, `nonlinear-damping`, `sensor-resonance`,
-    /// `temperature`, `temperature-viscous`), or `none` or `unexplained`.
+    /// `temperature`, `temperature-viscous`, `temperature-diffusive`), or `none` or `unexplained`.
     pub kind: Finding,
     /// `ln(error before / error after)` of the trial, less [`PARAMETER_PENALTY`] per parameter
     /// the effect adds; larger is stronger.

@@ -349,11 +349,18 @@ pub fn diagnose(
     // temperature: every natural frequency of the per-test fits moves by one common factor
     // against the model's, with the damping about the same or moving as the viscous law says:
     // the speed of sound (and the kinematic viscosity) changed. Both damping laws are tried;
-    // the one that lowers the held-out error more is offered.
+    // the one that lowers the held-out error more is offered. An overdamped probe's time
+    // scales go as the viscosity where the pressure diffuses along a capillary: the diffusive
+    // law is tried in place of the speed of sound's, which scales time the same way but reads
+    // the temperature the wrong way round (a hotter gas slows a capillary).
     if tests.len() >= 2 && effects::reference_k(current.effects).is_none() {
         if let Some(t) = temperature_evidence(current, tests, evidence) {
             let best = [
-                effects::TemperatureDamping::Constant,
+                if t.overdamped {
+                    effects::TemperatureDamping::Diffusive
+                } else {
+                    effects::TemperatureDamping::Constant
+                },
                 effects::TemperatureDamping::Viscous,
             ]
             .into_iter()
@@ -380,7 +387,7 @@ pub fn diagnose(
                         ScaleEstimate {
                             damping_factor: damping.factor(k, reference_k),
                             scale: k,
-                            temperature_k: reference_k * k * k,
+                            temperature_k: damping.temperature(k, reference_k),
                             test: t.name.to_string(),
                         }
                     })
@@ -394,8 +401,23 @@ pub fn diagnose(
                         "damping x{viscous:.2} by the viscous law nu(T)/nu(T_ref)/k of a \
                          tube-volume system"
                     ),
+                    effects::TemperatureDamping::Diffusive => {
+                        "every time scale by the viscosity, mu(T_ref)/mu(T), of a line where \
+                         the pressure diffuses"
+                            .to_string()
+                    }
                 };
-                // The kind names the damping law: `temperature` or `temperature-viscous`.
+                // The temperature the common ratio implies under the law offered: the speed of
+                // sound goes as the root of temperature; the viscosity rises with it.
+                let temperature_ratio = damping.temperature(ratio, reference_k) / reference_k;
+                let why = match damping {
+                    effects::TemperatureDamping::Diffusive => {
+                        "an overdamped line's time scales go as the gas viscosity"
+                    }
+                    _ => "speed of sound goes as the root of temperature",
+                };
+                // The kind names the law: `temperature`, `temperature-viscous` or
+                // `temperature-diffusive`.
                 offer(
                     spelling,
                     after,
@@ -407,15 +429,14 @@ pub fn diagnose(
                         estimated_scale: estimated,
                         per_test: t.rows.clone(),
                         reference_k,
-                        temperature_ratio: ratio * ratio,
+                        temperature_ratio,
                         test: file.clone(),
                         viscous_damping_ratio: viscous,
                     }),
                     format!(
                         "{} of {file} fitted alone {} {ratio:.3} times the model's (spread \
                          across {} {:.1} %, damping x{:.2}): the same probe at another gas \
-                         temperature, T/T_ref = {:.3} (speed of sound goes as the root of \
-                         temperature); {law}",
+                         temperature, T/T_ref = {:.3} ({why}); {law}",
                         if t.overdamped {
                             "the dominant corner and the whole lag's frequency"
                         } else {
@@ -425,7 +446,7 @@ pub fn diagnose(
                         if t.overdamped { "the two" } else { "modes" },
                         100.0 * t.spread,
                         t.damping_ratio,
-                        ratio * ratio
+                        temperature_ratio
                     ),
                     Remedy::Add(Effect::Temperature {
                         reference_k: effects::DEFAULT_REFERENCE_K,

@@ -49,7 +49,7 @@ pub enum Remedy {
 
 impl Remedy {
     /// The name of the effect it adds, as [`EffectKind`] spells it with the variant chosen
-    /// (`temperature-viscous`, `sensor-resonance-prefilter`); `delay` for
+    /// (`temperature-viscous`, `temperature-diffusive`, `sensor-resonance-prefilter`); `delay` for
     /// [`Remedy::SetDelay`]; `None` when it adds no effect.
     #[must_use]
     pub fn kind(&self) -> Option<EffectKind> {
@@ -112,6 +112,7 @@ impl Remedy {
                 let law = match damping {
                     TemperatureDamping::Constant => "",
                     TemperatureDamping::Viscous => ", damping = \"viscous\"",
+                    TemperatureDamping::Diffusive => ", damping = \"diffusive\"",
                 };
                 return Some(format!(
                     "effects = [{{ kind = \"temperature\", reference_k = {reference_k}{law} }}]; \

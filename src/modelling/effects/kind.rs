@@ -10,9 +10,9 @@ use super::{Effect, SensorRemedy, TemperatureDamping};
 /// diagnosis names ([`crate::modelling::diagnose::Finding`]), and, for the nine kinds of [`Effect`]'s
 /// variants, the `kind` of an effect in the model file.
 ///
-/// Two names are not kinds of their own in the model file: `sensor-resonance-prefilter` is a
-/// `sensor-resonance` with the paper's prefilter as its remedy ([`SensorRemedy`]), and
-/// `temperature-viscous` a `temperature` with the viscous damping law
+/// Three names are not kinds of their own in the model file: `sensor-resonance-prefilter` is
+/// a `sensor-resonance` with the paper's prefilter as its remedy ([`SensorRemedy`]), and
+/// `temperature-viscous` and `temperature-diffusive` are a `temperature` with another law
 /// ([`TemperatureDamping`]); [`EffectKind::family`] gives the kind they are stored as, which
 /// is what [`Effect::kind`] returns.
 ///
@@ -57,6 +57,9 @@ pub enum EffectKind {
     /// `temperature-viscous`: the same with the viscous damping law
     /// ([`TemperatureDamping::Viscous`]); stored as a `temperature`.
     TemperatureViscous,
+    /// `temperature-diffusive`: the same for an overdamped line, every time scale going as the
+    /// gas viscosity ([`TemperatureDamping::Diffusive`]); stored as a `temperature`.
+    TemperatureDiffusive,
 }
 
 /// Text that names no [`EffectKind`].
@@ -66,7 +69,7 @@ pub struct UnknownKind(pub String);
 
 impl EffectKind {
     /// Every name, in catalogue order (each family's variants after it).
-    pub const ALL: [Self; 11] = [
+    pub const ALL: [Self; 12] = [
         Self::Mode,
         Self::Leak,
         Self::Offset,
@@ -78,6 +81,7 @@ impl EffectKind {
         Self::SensorResonancePrefilter,
         Self::Temperature,
         Self::TemperatureViscous,
+        Self::TemperatureDiffusive,
     ];
 
     /// Its text: `mode`, `coloured-noise`, `temperature-viscous`, ...
@@ -95,17 +99,18 @@ impl EffectKind {
             Self::SensorResonancePrefilter => "sensor-resonance-prefilter",
             Self::Temperature => "temperature",
             Self::TemperatureViscous => "temperature-viscous",
+            Self::TemperatureDiffusive => "temperature-diffusive",
         }
     }
 
     /// The kind it is stored as in the model file (one per [`Effect`] variant):
     /// `sensor-resonance` for `sensor-resonance-prefilter`, `temperature` for
-    /// `temperature-viscous`, itself for the others.
+    /// `temperature-viscous` and `temperature-diffusive`, itself for the others.
     #[must_use]
     pub const fn family(self) -> Self {
         match self {
             Self::SensorResonancePrefilter => Self::SensorResonance,
-            Self::TemperatureViscous => Self::Temperature,
+            Self::TemperatureViscous | Self::TemperatureDiffusive => Self::Temperature,
             k => k,
         }
     }
@@ -124,7 +129,8 @@ impl EffectKind {
             Self::Offset
             | Self::NonlinearDamping
             | Self::Temperature
-            | Self::TemperatureViscous => 1,
+            | Self::TemperatureViscous
+            | Self::TemperatureDiffusive => 1,
             Self::Delay | Self::ColouredNoise | Self::SensorResonancePrefilter => 0,
         }
     }

@@ -9,19 +9,27 @@ use crate::fit::continuous::Continuous;
 use crate::fit::model::Model;
 use crate::poly::Complex;
 
-/// How a `temperature` effect moves the damping ratio of every resonance with the gas
-/// temperature (the natural frequencies always scale by `k = sqrt(T / T_ref)`).
+/// How a `temperature` effect moves the model with the gas temperature: the time-scale factor
+/// `k` at `T` ([`TemperatureDamping::scale`]) and the damping ratio of every mode with it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum TemperatureDamping {
-    /// The damping ratios are kept.
+    /// Every natural frequency by `k = sqrt(T / T_ref)` (the speed of sound); the damping
+    /// ratios are kept.
     #[default]
     Constant,
     /// The viscous law of a tube-volume system (`zeta = (4 / c_I) nu / (R^2 w_n)`, the
-    /// physics module's lumped model): at `T` every damping ratio is multiplied by
-    /// `(nu(T) / nu(T_ref)) / k` ([`viscous_damping_factor`]), with `nu = mu / rho` of air,
-    /// `mu` by Sutherland's law and `rho = p / (R_g T)` at one fixed mean pressure.
+    /// physics module's lumped model): `k = sqrt(T / T_ref)` and every damping ratio
+    /// multiplied by `(nu(T) / nu(T_ref)) / k` ([`viscous_damping_factor`]), with
+    /// `nu = mu / rho` of air, `mu` by Sutherland's law and `rho = p / (R_g T)` at one fixed
+    /// mean pressure.
     Viscous,
+    /// An overdamped line (a capillary), where the pressure diffuses along the tube: every time
+    /// scale, the delay included, goes as the gas viscosity, `k = mu(T_ref) / mu(T)`
+    /// ([`diffusive_scale`]), the damping ratios kept. The diffusivity of a Poiseuille line,
+    /// `r^2 p / (8 mu)`, has no speed of sound in it, so a hotter gas makes a capillary slower,
+    /// not faster.
+    Diffusive,
 }
 
 impl TemperatureDamping {
@@ -32,14 +40,57 @@ impl TemperatureDamping {
     }
 
     /// The factor on every damping ratio at time-scale factor `k` for a model at
-    /// `reference_k` (the temperature is `reference_k k^2`): 1 for `constant`; for `viscous`
-    /// [`viscous_damping_factor`], 1 when the temperatures are not positive numbers.
+    /// `reference_k` (the temperature is `reference_k k^2`): 1 for `constant` and `diffusive`;
+    /// for `viscous` [`viscous_damping_factor`], 1 when the temperatures are not positive
+    /// numbers.
     #[must_use]
     pub fn factor(self, k: f64, reference_k: f64) -> f64 {
         match self {
-            Self::Constant => 1.0,
+            Self::Constant | Self::Diffusive => 1.0,
             Self::Viscous => {
                 viscous_damping_factor(reference_k * k * k, reference_k).unwrap_or(1.0)
+            }
+        }
+    }
+
+    /// The time-scale factor `k` at gas temperature `temperature_k` for a model at
+    /// `reference_k`: [`scale_for`] (the speed of sound) for `constant` and `viscous`,
+    /// [`diffusive_scale`] (the viscosity) for `diffusive`.
+    ///
+    /// # Errors
+    /// As [`scale_for`].
+    pub fn scale(self, temperature_k: f64, reference_k: f64) -> Result<f64> {
+        match self {
+            Self::Constant | Self::Viscous => scale_for(temperature_k, reference_k),
+            Self::Diffusive => diffusive_scale(temperature_k, reference_k),
+        }
+    }
+
+    /// The gas temperature (K) at which the model at `reference_k` has time-scale factor `k`:
+    /// the inverse of [`TemperatureDamping::scale`]. `reference_k k^2` for `constant` and
+    /// `viscous`; for `diffusive` the temperature whose Sutherland viscosity is
+    /// `mu(reference_k) / k` (NaN outside 1 K to 10 000 K).
+    #[must_use]
+    pub fn temperature(self, k: f64, reference_k: f64) -> f64 {
+        match self {
+            Self::Constant | Self::Viscous => reference_k * k * k,
+            Self::Diffusive => {
+                let mu = crate::physics::gas::sutherland_viscosity;
+                let target = mu(reference_k) / k;
+                let (mut lo, mut hi) = (1.0f64, 10_000.0f64);
+                if !(target > mu(lo) && target < mu(hi)) {
+                    return f64::NAN;
+                }
+                // Sutherland's viscosity rises with temperature: bisect on a log scale.
+                for _ in 0..100 {
+                    let mid = (lo * hi).sqrt();
+                    if mu(mid) < target {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                (lo * hi).sqrt()
             }
         }
     }
@@ -50,8 +101,22 @@ impl TemperatureDamping {
         match self {
             Self::Constant => EffectKind::Temperature,
             Self::Viscous => EffectKind::TemperatureViscous,
+            Self::Diffusive => EffectKind::TemperatureDiffusive,
         }
     }
+}
+
+/// The time-scale factor of an overdamped line at `temperature_k` for a model at
+/// `reference_k`: `mu(reference_k) / mu(T)` (Sutherland's law for air), the ratio of the
+/// diffusivities `r^2 p / (8 mu)` of a Poiseuille line at one mean pressure. 0.887 from
+/// 293.15 K to 343.15 K: the capillary slows by 13 % where the speed of sound rises by 8 %.
+///
+/// # Errors
+/// As [`scale_for`].
+pub fn diffusive_scale(temperature_k: f64, reference_k: f64) -> Result<f64> {
+    scale_for(temperature_k, reference_k)?;
+    let mu = crate::physics::gas::sutherland_viscosity;
+    Ok(mu(reference_k) / mu(temperature_k))
 }
 
 /// Mean pressure (Pa) at which [`viscous_damping_factor`] evaluates the air: one standard

@@ -1342,3 +1342,55 @@ fn a_capillary_in_hotter_gas_is_named_by_the_viscosity_that_slows_it() {
     assert!(held_out < 0.5 * before, "{held_out} against {before}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Bank case 053: an overdamped probe (the bank's lumped generator, damping 2.9) fitted on a
+/// step and validated on a balloon at another gas temperature. The delay search took one
+/// sample too many from the fast corner (delays 5 to 7 within 0.3 %), leaving a pole on the
+/// negative real axis: a model with no continuous-time equivalent, which a temperature cannot
+/// scale, so adding the temperature changed nothing (2.245 % before and after) and the
+/// diagnosis said `drift`. A fit with a temperature now steps back to a delay whose model can
+/// be scaled when it explains the step as well, says so, and the balloon's error falls to its
+/// floor.
+#[test]
+fn a_temperature_steps_back_from_a_delay_whose_model_cannot_be_scaled() {
+    let dir = std::env::temp_dir().join(format!("unlag-capillary-cold-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (est, val) = (
+        bank_trace("capillary-cold-est.csv"),
+        bank_trace("capillary-cold-val.csv"),
+    );
+    let m = dir.join("plain.toml");
+    let m = m.to_str().unwrap();
+    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
+    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let first = &d["candidates"][0];
+    assert!(
+        first["kind"].as_str().unwrap().starts_with("temperature"),
+        "{d}"
+    );
+    let before = first["nrmse_before"].as_f64().unwrap();
+    let added = dir.join("added.toml");
+    let f = unlag_json(&[
+        "fit",
+        &est,
+        &val,
+        "--order",
+        "2",
+        "--add",
+        first["kind"].as_str().unwrap(),
+        "-o",
+        added.to_str().unwrap(),
+        "--json",
+    ]);
+    let notes = f["fit"]["notes"].to_string();
+    assert!(notes.contains("negative real axis"), "{notes}");
+    let (held_out, floor) = (
+        f["sources"][1]["nrmse"].as_f64().unwrap(),
+        f["sources"][1]["noise_floor"].as_f64().unwrap(),
+    );
+    assert!(
+        held_out < before / 3.0 && held_out < 1.5 * floor,
+        "{before} -> {held_out} (floor {floor})"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -355,6 +355,14 @@ pub fn diagnose(
     // the temperature the wrong way round (a hotter gas slows a capillary).
     if tests.len() >= 2 && effects::reference_k(current.effects).is_none() {
         if let Some(t) = temperature_evidence(current, tests, evidence) {
+            // A model with a pole on the negative real axis cannot be scaled: its trial searches
+            // the delay again, which lets the fit step back to a model that can
+            // ([`effects::fit_with`]).
+            let scalable = crate::fit::continuous::Continuous::from_model(current.model).is_ok();
+            let options = Options {
+                delay: if scalable { base.delay } else { None },
+                ..base
+            };
             let best = [
                 if t.overdamped {
                     effects::TemperatureDamping::Diffusive
@@ -369,7 +377,7 @@ pub fn diagnose(
                     reference_k: effects::DEFAULT_REFERENCE_K,
                     damping,
                 };
-                trial(added, &base).map(|(after, fx)| (after, fx, damping))
+                trial(added, &options).map(|(after, fx)| (after, fx, damping))
             })
             .min_by(|a, b| a.0.total_cmp(&b.0));
             if let Some((after, fx, damping)) = best {

@@ -64,9 +64,9 @@ pub use prefilter::{
 };
 use temperature::default_reference_k;
 pub use temperature::{
-    estimate_scale, estimate_scale_with, reference_k, scale_for, scaled, scaled_with,
-    temperature_law, viscous_damping_factor, TemperatureDamping, DEFAULT_REFERENCE_K, SCALE_RANGE,
-    VISCOUS_PRESSURE_PA,
+    diffusive_scale, estimate_scale, estimate_scale_with, reference_k, scale_for, scaled,
+    scaled_with, temperature_law, viscous_damping_factor, TemperatureDamping, DEFAULT_REFERENCE_K,
+    SCALE_RANGE, VISCOUS_PRESSURE_PA,
 };
 
 /// One effect added to the model, with its parameters once fitted.

@@ -27,7 +27,7 @@ pub struct PerTest {
     pub resonances: Vec<(f64, f64)>,
     /// The time scales of the test's own fit that move with the temperature of an overdamped
     /// probe (a capillary) that has no resonance, as frequencies in Hz: its dominant corner and
-    /// the corner of its whole lag at DC ([`time_scales`]).
+    /// the corner of its whole lag at DC (`time_scales`).
     pub time_scales: Vec<f64>,
     /// What the test's own (linear) fit leaves above the noise, RMS over `|step|`:
     /// `sqrt(max(rms^2 - noise^2, (noise / 10)^2)) / |step|`. A linear probe leaves the same
@@ -169,7 +169,7 @@ pub struct TemperatureEvidence {
     pub spread: f64,
     /// Damping ratio of the strongest test.
     pub damping_ratio: f64,
-    /// The probe has no resonance: the rows compare its time scales (dominant corner and whole lag, [`time_scales`]).
+    /// The probe has no resonance: the rows compare its time scales (dominant corner and whole lag, `time_scales`).
     pub overdamped: bool,
 }
 

@@ -1394,3 +1394,50 @@ fn a_temperature_steps_back_from_a_delay_whose_model_cannot_be_scaled() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Bank case 032: a pneumatic line with a second mode (the model error peaks 7 dB out at
+/// 584 Hz), fitted on a step and validated on a wake traverse. The leak's trial lowered the
+/// traverse's error more (0.34 ahead) with the model's DC gain at 1 and no creep beyond the
+/// noise: neither of a leak's signatures. It now goes after the mode whose peak was seen.
+#[test]
+fn a_leak_without_its_signatures_goes_after_a_mode_whose_peak_was_seen() {
+    let dir = std::env::temp_dir().join(format!("unlag-mode-wake-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (est, val) = (
+        bank_trace("mode-wake-est.csv"),
+        bank_trace("mode-wake-val.csv"),
+    );
+    let m = dir.join("plain.toml");
+    let m = m.to_str().unwrap();
+    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
+    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let kinds: Vec<&str> = d["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(kinds.first(), Some(&"mode"), "{d}");
+    let leak = d["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["kind"] == "leak")
+        .expect("the leak is still offered");
+    // It scored more, and shows neither signature.
+    assert!(leak["score"].as_f64().unwrap() > d["candidates"][0]["score"].as_f64().unwrap());
+    assert!(leak["evidence"]["dc_gain"].as_f64().unwrap() >= 0.998);
+    assert!(
+        leak["evidence"]["creep_in_standard_errors"]
+            .as_f64()
+            .unwrap()
+            .abs()
+            < 3.0
+    );
+    let first = &d["candidates"][0];
+    assert!(
+        first["nrmse_after"].as_f64().unwrap() < 0.7 * first["nrmse_before"].as_f64().unwrap(),
+        "{first}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -405,6 +405,7 @@ mod tests {
             evidence: crate::modelling::diagnose::Evidence::Leak {
                 dc_gain: 0.5,
                 late_residual_over_step: 1.0,
+                creep_in_standard_errors: 40.0,
             },
             reading: "a slow creep & more".into(),
             change: Remedy::Add(crate::modelling::effects::Effect::Leak),
@@ -432,7 +433,10 @@ mod tests {
         // The subtitle says what is there in words; the candidates' evidence is not JSON.
         assert!(html.contains("no effects added") && !html.contains("effects []"));
         assert!(
-            html.contains("<code>dc gain: 0.5; late residual over step: 1.0</code>"),
+            html.contains(
+                "<code>creep in standard errors: 40.0; dc gain: 0.5; late residual over step: \
+                 1.0</code>"
+            ),
             "evidence as text"
         );
         // The change in the words it was given: here the library's.

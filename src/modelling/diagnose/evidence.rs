@@ -23,10 +23,14 @@ pub const SENSOR_RESONANCE_REMEDY: &str = "the transducers' modes in the model: 
 /// ```
 /// use unlag::modelling::diagnose::Evidence;
 ///
-/// let e = Evidence::Leak { dc_gain: 0.98, late_residual_over_step: -0.01 };
+/// let e = Evidence::Leak {
+///     dc_gain: 0.98,
+///     late_residual_over_step: -0.01,
+///     creep_in_standard_errors: -7.5,
+/// };
 /// assert_eq!(
 ///     serde_json::to_string(&e).unwrap(),
-///     r#"{"dc_gain":0.98,"late_residual_over_step":-0.01}"#
+///     r#"{"dc_gain":0.98,"late_residual_over_step":-0.01,"creep_in_standard_errors":-7.5}"#
 /// );
 /// ```
 #[derive(Debug, Clone, Serialize)]
@@ -58,6 +62,10 @@ pub enum Evidence {
         /// The residual's level at the end of the record less its level before the step,
         /// over the step (the largest over the tests).
         late_residual_over_step: f64,
+        /// The same difference in standard errors of the two levels' means under the noise
+        /// both channels leave (the largest in size over the tests): a creep the noise could
+        /// not make when it is large.
+        creep_in_standard_errors: f64,
     },
     /// `sensor-resonance`: the reference rings where the probe's residual peaks.
     SensorResonance(SensorResonance),

@@ -15,12 +15,17 @@ pub const LEAK_DC_GAIN_BELOW: f64 = 0.998;
 /// leave.
 pub const MODE_PEAK_OVER_CREEP_DB: f64 = 20.0;
 
+/// A creep after the step this many standard errors of the two levels' means out of the noise
+/// is seen (the leak's other signature, beside a DC gain below 1).
+pub const CREEP_SEEN_STANDARD_ERRORS: f64 = 3.0;
+
 /// Sorts the candidates by score, best first, then applies the rules for close ones, in order:
 /// the physics before a noise model; a sensor resonance the reference shows (`sensor_matched`)
 /// before a mode that would only model it; a clear resonance (a mode's or the transducers')
 /// before a leak that ties with it when the model's DC gain (`dc_gain`) is not below
-/// [`LEAK_DC_GAIN_BELOW`]; an effect whose signature was seen before nonlinear damping read
-/// from its trial alone.
+/// [`LEAK_DC_GAIN_BELOW`], and a resonance whose peak was seen before a leak with neither of its
+/// signatures, whatever their scores; an effect whose signature was seen before nonlinear
+/// damping read from its trial alone.
 pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64) {
     out.sort_by(|a, b| b.score.total_cmp(&a.score));
     // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
@@ -65,6 +70,29 @@ pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64
                 _ => false,
             },
         );
+    }
+    // A leak shows as a DC gain below 1 (a leaking volume) or as a creep after the step (a
+    // thermal creep). With neither, its trial only lends a pole and a zero to something else:
+    // it goes after a resonance whose peak was seen, at any margin (bank case 032: a line's
+    // second mode 7 dB out at 584 Hz, the leak's trial 0.34 ahead with the DC gain at 1 and the
+    // creep 1 standard error out).
+    let unseen_leak = |c: &Candidate| {
+        matches!(
+            c.evidence,
+            Evidence::Leak { creep_in_standard_errors: z, .. }
+                if z.abs() < CREEP_SEEN_STANDARD_ERRORS
+        )
+    };
+    if dc_gain >= LEAK_DC_GAIN_BELOW && out.first().is_some_and(unseen_leak) {
+        if let Some(i) = out.iter().position(|c| {
+            matches!(c.evidence, Evidence::Mode(ModeEvidence::Peak { .. }))
+                && c.kind == EffectKind::Mode
+                || matches!(c.evidence, Evidence::SensorResonance(_))
+                    && c.kind == EffectKind::SensorResonance
+        }) {
+            let c = out.remove(i);
+            out.insert(0, c);
+        }
     }
     // Nonlinear damping read from its trial alone (no amplitude signature) goes after an effect
     // whose own signature was seen: a quadratic loss refitted on one step can take the shape
@@ -134,10 +162,16 @@ mod tests {
         })
     }
 
+    /// A leak whose creep stands 12 standard errors out of the noise (a thermal creep).
     fn leak() -> Evidence {
+        creep(12.0)
+    }
+
+    fn creep(z: f64) -> Evidence {
         Evidence::Leak {
             dc_gain: 1.0,
-            late_residual_over_step: 0.0,
+            late_residual_over_step: 0.001 * z.signum(),
+            creep_in_standard_errors: z,
         }
     }
 
@@ -176,6 +210,31 @@ mod tests {
         let mut out = make(39.0, 1.0);
         order(&mut out, false, 1.004);
         assert_eq!(kinds(&out), leak_first);
+    }
+
+    #[test]
+    fn a_leak_with_neither_signature_goes_after_a_seen_resonance_at_any_margin() {
+        // Bank case 032: the leak's trial 0.34 ahead of a mode whose peak stands 7 dB out, the
+        // DC gain at 1 and no creep beyond the noise.
+        let first = |z: f64, dc_gain: f64, mode: Evidence| {
+            let mut out = vec![
+                candidate(EffectKind::Leak, 0.82, creep(z)),
+                candidate(EffectKind::Mode, 0.48, mode),
+            ];
+            order(&mut out, false, dc_gain);
+            out[0].kind
+        };
+        let mode = Finding::Missing(EffectKind::Mode);
+        let leak = Finding::Missing(EffectKind::Leak);
+        assert_eq!(first(1.0, 1.0, peak(7.4)), mode);
+        // A creep seen (a thermal creep), or a leaking volume's gain: the leak keeps its place.
+        assert_eq!(first(-4.0, 1.0, peak(7.4)), leak);
+        assert_eq!(first(1.0, 0.95, peak(7.4)), leak);
+        // A mode without a peak is no seen signature either.
+        assert_eq!(
+            first(1.0, 1.0, Evidence::Mode(ModeEvidence::TrialOnly)),
+            leak
+        );
     }
 
     #[test]

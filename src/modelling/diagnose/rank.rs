@@ -255,6 +255,14 @@ pub fn diagnose(
         .iter()
         .map(|e| (e.trend.late_mean - e.trend.pre_mean) / e.step_size.abs().max(1e-300))
         .fold(0.0f64, |m, v| if v.abs() > m.abs() { v } else { m });
+    let creep_z = evidence
+        .iter()
+        .map(|e| {
+            let t = &e.trend;
+            (t.late_mean - t.pre_mean) / t.late_mean_se.hypot(t.pre_mean_se).max(1e-300)
+        })
+        .filter(|z| z.is_finite())
+        .fold(0.0f64, |m, v| if v.abs() > m.abs() { v } else { m });
     if let Some((after, _)) = trial(Effect::Leak, &base) {
         offer(
             EffectKind::Leak,
@@ -262,11 +270,12 @@ pub fn diagnose(
             Evidence::Leak {
                 dc_gain: current.model.dc_gain(),
                 late_residual_over_step: creep,
+                creep_in_standard_errors: creep_z,
             },
             format!(
                 "after the step the residual creeps slowly ({:+.2} % of the step at the end of the \
-                 record) and the model's DC gain is {:.4}{}: a leaking cavity or side volume, a \
-                 second, slow time scale",
+                 record, {creep_z:+.1} standard errors of the noise) and the model's DC gain is \
+                 {:.4}{}: a leaking cavity or side volume, a second, slow time scale",
                 100.0 * creep,
                 current.model.dc_gain(),
                 if current.model.dc_gain() < LEAK_DC_GAIN_BELOW {

@@ -280,7 +280,6 @@ fn a_delay_named_by_the_diagnosis_is_added_with_add_delay() {
     // The next refit keeps it.
     let g = unlag_json(&["fit", t1, t2, "--order", "2", "-o", m, "--json"]);
     assert_eq!(g["effects"], f["effects"], "{g}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The nonlinear-damping cases in detail: the signature across tests is in the evidence with
@@ -717,7 +716,6 @@ fn the_diagnosis_lists_what_the_plain_fit_already_carries() {
     unlag_json(&["fit", &e2, "--order", "2", "-o", bare, "--json"]);
     let d = unlag_json(&["diagnose", bare, &e2, &v2, "--json"]);
     assert_eq!(d["carried"], serde_json::json!([]), "{d}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The path of a trace kept from the drawn bank (`examples/bench_bank.rs`, seed 13) under
@@ -726,19 +724,64 @@ fn bank_trace(name: &str) -> String {
     format!("{}/host-tests/data/bank/{name}", env!("CARGO_MANIFEST_DIR"))
 }
 
+/// A bank case as a user meets it: its two traces (under `host-tests/data/bank/`) and the
+/// diagnosis on both of the plain model `unlag fit --order 2` writes from the first, in a
+/// scratch folder of its own that goes when the case does.
+struct Diagnosed {
+    dir: std::path::PathBuf,
+    est: String,
+    val: String,
+    json: serde_json::Value,
+}
+
+fn diagnose_bank(tag: &str, est: &str, val: &str) -> Diagnosed {
+    let dir = std::env::temp_dir().join(format!("unlag-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (est, val) = (bank_trace(est), bank_trace(val));
+    let model = dir.join("plain.toml").to_str().unwrap().to_string();
+    unlag_json(&["fit", &est, "--order", "2", "-o", &model, "--json"]);
+    let json = unlag_json(&["diagnose", &model, &est, &val, "--json"]);
+    Diagnosed {
+        dir,
+        est,
+        val,
+        json,
+    }
+}
+
+impl Diagnosed {
+    /// `unlag fit --order 2` on both traces with `--add kind`, as its change says: the JSON.
+    fn fit_adding(&self, kind: &str) -> serde_json::Value {
+        let added = self.dir.join("added.toml");
+        unlag_json(&[
+            "fit",
+            &self.est,
+            &self.val,
+            "--order",
+            "2",
+            "--add",
+            kind,
+            "-o",
+            added.to_str().unwrap(),
+            "--json",
+        ])
+    }
+}
+
+impl Drop for Diagnosed {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
 /// Bank case 104: a capillary (overdamped, 6.7 kHz sampling) with a hidden line mode near
 /// 50 Hz, validated on a valve test. The leak's trial and the mode's both take the ringing
 /// (both add poles), and the leak used to go first for its fewer parameters; but the plain
 /// model's static gain is 1.004, and a leak lowers it (`1 / (1 + R G)`): the mode goes first.
 #[test]
 fn a_mode_goes_before_a_leak_that_ties_with_it_when_the_static_gain_is_not_below_one() {
-    let dir = std::env::temp_dir().join(format!("unlag-mode-leak-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let (est, val) = (bank_trace("mode-est.csv"), bank_trace("mode-val.csv"));
-    let m = dir.join("plain.toml");
-    let m = m.to_str().unwrap();
-    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
-    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let case = diagnose_bank("mode-leak", "mode-est.csv", "mode-val.csv");
+    let d = &case.json;
     let c = d["candidates"].as_array().unwrap();
     assert_eq!(c[0]["kind"], "mode", "{d}");
     let leak = c
@@ -760,7 +803,6 @@ fn a_mode_goes_before_a_leak_that_ties_with_it_when_the_static_gain_is_not_below
             .is_some_and(|t| t.contains("DC gain under 1")),
         "{d}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Bank case 040: a flush sensor whose probe noise is coloured (AR(1), pole 0.90, 10x the
@@ -771,16 +813,12 @@ fn a_mode_goes_before_a_leak_that_ties_with_it_when_the_static_gain_is_not_below
 /// the traverse's error.
 #[test]
 fn coloured_noise_on_a_traverse_is_named_against_the_band_of_two_slow_series() {
-    let dir = std::env::temp_dir().join(format!("unlag-coloured-wake-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let (est, val) = (
-        bank_trace("coloured-wake-est.csv"),
-        bank_trace("coloured-wake-val.csv"),
+    let case = diagnose_bank(
+        "coloured-wake",
+        "coloured-wake-est.csv",
+        "coloured-wake-val.csv",
     );
-    let m = dir.join("plain.toml");
-    let m = m.to_str().unwrap();
-    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
-    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let d = &case.json;
     let first = &d["candidates"][0];
     assert_eq!(first["kind"], "coloured-noise", "{d}");
     let (before, after) = (
@@ -797,7 +835,6 @@ fn coloured_noise_on_a_traverse_is_named_against_the_band_of_two_slow_series() {
     let n = (xc["values"].as_array().unwrap().len() * 4) as f64;
     assert!(peak < 2.0 * band, "peak {peak}, band {band}");
     assert!(band > 1.5 * 2.576 / n.sqrt(), "band {band}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Bank case 088: a pneumatic line (50 Hz) with quadratic losses, one step to fit on and a
@@ -807,16 +844,8 @@ fn coloured_noise_on_a_traverse_is_named_against_the_band_of_two_slow_series() {
 /// so, and adding it brings the traverse's error down to near its floor.
 #[test]
 fn nonlinear_damping_is_named_by_its_trial_when_no_two_steps_show_its_signature() {
-    let dir = std::env::temp_dir().join(format!("unlag-nonlinear-wake-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let (est, val) = (
-        bank_trace("nonlinear-est.csv"),
-        bank_trace("nonlinear-wake.csv"),
-    );
-    let m = dir.join("plain.toml");
-    let m = m.to_str().unwrap();
-    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
-    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let case = diagnose_bank("nonlinear-wake", "nonlinear-est.csv", "nonlinear-wake.csv");
+    let (dir, est, val, d) = (&case.dir, &case.est, &case.val, &case.json);
     let first = &d["candidates"][0];
     assert_eq!(first["kind"], "nonlinear-damping", "{d}");
     assert_eq!(first["evidence"]["amplitude_signature"], false, "{first}");
@@ -845,7 +874,6 @@ fn nonlinear_damping_is_named_by_its_trial_when_no_two_steps_show_its_signature(
         before / after >= 3.0 && after <= 1.5 * floor,
         "{before} -> {after}, floor {floor}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Bank case 047: a capillary with a drift of 5 % of the step per second, two steps. A
@@ -854,13 +882,8 @@ fn nonlinear_damping_is_named_by_its_trial_when_no_two_steps_show_its_signature(
 /// first, and the two are named as close with the test that separates them.
 #[test]
 fn a_drift_goes_before_nonlinear_damping_read_from_its_trial_alone() {
-    let dir = std::env::temp_dir().join(format!("unlag-drift-nl-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let (est, val) = (bank_trace("drift-est.csv"), bank_trace("drift-val.csv"));
-    let m = dir.join("plain.toml");
-    let m = m.to_str().unwrap();
-    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
-    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let case = diagnose_bank("drift-nl", "drift-est.csv", "drift-val.csv");
+    let d = &case.json;
     let c = d["candidates"].as_array().unwrap();
     assert_eq!(c[0]["kind"], "drift", "{d}");
     let nl = c
@@ -874,7 +897,6 @@ fn a_drift_goes_before_nonlinear_damping_read_from_its_trial_alone() {
             .is_some_and(|t| t.contains("steps of other sizes")),
         "{d}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `coloured-noise` says which error falls (the one-step-ahead prediction error) and states the
@@ -923,7 +945,6 @@ fn coloured_noise_states_the_uncertainty_before_and_after() {
         text.contains("stated uncertainty (1 sigma): before"),
         "{text}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `sensor-resonance` through the whole product: `fit --add` finds the diaphragm in the
@@ -1304,16 +1325,12 @@ fn temperature_bank_picks_the_set_for_the_measured_temperature() {
 /// round, and lowers the balloon's error.
 #[test]
 fn a_capillary_in_hotter_gas_is_named_by_the_viscosity_that_slows_it() {
-    let dir = std::env::temp_dir().join(format!("unlag-capillary-hot-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let (est, val) = (
-        bank_trace("capillary-hot-est.csv"),
-        bank_trace("capillary-hot-val.csv"),
+    let case = diagnose_bank(
+        "capillary-hot",
+        "capillary-hot-est.csv",
+        "capillary-hot-val.csv",
     );
-    let m = dir.join("plain.toml");
-    let m = m.to_str().unwrap();
-    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
-    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let d = &case.json;
     let first = &d["candidates"][0];
     assert_eq!(first["kind"], "temperature-diffusive", "{d}");
     // 350.4 K over 293.15 K is 1.195.
@@ -1325,22 +1342,9 @@ fn a_capillary_in_hotter_gas_is_named_by_the_viscosity_that_slows_it() {
     );
     assert!(before / after >= 3.0, "{before} -> {after}");
     // Its change, made: the balloon's error falls as the trial said.
-    let added = dir.join("added.toml");
-    let f = unlag_json(&[
-        "fit",
-        &est,
-        &val,
-        "--order",
-        "2",
-        "--add",
-        "temperature-diffusive",
-        "-o",
-        added.to_str().unwrap(),
-        "--json",
-    ]);
+    let f = case.fit_adding("temperature-diffusive");
     let held_out = f["sources"][1]["nrmse"].as_f64().unwrap();
     assert!(held_out < 0.5 * before, "{held_out} against {before}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Bank case 053: an overdamped probe (the bank's lumped generator, damping 2.9) fitted on a
@@ -1353,35 +1357,19 @@ fn a_capillary_in_hotter_gas_is_named_by_the_viscosity_that_slows_it() {
 /// floor.
 #[test]
 fn a_temperature_steps_back_from_a_delay_whose_model_cannot_be_scaled() {
-    let dir = std::env::temp_dir().join(format!("unlag-capillary-cold-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let (est, val) = (
-        bank_trace("capillary-cold-est.csv"),
-        bank_trace("capillary-cold-val.csv"),
+    let case = diagnose_bank(
+        "capillary-cold",
+        "capillary-cold-est.csv",
+        "capillary-cold-val.csv",
     );
-    let m = dir.join("plain.toml");
-    let m = m.to_str().unwrap();
-    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
-    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let d = &case.json;
     let first = &d["candidates"][0];
     assert!(
         first["kind"].as_str().unwrap().starts_with("temperature"),
         "{d}"
     );
     let before = first["nrmse_before"].as_f64().unwrap();
-    let added = dir.join("added.toml");
-    let f = unlag_json(&[
-        "fit",
-        &est,
-        &val,
-        "--order",
-        "2",
-        "--add",
-        first["kind"].as_str().unwrap(),
-        "-o",
-        added.to_str().unwrap(),
-        "--json",
-    ]);
+    let f = case.fit_adding(first["kind"].as_str().unwrap());
     let notes = f["fit"]["notes"].to_string();
     assert!(notes.contains("negative real axis"), "{notes}");
     let (held_out, floor) = (
@@ -1392,7 +1380,6 @@ fn a_temperature_steps_back_from_a_delay_whose_model_cannot_be_scaled() {
         held_out < before / 3.0 && held_out < 1.5 * floor,
         "{before} -> {held_out} (floor {floor})"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Bank case 032: a pneumatic line with a second mode (the model error peaks 7 dB out at
@@ -1401,16 +1388,8 @@ fn a_temperature_steps_back_from_a_delay_whose_model_cannot_be_scaled() {
 /// noise: neither of a leak's signatures. It now goes after the mode whose peak was seen.
 #[test]
 fn a_leak_without_its_signatures_goes_after_a_mode_whose_peak_was_seen() {
-    let dir = std::env::temp_dir().join(format!("unlag-mode-wake-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let (est, val) = (
-        bank_trace("mode-wake-est.csv"),
-        bank_trace("mode-wake-val.csv"),
-    );
-    let m = dir.join("plain.toml");
-    let m = m.to_str().unwrap();
-    unlag_json(&["fit", &est, "--order", "2", "-o", m, "--json"]);
-    let d = unlag_json(&["diagnose", m, &est, &val, "--json"]);
+    let case = diagnose_bank("mode-wake", "mode-wake-est.csv", "mode-wake-val.csv");
+    let d = &case.json;
     let kinds: Vec<&str> = d["candidates"]
         .as_array()
         .unwrap()
@@ -1439,5 +1418,4 @@ fn a_leak_without_its_signatures_goes_after_a_mode_whose_peak_was_seen() {
         first["nrmse_after"].as_f64().unwrap() < 0.7 * first["nrmse_before"].as_f64().unwrap(),
         "{first}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -897,6 +897,22 @@ fn a_drift_goes_before_nonlinear_damping_read_from_its_trial_alone() {
             .is_some_and(|t| t.contains("steps of other sizes")),
         "{d}"
     );
+    // A real drift runs before the step too: its slope there agrees with the fitted rate.
+    let e = &c[0]["evidence"];
+    let (pre, se, rate) = (
+        e["pre_step_slope_per_s"].as_f64().unwrap(),
+        e["pre_step_slope_se_per_s"].as_f64().unwrap(),
+        e["rate_per_s"].as_f64().unwrap(),
+    );
+    assert!((pre - rate).abs() < 4.0 * se && pre * rate > 0.0, "{e}");
+    assert!(
+        c[0]["reading"]
+            .as_str()
+            .unwrap()
+            .contains("already before the step"),
+        "{}",
+        c[0]["reading"]
+    );
 }
 
 /// `coloured-noise` says which error falls (the one-step-ahead prediction error) and states the
@@ -1369,6 +1385,20 @@ fn a_temperature_steps_back_from_a_delay_whose_model_cannot_be_scaled() {
         "{d}"
     );
     let before = first["nrmse_before"].as_f64().unwrap();
+    // The drift its first diagnosis named: the slope before the step runs the other way.
+    let drift = d["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["kind"] == "drift")
+        .expect("the drift is still offered");
+    assert!(
+        drift["reading"]
+            .as_str()
+            .unwrap()
+            .contains("but not before the step"),
+        "{drift}"
+    );
     let f = case.fit_adding(first["kind"].as_str().unwrap());
     let notes = f["fit"]["notes"].to_string();
     assert!(notes.contains("negative real axis"), "{notes}");

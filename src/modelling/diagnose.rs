@@ -47,7 +47,10 @@ pub use evidence::{
     TemperatureShift, COLOURED_NOISE_FIT, SENSOR_RESONANCE_REMEDY,
 };
 pub use finding::{separating_test, Candidate, Finding, CLOSE_MARGIN};
-pub use order::{LEAK_DC_GAIN_BELOW, MODE_PEAK_OVER_CREEP_DB};
+pub use order::{
+    drift_contradicted, CREEP_SEEN_STANDARD_ERRORS, DRIFT_CONTRADICTED_STANDARD_ERRORS,
+    LEAK_DC_GAIN_BELOW, MODE_PEAK_OVER_CREEP_DB,
+};
 pub use rank::{diagnose, FLOOR_OVERRULED, MIN_IMPROVEMENT, PARAMETER_PENALTY, SAME_FREQUENCY};
 pub use remedy::Remedy;
 pub use trial::TRIAL_WINDOW;

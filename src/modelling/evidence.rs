@@ -80,6 +80,18 @@ impl ExpectedResidual {
     pub fn mean_se(&self, samples: usize) -> f64 {
         self.std * (self.mean_factor / samples.max(1) as f64).min(1.0).sqrt()
     }
+
+    /// Standard error (units per second) of the slope of a straight line fitted to `samples`
+    /// consecutive residual samples of this noise at `fs`: `std sqrt(12 / (n (n^2 - 1))) fs`,
+    /// widened as a mean is for correlated noise. Infinite below three samples.
+    #[must_use]
+    pub fn slope_se(&self, samples: usize, fs: f64) -> f64 {
+        if samples < 3 {
+            return f64::INFINITY;
+        }
+        let n = samples as f64;
+        self.std * self.mean_factor.max(1.0).sqrt() * (12.0 / (n * (n * n - 1.0))).sqrt() * fs
+    }
 }
 
 /// The residual `model` leaves on `(u, y)` when it is right: both channels' noise measured
@@ -327,6 +339,9 @@ pub struct Trend {
     pub pre_mean: f64,
     /// Slope before the step (units per second).
     pub pre_slope_per_s: f64,
+    /// Its standard error under the noise both channels leave (infinite without a segment
+    /// before the step).
+    pub pre_slope_se_per_s: f64,
     /// Mean of the last 30 % of the record.
     pub late_mean: f64,
     /// Slope over the last 30 % of the record (units per second).
@@ -580,6 +595,7 @@ impl TestEvidence {
             trend: Trend {
                 pre_mean: mean(pre),
                 pre_slope_per_s: slope(pre) * fs,
+                pre_slope_se_per_s: expected.slope_se(pre.len(), fs),
                 late_mean: mean(late),
                 late_slope_per_s: slope(late) * fs,
                 slope_per_s: slope(&r) * fs,

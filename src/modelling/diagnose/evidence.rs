@@ -48,8 +48,11 @@ pub enum Evidence {
     },
     /// `drift`: a ramp through the residual.
     Drift {
-        /// Mean slope of the residual before the step over the tests (probe units per second).
+        /// Slope of the residual before the step (probe units per second), the tests'
+        /// weighted by their standard errors.
         pre_step_slope_per_s: f64,
+        /// Its standard error (infinite when no test has a segment before its step).
+        pre_step_slope_se_per_s: f64,
         /// The largest ramp over the record, in standard errors of the mean.
         ramp_in_standard_errors: f64,
         /// The drift rate the trial fitted (probe units per second).

@@ -15,6 +15,22 @@ pub const LEAK_DC_GAIN_BELOW: f64 = 0.998;
 /// leave.
 pub const MODE_PEAK_OVER_CREEP_DB: f64 = 20.0;
 
+/// A residual slope before the step this many standard errors from a drift's fitted rate, and
+/// not of its sign, contradicts the drift.
+pub const DRIFT_CONTRADICTED_STANDARD_ERRORS: f64 = 4.0;
+
+/// Whether the residual's slope before the step (`pre`, standard error `pre_se`, per second)
+/// contradicts a drift at `rate` per second: a sensor's drift runs in time, before the step as
+/// after it, so its slope there is the rate; one [`DRIFT_CONTRADICTED_STANDARD_ERRORS`] away
+/// that does not share its sign is a ramp the dynamics leave after the step (bank case 025:
+/// `-31 +/- 22` per second before the step against a rate of `+103`).
+#[must_use]
+pub fn drift_contradicted(pre: f64, pre_se: f64, rate: f64) -> bool {
+    pre_se.is_finite()
+        && (pre - rate).abs() > DRIFT_CONTRADICTED_STANDARD_ERRORS * pre_se
+        && pre * rate <= 0.0
+}
+
 /// A creep after the step this many standard errors of the two levels' means out of the noise
 /// is seen (the leak's other signature, beside a DC gain below 1).
 pub const CREEP_SEEN_STANDARD_ERRORS: f64 = 3.0;
@@ -93,6 +109,21 @@ pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64
             let c = out.remove(i);
             out.insert(0, c);
         }
+    }
+    // A drift that the slope before the step contradicts goes after every other candidate.
+    if let Some(i) = out.iter().position(|c| {
+        matches!(
+            c.evidence,
+            Evidence::Drift {
+                pre_step_slope_per_s: pre,
+                pre_step_slope_se_per_s: se,
+                rate_per_s: rate,
+                ..
+            } if drift_contradicted(pre, se, rate)
+        )
+    }) {
+        let c = out.remove(i);
+        out.push(c);
     }
     // Nonlinear damping read from its trial alone (no amplitude signature) goes after an effect
     // whose own signature was seen: a quadratic loss refitted on one step can take the shape
@@ -316,6 +347,7 @@ mod tests {
         };
         let drift = Evidence::Drift {
             pre_step_slope_per_s: 0.05,
+            pre_step_slope_se_per_s: 0.01,
             ramp_in_standard_errors: 12.0,
             rate_per_s: 0.05,
         };
@@ -333,6 +365,32 @@ mod tests {
                 Finding::Missing(first),
                 "signature {signature}"
             );
+        }
+    }
+
+    #[test]
+    fn a_drift_that_the_slope_before_the_step_contradicts_goes_last() {
+        // Bank case 025: -31 +/- 22 per second before the step, the trial's rate +103.
+        assert!(drift_contradicted(-31.0, 22.0, 103.0));
+        // A real drift: the slope before the step is its rate, within the noise, or of its
+        // sign (case 047: 101 +/- 13 against 125).
+        assert!(!drift_contradicted(101.0, 13.0, 125.0));
+        assert!(!drift_contradicted(20.0, 1.0, 125.0));
+        // No segment before the step: nothing to contradict.
+        assert!(!drift_contradicted(0.0, f64::INFINITY, 125.0));
+        let drift = |pre: f64| Evidence::Drift {
+            pre_step_slope_per_s: pre,
+            pre_step_slope_se_per_s: 22.0,
+            ramp_in_standard_errors: 190.0,
+            rate_per_s: 103.0,
+        };
+        for (pre, first) in [(-31.0, EffectKind::Mode), (95.0, EffectKind::Drift)] {
+            let mut out = vec![
+                candidate(EffectKind::Drift, 0.9, drift(pre)),
+                candidate(EffectKind::Mode, 0.3, peak(10.0)),
+            ];
+            order(&mut out, false, 1.0);
+            assert_eq!(out[0].kind, Finding::Missing(first), "{pre}");
         }
     }
 }

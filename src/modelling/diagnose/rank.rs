@@ -4,10 +4,10 @@
 
 use super::trial::{held_out, trial_window};
 use super::{
-    amplitude_signature, mean, per_test, separating_test, temperature_evidence, AmplitudeSignature,
-    Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping, Remedy, ScaleEstimate,
-    SensorResonance, Spectrum, TemperatureShift, CLOSE_MARGIN, COLOURED_NOISE_FIT,
-    LEAK_DC_GAIN_BELOW, SENSOR_RESONANCE_REMEDY,
+    amplitude_signature, drift_contradicted, mean, per_test, separating_test, temperature_evidence,
+    AmplitudeSignature, Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping,
+    Remedy, ScaleEstimate, SensorResonance, Spectrum, TemperatureShift, CLOSE_MARGIN,
+    COLOURED_NOISE_FIT, LEAK_DC_GAIN_BELOW, SENSOR_RESONANCE_REMEDY,
 };
 use crate::error::Result;
 use crate::fit::model::Uncertainty;
@@ -229,19 +229,40 @@ pub fn diagnose(
             &base,
         ) {
             let rate = effects::Additive::of(&fx).rate_per_s;
-            let pre = mean(evidence.iter().map(|e| e.trend.pre_slope_per_s));
+            // A sensor drifts in time, before the step too: the slope there, each test's
+            // weighted by its standard error, is the drift's rate measured apart from the
+            // dynamics.
+            let (sw, swx) = evidence
+                .iter()
+                .map(|e| (e.trend.pre_slope_per_s, e.trend.pre_slope_se_per_s))
+                .filter(|(x, se)| x.is_finite() && se.is_finite() && *se > 0.0)
+                .fold((0.0, 0.0), |(sw, swx), (x, se)| {
+                    (sw + 1.0 / (se * se), swx + x / (se * se))
+                });
+            let (pre, pre_se) = if sw > 0.0 {
+                (swx / sw, 1.0 / sw.sqrt())
+            } else {
+                (0.0, f64::INFINITY)
+            };
+            let before = if drift_contradicted(pre, pre_se, rate) {
+                format!(
+                    "but not before the step, where the residual moves at {pre:.3e} +/- \
+                     {pre_se:.1e} per second: a ramp the dynamics leave rather than a sensor's \
+                     drift, which runs before the step too"
+                )
+            } else {
+                "already before the step: the sensor drifts in time (thermal drift)".to_string()
+            };
             offer(
                 EffectKind::Drift,
                 after,
                 Evidence::Drift {
                     pre_step_slope_per_s: pre,
+                    pre_step_slope_se_per_s: pre_se,
                     ramp_in_standard_errors: drift,
                     rate_per_s: rate,
                 },
-                format!(
-                    "a ramp through the whole residual ({rate:.3e} per second, already before the \
-                     step): the sensor drifts in time (thermal drift)"
-                ),
+                format!("a ramp through the whole residual ({rate:.3e} per second), {before}"),
                 Remedy::Add(Effect::Drift {
                     value: 0.0,
                     rate_per_s: 0.0,

@@ -6,7 +6,7 @@ use serde::Serialize;
 
 use super::Current;
 use crate::fit::{Options, Order, Test};
-use crate::modelling::effects::FitChanges;
+use crate::modelling::effects::{FitChanges, TemperatureDamping};
 use crate::modelling::evidence::TestEvidence;
 
 /// One test seen on its own: the same model structure fitted to it alone, and how big its
@@ -324,6 +324,106 @@ fn dominant_corner(model: &crate::fit::Model) -> Option<f64> {
         .filter(|(c, _)| c.is_finite())
         .max_by(|a, b| a.0.total_cmp(&b.0))
         .map(|(_, p)| -p.ln() * model.fs / (2.0 * std::f64::consts::PI))
+}
+
+/// The residual's slope before the step (units per second), the tests' weighted by their
+/// standard errors, and its standard error: a sensor drifts in time, before the step too, so
+/// this is a drift's rate measured apart from the dynamics. `(0, infinity)` when no test has a
+/// segment before its step.
+#[must_use]
+pub fn pre_step_slope(evidence: &[TestEvidence]) -> (f64, f64) {
+    let (sw, swx) = evidence
+        .iter()
+        .map(|e| (e.trend.pre_slope_per_s, e.trend.pre_slope_se_per_s))
+        .filter(|(x, se)| x.is_finite() && se.is_finite() && *se > 0.0)
+        .fold((0.0, 0.0), |(sw, swx), (x, se)| {
+            (sw + 1.0 / (se * se), swx + x / (se * se))
+        });
+    if sw > 0.0 {
+        (swx / sw, 1.0 / sw.sqrt())
+    } else {
+        (0.0, f64::INFINITY)
+    }
+}
+
+/// What a drift's reading says of the slope before the step (`pre +/- pre_se` per second)
+/// against its fitted `rate`.
+#[must_use]
+pub fn drift_before_step(pre: f64, pre_se: f64, rate: f64) -> String {
+    if super::drift_contradicted(pre, pre_se, rate) {
+        format!(
+            "but not before the step, where the residual moves at {pre:.3e} +/- {pre_se:.1e} \
+             per second: a ramp the dynamics leave rather than a sensor's drift, which runs \
+             before the step too"
+        )
+    } else {
+        "already before the step: the sensor drifts in time (thermal drift)".to_string()
+    }
+}
+
+/// The residual's level at the end of the record less its level before the step, in standard
+/// errors of the two means under the noise both channels leave: the largest in size over the
+/// tests (0 without a finite one).
+#[must_use]
+pub fn creep_in_standard_errors(evidence: &[TestEvidence]) -> f64 {
+    evidence
+        .iter()
+        .map(|e| {
+            let t = &e.trend;
+            (t.late_mean - t.pre_mean) / t.late_mean_se.hypot(t.pre_mean_se).max(1e-300)
+        })
+        .filter(|z| z.is_finite())
+        .fold(0.0f64, |m, v| if v.abs() > m.abs() { v } else { m })
+}
+
+/// The reading of a temperature found in `t` and offered with `damping`, for the test `file`
+/// of its strongest shift, and the `T / T_ref` it implies under that law (the speed of sound
+/// goes as the root of temperature; the viscosity rises with it).
+#[must_use]
+pub fn temperature_reading(
+    t: &TemperatureEvidence,
+    damping: TemperatureDamping,
+    file: &str,
+    reference_k: f64,
+) -> (String, f64) {
+    let ratio = t.strongest().1;
+    let temperature_ratio = damping.temperature(ratio, reference_k) / reference_k;
+    let (law, why) = match damping {
+        TemperatureDamping::Constant => (
+            "damping kept".to_string(),
+            "speed of sound goes as the root of temperature",
+        ),
+        TemperatureDamping::Viscous => (
+            format!(
+                "damping x{:.2} by the viscous law nu(T)/nu(T_ref)/k of a tube-volume system",
+                TemperatureDamping::Viscous.factor(ratio, reference_k)
+            ),
+            "speed of sound goes as the root of temperature",
+        ),
+        TemperatureDamping::Diffusive => (
+            "every time scale by the viscosity, mu(T_ref)/mu(T), of a line where the pressure \
+             diffuses"
+                .to_string(),
+            "an overdamped line's time scales go as the gas viscosity",
+        ),
+    };
+    let (what, verb, across) = if t.overdamped {
+        (
+            "the dominant corner and the whole lag's frequency",
+            "are",
+            "the two",
+        )
+    } else {
+        ("every natural frequency", "is", "modes")
+    };
+    let reading = format!(
+        "{what} of {file} fitted alone {verb} {ratio:.3} times the model's (spread across \
+         {across} {:.1} %, damping x{:.2}): the same probe at another gas temperature, T/T_ref = \
+         {temperature_ratio:.3} ({why}); {law}",
+        100.0 * t.spread,
+        t.damping_ratio,
+    );
+    (reading, temperature_ratio)
 }
 
 /// Fits the current model's structure (order without effects, delay, method) to each test

@@ -4,10 +4,11 @@
 
 use super::trial::{held_out, trial_window};
 use super::{
-    amplitude_signature, drift_contradicted, mean, per_test, separating_test, temperature_evidence,
-    AmplitudeSignature, Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping,
-    Remedy, ScaleEstimate, SensorResonance, Spectrum, TemperatureShift, CLOSE_MARGIN,
-    COLOURED_NOISE_FIT, LEAK_DC_GAIN_BELOW, SENSOR_RESONANCE_REMEDY,
+    amplitude_signature, creep_in_standard_errors, drift_before_step, mean, per_test,
+    pre_step_slope, separating_test, temperature_evidence, temperature_reading, AmplitudeSignature,
+    Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping, Remedy, ScaleEstimate,
+    SensorResonance, Spectrum, TemperatureShift, CLOSE_MARGIN, COLOURED_NOISE_FIT,
+    LEAK_DC_GAIN_BELOW, SENSOR_RESONANCE_REMEDY,
 };
 use crate::error::Result;
 use crate::fit::model::Uncertainty;
@@ -229,30 +230,8 @@ pub fn diagnose(
             &base,
         ) {
             let rate = effects::Additive::of(&fx).rate_per_s;
-            // A sensor drifts in time, before the step too: the slope there, each test's
-            // weighted by its standard error, is the drift's rate measured apart from the
-            // dynamics.
-            let (sw, swx) = evidence
-                .iter()
-                .map(|e| (e.trend.pre_slope_per_s, e.trend.pre_slope_se_per_s))
-                .filter(|(x, se)| x.is_finite() && se.is_finite() && *se > 0.0)
-                .fold((0.0, 0.0), |(sw, swx), (x, se)| {
-                    (sw + 1.0 / (se * se), swx + x / (se * se))
-                });
-            let (pre, pre_se) = if sw > 0.0 {
-                (swx / sw, 1.0 / sw.sqrt())
-            } else {
-                (0.0, f64::INFINITY)
-            };
-            let before = if drift_contradicted(pre, pre_se, rate) {
-                format!(
-                    "but not before the step, where the residual moves at {pre:.3e} +/- \
-                     {pre_se:.1e} per second: a ramp the dynamics leave rather than a sensor's \
-                     drift, which runs before the step too"
-                )
-            } else {
-                "already before the step: the sensor drifts in time (thermal drift)".to_string()
-            };
+            let (pre, pre_se) = pre_step_slope(evidence);
+            let before = drift_before_step(pre, pre_se, rate);
             offer(
                 EffectKind::Drift,
                 after,
@@ -276,14 +255,7 @@ pub fn diagnose(
         .iter()
         .map(|e| (e.trend.late_mean - e.trend.pre_mean) / e.step_size.abs().max(1e-300))
         .fold(0.0f64, |m, v| if v.abs() > m.abs() { v } else { m });
-    let creep_z = evidence
-        .iter()
-        .map(|e| {
-            let t = &e.trend;
-            (t.late_mean - t.pre_mean) / t.late_mean_se.hypot(t.pre_mean_se).max(1e-300)
-        })
-        .filter(|z| z.is_finite())
-        .fold(0.0f64, |m, v| if v.abs() > m.abs() { v } else { m });
+    let creep_z = creep_in_standard_errors(evidence);
     if let Some((after, _)) = trial(Effect::Leak, &base) {
         offer(
             EffectKind::Leak,
@@ -433,27 +405,8 @@ pub fn diagnose(
                 let (file, ratio) = t.strongest();
                 let viscous = effects::TemperatureDamping::Viscous.factor(ratio, reference_k);
                 let spelling = damping.spelling();
-                let law = match damping {
-                    effects::TemperatureDamping::Constant => "damping kept".to_string(),
-                    effects::TemperatureDamping::Viscous => format!(
-                        "damping x{viscous:.2} by the viscous law nu(T)/nu(T_ref)/k of a \
-                         tube-volume system"
-                    ),
-                    effects::TemperatureDamping::Diffusive => {
-                        "every time scale by the viscosity, mu(T_ref)/mu(T), of a line where \
-                         the pressure diffuses"
-                            .to_string()
-                    }
-                };
-                // The temperature the common ratio implies under the law offered: the speed of
-                // sound goes as the root of temperature; the viscosity rises with it.
-                let temperature_ratio = damping.temperature(ratio, reference_k) / reference_k;
-                let why = match damping {
-                    effects::TemperatureDamping::Diffusive => {
-                        "an overdamped line's time scales go as the gas viscosity"
-                    }
-                    _ => "speed of sound goes as the root of temperature",
-                };
+                let (reading, temperature_ratio) =
+                    temperature_reading(&t, damping, &file, reference_k);
                 // The kind names the law: `temperature`, `temperature-viscous` or
                 // `temperature-diffusive`.
                 offer(
@@ -471,21 +424,7 @@ pub fn diagnose(
                         test: file.clone(),
                         viscous_damping_ratio: viscous,
                     }),
-                    format!(
-                        "{} of {file} fitted alone {} {ratio:.3} times the model's (spread \
-                         across {} {:.1} %, damping x{:.2}): the same probe at another gas \
-                         temperature, T/T_ref = {:.3} ({why}); {law}",
-                        if t.overdamped {
-                            "the dominant corner and the whole lag's frequency"
-                        } else {
-                            "every natural frequency"
-                        },
-                        if t.overdamped { "are" } else { "is" },
-                        if t.overdamped { "the two" } else { "modes" },
-                        100.0 * t.spread,
-                        t.damping_ratio,
-                        temperature_ratio
-                    ),
+                    reading,
                     Remedy::Add(Effect::Temperature {
                         reference_k: effects::DEFAULT_REFERENCE_K,
                         damping,

@@ -132,6 +132,26 @@ fn continuous(reason: ContinuousError) -> Error {
     FitError::Continuous(reason).into()
 }
 
+/// The coefficient `c_i` of `p_i^n` in the step response of `b(z^-1) / a(z^-1)` (the delay
+/// aside), for `a`'s distinct roots `poles`: `b(p_i) / ((1 - 1 / p_i) prod_(j != i) (1 - p_j /
+/// p_i))`, the residues of `H(z) / (1 - z^-1)`.
+#[must_use]
+pub fn step_coefficients(b: &[f64], poles: &[Complex]) -> Vec<Complex> {
+    let one = c(1.0, 0.0);
+    poles
+        .iter()
+        .enumerate()
+        .map(|(i, &pi)| {
+            let others = poles
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .fold(one, |acc, (_, &pj)| acc * (one - pj / pi));
+            poly::eval(b, pi) / ((one - one / pi) * others)
+        })
+        .collect()
+}
+
 impl Continuous {
     /// The continuous-time equivalent of `model` (step invariant).
     ///
@@ -161,18 +181,7 @@ impl Continuous {
         let p = poly::roots(&denominator)?;
         check_poles(&p)?;
         let s_inf: f64 = poly::eval(b, c(1.0, 0.0)).re / poly::eval(&denominator, c(1.0, 0.0)).re;
-        let coefficients: Vec<Complex> = p
-            .iter()
-            .enumerate()
-            .map(|(i, &pi)| {
-                let others = p
-                    .iter()
-                    .enumerate()
-                    .filter(|&(j, _)| j != i)
-                    .fold(c(1.0, 0.0), |acc, (_, &pj)| acc * (c(1.0, 0.0) - pj / pi));
-                poly::eval(b, pi) / ((c(1.0, 0.0) - c(1.0, 0.0) / pi) * others)
-            })
-            .collect();
+        let coefficients = step_coefficients(b, &p);
         // F(x) with x in samples: S_inf + Re sum c_i p_i^(x - d).
         let s: Vec<Complex> = p.iter().map(|&pi| pi.ln() * fs).collect();
         let f = |x: f64| -> f64 {

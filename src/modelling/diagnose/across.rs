@@ -304,23 +304,13 @@ fn time_scales(model: &crate::fit::Model) -> Vec<f64> {
 /// the DC gain, nor a fast corner next to the delay. `None` without such a pole (or with a
 /// repeated one).
 fn dominant_corner(model: &crate::fit::Model) -> Option<f64> {
-    use crate::poly::Complex;
-    let one = Complex::new(1.0, 0.0);
     let poles = model.poles().ok()?;
+    let coefficients = crate::fit::continuous::step_coefficients(&model.b, &poles);
     poles
         .iter()
-        .enumerate()
-        .filter(|(_, p)| p.im.abs() < 1e-9 && p.re > 0.0 && p.re < 1.0)
-        .map(|(i, &p)| {
-            // Step response: H(z) / (1 - z^-1); its coefficient of p^n, the delay aside.
-            let others = poles
-                .iter()
-                .enumerate()
-                .filter(|&(j, _)| j != i)
-                .fold(one, |acc, (_, &q)| acc * (one - q / p));
-            let c = crate::poly::eval(&model.b, p) / (others * (one - one / p));
-            (c.norm(), p.re)
-        })
+        .zip(coefficients)
+        .filter(|(p, _)| p.im.abs() < 1e-9 && p.re > 0.0 && p.re < 1.0)
+        .map(|(p, c)| (c.norm(), p.re))
         .filter(|(c, _)| c.is_finite())
         .max_by(|a, b| a.0.total_cmp(&b.0))
         .map(|(_, p)| -p.ln() * model.fs / (2.0 * std::f64::consts::PI))

@@ -26,8 +26,15 @@ pub struct LoopOutcome {
     pub after: Option<f64>,
     /// ... after `--add` of the hidden kind itself (what the right answer would give).
     pub true_after: Option<f64>,
-    /// The validation test's noise floor (as `fit` states it).
+    /// The validation test's noise floor as `fit` states it: the probe channel's noise alone.
     pub floor: Option<f64>,
+    /// The validation test's floor both channels leave: what a correct model's simulation
+    /// error would be, the probe's noise and the reference's through the model
+    /// (`sigma_y^2 + |G|^2 sigma_u^2`), as the diagnosis of the plain fit predicts it.
+    pub floor_both: Option<f64>,
+    /// A case with no hidden effect: the true model's validation error (`unlag compare
+    /// truth.toml val.csv`), what the floors should predict.
+    pub truth_error: Option<f64>,
     /// The first candidate of the second round, where the first named another effect: the
     /// diagnosis of the model with that effect added.
     pub second: Option<String>,
@@ -98,6 +105,22 @@ fn validation_error(json: &str) -> Result<(f64, f64), String> {
 const VISIBLE_FALL: f64 = 1.15;
 
 impl LoopOutcome {
+    /// The floor a fall is judged against: the one both channels leave ([`LoopOutcome::floor_both`]),
+    /// else the probe's.
+    pub fn judged_floor(&self) -> Option<f64> {
+        self.floor_both.or(self.floor)
+    }
+
+    /// Whether the error falls 3x, or to within 1.5x of `floor`; `None` when a figure is
+    /// missing. An effect the plain fit carried is judged by that fit.
+    pub fn falls(&self, kind: Kind, floor: Option<f64>) -> Option<bool> {
+        if self.carried_right(kind) {
+            return Some(self.before? <= 1.5 * floor?);
+        }
+        let (b, a, f) = (self.before?, self.after?, floor?);
+        Some(b / a >= 3.0 || a <= 1.5 * f)
+    }
+
     /// Whether these tests can show the hidden effect at all: adding the hidden kind itself
     /// lowers the validation error by at least the diagnosis' threshold ([`VISIBLE_FALL`]).
     /// An effect the plain fit carried by itself was visible to it. `None` when that refit
@@ -156,6 +179,23 @@ pub fn run(bin: &Path, dir: &Path, kind: Kind) -> LoopOutcome {
                 .collect()
         })
         .unwrap_or_default();
+    o.floor_both = v
+        .get("tests")
+        .and_then(serde_json::Value::as_array)
+        .and_then(|t| {
+            t.iter()
+                .find(|t| t.get("role").and_then(serde_json::Value::as_str) == Some("validation"))
+        })
+        .and_then(|t| t.get("noise_floor")?.as_f64());
+    if kind == Kind::None && dir.join("truth.toml").is_file() {
+        o.truth_error = run(
+            &["compare", "truth.toml", "val.csv", "--json"],
+            "loop-truth-compare.log",
+        )
+        .ok()
+        .and_then(|j| serde_json::from_str::<serde_json::Value>(j.trim()).ok())
+        .and_then(|v| v.get("tests")?.get(0)?.get("nrmse")?.as_f64());
+    }
     let score = |i: usize| candidates.get(i).and_then(|c| c.get("score")?.as_f64());
     o.margin = score(0).map(|a| a - score(1).unwrap_or(0.0));
     let base = ["fit", "--order", "2", "est.csv", "val.csv", "--json"];
@@ -276,16 +316,16 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         "## The modelling loop on the bank: {} cases\n",
         rows.len()
     );
-    let _ = writeln!(r, "From `unlag fit --order 2 est.csv`, `unlag diagnose loop.toml est.csv val.csv` names the missing effect; rows are the hidden kind, columns the first name. The error is the validation test's (`fit --order 2 est.csv val.csv`, then the same with `--add FIRST`). *Carried*: the diagnosis names nothing (`none`, counted in that column) because the plain fit found the hidden effect itself and the diagnosis lists it as carried; it counts as right, and its error is judged by the fit that carries it (at most 1.5x the floor).\n");
+    let _ = writeln!(r, "From `unlag fit --order 2 est.csv`, `unlag diagnose loop.toml est.csv val.csv` names the missing effect; rows are the hidden kind, columns the first name. The error is the validation test's (`fit --order 2 est.csv val.csv`, then the same with `--add FIRST`). *Carried*: the diagnosis names nothing (`none`, counted in that column) because the plain fit found the hidden effect itself and the diagnosis lists it as carried; it counts as right, and its error is judged by the fit that carries it (at most 1.5x the floor). *The floor* is what a correct model's simulation leaves on the validation test, the probe's noise and the reference's through the model (`sigma_y^2 + |G|^2 sigma_u^2`, the diagnosis' expected residual, with the plain fit's `G`); the last column judges against the probe's noise alone, as `fit` states its floor, which no model reaches when the reference is noisy.\n");
     let _ = write!(r, "| hidden \\ named first |");
     for n in NAMES {
         let _ = write!(r, " {n} |");
     }
     let _ = writeln!(
         r,
-        " carried | right | error falls 3x or to 1.5x the floor |"
+        " carried | right | error falls 3x or to 1.5x the floor | (the probe's floor alone) |"
     );
-    let _ = writeln!(r, "|---|{}---|---|---|", "---|".repeat(NAMES.len()));
+    let _ = writeln!(r, "|---|{}---|---|---|---|", "---|".repeat(NAMES.len()));
     let (mut right_all, mut carried_all, mut total) = (0, 0, 0);
     for k in KINDS {
         let group: Vec<&(Case, LoopOutcome)> = rows.iter().filter(|(c, _)| c.kind == k).collect();
@@ -298,17 +338,17 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         }
         let right = group.iter().filter(|(_, o)| o.right_or_carried(k)).count();
         let carried = group.iter().filter(|(_, o)| o.carried_right(k)).count();
-        let falls: Vec<bool> = group
+        let judged: Vec<&&(Case, LoopOutcome)> = group
             .iter()
             .filter(|(_, o)| o.right_or_carried(k) && k != Kind::None)
-            .filter_map(|(_, o)| {
-                if o.carried_right(k) {
-                    // The fit that carries it is the remedy already applied.
-                    return Some(o.before? <= 1.5 * o.floor?);
-                }
-                let (b, a, f) = (o.before?, o.after?, o.floor?);
-                Some(b / a >= 3.0 || a <= 1.5 * f)
-            })
+            .collect();
+        let falls: Vec<bool> = judged
+            .iter()
+            .filter_map(|(_, o)| o.falls(k, o.judged_floor()))
+            .collect();
+        let falls_probe: Vec<bool> = judged
+            .iter()
+            .filter_map(|(_, o)| o.falls(k, o.floor))
             .collect();
         right_all += right;
         carried_all += carried;
@@ -321,20 +361,24 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
                 if c == 0 { String::new() } else { c.to_string() }
             );
         }
+        let count = |f: &[bool]| {
+            if k == Kind::None {
+                "-".to_string()
+            } else {
+                format!("{}/{}", f.iter().filter(|f| **f).count(), f.len())
+            }
+        };
         let _ = writeln!(
             r,
-            " {} | {right}/{} | {} |",
+            " {} | {right}/{} | {} | {} |",
             if carried == 0 {
                 String::new()
             } else {
                 carried.to_string()
             },
             group.len(),
-            if k == Kind::None {
-                "-".to_string()
-            } else {
-                format!("{}/{}", falls.iter().filter(|f| **f).count(), falls.len())
-            }
+            count(&falls),
+            count(&falls_probe),
         );
     }
     let none: Vec<&(Case, LoopOutcome)> =
@@ -367,6 +411,28 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         r,
         "- no effect named as an effect: {false_alarm}/{} (target at most 5 %)",
         none.len()
+    );
+    // The floors against the oracle: where nothing is hidden, the true model's own error is
+    // what a floor should predict.
+    let ratios = |f: fn(&LoopOutcome) -> Option<f64>| -> Vec<f64> {
+        let mut v: Vec<f64> = none
+            .iter()
+            .filter_map(|(_, o)| Some(o.truth_error? / f(o)?))
+            .collect();
+        v.sort_by(f64::total_cmp);
+        v
+    };
+    let spread = |v: &[f64]| match (v.first(), v.get(v.len() / 2), v.last()) {
+        (Some(lo), Some(med), Some(hi)) => format!("median {med:.2}, from {lo:.2} to {hi:.2}"),
+        _ => "-".into(),
+    };
+    let (both, probe) = (ratios(|o| o.floor_both), ratios(|o| o.floor));
+    let _ = writeln!(
+        r,
+        "- the floors against the oracle, on the {} cases with no effect whose true model is known: the true model's validation error is {} times the floor both channels leave, and {} times the probe's floor alone",
+        both.len(),
+        spread(&both),
+        spread(&probe)
     );
     let _ = writeln!(
         r,
@@ -440,13 +506,13 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         );
     }
     let _ = writeln!(r, "\n### Misnamed cases\n");
-    let _ = writeln!(r, "| case | family | hidden | validation | named (best first) | margin | error before | after | floor | after adding the hidden kind | second round |");
-    let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(r, "| case | family | hidden | validation | named (best first) | margin | error before | after | floor (both channels) | probe's floor | after adding the hidden kind | second round |");
+    let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (c, o) in rows.iter().filter(|(c, o)| !o.right_or_carried(c.kind)) {
         let pct = |v: Option<f64>| v.map_or("-".into(), |x| format!("{:.3} %", 100.0 * x));
         let _ = writeln!(
             r,
-            "| case-{:03} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| case-{:03} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             c.id,
             c.family.name(),
             c.kind.name(),
@@ -463,9 +529,48 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
             o.margin.map_or("-".into(), |m| format!("{m:.2}")),
             pct(o.before),
             pct(o.after),
+            pct(o.floor_both),
             pct(o.floor),
             pct(o.true_after),
             o.second.as_deref().unwrap_or("-"),
+        );
+    }
+    let _ = writeln!(
+        r,
+        "\n### Named right, and the error falls less than 3x and stays above 1.5x a floor\n"
+    );
+    let _ = writeln!(r, "| case | family | hidden | validation | error before | after | fall | floor (both channels) | after / floor | probe's floor | after / probe's floor |");
+    let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|---|---|");
+    for (c, o) in rows.iter().filter(|(c, o)| {
+        c.kind != Kind::None
+            && o.right_or_carried(c.kind)
+            && (o.falls(c.kind, o.judged_floor()) == Some(false)
+                || o.falls(c.kind, o.floor) == Some(false))
+    }) {
+        let pct = |v: Option<f64>| v.map_or("-".into(), |x| format!("{:.3} %", 100.0 * x));
+        let after = if o.carried_right(c.kind) {
+            o.before
+        } else {
+            o.after
+        };
+        let ratio = |a: Option<f64>, b: Option<f64>| match (a, b) {
+            (Some(a), Some(b)) if b > 0.0 => format!("{:.2}x", a / b),
+            _ => "-".into(),
+        };
+        let _ = writeln!(
+            r,
+            "| case-{:03} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            c.id,
+            c.family.name(),
+            c.kind.name(),
+            c.val.name,
+            pct(o.before),
+            pct(after),
+            ratio(o.before, after),
+            pct(o.floor_both),
+            ratio(after, o.floor_both),
+            pct(o.floor),
+            ratio(after, o.floor),
         );
     }
     r

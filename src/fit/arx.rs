@@ -139,7 +139,7 @@ pub fn fit_nb(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> Result<Params
 /// One step of a blockwise QR: `R` of the triangle so far, `r_aug`, stacked on the `rows`
 /// rows below it in `block` (the triangle is written into `block`'s first rows here): `R` of
 /// all the rows so far, whatever their number, in one block's memory.
-pub(super) fn fold(block: &mut Mat<f64>, r_aug: &Mat<f64>, rows: usize) -> Mat<f64> {
+pub(crate) fn fold(block: &mut Mat<f64>, r_aug: &Mat<f64>, rows: usize) -> Mat<f64> {
     let width = r_aug.nrows();
     for c in 0..width {
         for r in 0..width {

@@ -44,6 +44,7 @@ use crate::fit::Method;
 
 mod additive;
 mod fit;
+mod joint;
 mod kind;
 mod nonlinear;
 mod predict;
@@ -52,6 +53,7 @@ mod temperature;
 
 pub use additive::{estimate_additive, Additive};
 pub use fit::{fit_with, resolve};
+pub use joint::{joint_loss, JointFit, MAX_LOSS_SCALES};
 pub use kind::{EffectKind, UnknownKind, KINDS};
 pub use nonlinear::{
     nonlinear_gain, quadratic_rate, simulate_nonlinear, NONLINEAR_GRID, NONLINEAR_REFINE,

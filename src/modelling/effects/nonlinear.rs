@@ -38,34 +38,66 @@ pub fn quadratic_rate(y: &[f64], fs: f64) -> Vec<f64> {
 /// `y[k] - y[k-1]`); with `gain = 0` this is [`Model::simulate`].
 #[must_use]
 pub fn simulate_nonlinear(model: &Model, gain: f64, u: &[f64]) -> Vec<f64> {
-    let u0 = crate::fit::model::resting_level(u);
-    let y0 = model.dc_gain() * u0;
-    let fs2 = model.fs * model.fs;
-    let n = u.len();
-    let mut y = vec![0.0; n];
-    let mut q = vec![0.0; n];
-    let b0 = model.b.first().copied().unwrap_or(0.0);
-    for k in 0..n {
+    let mut s = Stepper::new(model, gain, u);
+    (0..u.len()).map(|k| s.next(u, k)).collect()
+}
+
+/// [`simulate_nonlinear`] one sample at a time, holding only the model's history: what a
+/// fit over a long record runs block by block.
+pub(super) struct Stepper<'m> {
+    model: &'m Model,
+    gain: f64,
+    /// The input's resting level and the output's, in equilibrium with it.
+    u0: f64,
+    y0: f64,
+    fs2: f64,
+    /// `y[k-1-i]` and `q[k-1-i]` (deviations from the resting level), newest first.
+    y: Vec<f64>,
+    q: Vec<f64>,
+}
+
+impl<'m> Stepper<'m> {
+    /// At rest before the record `u`.
+    pub(super) fn new(model: &'m Model, gain: f64, u: &[f64]) -> Self {
+        let u0 = crate::fit::model::resting_level(u);
+        let depth = model.a.len().max(model.b.len()) + 1;
+        Self {
+            model,
+            gain,
+            u0,
+            y0: model.dc_gain() * u0,
+            fs2: model.fs * model.fs,
+            y: vec![0.0; depth],
+            q: vec![0.0; depth],
+        }
+    }
+
+    /// The output at sample `k` of `u`; the samples must come in order from 0.
+    pub(super) fn next(&mut self, u: &[f64], k: usize) -> f64 {
+        let (model, gain) = (self.model, self.gain);
         let mut acc = 0.0;
         for (i, bi) in model.b.iter().enumerate() {
             if let Some(j) = k.checked_sub(i + model.delay) {
-                acc += bi * (u[j] - u0);
+                acc += bi * (u.get(j).copied().unwrap_or(self.u0) - self.u0);
             }
-            if i > 0 {
-                if let Some(j) = k.checked_sub(i) {
-                    acc -= gain * bi * q[j];
-                }
+            if i > 0 && k >= i {
+                acc -= gain * bi * self.q.get(i - 1).copied().unwrap_or(0.0);
             }
         }
         for (i, ai) in model.a.iter().enumerate() {
-            if let Some(j) = k.checked_sub(i + 1) {
-                acc -= ai * y[j];
+            if k > i {
+                acc -= ai * self.y.get(i).copied().unwrap_or(0.0);
             }
         }
         // y[k] = acc - gain b0 fs^2 |D| D with D = y[k] - y[k-1]: D = c - beta |D| D.
-        let prev = if k > 0 { y[k - 1] } else { 0.0 };
+        let b0 = model.b.first().copied().unwrap_or(0.0);
+        let prev = if k > 0 {
+            self.y.first().copied().unwrap_or(0.0)
+        } else {
+            0.0
+        };
         let c = acc - prev;
-        let beta = gain * b0 * fs2;
+        let beta = gain * b0 * self.fs2;
         let disc = 1.0 + 4.0 * beta * c.abs();
         let d = if beta == 0.0 {
             c
@@ -74,15 +106,22 @@ pub fn simulate_nonlinear(model: &Model, gain: f64, u: &[f64]) -> Vec<f64> {
         } else {
             // No solution of the implicit step (a negative b0 and a large step): the term of
             // b0 is taken from the previous sample instead.
-            c - beta * if k > 0 { q[k - 1] / fs2 } else { 0.0 }
+            let q_prev = if k > 0 {
+                self.q.first().copied().unwrap_or(0.0)
+            } else {
+                0.0
+            };
+            c - beta * q_prev / self.fs2
         };
-        y[k] = prev + d;
-        q[k] = fs2 * d.abs() * d;
+        let y = prev + d;
+        self.y.rotate_right(1);
+        self.q.rotate_right(1);
+        if let (Some(y0), Some(q0)) = (self.y.first_mut(), self.q.first_mut()) {
+            *y0 = y;
+            *q0 = self.fs2 * d.abs() * d;
+        }
+        y + self.y0
     }
-    for v in &mut y {
-        *v += y0;
-    }
-    y
 }
 
 /// Points of the coarse grid over the quadratic loss before the golden-section refinement.

@@ -58,6 +58,11 @@ pub struct FitArgs {
     /// viscosity). Effects already in the output model file are kept.
     #[arg(long = "add", value_name = "KIND")]
     pub add: Vec<String>,
+    /// Another estimation test fitted together with the first (repeatable), for
+    /// nonlinear-damping only: one step cannot tell a quadratic loss from a linear damping,
+    /// two steps (or runs) of different size can. Its error is then not held out.
+    #[arg(long = "also", value_name = "FILE")]
+    pub also: Vec<PathBuf>,
     /// Start afresh: ignore the effects and history of an existing output model file.
     #[arg(long)]
     pub fresh: bool,
@@ -176,9 +181,13 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         },
     );
     progress.step("reading the tests");
+    // The estimation test, the ones fitted together with it, then the held-out ones.
     let traces = args
         .files
         .iter()
+        .take(1)
+        .chain(&args.also)
+        .chain(args.files.iter().skip(1))
         .map(|f| read_test(f, &columns))
         .collect::<Result<Vec<_>>>()?;
     let Some((est, _)) = traces.split_first() else {
@@ -230,6 +239,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         unplanned,
     } = pipeline::fit_and_design(&FitDesignRequest {
         tests: &tests,
+        estimation_tests: 1 + args.also.len(),
         digests: &digests,
         sample_rates_hz: &rates,
         options,

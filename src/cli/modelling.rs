@@ -375,12 +375,11 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
     );
     for (i, c) in candidates.iter().enumerate() {
         crate::outln!(
-            "{:>2}. {:<15} score {:.2}: held-out error {} -> {}",
+            "{:>2}. {:<15} score {:.2}: {}",
             i + 1,
             c.kind,
             c.score,
-            pct(c.nrmse_before),
-            pct(c.nrmse_after)
+            c.error_change()
         );
         crate::outln!("    {}", c.reading);
         if let Some(text) = c.uncertainty_text() {

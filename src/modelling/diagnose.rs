@@ -42,9 +42,12 @@ pub use across::{
     TemperatureEvidence, TemperatureRow, MIN_AMPLITUDE_RATIO, MIN_DAMPING_RISE,
     MIN_FREQUENCY_SHIFT, MIN_RESIDUAL_EXPONENT,
 };
-use across::{creep_in_standard_errors, drift_before_step, pre_step_slope, temperature_reading};
+use across::{
+    creep_in_standard_errors, drift_before_step, joint_loss_evidence, pre_step_slope,
+    temperature_reading,
+};
 pub use evidence::{
-    Evidence, ModeEvidence, NonlinearDamping, ScaleEstimate, SensorResonance, Spectrum,
+    Evidence, JointLoss, ModeEvidence, NonlinearDamping, ScaleEstimate, SensorResonance, Spectrum,
     TemperatureShift, COLOURED_NOISE_FIT, SENSOR_RESONANCE_REMEDY,
 };
 pub use finding::{separating_test, Candidate, Finding, CLOSE_MARGIN};

@@ -13,7 +13,7 @@
 //! | `drift` | a ramp added to the prediction | subtracted (the board counts samples) |
 //! | `delay` | the delay the evidence points to, instead of the fitted one | the delay |
 //! | `coloured-noise` | output-error fit (the noise needs no model then) | nothing |
-//! | `nonlinear-damping` | a quadratic loss `gain * \|dy/dt\| dy/dt` taken off the input the dynamics see (fitted by least squares, alternating with the linear part) | `gain * lowpass(\|dy\| dy)` added to the linear inverse ([`crate::compensator::NonlinearDampingCoefficients`]); f32 only, the fixed-point export refuses it |
+//! | `nonlinear-damping` | a quadratic loss `gain * \|dy/dt\| dy/dt` taken off the input the dynamics see (fitted with the linear part on the estimation test; one step cannot identify it, so more estimation tests of other sizes fit it with the linear part on all at once: [`fit_with_also`], [`joint_loss`]) | `gain * lowpass(\|dy\| dy)` added to the linear inverse ([`crate::compensator::NonlinearDampingCoefficients`]); f32 only, the fixed-point export refuses it |
 //! | `sensor-resonance` | both channels low-passed below the transducers' diaphragm resonance (Butterworth, order [`PREFILTER_ORDER`], at half the resonance, as the paper does) before fitting; the model describes the probe below it, and errors are measured on the prefiltered signals | the prefilter's sections run first, in the compensator's cascade |
 //! | `temperature` | the model belongs to `reference_k`; at a gas temperature `T` every natural frequency scales by `k = sqrt(T / reference_k)` (speed of sound) and the delay by `1 / k`, through the continuous-time model ([`scaled`]); the damping of every resonance is kept (`damping = "constant"`, `--add temperature`) or scaled by the viscous law `(nu(T) / nu(reference_k)) / k` of a tube-volume system (`damping = "viscous"`, `--add temperature-viscous`; [`TemperatureDamping`], [`scaled_with`]); an overdamped line (a capillary), where the pressure diffuses, has every time scale go as the viscosity instead, `k = mu(reference_k) / mu(T)`, slower when hotter (`damping = "diffusive"`, `--add temperature-diffusive`) | a coefficient set rescaled for the temperature it is given (`unlag export --temperature K`, swapped in as a blob), or a bank of sets by temperature for a board that measures it (`unlag export --temperatures FROM:TO:STEP`, [`crate::compensator::TemperatureBank`]: nearest set with hysteresis, state handed over without a step) |
 //!
@@ -52,7 +52,7 @@ mod prefilter;
 mod temperature;
 
 pub use additive::{estimate_additive, Additive};
-pub use fit::{fit_with, resolve};
+pub use fit::{fit_with, fit_with_also, resolve};
 pub use joint::{joint_loss, JointFit, MAX_LOSS_SCALES};
 pub use kind::{EffectKind, UnknownKind, KINDS};
 pub use nonlinear::{

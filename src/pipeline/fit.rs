@@ -16,6 +16,10 @@ pub struct FitRequest<'a> {
     /// The tests: the estimation test first, then the held-out ones (which choose the order
     /// and are reported). Their names are the files the model file records.
     pub tests: &'a [Test<'a>],
+    /// How many of [`Self::tests`], from the first, are estimation tests: 1, or more fitted
+    /// together for a quadratic loss that one test cannot identify (`nonlinear-damping`,
+    /// [`effects::fit_with_also`]); the rest are held out.
+    pub estimation_tests: usize,
     /// The SHA-256 of each test's file, in the same order.
     pub digests: &'a [String],
     /// Each test's sample rate (Hz), in the same order: the estimation test's is the model's,
@@ -44,12 +48,14 @@ pub struct FitRequest<'a> {
 /// [`check_same_rate`]'s for a held-out test at another rate; the fit's errors
 /// ([`effects::fit_with`]).
 pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
-    let Some((estimation, validation)) = request.tests.split_first() else {
+    let Some((estimation, rest)) = request.tests.split_first() else {
         return Err(Error::InvalidParameter {
             parameter: crate::error::Parameter::Tests,
             message: "give at least one step test".into(),
         });
     };
+    let joint = request.estimation_tests.max(1);
+    let (also, validation) = rest.split_at((joint - 1).min(rest.len()));
     if request.digests.len() != request.tests.len() {
         return Err(Error::InvalidArgument {
             what: "digests",
@@ -86,8 +92,9 @@ pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
             .effects
             .iter()
             .any(|e| e.kind() == EffectKind::Delay);
-    let (fitted, mut effects) = effects::fit_with(
+    let (fitted, mut effects) = effects::fit_with_also(
         estimation,
+        also,
         validation,
         fs,
         &request.options,
@@ -107,7 +114,11 @@ pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
         .map(|(i, (test, digest))| Source {
             file: test.name.to_string(),
             sha256: digest.clone(),
-            role: TestRole::of_index(i),
+            role: if i < joint {
+                TestRole::Estimation
+            } else {
+                TestRole::Validation
+            },
             // With a noise model, the one-step-ahead prediction error (said when printed).
             nrmse: effects::judged_nrmse(&fitted.model, &effects, test.u, test.y),
             noise_floor: fit::noise_floor(test.y, fit::step::quiet_until(test.u)),
@@ -271,6 +282,7 @@ mod tests {
         };
         let request = FitRequest {
             tests: &tests,
+            estimation_tests: 1,
             digests: &digests,
             sample_rates_hz: &[10_000.0, 10_000.0],
             options: Options {
@@ -355,6 +367,7 @@ mod tests {
         ];
         let no_step = fit_probe(&FitRequest {
             tests: &still,
+            estimation_tests: 1,
             ..request.clone()
         })
         .unwrap_err();
@@ -375,6 +388,7 @@ mod tests {
         assert!(matches!(
             fit_probe(&FitRequest {
                 tests: &[],
+                estimation_tests: 1,
                 digests: &[],
                 ..request
             }),

@@ -39,6 +39,9 @@ pub enum FitStage {
 pub struct FitDesignRequest<'a> {
     /// The tests: the estimation test first, then the held-out ones (as for [`FitRequest`]).
     pub tests: &'a [Test<'a>],
+    /// How many of the tests, from the first, are estimation tests
+    /// ([`FitRequest::estimation_tests`]).
+    pub estimation_tests: usize,
     /// The SHA-256 of each test's file, in the same order.
     pub digests: &'a [String],
     /// Each test's sample rate (Hz), in the same order.
@@ -121,6 +124,7 @@ pub fn fit_and_design(request: &FitDesignRequest<'_>) -> Result<FitDesigned> {
     let (column, name) = request.reference_column;
     let mut file = fit_probe(&FitRequest {
         tests: request.tests,
+        estimation_tests: request.estimation_tests,
         digests: request.digests,
         sample_rates_hz: request.sample_rates_hz,
         options: request.options,
@@ -203,6 +207,7 @@ mod tests {
         };
         let request = FitDesignRequest {
             tests: &tests,
+            estimation_tests: 1,
             digests: &digests,
             sample_rates_hz: &[10_000.0, 10_000.0],
             options: Options {

@@ -205,7 +205,7 @@ pub(super) fn candidates(h: &mut String, inputs: &Inputs<'_>) {
     h.push_str(
         "<h3>Candidates for the missing effect, best first</h3>\n\
          <table class=\"candidates\"><tr><th>#</th><th>effect</th><th>score</th>\
-         <th>held-out error</th><th>reading and evidence</th><th>change</th></tr>\n",
+         <th>error in its trial</th><th>reading and evidence</th><th>change</th></tr>\n",
     );
     for (i, c) in inputs.candidates.iter().enumerate() {
         let evidence = evidence_text(&rounded(
@@ -214,13 +214,12 @@ pub(super) fn candidates(h: &mut String, inputs: &Inputs<'_>) {
         let _ = writeln!(
             h,
             "<tr><td class=\"num\">{}</td><td><b>{}</b></td><td class=\"num\">{:.2}</td>\
-             <td class=\"num\">{} &rarr; {}</td><td>{}{}<br><small><code>{}</code></small></td>\
+             <td class=\"num\">{}</td><td>{}{}<br><small><code>{}</code></small></td>\
              <td><code>{}</code></td></tr>",
             i + 1,
             escape(c.kind.as_str()),
             c.score,
-            pct(c.nrmse_before),
-            pct(c.nrmse_after),
+            escape(&c.error_change()).replace(" -> ", " &rarr; "),
             escape(&c.reading),
             stated_uncertainty(c),
             escape(&evidence),

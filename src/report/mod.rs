@@ -229,10 +229,9 @@ fn verdict(h: &mut String, inputs: &Inputs<'_>) {
             let _ = writeln!(
                 h,
                 "<div class=\"verdict\"><b>Diagnosis: <span class=\"effect\">{}</span></b> \
-                 (held-out error {} &rarr; {} in a trial refit). {}<br>Change: <code>{}</code></div>",
+                 ({} in a trial refit). {}<br>Change: <code>{}</code></div>",
                 escape(c.kind.as_str()),
-                pct(c.nrmse_before),
-                pct(c.nrmse_after),
+                escape(&c.error_change()).replace(" -> ", " &rarr; "),
                 escape(&c.reading),
                 escape(&(inputs.change_text)(&c.change))
             );

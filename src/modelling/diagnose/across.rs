@@ -6,8 +6,10 @@ use serde::Serialize;
 
 use super::Current;
 use crate::fit::{Options, Order, Test};
-use crate::modelling::effects::{FitChanges, TemperatureDamping};
+use crate::modelling::effects::{Effect, FitChanges, TemperatureDamping};
 use crate::modelling::evidence::TestEvidence;
+
+use super::JointLoss;
 
 /// One test seen on its own: the same model structure fitted to it alone, and how big its
 /// residual is for its step. Across tests this shows what one model hides: natural
@@ -72,6 +74,28 @@ impl AmplitudeSignature {
     #[must_use]
     pub fn nonlinear_damping(&self) -> bool {
         self.damping_rise >= MIN_DAMPING_RISE && self.residual_exponent >= MIN_RESIDUAL_EXPONENT
+    }
+}
+
+impl AmplitudeSignature {
+    /// What it says, with the loss a trial fitted (`gain`, s^2 per probe unit), for a
+    /// candidate's reading.
+    #[must_use]
+    pub fn reading(&self, gain: f64) -> String {
+        let ends = |v: &[f64]| {
+            (
+                v.first().copied().unwrap_or(0.0),
+                v.last().copied().unwrap_or(0.0),
+            )
+        };
+        let ((a0, a1), (z0, z1)) = (ends(&self.amplitudes), ends(&self.damping));
+        format!(
+            "the damping fitted to each test alone rises from {z0:.3} at a step of {a0:.3} to \
+             {z1:.3} at {a1:.3} ({:+.3} per unit step), and what a linear fit leaves grows as \
+             |step|^{:.2} (a linear probe: 1): amplitude-dependent losses, orifice or turbulent \
+             flow at large steps (quadratic loss {gain:.3e} s^2 per unit)",
+            self.damping_slope, self.residual_exponent
+        )
     }
 }
 
@@ -414,6 +438,59 @@ pub fn temperature_reading(
         t.damping_ratio,
     );
     (reading, temperature_ratio)
+}
+
+/// One model fitted to all `tests` at once, with a quadratic loss and without, from the
+/// current model ([`crate::modelling::effects::joint_loss`]); `None` with one test, or a model
+/// that has a quadratic loss already or effects that change each test differently (a sensor
+/// resonance's prefilter, a temperature's scale). An offset or a drift in the model is left in
+/// both fits' errors alike.
+#[must_use]
+pub fn joint_loss_evidence(current: &Current<'_>, tests: &[Test<'_>]) -> Option<JointLoss> {
+    let changed = current.effects.iter().any(|e| {
+        matches!(
+            e,
+            Effect::NonlinearDamping { .. }
+                | Effect::SensorResonance { .. }
+                | Effect::Temperature { .. }
+        )
+    });
+    if tests.len() < 2 || changed {
+        return None;
+    }
+    let (linear, joint) = crate::modelling::effects::joint_loss(current.model, tests)?;
+    Some(JointLoss {
+        tests: tests.iter().map(|t| t.name.to_string()).collect(),
+        fall: linear.rms() / joint.rms(),
+        linear_nrmse: linear.nrmse,
+        nrmse: joint.nrmse,
+        gain_s2_per_unit: joint.gain,
+    })
+}
+
+impl JointLoss {
+    /// What it says, for a candidate's reading.
+    #[must_use]
+    pub fn reading(&self) -> String {
+        let pct = |v: &[f64]| {
+            v.iter()
+                .map(|e| format!("{:.3} %", 100.0 * e))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        format!(
+            "one model fitted to {} together leaves {} with a quadratic loss of {:.3e} s^2 per \
+             unit, where the best single linear model leaves {} ({:.2}x in all): \
+             amplitude-dependent losses, orifice or turbulent flow at large rates, which one \
+             step cannot tell from a linear damping. The remedy fits the loss on these tests \
+             together; hold out a further test to judge it",
+            self.tests.join(" and "),
+            pct(&self.nrmse),
+            self.gain_s2_per_unit,
+            pct(&self.linear_nrmse),
+            self.fall
+        )
+    }
 }
 
 /// Fits the current model's structure (order without effects, delay, method) to each test

@@ -301,6 +301,53 @@ pub struct NonlinearDamping {
     pub residual_exponent: f64,
     /// Each test's own-fit residual over its step.
     pub residual_per_step: Vec<f64>,
+    /// One model fitted to all the tests together, with the loss and without: what tests of
+    /// different sizes show where one step cannot (`None` when not tried).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joint: Option<JointLoss>,
+}
+
+impl NonlinearDamping {
+    /// The evidence from the tests' amplitude signature (`sig`, what the tests gave of it;
+    /// `seen`: whether it is the signature of amplitude-dependent losses), the loss a trial
+    /// fitted, and the fit of the tests together when made.
+    #[must_use]
+    pub fn of(
+        sig: Option<&super::AmplitudeSignature>,
+        seen: bool,
+        gain: f64,
+        joint: Option<JointLoss>,
+    ) -> Self {
+        Self {
+            amplitude_signature: seen,
+            amplitudes: sig.map(|s| s.amplitudes.clone()).unwrap_or_default(),
+            damping: sig.map(|s| s.damping.clone()).unwrap_or_default(),
+            damping_rise: sig.map_or(f64::NAN, |s| s.damping_rise),
+            damping_slope_per_unit_step: sig.map_or(f64::NAN, |s| s.damping_slope),
+            gain_s2_per_unit: gain,
+            residual_exponent: sig.map_or(f64::NAN, |s| s.residual_exponent),
+            residual_per_step: sig.map(|s| s.residual_per_step.clone()).unwrap_or_default(),
+            joint,
+        }
+    }
+}
+
+/// One model fitted to all the tests at once, with a quadratic loss and without
+/// ([`crate::modelling::effects::joint_loss`]): one step cannot tell the loss from a linear
+/// damping, but no single linear model explains steps of different sizes when the probe has
+/// it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JointLoss {
+    /// The tests, in the order of the errors.
+    pub tests: Vec<String>,
+    /// Each test's error left by the best single linear model.
+    pub linear_nrmse: Vec<f64>,
+    /// Each test's error left by the model with the loss.
+    pub nrmse: Vec<f64>,
+    /// The loss (s^2 per probe unit).
+    pub gain_s2_per_unit: f64,
+    /// The fall of the tests' RMS error the loss brings (linear over with the loss).
+    pub fall: f64,
 }
 
 #[cfg(test)]

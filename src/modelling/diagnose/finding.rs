@@ -111,7 +111,9 @@ pub struct Candidate {
     pub change: Remedy,
     /// Held-out error before the trial.
     pub nrmse_before: f64,
-    /// Held-out error after the trial.
+    /// Held-out error after the trial; for a quadratic loss fitted on the tests together
+    /// (which holds none out), the error before over the fall of the tests' RMS error that
+    /// fit shows ([`Candidate::error_change`] says so).
     pub nrmse_after: f64,
     /// How far ahead of the next candidate it is (score difference; the last one's score).
     pub margin: f64,
@@ -129,6 +131,26 @@ pub struct Candidate {
 }
 
 impl Candidate {
+    /// How the error changes in its trial, in words: `held-out error 1.000 % -> 0.500 %`, or
+    /// for the tests fitted together, their RMS error with one linear model and with the loss.
+    #[must_use]
+    pub fn error_change(&self) -> String {
+        let pct = |v: f64| format!("{:.3} %", 100.0 * v);
+        let rms = |v: &[f64]| (v.iter().map(|e| e * e).sum::<f64>() / v.len().max(1) as f64).sqrt();
+        match &self.evidence {
+            Evidence::NonlinearDamping(super::NonlinearDamping { joint: Some(j), .. }) => format!(
+                "the tests fitted together {} -> {} (RMS; none held out)",
+                pct(rms(&j.linear_nrmse)),
+                pct(rms(&j.nrmse))
+            ),
+            _ => format!(
+                "held-out error {} -> {}",
+                pct(self.nrmse_before),
+                pct(self.nrmse_after)
+            ),
+        }
+    }
+
     /// The stated uncertainty before and after the trial in one sentence, when both are
     /// known; with a noise model added, which figure to quote.
     #[must_use]

@@ -125,7 +125,8 @@ pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64
         let c = out.remove(i);
         out.push(c);
     }
-    // Nonlinear damping read from its trial alone (no amplitude signature) goes after an effect
+    // Nonlinear damping read from its trial alone (no amplitude signature, no fit of the tests
+    // together) goes after an effect
     // whose own signature was seen: a quadratic loss refitted on one step can take the shape
     // of a slower effect too.
     let trial_alone = |c: &Candidate| {
@@ -133,6 +134,7 @@ pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64
             c.evidence,
             Evidence::NonlinearDamping(NonlinearDamping {
                 amplitude_signature: false,
+                joint: None,
                 ..
             })
         )
@@ -333,17 +335,17 @@ mod tests {
 
     #[test]
     fn nonlinear_damping_from_its_trial_alone_goes_after_a_close_effect_with_a_signature() {
-        let loss = |signature: bool| {
-            Evidence::NonlinearDamping(NonlinearDamping {
-                amplitude_signature: signature,
-                amplitudes: Vec::new(),
-                damping: Vec::new(),
-                damping_rise: f64::NAN,
-                damping_slope_per_unit_step: f64::NAN,
+        // Seen: the amplitude signature, or one model with the loss fitted to the tests
+        // together where no linear one explains them.
+        let loss = |signature: bool, joint: bool| {
+            let joint = joint.then(|| crate::modelling::diagnose::JointLoss {
+                tests: vec!["step.csv".into(), "traverse.csv".into()],
+                linear_nrmse: vec![0.012, 0.010],
+                nrmse: vec![0.004, 0.007],
                 gain_s2_per_unit: 1e-9,
-                residual_exponent: f64::NAN,
-                residual_per_step: Vec::new(),
-            })
+                fall: 2.1,
+            });
+            Evidence::NonlinearDamping(NonlinearDamping::of(None, signature, 1e-9, joint))
         };
         let drift = Evidence::Drift {
             pre_step_slope_per_s: 0.05,
@@ -351,19 +353,20 @@ mod tests {
             ramp_in_standard_errors: 12.0,
             rate_per_s: 0.05,
         };
-        for (signature, first) in [
-            (false, EffectKind::Drift),
-            (true, EffectKind::NonlinearDamping),
+        for (signature, joint, first) in [
+            (false, false, EffectKind::Drift),
+            (true, false, EffectKind::NonlinearDamping),
+            (false, true, EffectKind::NonlinearDamping),
         ] {
             let mut out = vec![
                 candidate(EffectKind::Drift, 1.67, drift.clone()),
-                candidate(EffectKind::NonlinearDamping, 1.70, loss(signature)),
+                candidate(EffectKind::NonlinearDamping, 1.70, loss(signature, joint)),
             ];
             order(&mut out, false, 1.0);
             assert_eq!(
                 out[0].kind,
                 Finding::Missing(first),
-                "signature {signature}"
+                "signature {signature}, joint {joint}"
             );
         }
     }

@@ -35,6 +35,14 @@ pub enum Remedy {
     /// values a fit fills are left to the fit. An [`Effect::Delay`] is the same change as
     /// [`Remedy::SetDelay`].
     Add(Effect),
+    /// Add this effect, fitted on the estimation test and these tests (their names) together:
+    /// a quadratic loss, which one step cannot identify and steps of other sizes can.
+    AddJointly {
+        /// The effect.
+        effect: Effect,
+        /// The tests fitted together with the estimation test.
+        also: Vec<String>,
+    },
     /// Fix the model's delay at this many samples (a `delay` effect in the model file).
     SetDelay {
         /// The delay (samples).
@@ -59,7 +67,7 @@ impl Remedy {
                 remedy: SensorRemedy::Prefilter,
                 ..
             }) => Some(EffectKind::SensorResonancePrefilter),
-            Self::Add(e) => Some(e.kind()),
+            Self::Add(e) | Self::AddJointly { effect: e, .. } => Some(e.kind()),
             Self::SetDelay { .. } => Some(EffectKind::Delay),
             Self::RaiseOrder | Self::Nothing => None,
         }
@@ -119,7 +127,9 @@ impl Remedy {
                      the estimation test's temperature"
                 ));
             }
-            Self::Add(e) => format!("{{ kind = \"{}\" }}", e.kind()),
+            Self::Add(e) | Self::AddJointly { effect: e, .. } => {
+                format!("{{ kind = \"{}\" }}", e.kind())
+            }
             Self::RaiseOrder | Self::Nothing => return None,
         };
         Some(format!("effects = [{entry}]"))
@@ -136,6 +146,10 @@ impl Remedy {
         }
         match (self, self.kind()) {
             (Self::RaiseOrder, _) => "unlag fit ... --order auto   (or a higher --order N)".into(),
+            (Self::AddJointly { also, .. }, Some(kind)) => {
+                let also: String = also.iter().map(|t| format!(" --also {t}")).collect();
+                format!("unlag fit ...{also} --add {kind}   (model file: {file})")
+            }
             (Self::Add(e), Some(kind)) => {
                 // What `--add` takes: the kind, with the value the diagnosis gives.
                 let add = match e {
@@ -165,7 +179,15 @@ impl core::fmt::Display for Remedy {
         let file = self.model_file().unwrap_or_default();
         match (self.delay(), self.kind()) {
             (Some(d), _) => write!(f, "set the delay to {d} samples   (model file: {file})"),
-            (None, Some(k)) => write!(f, "add the {k} effect   (model file: {file})"),
+            (None, Some(k)) => match self {
+                Self::AddJointly { also, .. } => write!(
+                    f,
+                    "add the {k} effect, fitted on the estimation test and {} together   \
+                     (model file: {file})",
+                    also.join(", ")
+                ),
+                _ => write!(f, "add the {k} effect   (model file: {file})"),
+            },
             (None, None) => match self {
                 Self::RaiseOrder => f.write_str("raise the model order, or let the fit choose it"),
                 _ => f.write_str("none"),
@@ -214,6 +236,13 @@ mod tests {
             (
                 Remedy::SetDelay { samples: 27 },
                 r#"set the delay to 27 samples   (model file: effects = [{ kind = "delay", samples = 27 }])"#,
+            ),
+            (
+                Remedy::AddJointly {
+                    effect: Effect::NonlinearDamping { gain: 0.0 },
+                    also: vec!["wake.csv".into()],
+                },
+                r#"add the nonlinear-damping effect, fitted on the estimation test and wake.csv together   (model file: effects = [{ kind = "nonlinear-damping" }])"#,
             ),
             (
                 Remedy::RaiseOrder,
@@ -297,6 +326,13 @@ mod tests {
             (
                 Remedy::SetDelay { samples: 27 },
                 r#"unlag fit ... --delay 27   (model file: effects = [{ kind = "delay", samples = 27 }])"#.into(),
+            ),
+            (
+                Remedy::AddJointly {
+                    effect: Effect::NonlinearDamping { gain: 0.0 },
+                    also: vec!["wake.csv".into()],
+                },
+                r#"unlag fit ... --also wake.csv --add nonlinear-damping   (model file: effects = [{ kind = "nonlinear-damping" }])"#.into(),
             ),
             (
                 Remedy::RaiseOrder,

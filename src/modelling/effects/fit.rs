@@ -95,8 +95,34 @@ pub fn fit_with(
     options: &Options,
     effects: &[Effect],
 ) -> Result<(Fitted, Vec<Effect>)> {
-    let (estimation_raw, validation_raw) = (estimation, validation);
+    fit_with_also(estimation, &[], validation, fs, options, effects)
+}
+
+/// [`fit_with`], with more estimation tests (`also`) fitted together with the first: with
+/// `nonlinear-damping`, the linear part and the quadratic loss are then fitted on all of them
+/// at once ([`super::joint_loss`]), which one test cannot do (a linear model with more damping
+/// explains one step as well). The fit's note gives each test's error with the loss and with
+/// one linear model.
+///
+/// # Errors
+/// As [`fit_with`]; [`ModellingError::AlsoWithoutLoss`] for `also` tests without
+/// `nonlinear-damping` among `effects`.
+pub fn fit_with_also(
+    estimation: &Test<'_>,
+    also: &[Test<'_>],
+    validation: &[Test<'_>],
+    fs: f64,
+    options: &Options,
+    effects: &[Effect],
+) -> Result<(Fitted, Vec<Effect>)> {
+    let (estimation_raw, also_raw, validation_raw) = (estimation, also, validation);
     let changes = FitChanges::of(effects);
+    if !also.is_empty() && !changes.nonlinear {
+        return Err(ModellingError::AlsoWithoutLoss {
+            tests: also.iter().map(|t| t.name.to_string()).collect(),
+        }
+        .into());
+    }
     let order = match options.order {
         Order::Fixed(m) => Order::Fixed(m + changes.extra_order),
         Order::Auto { max } => Order::Auto {
@@ -111,6 +137,7 @@ pub fn fit_with(
     // A sensor resonance: both channels of every test prefiltered below it.
     let effects = resolve(effects, estimation.u, fs)?;
     let filtered: Vec<(Vec<f64>, Vec<f64>)> = std::iter::once(estimation)
+        .chain(also)
         .chain(validation)
         .map(|t| {
             (
@@ -121,11 +148,12 @@ pub fn fit_with(
         .collect();
     let mut tests = filtered
         .iter()
-        .zip(std::iter::once(estimation).chain(validation))
+        .zip(std::iter::once(estimation).chain(also).chain(validation))
         .map(|((u, y), t)| Test { name: t.name, u, y });
     let Some(estimation) = tests.next() else {
         return Err(ModellingError::NoEstimationTest.into());
     };
+    let also: Vec<Test<'_>> = tests.by_ref().take(also.len()).collect();
     let validation: Vec<Test<'_>> = tests.collect();
     let validation = validation.as_slice();
     let onset = crate::fit::step::find_step(estimation.u).map_or(0, |s| s.onset);
@@ -155,8 +183,11 @@ pub fn fit_with(
             y: &y,
         };
         let f = if changes.nonlinear {
-            let (f, g) = fit_nonlinear(&est, validation, fs, &opts)?;
+            let (mut f, g) = fit_nonlinear(&est, validation, fs, &opts)?;
             gain = g;
+            if !also.is_empty() {
+                gain = fit_loss_jointly(&mut f, gain, &est, &also);
+            }
             f
         } else {
             crate::fit::fit(&est, validation, fs, &opts)?
@@ -203,7 +234,9 @@ pub fn fit_with(
                 delay: Some(fewer),
                 ..*options
             };
-            if let Ok((mut f, fx)) = fit_with(estimation_raw, validation_raw, fs, &o, &effects) {
+            if let Ok((mut f, fx)) =
+                fit_with_also(estimation_raw, also_raw, validation_raw, fs, &o, &effects)
+            {
                 if Continuous::from_model(&f.model).is_ok()
                     && f.nrmse_estimation <= 1.1 * fitted.nrmse_estimation
                 {
@@ -248,8 +281,14 @@ pub fn fit_with(
             value: 0.0,
             rate_per_s: 0.0,
         });
-        if let Ok((mut f, fx)) = fit_with(estimation_raw, validation_raw, fs, options, &with_drift)
-        {
+        if let Ok((mut f, fx)) = fit_with_also(
+            estimation_raw,
+            also_raw,
+            validation_raw,
+            fs,
+            options,
+            &with_drift,
+        ) {
             let still_slow = f.model.poles().map_or(true, |poles| {
                 poles.iter().any(|p| {
                     p.im.abs() < 1e-9 && p.re > 0.0 && p.re < 1.0 && -1.0 / p.re.ln() > after_step
@@ -276,9 +315,14 @@ pub fn fit_with(
         if let Some(level) = pre_step_offset(&fitted.model, &estimation, onset) {
             let mut with_offset = out.clone();
             with_offset.push(Effect::Offset { value: 0.0 });
-            if let Ok((mut f, fx)) =
-                fit_with(estimation_raw, validation_raw, fs, options, &with_offset)
-            {
+            if let Ok((mut f, fx)) = fit_with_also(
+                estimation_raw,
+                also_raw,
+                validation_raw,
+                fs,
+                options,
+                &with_offset,
+            ) {
                 if f.nrmse_estimation <= OFFSET_GAIN * fitted.nrmse_estimation {
                     f.report.notes.push(format!(
                         "the probe read {level:.4e} off the model before the step: read as an offset of {:.4e} (the probe's, removed before compensation, never inverted), which brings the estimation error from {:.3} % to {:.3} %",
@@ -292,6 +336,50 @@ pub fn fit_with(
         }
     }
     Ok((fitted, out))
+}
+
+/// The linear part and the quadratic loss of `fitted` (loss `gain`, from the estimation test
+/// alone) fitted again on `estimation` and `also` together ([`super::joint_loss`]); the note
+/// gives each test's error with the loss and with the best single linear model. Returns the
+/// loss (`gain` unchanged when the joint fit cannot be made).
+fn fit_loss_jointly(
+    fitted: &mut Fitted,
+    gain: f64,
+    estimation: &Test<'_>,
+    also: &[Test<'_>],
+) -> f64 {
+    let tests: Vec<Test<'_>> = std::iter::once(*estimation)
+        .chain(also.iter().copied())
+        .collect();
+    let names: Vec<&str> = tests.iter().map(|t| t.name).collect();
+    let pct = |v: &[f64]| {
+        v.iter()
+            .map(|e| format!("{:.3} %", 100.0 * e))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let Some((linear, joint)) = super::joint_loss(&fitted.model, &tests) else {
+        fitted.report.notes.push(format!(
+            "the loss could not be fitted on {} together (no stable start): it is the \
+             estimation test's alone",
+            names.join(" and ")
+        ));
+        return gain;
+    };
+    fitted.report.notes.push(format!(
+        "the linear part and the quadratic loss were fitted on {} together (one step cannot \
+         tell a quadratic loss from a linear damping): errors {} with a loss of {:.3e} s^2 per \
+         unit, where the best single linear model leaves {}",
+        names.join(" and "),
+        pct(&joint.nrmse),
+        joint.gain,
+        pct(&linear.nrmse)
+    ));
+    fitted.nrmse_estimation = joint.nrmse.first().copied().unwrap_or(f64::NAN);
+    fitted.model = joint.model;
+    // The one-test fit's standard deviations are not this model's.
+    fitted.report.uncertainty = None;
+    joint.gain
 }
 
 /// An offset found before the step is kept only when the fit without it explains the
@@ -403,5 +491,73 @@ mod tests {
         let std = (wander.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / 399.0).sqrt();
         assert!(mean.abs() > 5.0 * std / 20.0, "{mean} {std}");
         assert_eq!(test(&wander), None);
+    }
+
+    /// Two steps of different sizes through a probe with a quadratic loss: fitted on the first
+    /// alone the loss is not identified (a linear damping explains the step), fitted on both
+    /// together it is, and the fit says so; more estimation tests without the loss are refused.
+    #[test]
+    fn a_second_estimation_test_identifies_the_loss_and_needs_it() {
+        let truth = Model {
+            fs: 2000.0,
+            delay: 2,
+            a: vec![-1.8, 0.85],
+            b: vec![0.03, 0.02],
+        };
+        let step = |size: f64| -> Vec<f64> {
+            (0..1500)
+                .map(|k| if k < 100 { 0.0 } else { size })
+                .collect()
+        };
+        let (u_big, u_small) = (step(1000.0), step(150.0));
+        let q = super::super::quadratic_rate(&truth.simulate(&u_big), truth.fs);
+        let gain = 0.5 * 1000.0 / q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let noisy = |x: Vec<f64>, seed: u64| -> Vec<f64> {
+            x.iter()
+                .zip(crate::testing::gaussian(x.len(), seed))
+                .map(|(v, n)| v + 0.5 * n)
+                .collect()
+        };
+        let y_big = noisy(simulate_nonlinear(&truth, gain, &u_big), 1);
+        let y_small = noisy(simulate_nonlinear(&truth, gain, &u_small), 2);
+        let big = Test {
+            name: "big.csv",
+            u: &u_big,
+            y: &y_big,
+        };
+        let small = Test {
+            name: "small.csv",
+            u: &u_small,
+            y: &y_small,
+        };
+        let options = Options {
+            method: crate::fit::Method::Oe,
+            order: Order::Fixed(2),
+            delay: Some(2),
+        };
+        let loss = [Effect::NonlinearDamping { gain: 0.0 }];
+        let fitted_gain = |fx: &[Effect]| super::super::nonlinear_gain(fx);
+        let (f, fx) = fit_with_also(&big, &[small], &[], truth.fs, &options, &loss).unwrap();
+        assert!(
+            (fitted_gain(&fx) / gain - 1.0).abs() < 0.1,
+            "{} vs {gain}",
+            fitted_gain(&fx)
+        );
+        assert!(
+            f.report
+                .notes
+                .iter()
+                .any(|n| n.contains("big.csv and small.csv together")),
+            "{:?}",
+            f.report.notes
+        );
+        // The small step is explained to its noise (0.5 over 150) with the loss found so.
+        let e = crate::fit::nrmse_of(
+            &y_small,
+            &simulate_nonlinear(&f.model, fitted_gain(&fx), &u_small),
+        );
+        assert!(e < 1.2 * 0.5 / 150.0, "{e}");
+        let refused = fit_with_also(&big, &[small], &[], truth.fs, &options, &[]).unwrap_err();
+        assert!(refused.to_string().contains("small.csv"), "{refused}");
     }
 }

@@ -42,6 +42,46 @@ pub(crate) fn second_order(
     (model, s)
 }
 
+/// An overdamped probe (a capillary): real corners `f_slow` and `f_fast` Hz, sampled at `fs`
+/// behind `delay` samples, unit DC gain, the numerator of [`second_order`].
+pub(crate) fn overdamped(
+    f_slow: f64,
+    f_fast: f64,
+    fs: f64,
+    delay: usize,
+) -> crate::fit::model::Model {
+    let z = |f: f64| (-2.0 * std::f64::consts::PI * f / fs).exp();
+    let a = vec![-(z(f_slow) + z(f_fast)), z(f_slow) * z(f_fast)];
+    let g = 1.0 + a[0] + a[1];
+    crate::fit::model::Model {
+        fs,
+        delay,
+        a,
+        b: vec![0.0, 0.6 * g, 0.4 * g],
+    }
+}
+
+/// Two steps from rest, of 1000 and of 150, 1500 samples at 2 kHz, through a resonant probe
+/// with a quadratic loss that takes half the big step off the input at its peak rate:
+/// `(the probe's linear part, the big step, the small one, the loss)`.
+pub(crate) fn two_step_sizes() -> (crate::fit::model::Model, Vec<f64>, Vec<f64>, f64) {
+    let truth = crate::fit::model::Model {
+        fs: 2000.0,
+        delay: 2,
+        a: vec![-1.8, 0.85],
+        b: vec![0.03, 0.02],
+    };
+    let step = |size: f64| -> Vec<f64> {
+        (0..1500)
+            .map(|k| if k < 100 { 0.0 } else { size })
+            .collect()
+    };
+    let (big, small) = (step(1000.0), step(150.0));
+    let q = crate::modelling::effects::quadratic_rate(&truth.simulate(&big), truth.fs);
+    let gain = 0.5 * 1000.0 / q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    (truth, big, small, gain)
+}
+
 /// The model file of `model` alone: no fit, sources, compensator, effects, history or probe.
 pub(crate) fn model_file(model: crate::fit::model::Model) -> crate::file::ModelFile {
     crate::file::ModelFile {

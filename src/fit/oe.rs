@@ -200,6 +200,29 @@ fn triangle(
     r_aug
 }
 
+/// The small problem each damped step solves, from the triangle `R` of `[J r]` (`np`
+/// parameters): `J`'s column norms (those of `R`, as `Q` is orthogonal), the `2 np x np`
+/// matrix `[R; 0]` whose lower half takes the damping rows, and its target `[Q^T r; 0]`.
+pub(crate) fn damped_problem(r_aug: &Mat<f64>, np: usize) -> (Vec<f64>, Mat<f64>, Mat<f64>) {
+    let norms: Vec<f64> = (0..np)
+        .map(|c| {
+            (0..=c)
+                .map(|r| r_aug[(r, c)] * r_aug[(r, c)])
+                .sum::<f64>()
+                .sqrt()
+        })
+        .collect();
+    let mut small = Mat::<f64>::zeros(2 * np, np);
+    let mut target = Mat::<f64>::zeros(2 * np, 1);
+    for r in 0..np {
+        for c in r..np {
+            small[(r, c)] = r_aug[(r, c)];
+        }
+        target[(r, 0)] = r_aug[(r, np)];
+    }
+    (norms, small, target)
+}
+
 /// The asymptotic covariance of an output-error estimate `[a; b]`: `s^2 (J^T J)^-1` with
 /// `s^2` the residual variance, as `s^2 R^-1 R^-T` from the Jacobian's triangular factor (back
 /// substitution on `R`, never the normal equations). Valid for white residuals: give the data
@@ -296,23 +319,7 @@ pub fn output_error_from(
     let mut block = Mat::<f64>::zeros(width + BLOCK.min(rows), width);
     for _ in 0..max_iterations {
         let r_aug = triangle(sets, (&a, &b), d, &mut block);
-        // Column norms of J are those of R (Q is orthogonal).
-        let norms: Vec<f64> = (0..np)
-            .map(|c| {
-                (0..=c)
-                    .map(|r| r_aug[(r, c)] * r_aug[(r, c)])
-                    .sum::<f64>()
-                    .sqrt()
-            })
-            .collect();
-        let mut small = Mat::<f64>::zeros(2 * np, np);
-        let mut target = Mat::<f64>::zeros(2 * np, 1);
-        for r in 0..np {
-            for c in r..np {
-                small[(r, c)] = r_aug[(r, c)];
-            }
-            target[(r, 0)] = r_aug[(r, np)];
-        }
+        let (norms, mut small, target) = damped_problem(&r_aug, np);
         let mut improved = false;
         // Once the damping has fallen to `UNDAMPED_BELOW` (the iterate is near an optimum),
         // the first trial is the undamped Gauss-Newton step: it converges quadratically where

@@ -539,16 +539,7 @@ mod tests {
     #[test]
     fn a_capillarys_coefficient_set_for_a_hotter_gas_is_slower() {
         // An overdamped probe: corners 4 Hz and 100 Hz.
-        let fs = 3000.0;
-        let z = |f: f64| (-2.0 * std::f64::consts::PI * f / fs).exp();
-        let a = vec![-(z(4.0) + z(100.0)), z(4.0) * z(100.0)];
-        let g = 1.0 + a[0] + a[1];
-        let m = crate::fit::Model {
-            fs,
-            delay: 12,
-            a,
-            b: vec![0.0, 0.6 * g, 0.4 * g],
-        };
+        let m = crate::testing::overdamped(4.0, 100.0, 3000.0, 12);
         let mut file = crate::testing::model_file(m.clone());
         file.effects = vec![Effect::parse("temperature-diffusive").unwrap()];
         let hot = at_temperature(&file, 343.15).unwrap();

@@ -566,20 +566,15 @@ mod tests {
         assert!(!temperature_shift(f64::NAN));
     }
 
-    /// An overdamped probe: real poles at corners `f1` and `f2` Hz, unit DC gain, `delay`
-    /// samples; with a leak's pole-zero pair at `leak_hz` taking `leak_share` of the DC gain.
-    fn overdamped(fs: f64, f1: f64, f2: f64, delay: usize, leak: Option<(f64, f64)>) -> Model {
-        let pole = |f: f64| (-2.0 * std::f64::consts::PI * f / fs).exp();
-        let (p1, p2) = (pole(f1), pole(f2));
-        let mut a = vec![-(p1 + p2), p1 * p2];
-        let mut b = vec![0.0, 0.6, 0.4];
-        if let Some((f, share)) = leak {
-            // (1 - z0 z^-1) / (1 - q z^-1), DC gain (1 - z0) / (1 - q) = 1 - share.
-            let q = pole(f);
-            let z0 = 1.0 - (1.0 - share) * (1.0 - q);
-            a = vec![a[0] - q, a[1] - q * a[0], -q * a[1]];
-            b = vec![0.0, 0.6, 0.4 - 0.6 * z0, -0.4 * z0];
-        }
+    /// An overdamped probe ([`crate::testing::overdamped`]) with a leak's pole-zero pair at
+    /// `leak_hz` taking `leak_share` of the DC gain.
+    fn leaking(fs: f64, f1: f64, f2: f64, delay: usize, (leak_hz, share): (f64, f64)) -> Model {
+        let a = crate::testing::overdamped(f1, f2, fs, delay).a;
+        // (1 - z0 z^-1) / (1 - q z^-1), DC gain (1 - z0) / (1 - q) = 1 - share.
+        let q = (-2.0 * std::f64::consts::PI * leak_hz / fs).exp();
+        let z0 = 1.0 - (1.0 - share) * (1.0 - q);
+        let a = vec![a[0] - q, a[1] - q * a[0], -q * a[1]];
+        let b = [0.0, 0.6, 0.4 - 0.6 * z0, -0.4 * z0];
         let g = (1.0 + a.iter().sum::<f64>()) / b.iter().sum::<f64>();
         Model {
             fs,
@@ -591,11 +586,11 @@ mod tests {
 
     #[test]
     fn the_dominant_corner_is_the_capillarys_slow_one_not_a_leaks() {
-        let plain = overdamped(3000.0, 4.0, 100.0, 20, None);
+        let plain = crate::testing::overdamped(4.0, 100.0, 3000.0, 20);
         let f = dominant_corner(&plain).unwrap();
         assert!((f / 4.0 - 1.0).abs() < 1e-9, "{f}");
         // A leak at 0.3 Hz taking 5 % of the gain: slower, but a small share of the step.
-        let leaky = overdamped(3000.0, 4.0, 100.0, 20, Some((0.3, 0.05)));
+        let leaky = leaking(3000.0, 4.0, 100.0, 20, (0.3, 0.05));
         let f = dominant_corner(&leaky).unwrap();
         assert!((f / 4.0 - 1.0).abs() < 1e-9, "{f}");
         // The whole lag: the delay and both time constants (no zero away from the origin).
@@ -611,7 +606,7 @@ mod tests {
 
     #[test]
     fn both_time_scales_move_by_the_factor_that_scales_time() {
-        let model = overdamped(3000.0, 4.0, 100.0, 20, None);
+        let model = crate::testing::overdamped(4.0, 100.0, 3000.0, 20);
         for k in [0.8, 1.15] {
             let scaled = crate::modelling::effects::scaled(&model, k).unwrap();
             let (a, b) = (time_scales(&model), time_scales(&scaled));

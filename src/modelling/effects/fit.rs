@@ -115,7 +115,11 @@ pub fn fit_with_also(
     options: &Options,
     effects: &[Effect],
 ) -> Result<(Fitted, Vec<Effect>)> {
-    let (estimation_raw, also_raw, validation_raw) = (estimation, also, validation);
+    let estimation_raw = estimation;
+    // The same fit with other options or effects, on the tests as given.
+    let refit = |options: &Options, effects: &[Effect]| {
+        fit_with_also(estimation, also, validation, fs, options, effects)
+    };
     let changes = FitChanges::of(effects);
     if !also.is_empty() && !changes.nonlinear {
         return Err(ModellingError::AlsoWithoutLoss {
@@ -234,9 +238,7 @@ pub fn fit_with_also(
                 delay: Some(fewer),
                 ..*options
             };
-            if let Ok((mut f, fx)) =
-                fit_with_also(estimation_raw, also_raw, validation_raw, fs, &o, &effects)
-            {
+            if let Ok((mut f, fx)) = refit(&o, &effects) {
                 if Continuous::from_model(&f.model).is_ok()
                     && f.nrmse_estimation <= 1.1 * fitted.nrmse_estimation
                 {
@@ -281,14 +283,7 @@ pub fn fit_with_also(
             value: 0.0,
             rate_per_s: 0.0,
         });
-        if let Ok((mut f, fx)) = fit_with_also(
-            estimation_raw,
-            also_raw,
-            validation_raw,
-            fs,
-            options,
-            &with_drift,
-        ) {
+        if let Ok((mut f, fx)) = refit(options, &with_drift) {
             let still_slow = f.model.poles().map_or(true, |poles| {
                 poles.iter().any(|p| {
                     p.im.abs() < 1e-9 && p.re > 0.0 && p.re < 1.0 && -1.0 / p.re.ln() > after_step
@@ -315,14 +310,7 @@ pub fn fit_with_also(
         if let Some(level) = pre_step_offset(&fitted.model, &estimation, onset) {
             let mut with_offset = out.clone();
             with_offset.push(Effect::Offset { value: 0.0 });
-            if let Ok((mut f, fx)) = fit_with_also(
-                estimation_raw,
-                also_raw,
-                validation_raw,
-                fs,
-                options,
-                &with_offset,
-            ) {
+            if let Ok((mut f, fx)) = refit(options, &with_offset) {
                 if f.nrmse_estimation <= OFFSET_GAIN * fitted.nrmse_estimation {
                     f.report.notes.push(format!(
                         "the probe read {level:.4e} off the model before the step: read as an offset of {:.4e} (the probe's, removed before compensation, never inverted), which brings the estimation error from {:.3} % to {:.3} %",
@@ -498,20 +486,7 @@ mod tests {
     /// together it is, and the fit says so; more estimation tests without the loss are refused.
     #[test]
     fn a_second_estimation_test_identifies_the_loss_and_needs_it() {
-        let truth = Model {
-            fs: 2000.0,
-            delay: 2,
-            a: vec![-1.8, 0.85],
-            b: vec![0.03, 0.02],
-        };
-        let step = |size: f64| -> Vec<f64> {
-            (0..1500)
-                .map(|k| if k < 100 { 0.0 } else { size })
-                .collect()
-        };
-        let (u_big, u_small) = (step(1000.0), step(150.0));
-        let q = super::super::quadratic_rate(&truth.simulate(&u_big), truth.fs);
-        let gain = 0.5 * 1000.0 / q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let (truth, u_big, u_small, gain) = crate::testing::two_step_sizes();
         let noisy = |x: Vec<f64>, seed: u64| -> Vec<f64> {
             x.iter()
                 .zip(crate::testing::gaussian(x.len(), seed))

@@ -199,22 +199,7 @@ fn fit_jointly(
     let mut block = Mat::<f64>::zeros(width + BLOCK.min(rows), width);
     for _ in 0..MAX_ITERATIONS {
         let r_aug = triangle(start, &theta, loss, tests, &w, &mut block);
-        let norms: Vec<f64> = (0..np)
-            .map(|c| {
-                (0..=c)
-                    .map(|r| r_aug[(r, c)] * r_aug[(r, c)])
-                    .sum::<f64>()
-                    .sqrt()
-            })
-            .collect();
-        let mut small = Mat::<f64>::zeros(2 * np, np);
-        let mut target = Mat::<f64>::zeros(2 * np, 1);
-        for r in 0..np {
-            for c in r..np {
-                small[(r, c)] = r_aug[(r, c)];
-            }
-            target[(r, 0)] = r_aug[(r, np)];
-        }
+        let (norms, mut small, target) = crate::fit::oe::damped_problem(&r_aug, np);
         let mut improved = false;
         for _ in 0..12 {
             for (c, nrm) in norms.iter().enumerate() {
@@ -320,18 +305,7 @@ mod tests {
     /// none.
     #[test]
     fn two_step_sizes_identify_a_quadratic_loss_and_a_linear_probe_shows_none() {
-        let truth = Model {
-            fs: 2000.0,
-            delay: 2,
-            a: vec![-1.8, 0.85],
-            b: vec![0.03, 0.02],
-        };
-        let step = |size: f64| -> Vec<f64> {
-            (0..1500)
-                .map(|k| if k < 100 { 0.0 } else { size })
-                .collect()
-        };
-        let (u_big, u_small) = (step(1000.0), step(150.0));
+        let (truth, u_big, u_small, gain) = crate::testing::two_step_sizes();
         let mut seed = 7;
         let mut noisy = |x: Vec<f64>| -> Vec<f64> {
             seed += 1;
@@ -340,10 +314,6 @@ mod tests {
                 .map(|(v, n)| v + 0.5 * n)
                 .collect()
         };
-        // The loss taking about half the big step off the input at its peak rate.
-        let q = quadratic_rate(&simulate_nonlinear(&truth, 0.0, &u_big), truth.fs);
-        let peak = q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let gain = 0.5 * 1000.0 / peak;
         for (g, expect_loss) in [(gain, true), (0.0, false)] {
             let y_big = noisy(simulate_nonlinear(&truth, g, &u_big));
             let y_small = noisy(simulate_nonlinear(&truth, g, &u_small));

@@ -549,16 +549,7 @@ mod tests {
     fn an_overdamped_probes_two_real_poles_move_as_one_mode() {
         // A capillary: corners 4 Hz and 100 Hz, one overdamped mode w_n = sqrt(s1 s2),
         // 2 zeta w_n = -(s1 + s2).
-        let fs = 3000.0;
-        let z = |f: f64| (-2.0 * PI * f / fs).exp();
-        let a = vec![-(z(4.0) + z(100.0)), z(4.0) * z(100.0)];
-        let g = 1.0 + a[0] + a[1];
-        let m = Model {
-            fs,
-            delay: 12,
-            a,
-            b: vec![0.0, 0.6 * g, 0.4 * g],
-        };
+        let m = crate::testing::overdamped(4.0, 100.0, 3000.0, 12);
         let (k, f) = (1.09, 1.3);
         let (old, new) = (real_poles(&m), real_poles(&scaled_with(&m, k, f).unwrap()));
         // w_n goes as k, zeta as f: the product of the poles by k^2, their sum by k f.

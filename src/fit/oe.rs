@@ -27,7 +27,8 @@ pub fn allpole(a: &[f64], x: &[f64]) -> Vec<f64> {
     filter(&[1.0], a, 0, x)
 }
 
-fn stable(a: &[f64]) -> bool {
+/// Whether the denominator `1 + a1 z^-1 + ... + am z^-m` is stable (Schur).
+pub(crate) fn stable(a: &[f64]) -> bool {
     let mut p = Vec::with_capacity(a.len() + 1);
     p.push(1.0);
     p.extend_from_slice(a);

@@ -11,8 +11,8 @@
 use faer::Mat;
 
 use super::nonlinear::{quadratic_rate, Stepper};
-use crate::compensator::schur_stable;
 use crate::fit::arx;
+use crate::fit::oe::stable;
 use crate::fit::{Model, Test};
 
 /// Rows of the Jacobian reduced to its triangle at a time.
@@ -114,13 +114,6 @@ fn unpack(start: &Model, theta: &[f64], loss: Option<(f64, f64)>) -> (Model, f64
         None => 0.0,
     };
     (model, gain)
-}
-
-fn stable(a: &[f64]) -> bool {
-    let mut p = Vec::with_capacity(a.len() + 1);
-    p.push(1.0);
-    p.extend_from_slice(a);
-    schur_stable(&p).is_ok()
 }
 
 /// The weight of each test: one over its range and the square root of its length, so that

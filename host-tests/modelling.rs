@@ -837,6 +837,54 @@ fn coloured_noise_on_a_traverse_is_named_against_the_band_of_two_slow_series() {
     assert!(band > 1.5 * 2.576 / n.sqrt(), "band {band}");
 }
 
+/// The same case after `--add coloured-noise`: the traverse's error is then a one-step-ahead
+/// prediction error, whose floor is not the probe noise's level (what its highest frequencies
+/// show, all a traverse has) but the part of the noise no predictor removes, its innovation.
+/// The fit states that floor, read from the estimation test's quiet segment as the traverse
+/// has none, and the noise model brings the traverse's error to it; against the simulation
+/// error's floor it would seem 1.7x short.
+#[test]
+fn a_noise_model_is_judged_against_the_floor_of_a_prediction_error() {
+    let case = diagnose_bank(
+        "coloured-floor",
+        "coloured-wake-est.csv",
+        "coloured-wake-val.csv",
+    );
+    let fit = case.fit_adding("coloured-noise");
+    let val = &fit["sources"][1];
+    assert_eq!(val["role"], "validation", "{fit}");
+    let floor = &val["prediction_floor"];
+    assert!(
+        floor["from"]
+            .as_str()
+            .is_some_and(|f| f.ends_with("coloured-wake-est.csv")),
+        "{floor}"
+    );
+    let (error, prediction, white) = (
+        val["nrmse"].as_f64().unwrap(),
+        floor["value"].as_f64().unwrap(),
+        val["noise_floor"].as_f64().unwrap(),
+    );
+    assert!(error <= 1.2 * prediction, "{error} against {prediction}");
+    assert!(error >= 1.4 * white, "{error} against {white}");
+    // Without a noise model no such floor is stated.
+    let other = case.dir.join("white.toml");
+    let plain = unlag_json(&[
+        "fit",
+        &case.est,
+        &case.val,
+        "--order",
+        "2",
+        "-o",
+        other.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        plain["sources"][1].get("prediction_floor").is_none(),
+        "{plain}"
+    );
+}
+
 /// Bank case 088: a pneumatic line (50 Hz) with quadratic losses, one step to fit on and a
 /// wake traverse to validate on. No pair of steps shows how the damping grows with the step, so
 /// the signature that names nonlinear damping cannot be read; the residual on the traverse

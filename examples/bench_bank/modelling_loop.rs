@@ -32,6 +32,11 @@ pub struct LoopOutcome {
     /// error would be, the probe's noise and the reference's through the model
     /// (`sigma_y^2 + |G|^2 sigma_u^2`), as the diagnosis of the plain fit predicts it.
     pub floor_both: Option<f64>,
+    /// The first name's change fits a noise model, so its error is a one-step-ahead
+    /// prediction error: the floor of that error on the validation test as `fit` states it
+    /// (the probe noise's innovation, read before a step), which it is judged against in
+    /// place of the two floors above (a simulation error's).
+    pub floor_prediction: Option<f64>,
     /// A case with no hidden effect: the true model's validation error (`unlag compare
     /// truth.toml val.csv`), what the floors should predict.
     pub truth_error: Option<f64>,
@@ -53,6 +58,14 @@ pub struct LoopOutcome {
     /// The first candidate of the second round, where the first named another effect: the
     /// diagnosis of the model with that effect added.
     pub second: Option<String>,
+    /// Where the first name is right but its change alone does not bring the error down 3x or
+    /// to 1.5x the floor, the user goes round again: the first candidate of the diagnosis of
+    /// the model with the first change, ...
+    pub round_two: Option<String>,
+    /// ... the validation error once it is added too, ...
+    pub after_two: Option<f64>,
+    /// ... and that error's floor when the second change fits a noise model.
+    pub floor_prediction_two: Option<f64>,
     /// The failed step and its first stderr line.
     pub failure: Option<String>,
 }
@@ -119,6 +132,19 @@ fn validation_error(json: &str) -> Result<(f64, f64), String> {
     Ok((get("nrmse")?, get("noise_floor")?))
 }
 
+/// The validation test's floor of a one-step-ahead prediction error in the JSON of `unlag
+/// fit ... --json`, stated when the model has a noise model.
+fn prediction_floor(json: &str) -> Option<f64> {
+    let v: serde_json::Value = serde_json::from_str(json.trim()).ok()?;
+    v.get("sources")?
+        .as_array()?
+        .iter()
+        .find(|s| s.get("role").and_then(serde_json::Value::as_str) == Some("validation"))?
+        .get("prediction_floor")?
+        .get("value")?
+        .as_f64()
+}
+
 /// The quadratic loss in the JSON of `unlag fit ... --json` (0 without one).
 fn loss_of(json: &str) -> f64 {
     serde_json::from_str::<serde_json::Value>(json.trim())
@@ -151,6 +177,8 @@ impl LoopOutcome {
                 self.floor_run,
                 self.floor_both_run.or(self.floor_run),
             )
+        } else if let Some(p) = self.floor_prediction {
+            (self.before, self.after, Some(p), Some(p))
         } else {
             (
                 self.before,
@@ -172,6 +200,19 @@ impl LoopOutcome {
         }
         let (b, a, f) = (before?, after?, floor?);
         Some(b / a >= 3.0 || a <= 1.5 * f)
+    }
+
+    /// Whether the error falls 3x or to within 1.5x of the floor both channels leave by the
+    /// first change, or by the second round's change added to it ([`LoopOutcome::round_two`]).
+    pub fn falls_within_two(&self, kind: Kind) -> Option<bool> {
+        let first = self.falls(kind, true)?;
+        if first {
+            return Some(true);
+        }
+        let (before, _, _, both) = self.judged();
+        let (b, a) = (before?, self.after_two?);
+        let floor = self.floor_prediction_two.or(both)?;
+        Some(b / a >= 3.0 || a <= 1.5 * floor)
     }
 
     /// Whether these tests can show the hidden effect at all: adding the hidden kind itself
@@ -338,9 +379,12 @@ pub fn run(bin: &Path, dir: &Path, kind: Kind) -> LoopOutcome {
             &[&base[..], &["--add", &add, "-o", "added.toml"]].concat(),
             "loop-added.log",
         )
-        .and_then(|j| validation_error(&j))
+        .and_then(|j| Ok((validation_error(&j)?.0, prediction_floor(&j))))
         {
-            Ok((e, _)) => o.after = Some(e),
+            Ok((e, p)) => {
+                o.after = Some(e);
+                o.floor_prediction = p;
+            }
             Err(e) => o.failure = Some(format!("--add {first}: {e}")),
         }
         if o.joint {
@@ -353,6 +397,11 @@ pub fn run(bin: &Path, dir: &Path, kind: Kind) -> LoopOutcome {
                 Ok((e, _)) => o.after_run = Some(e),
                 Err(e) => o.failure = Some(format!("--add {first} --also val.csv: {e}")),
             }
+        }
+        // Named right but the error still well above the floor: the user diagnoses the model
+        // with the change and adds what it names next.
+        if o.right(kind) && !o.joint && o.falls(kind, true) == Some(false) {
+            round_two(bin, dir, &mut o);
         }
         // The second round where the first name is another effect: the user adds it to the
         // plain model and asks again.
@@ -395,6 +444,57 @@ pub fn run(bin: &Path, dir: &Path, kind: Kind) -> LoopOutcome {
     o
 }
 
+/// The second round after a right first change (`added.toml`): its diagnosis, and the
+/// validation error with the change it names added as well (`added2.toml`).
+fn round_two(bin: &Path, dir: &Path, o: &mut LoopOutcome) {
+    let run = |args: &[&str], log: &str| super::runner::unlag(bin, dir, args, log);
+    let Ok(json) = run(
+        &["diagnose", "added.toml", "est.csv", "val.csv", "--json"],
+        "loop-round2-diagnose.log",
+    ) else {
+        return;
+    };
+    let Ok(v) = serde_json::from_str::<serde_json::Value>(json.trim()) else {
+        return;
+    };
+    let first = v.get("candidates").and_then(|c| c.get(0));
+    let name = first
+        .and_then(|c| c.get("kind")?.as_str())
+        .unwrap_or("-")
+        .to_string();
+    let add = first
+        .and_then(|c| c.get("change")?.as_str())
+        .and_then(|c| c.split("--add ").nth(1))
+        .and_then(|rest| rest.split_whitespace().next())
+        .map_or_else(|| name.clone(), str::to_string);
+    o.round_two = Some(name.clone());
+    if matches!(name.as_str(), "none" | "unexplained" | "-")
+        || std::fs::copy(dir.join("added.toml"), dir.join("added2.toml")).is_err()
+    {
+        return;
+    }
+    if let Ok((e, p)) = run(
+        &[
+            "fit",
+            "--order",
+            "2",
+            "est.csv",
+            "val.csv",
+            "--json",
+            "--add",
+            &add,
+            "-o",
+            "added2.toml",
+        ],
+        "loop-round2-added.log",
+    )
+    .and_then(|j| Ok((validation_error(&j)?.0, prediction_floor(&j))))
+    {
+        o.after_two = Some(e);
+        o.floor_prediction_two = p;
+    }
+}
+
 /// Names a diagnosis can give, in the confusion matrix's column order.
 const NAMES: [&str; 12] = [
     "none",
@@ -431,16 +531,16 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         "## The modelling loop on the bank: {} cases\n",
         rows.len()
     );
-    let _ = writeln!(r, "From `unlag fit --order 2 est.csv`, `unlag diagnose loop.toml est.csv val.csv` names the missing effect; rows are the hidden kind, columns the first name. The error is the validation test's (`fit --order 2 est.csv val.csv`, then the same with `--add FIRST`). *Carried*: the diagnosis names nothing (`none`, counted in that column) because the plain fit found the hidden effect itself and the diagnosis lists it as carried; it counts as right, and its error is judged by the fit that carries it (at most 1.5x the floor). *The floor* is what a correct model's simulation leaves on the validation test, the probe's noise and the reference's through the model (`sigma_y^2 + |G|^2 sigma_u^2`, the diagnosis' expected residual, with the plain fit's `G`); the last column judges against the probe's noise alone, as `fit` states its floor, which no model reaches when the reference is noisy. A change fitted on the estimation and validation tests together (`--also val.csv`: a quadratic loss, which one step cannot identify) is judged on `run.csv`, another run of the validation's kind, held out, against the plain fit's error there.\n");
+    let _ = writeln!(r, "From `unlag fit --order 2 est.csv`, `unlag diagnose loop.toml est.csv val.csv` names the missing effect; rows are the hidden kind, columns the first name. The error is the validation test's (`fit --order 2 est.csv val.csv`, then the same with `--add FIRST`). *Carried*: the diagnosis names nothing (`none`, counted in that column) because the plain fit found the hidden effect itself and the diagnosis lists it as carried; it counts as right, and its error is judged by the fit that carries it (at most 1.5x the floor). *The floor* is what a correct model's simulation leaves on the validation test, the probe's noise and the reference's through the model (`sigma_y^2 + |G|^2 sigma_u^2`, the diagnosis' expected residual, with the plain fit's `G`); the last column judges against the probe's noise alone, as `fit` states its floor, which no model reaches when the reference is noisy. A change fitted on the estimation and validation tests together (`--also val.csv`: a quadratic loss, which one step cannot identify) is judged on `run.csv`, another run of the validation's kind, held out, against the plain fit's error there. A change that fits a noise model (`coloured-noise`) reports the one-step-ahead prediction error, so it is judged against that error's floor as `fit` states it, the probe noise's innovation read before the estimation test's step (the part of a coloured noise no predictor removes), in both columns.\n");
     let _ = write!(r, "| hidden \\ named first |");
     for n in NAMES {
         let _ = write!(r, " {n} |");
     }
     let _ = writeln!(
         r,
-        " carried | right | error falls 3x or to 1.5x the floor | (the probe's floor alone) |"
+        " carried | right | error falls 3x or to 1.5x the floor | (the probe's floor alone) | (within two rounds) |"
     );
-    let _ = writeln!(r, "|---|{}---|---|---|---|", "---|".repeat(NAMES.len()));
+    let _ = writeln!(r, "|---|{}---|---|---|---|---|", "---|".repeat(NAMES.len()));
     let (mut right_all, mut carried_all, mut total) = (0, 0, 0);
     for k in KINDS {
         let group: Vec<&(Case, LoopOutcome)> = rows.iter().filter(|(c, _)| c.kind == k).collect();
@@ -465,6 +565,10 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
             .iter()
             .filter_map(|(_, o)| o.falls(k, false))
             .collect();
+        let falls_two: Vec<bool> = judged
+            .iter()
+            .filter_map(|(_, o)| o.falls_within_two(k))
+            .collect();
         right_all += right;
         carried_all += carried;
         total += group.len();
@@ -485,7 +589,7 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         };
         let _ = writeln!(
             r,
-            " {} | {right}/{} | {} | {} |",
+            " {} | {right}/{} | {} | {} | {} |",
             if carried == 0 {
                 String::new()
             } else {
@@ -494,6 +598,7 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
             group.len(),
             count(&falls),
             count(&falls_probe),
+            count(&falls_two),
         );
     }
     let none: Vec<&(Case, LoopOutcome)> =
@@ -654,8 +759,8 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         r,
         "\n### Named right, and the error falls less than 3x and stays above 1.5x a floor\n"
     );
-    let _ = writeln!(r, "| case | family | hidden | validation | error before | after | fall | floor (both channels) | after / floor | probe's floor | after / probe's floor |");
-    let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(r, "| case | family | hidden | validation | error before | after | fall | floor (both channels) | after / floor | probe's floor | after / probe's floor | second round: named, after, fall from before |");
+    let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (c, o) in rows.iter().filter(|(c, o)| {
         c.kind != Kind::None
             && o.right_or_carried(c.kind)
@@ -674,7 +779,7 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         };
         let _ = writeln!(
             r,
-            "| case-{:03} | {} | {} | {}{} | {} | {} | {} | {} | {} | {} | {} |",
+            "| case-{:03} | {} | {} | {}{} | {} | {} | {} | {} | {} | {} | {} | {} |",
             c.id,
             c.family.name(),
             c.kind.name(),
@@ -687,6 +792,11 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
             ratio(after, both),
             pct(probe),
             ratio(after, probe),
+            match (&o.round_two, o.after_two) {
+                (Some(n), Some(a)) => format!("{n}, {}, {}", pct(Some(a)), ratio(before, Some(a))),
+                (Some(n), None) => n.clone(),
+                _ => "-".into(),
+            },
         );
     }
     r

@@ -416,5 +416,14 @@ fn print_fit(file: &ModelFile, est: &Trace) {
             pct(s.nrmse),
             pct(s.noise_floor)
         );
+        if let Some(p) = &s.prediction_floor {
+            crate::outln!(
+                "  {:<11} {:<40} the floor of a prediction error {:>10} (the probe noise's innovation, from {}'s quiet segment)",
+                "",
+                "",
+                pct(p.value),
+                p.from
+            );
+        }
     }
 }

@@ -217,6 +217,23 @@ pub struct Source {
     pub nrmse: f64,
     /// Noise floor of the probe channel on this trace: RMS noise / range(y).
     pub noise_floor: f64,
+    /// With a noise model, the floor of the error [`Self::nrmse`] then is (the one-step-ahead
+    /// prediction error): the probe noise's innovation over range(y).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prediction_floor: Option<PredictionFloor>,
+}
+
+/// The floor of a one-step-ahead prediction error on a test: the part of the probe's noise no
+/// predictor removes ([`crate::fit::noise::innovation_floor`]), over the test's range, read
+/// from the quiet segment before a step; a test without one (a traverse) takes it from
+/// another test of the same probe that has one.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PredictionFloor {
+    /// RMS innovation / range(y).
+    pub value: f64,
+    /// The test whose quiet segment it was read from.
+    pub from: String,
 }
 
 /// What a step test is to a fit: the first file given is the estimation test, the model

@@ -104,6 +104,21 @@ pub fn variance_of_mean(x: &[f64]) -> f64 {
     (at_zero / n).min(var)
 }
 
+/// The part of a channel's noise no predictor removes: the innovation standard deviation of
+/// the AR model fitted to its quiet segment (the first `quiet` samples, detrended; pass
+/// [`crate::fit::step::quiet_until`] of the reference). This is the floor of a one-step-ahead
+/// prediction error, as the noise's standard deviation is the floor of a simulation error:
+/// `exp` of the mean log spectrum (Kolmogorov-Szego), which an AR model of rising order
+/// approaches from above. For white noise it is the standard deviation; for a slow AR(1) of
+/// pole 0.9 and ten times the white level it is 4.6 times the white level where the spectrum's
+/// highest frequencies say 2.5 and the standard deviation 10. `None` without a quiet segment
+/// of 64 samples (a traverse).
+#[must_use]
+pub fn innovation_floor(x: &[f64], quiet: usize) -> Option<f64> {
+    let pre = x.get(..quiet).filter(|p| p.len() >= 64)?;
+    Some(fit(&crate::fit::step::detrend(pre), MAX_NOISE_ORDER).innovation_std)
+}
+
 /// `D(q) x`: the one-step-ahead prediction error of `x` under the noise model (the first `p`
 /// samples use the samples there are).
 #[must_use]
@@ -249,5 +264,45 @@ mod tests {
         assert!(m.ar.len() <= 1, "{m:?}");
         assert!(m.ar.iter().all(|d| d.abs() < 0.05), "{m:?}");
         assert!((m.innovation_std / m.std - 1.0).abs() < 0.01);
+    }
+
+    #[test]
+    fn the_innovation_floor_is_what_the_spectrum_leaves_a_predictor() {
+        // White noise of std 1 plus an AR(1) of pole 0.9 whose own std is 10, before a step
+        // at sample 4000: the floor is exp(mean ln S) ^ 1/2 of the spectrum
+        // S(w) = 1 + 100 (1 - 0.81) / |1 - 0.9 e^-iw|^2, integrated here on a grid.
+        let (rho, ratio, n) = (0.9f64, 10.0f64, 4_000);
+        let grid = 100_000;
+        let mean_log = (0..grid)
+            .map(|i| {
+                let w = std::f64::consts::PI * (i as f64 + 0.5) / grid as f64;
+                let den = 1.0 - 2.0 * rho * w.cos() + rho * rho;
+                (1.0 + ratio * ratio * (1.0 - rho * rho) / den).ln()
+            })
+            .sum::<f64>()
+            / grid as f64;
+        let truth = (0.5 * mean_log).exp();
+        let (w, e) = (white(n, 21), white(n, 22));
+        let mut ar = 0.0;
+        let mut x: Vec<f64> = w
+            .iter()
+            .zip(&e)
+            .map(|(w, e)| {
+                ar = rho * ar + ratio * (1.0 - rho * rho).sqrt() * e;
+                w + ar
+            })
+            .collect();
+        x.extend(std::iter::repeat_n(1000.0, 500));
+        let floor = innovation_floor(&x, n).unwrap_or(0.0);
+        assert!(
+            (floor / truth - 1.0).abs() < 0.08,
+            "{floor} against {truth}"
+        );
+        // Far from the white level the spectrum's top shows, and from the std.
+        assert!(floor > 1.5 * 2.5 && floor < 0.6 * ratio, "{floor}");
+        // White noise: its std; no quiet segment: none.
+        let white_floor = innovation_floor(&w, n).unwrap_or(0.0);
+        assert!((white_floor - 1.0).abs() < 0.05, "{white_floor}");
+        assert_eq!(innovation_floor(&x, 63), None);
     }
 }

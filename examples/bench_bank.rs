@@ -37,6 +37,8 @@
 mod case;
 #[path = "bench_bank/draw.rs"]
 mod draw;
+#[path = "bench_bank/loop_report.rs"]
+mod loop_report;
 #[path = "bench_bank/modelling_loop.rs"]
 mod modelling_loop;
 #[path = "bench_bank/report.rs"]
@@ -216,7 +218,7 @@ fn run_loop(cases: &[Case], s: &Settings) -> Result<(), Box<dyn Error>> {
     });
     let mut rows = rows.into_inner().map_err(|_| "poisoned lock")?;
     rows.sort_by_key(|(c, _)| c.id);
-    print!("{}", modelling_loop::report(&rows));
+    print!("{}", loop_report::report(&rows));
     println!(
         "\n{} cases in {:.0} s on {} threads, seed {}, {}.",
         rows.len(),

@@ -867,6 +867,23 @@ fn a_noise_model_is_judged_against_the_floor_of_a_prediction_error() {
     );
     assert!(error <= 1.2 * prediction, "{error} against {prediction}");
     assert!(error >= 1.4 * white, "{error} against {white}");
+    // Round the loop again: the model with its noise model is at the floor of the error it is
+    // judged by, so nothing is missing (against the simulation error's floor it was
+    // `unexplained`, "3x what the noise leaves").
+    let added = case.dir.join("added.toml");
+    let again = unlag_json(&[
+        "diagnose",
+        added.to_str().unwrap(),
+        &case.est,
+        &case.val,
+        "--json",
+    ]);
+    assert_eq!(again["candidates"][0]["kind"], "none", "{again}");
+    let judged = &again["tests"][1]["prediction"];
+    assert!(
+        judged["nrmse"].as_f64().unwrap() <= 1.2 * judged["floor"]["value"].as_f64().unwrap(),
+        "{judged}"
+    );
     // Without a noise model no such floor is stated.
     let other = case.dir.join("white.toml");
     let plain = unlag_json(&[

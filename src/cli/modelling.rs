@@ -90,6 +90,7 @@ fn print_evidence(evidence: &[TestEvidence]) {
             e.cross_correlation.peak_lag
         );
     }
+    prediction_lines(evidence);
     for e in evidence {
         crate::outln!("{}:", e.file);
         let x = &e.expected;
@@ -363,6 +364,7 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
             pct(e.noise_floor)
         );
     }
+    prediction_lines(&evidence);
     let carried = carried(&l.file);
     if !carried.is_empty() {
         crate::outln!(
@@ -397,4 +399,20 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
         crate::outln!("wrote the report {}: open it in a browser", path.display());
     }
     Ok(())
+}
+
+/// With a noise model: each test's one-step-ahead prediction error, the error the model is
+/// judged by, against that error's floor.
+fn prediction_lines(evidence: &[crate::modelling::evidence::TestEvidence]) {
+    for e in evidence {
+        if let Some(p) = &e.prediction {
+            crate::outln!(
+                "{:<28} one-step-ahead prediction error {} against its floor {} (the probe noise's innovation, from {}'s quiet segment)",
+                e.file,
+                pct(p.nrmse),
+                pct(p.floor.value),
+                p.floor.from
+            );
+        }
+    }
 }

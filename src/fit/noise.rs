@@ -7,6 +7,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::fit::model::PredictionFloor;
+
 /// Highest order tried for the noise model.
 pub const MAX_NOISE_ORDER: usize = 4;
 
@@ -117,6 +119,37 @@ pub fn variance_of_mean(x: &[f64]) -> f64 {
 pub fn innovation_floor(x: &[f64], quiet: usize) -> Option<f64> {
     let pre = x.get(..quiet).filter(|p| p.len() >= 64)?;
     Some(fit(&crate::fit::step::detrend(pre), MAX_NOISE_ORDER).innovation_std)
+}
+
+/// Each test's [`PredictionFloor`]: the probe noise's innovation ([`innovation_floor`]) in
+/// its own quiet segment, else in the first test's that has one (the same probe), over the
+/// test's range; `None` where no test has a quiet segment or the probe does not move.
+#[must_use]
+pub fn prediction_floors(tests: &[crate::fit::Test<'_>]) -> Vec<Option<PredictionFloor>> {
+    let own: Vec<Option<f64>> = tests
+        .iter()
+        .map(|t| innovation_floor(t.y, crate::fit::step::quiet_until(t.u)))
+        .collect();
+    let borrowed = tests
+        .iter()
+        .zip(&own)
+        .find_map(|(t, f)| f.map(|f| (t.name, f)));
+    tests
+        .iter()
+        .zip(&own)
+        .map(|(t, f)| {
+            let (from, pa) = f.map(|f| (t.name, f)).or(borrowed)?;
+            let (lo, hi) =
+                t.y.iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                        (l.min(*v), h.max(*v))
+                    });
+            (hi > lo).then(|| PredictionFloor {
+                value: pa / (hi - lo),
+                from: from.to_string(),
+            })
+        })
+        .collect()
 }
 
 /// `D(q) x`: the one-step-ahead prediction error of `x` under the noise model (the first `p`

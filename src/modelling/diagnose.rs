@@ -84,6 +84,13 @@ fn mean(x: impl Iterator<Item = f64>) -> f64 {
 /// Measures the evidence on every test (the first is the estimation test).
 #[must_use]
 pub fn evidence(current: &Current<'_>, tests: &[Test<'_>]) -> Vec<TestEvidence> {
+    // With a noise model the model is judged by its prediction error, against that error's
+    // floor.
+    let floors = if effects::noise_model(current.effects).is_some() {
+        crate::fit::noise::prediction_floors(tests)
+    } else {
+        Vec::new()
+    };
     tests
         .iter()
         .enumerate()
@@ -100,6 +107,10 @@ pub fn evidence(current: &Current<'_>, tests: &[Test<'_>]) -> Vec<TestEvidence> 
                     &effects::observed(current.effects, fs, t.y),
                 ),
                 &ym,
+            )
+            .with_prediction(
+                effects::judged_nrmse(current.model, current.effects, t.u, t.y),
+                floors.get(i).cloned().flatten(),
             )
         })
         .collect()

@@ -16,7 +16,7 @@ use rustfft::num_complex::Complex64;
 use rustfft::FftPlanner;
 use serde::Serialize;
 
-use crate::fit::model::{Model, TestRole};
+use crate::fit::model::{Model, PredictionFloor, TestRole};
 use crate::fit::step;
 use crate::fit::step::NoiseSource;
 
@@ -354,6 +354,17 @@ pub struct Trend {
     pub late_mean_se: f64,
 }
 
+/// The one-step-ahead prediction error of a model with a noise model on a test, over its
+/// range, and the floor of that error: what a noise model can be judged against, since the
+/// simulation error it leaves is the noise itself.
+#[derive(Debug, Clone, Serialize)]
+pub struct PredictionError {
+    /// RMS of `D(q) (y - G u)` / range(y).
+    pub nrmse: f64,
+    /// The probe noise's innovation over range(y).
+    pub floor: PredictionFloor,
+}
+
 /// Everything measured on one test.
 #[derive(Debug, Clone, Serialize)]
 pub struct TestEvidence {
@@ -370,6 +381,10 @@ pub struct TestEvidence {
     /// What a correct model leaves, RMS / range(y): both channels' noise
     /// ([`ExpectedResidual::std`]).
     pub noise_floor: f64,
+    /// With a noise model, the error the model is judged by, the one-step-ahead prediction
+    /// error, and its floor ([`TestEvidence::with_prediction`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prediction: Option<PredictionError>,
     /// Step onset (sample).
     pub step_onset: usize,
     /// Signed step size of the reference.
@@ -578,6 +593,7 @@ impl TestEvidence {
             fit_percent: 100.0 * (1.0 - res / dev),
             nrmse: crate::fit::nrmse_of(&y[..n], &y_model[..n]),
             noise_floor: expected.std / range,
+            prediction: None,
             step_onset: onset,
             step_size,
             noise_std,
@@ -607,10 +623,33 @@ impl TestEvidence {
         }
     }
 
-    /// The residual is white noise at the floor: no structure left to explain.
+    /// The residual is at the floor: no structure left to explain. With a noise model, its
+    /// one-step-ahead prediction error at that error's floor.
     #[must_use]
     pub fn at_noise_floor(&self) -> bool {
-        self.nrmse <= 1.2 * self.noise_floor
+        self.judged_nrmse() <= 1.2 * self.judged_floor()
+    }
+
+    /// Adds the one-step-ahead prediction error of a model with a noise model and its floor.
+    #[must_use]
+    pub fn with_prediction(mut self, nrmse: f64, floor: Option<PredictionFloor>) -> Self {
+        self.prediction = floor.map(|floor| PredictionError { nrmse, floor });
+        self
+    }
+
+    /// The error the model is judged by: the prediction error with a noise model, else the
+    /// simulation error.
+    #[must_use]
+    pub fn judged_nrmse(&self) -> f64 {
+        self.prediction.as_ref().map_or(self.nrmse, |p| p.nrmse)
+    }
+
+    /// That error's floor.
+    #[must_use]
+    pub fn judged_floor(&self) -> f64 {
+        self.prediction
+            .as_ref()
+            .map_or(self.noise_floor, |p| p.floor.value)
     }
 }
 

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::file::{HistoryRow, HistoryTest, ModelFile, ProbeGeometry, FORMAT_VERSION};
-use crate::fit::model::{PredictionFloor, Source};
+use crate::fit::model::Source;
 use crate::fit::{self, step, Options, Order, Test, TestRole};
 use crate::modelling::effects::{self, Effect, EffectKind};
 
@@ -106,7 +106,11 @@ pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
         });
     }
     // Errors with the effects included (an offset or a drift is estimated on each test).
-    let floors = prediction_floors(request.tests, &effects);
+    let floors = if effects::noise_model(&effects).is_some() {
+        fit::noise::prediction_floors(request.tests)
+    } else {
+        Vec::new()
+    };
     let sources: Vec<Source> = request
         .tests
         .iter()
@@ -262,39 +266,6 @@ pub fn add_effects(effects: &mut Vec<Effect>, kinds: &[String]) -> Result<bool> 
         effects.push(e);
     }
     Ok(search_delay)
-}
-
-/// With a noise model among `effects`, each test's [`PredictionFloor`]: the probe noise's
-/// innovation in its own quiet segment, else in the first test's that has one (the same
-/// probe); over its range. Empty without a noise model.
-fn prediction_floors(tests: &[Test<'_>], effects: &[Effect]) -> Vec<Option<PredictionFloor>> {
-    if effects::noise_model(effects).is_none() {
-        return Vec::new();
-    }
-    let own: Vec<Option<f64>> = tests
-        .iter()
-        .map(|t| fit::noise::innovation_floor(t.y, step::quiet_until(t.u)))
-        .collect();
-    let borrowed = tests
-        .iter()
-        .zip(&own)
-        .find_map(|(t, f)| f.map(|f| (t.name, f)));
-    tests
-        .iter()
-        .zip(&own)
-        .map(|(t, f)| {
-            let (from, pa) = f.map(|f| (t.name, f)).or(borrowed)?;
-            let (lo, hi) =
-                t.y.iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-                        (l.min(*v), h.max(*v))
-                    });
-            (hi > lo).then(|| PredictionFloor {
-                value: pa / (hi - lo),
-                from: from.to_string(),
-            })
-        })
-        .collect()
 }
 
 #[cfg(test)]

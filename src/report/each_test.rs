@@ -57,6 +57,17 @@ pub(super) fn per_test(
         pct(ev.nrmse),
         pct(ev.noise_floor)
     );
+    if let Some(p) = &ev.prediction {
+        let _ = writeln!(
+            h,
+            "<p>With its noise model the model is judged by its one-step-ahead prediction \
+             error: {} against that error's floor of {}, the probe noise's innovation (from \
+             {}'s quiet segment).</p>",
+            pct(p.nrmse),
+            pct(p.floor.value),
+            escape(&p.floor.from)
+        );
+    }
     // Probe against model, residual beneath on the same time axis.
     // The band a correct model's residual stays in: both channels' noise through it.
     let band = 2.0 * ev.expected.std;

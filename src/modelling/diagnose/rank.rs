@@ -72,7 +72,7 @@ pub fn diagnose(
             .push((after, fitted.report.uncertainty.clone()));
         Some((after, fx))
     };
-    let floor = mean(evidence.iter().map(|e| e.noise_floor));
+    let floor = mean(evidence.iter().map(TestEvidence::judged_floor));
     let white = evidence.iter().all(|e| e.autocorrelation.p_value > 0.01);
     let at_floor = evidence.iter().all(TestEvidence::at_noise_floor);
     let mut out: Vec<Candidate> = Vec::new();
@@ -605,7 +605,7 @@ pub fn diagnose(
     if !at_floor && out.is_empty() {
         let worst = evidence
             .iter()
-            .map(|e| e.nrmse / e.noise_floor.max(f64::MIN_POSITIVE))
+            .map(|e| e.judged_nrmse() / e.judged_floor().max(f64::MIN_POSITIVE))
             .fold(0.0f64, f64::max);
         out.push(Candidate {
             kind: Finding::Unexplained,
@@ -652,8 +652,13 @@ pub fn diagnose(
                 white,
             },
             reading: format!(
-                "the residuals are consistent with noise (error {:.3} % against a floor of {:.3} %{}); \
+                "the residuals are consistent with noise ({}error {:.3} % against a floor of {:.3} %{}); \
                  no effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x",
+                if evidence.iter().any(|e| e.prediction.is_some()) {
+                    "one-step-ahead prediction "
+                } else {
+                    ""
+                },
                 100.0 * before,
                 100.0 * floor,
                 if white { ", white" } else { "" }

@@ -1,0 +1,342 @@
+//! The modelling loop's report: the confusion matrix of the hidden kind against the first
+//! name, the counts the issue judges by, and the tables of the misnamed cases and of the
+//! changes that leave the error above the floor.
+
+use std::fmt::Write as _;
+
+use super::case::{Case, Kind, KINDS};
+use super::modelling_loop::{LoopOutcome, VISIBLE_FALL};
+
+/// Names a diagnosis can give, in the confusion matrix's column order.
+const NAMES: [&str; 12] = [
+    "none",
+    "unexplained",
+    "leak",
+    "drift",
+    "offset",
+    "coloured-noise",
+    "mode",
+    "sensor-resonance",
+    "nonlinear-damping",
+    "temperature",
+    "delay",
+    "other",
+];
+
+fn column(name: &str) -> usize {
+    let name = if name.starts_with("temperature") {
+        "temperature"
+    } else {
+        name
+    };
+    NAMES
+        .iter()
+        .position(|n| *n == name)
+        .unwrap_or(NAMES.len() - 1)
+}
+
+/// The loop's report: the confusion matrix, the falls of the error, the misnamed cases.
+pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
+    let mut r = String::new();
+    let _ = writeln!(
+        r,
+        "## The modelling loop on the bank: {} cases\n",
+        rows.len()
+    );
+    let _ = writeln!(r, "From `unlag fit --order 2 est.csv`, `unlag diagnose loop.toml est.csv val.csv` names the missing effect; rows are the hidden kind, columns the first name. The error is the validation test's (`fit --order 2 est.csv val.csv`, then the same with `--add FIRST`). *Carried*: the diagnosis names nothing (`none`, counted in that column) because the plain fit found the hidden effect itself and the diagnosis lists it as carried; it counts as right, and its error is judged by the fit that carries it (at most 1.5x the floor). *The floor* is what a correct model's simulation leaves on the validation test, the probe's noise and the reference's through the model (`sigma_y^2 + |G|^2 sigma_u^2`, the diagnosis' expected residual, with the plain fit's `G`); the last column judges against the probe's noise alone, as `fit` states its floor, which no model reaches when the reference is noisy. A change fitted on the estimation and validation tests together (`--also val.csv`: a quadratic loss, which one step cannot identify) is judged on `run.csv`, another run of the validation's kind, held out, against the plain fit's error there. A change that fits a noise model (`coloured-noise`) reports the one-step-ahead prediction error, so it is judged against that error's floor as `fit` states it, the probe noise's innovation read before the estimation test's step (the part of a coloured noise no predictor removes), in both columns.\n");
+    let _ = write!(r, "| hidden \\ named first |");
+    for n in NAMES {
+        let _ = write!(r, " {n} |");
+    }
+    let _ = writeln!(
+        r,
+        " carried | right | error falls 3x or to 1.5x the floor | (the probe's floor alone) | (within two rounds) |"
+    );
+    let _ = writeln!(r, "|---|{}---|---|---|---|---|", "---|".repeat(NAMES.len()));
+    let (mut right_all, mut carried_all, mut total) = (0, 0, 0);
+    for k in KINDS {
+        let group: Vec<&(Case, LoopOutcome)> = rows.iter().filter(|(c, _)| c.kind == k).collect();
+        let mut counts = [0usize; NAMES.len()];
+        for (_, o) in &group {
+            if o.named.is_empty() {
+                continue;
+            }
+            counts[column(o.first())] += 1;
+        }
+        let right = group.iter().filter(|(_, o)| o.right_or_carried(k)).count();
+        let carried = group.iter().filter(|(_, o)| o.carried_right(k)).count();
+        let judged: Vec<&&(Case, LoopOutcome)> = group
+            .iter()
+            .filter(|(_, o)| o.right_or_carried(k) && k != Kind::None)
+            .collect();
+        let falls: Vec<bool> = judged
+            .iter()
+            .filter_map(|(_, o)| o.falls(k, true))
+            .collect();
+        let falls_probe: Vec<bool> = judged
+            .iter()
+            .filter_map(|(_, o)| o.falls(k, false))
+            .collect();
+        let falls_two: Vec<bool> = judged
+            .iter()
+            .filter_map(|(_, o)| o.falls_within_two(k))
+            .collect();
+        right_all += right;
+        carried_all += carried;
+        total += group.len();
+        let _ = write!(r, "| {} |", k.name());
+        for c in counts {
+            let _ = write!(
+                r,
+                " {} |",
+                if c == 0 { String::new() } else { c.to_string() }
+            );
+        }
+        let count = |f: &[bool]| {
+            if k == Kind::None {
+                "-".to_string()
+            } else {
+                format!("{}/{}", f.iter().filter(|f| **f).count(), f.len())
+            }
+        };
+        let _ = writeln!(
+            r,
+            " {} | {right}/{} | {} | {} | {} |",
+            if carried == 0 {
+                String::new()
+            } else {
+                carried.to_string()
+            },
+            group.len(),
+            count(&falls),
+            count(&falls_probe),
+            count(&falls_two),
+        );
+    }
+    let none: Vec<&(Case, LoopOutcome)> =
+        rows.iter().filter(|(c, _)| c.kind == Kind::None).collect();
+    // A false alarm names an effect; "unexplained" says something is missing without naming one.
+    let false_alarm = none
+        .iter()
+        .filter(|(_, o)| !matches!(o.first(), "none" | "unexplained"))
+        .count();
+    let unexplained = rows
+        .iter()
+        .filter(|(c, o)| c.kind != Kind::None && o.first() == "unexplained")
+        .count();
+    let _ = writeln!(
+        r,
+        "\n- named right first: {right_all}/{total} ({:.0} %; target 95 %), {carried_all} of them carried by the plain fit; by the diagnosis' first name alone {}/{total}",
+        100.0 * right_all as f64 / total.max(1) as f64,
+        right_all - carried_all
+    );
+    let within_two = rows
+        .iter()
+        .filter(|(c, o)| o.right_within_two(c.kind))
+        .count();
+    let _ = writeln!(
+        r,
+        "- named right within two rounds (the first name added, then diagnosed again, as a user goes round the loop): {within_two}/{total} ({:.0} %)",
+        100.0 * within_two as f64 / total.max(1) as f64
+    );
+    let _ = writeln!(
+        r,
+        "- no effect named as an effect: {false_alarm}/{} (target at most 5 %)",
+        none.len()
+    );
+    // Nothing is hidden, but the probe itself may be more than the second-order start: where
+    // the true model's error is below the plain fit's by the diagnosis' own threshold, the
+    // probe's own dynamics are visible in these tests, as a hidden effect is.
+    let own: Vec<String> = none
+        .iter()
+        .filter(|(_, o)| !matches!(o.first(), "none" | "unexplained"))
+        .filter_map(|(c, o)| {
+            let gap = o.before? / o.truth_error?;
+            (gap >= VISIBLE_FALL).then(|| {
+                format!(
+                    "case-{:03} (named {}; the true model's error {:.3} % is {gap:.2}x below the second-order fit's {:.3} %, and after the change {})",
+                    c.id,
+                    o.first(),
+                    100.0 * o.truth_error.unwrap_or(f64::NAN),
+                    100.0 * o.before.unwrap_or(f64::NAN),
+                    o.after.map_or("-".into(), |a| format!("{:.3} %", 100.0 * a)),
+                )
+            })
+        })
+        .collect();
+    if !own.is_empty() {
+        let _ = writeln!(
+            r,
+            "  - of these, where the true model beats the second-order start by at least {VISIBLE_FALL}x (the probe's own dynamics beyond second order, visible as a hidden effect is counted visible): {}",
+            own.join("; ")
+        );
+    }
+    // The floors against the oracle: where nothing is hidden, the true model's own error is
+    // what a floor should predict.
+    let ratios = |f: fn(&LoopOutcome) -> Option<f64>| -> Vec<f64> {
+        let mut v: Vec<f64> = none
+            .iter()
+            .filter_map(|(_, o)| Some(o.truth_error? / f(o)?))
+            .collect();
+        v.sort_by(f64::total_cmp);
+        v
+    };
+    let spread = |v: &[f64]| match (v.first(), v.get(v.len() / 2), v.last()) {
+        (Some(lo), Some(med), Some(hi)) => format!("median {med:.2}, from {lo:.2} to {hi:.2}"),
+        _ => "-".into(),
+    };
+    let (both, probe) = (ratios(|o| o.floor_both), ratios(|o| o.floor));
+    let _ = writeln!(
+        r,
+        "- the floors against the oracle, on the {} cases with no effect whose true model is known: the true model's validation error is {} times the floor both channels leave, and {} times the probe's floor alone",
+        both.len(),
+        spread(&both),
+        spread(&probe)
+    );
+    let _ = writeln!(
+        r,
+        "- a hidden effect called `unexplained` (the residual is above what the noise leaves and no effect in the catalogue lowers it): {unexplained}; called `none`: {}",
+        rows.iter()
+            .filter(|(c, o)| c.kind != Kind::None
+                && o.first() == "none"
+                && !o.carried_right(c.kind))
+            .count()
+    );
+    // The same score where the tests can show the effect: adding the hidden kind itself lowers
+    // the validation error by the diagnosis' threshold.
+    let hidden: Vec<&(Case, LoopOutcome)> =
+        rows.iter().filter(|(c, _)| c.kind != Kind::None).collect();
+    let visible: Vec<&&(Case, LoopOutcome)> = hidden
+        .iter()
+        .filter(|(c, o)| o.visible(c.kind) != Some(false))
+        .collect();
+    let invisible: Vec<&&(Case, LoopOutcome)> = hidden
+        .iter()
+        .filter(|(c, o)| o.visible(c.kind) == Some(false))
+        .collect();
+    let _ = writeln!(
+        r,
+        "- visible in its tests (adding the hidden kind itself lowers the validation error by at least {VISIBLE_FALL}x, the diagnosis' own threshold, or that refit failed; a nonlinear damping also when, fitted on both tests together, a loss is found and it lowers `run.csv`'s): {} of {} hidden effects; named right first among them: {}/{} ({:.0} %); within two rounds {}/{}",
+        visible.len(),
+        hidden.len(),
+        visible.iter().filter(|(c, o)| o.right_or_carried(c.kind)).count(),
+        visible.len(),
+        100.0 * visible.iter().filter(|(c, o)| o.right_or_carried(c.kind)).count() as f64
+            / visible.len().max(1) as f64,
+        visible.iter().filter(|(c, o)| o.right_within_two(c.kind)).count(),
+        visible.len(),
+    );
+    let _ = writeln!(
+        r,
+        "- not visible: {} (named `none` {}, `unexplained` {}, right {}, another effect {})",
+        invisible.len(),
+        invisible
+            .iter()
+            .filter(|(c, o)| o.first() == "none" && !o.right_or_carried(c.kind))
+            .count(),
+        invisible
+            .iter()
+            .filter(|(_, o)| o.first() == "unexplained")
+            .count(),
+        invisible
+            .iter()
+            .filter(|(c, o)| o.right_or_carried(c.kind))
+            .count(),
+        invisible
+            .iter()
+            .filter(|(c, o)| !o.right_or_carried(c.kind)
+                && !matches!(o.first(), "none" | "unexplained"))
+            .count()
+    );
+    for k in KINDS.iter().filter(|k| **k != Kind::None) {
+        let of_kind = |v: &Vec<&&(Case, LoopOutcome)>| -> (usize, usize) {
+            let g: Vec<_> = v.iter().filter(|(c, _)| c.kind == *k).collect();
+            (
+                g.iter().filter(|(c, o)| o.right_or_carried(c.kind)).count(),
+                g.len(),
+            )
+        };
+        let (vr, vn) = of_kind(&visible);
+        let (_, inn) = of_kind(&invisible);
+        let _ = writeln!(
+            r,
+            "  - {}: visible {vn}, named right {vr}/{vn}; not visible {inn}",
+            k.name()
+        );
+    }
+    let _ = writeln!(r, "\n### Misnamed cases\n");
+    let _ = writeln!(r, "| case | family | hidden | validation | named (best first) | margin | error before | after | floor (both channels) | probe's floor | after adding the hidden kind | second round |");
+    let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for (c, o) in rows.iter().filter(|(c, o)| !o.right_or_carried(c.kind)) {
+        let pct = |v: Option<f64>| v.map_or("-".into(), |x| format!("{:.3} %", 100.0 * x));
+        let _ = writeln!(
+            r,
+            "| case-{:03} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            c.id,
+            c.family.name(),
+            c.kind.name(),
+            c.val.name,
+            o.failure.as_deref().map_or_else(
+                || o.named
+                    .iter()
+                    .take(3)
+                    .cloned()
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                |f| format!("FAILED {}", f.replace('|', "/"))
+            ),
+            o.margin.map_or("-".into(), |m| format!("{m:.2}")),
+            pct(o.before),
+            pct(o.after),
+            pct(o.floor_both),
+            pct(o.floor),
+            pct(o.true_after),
+            o.second.as_deref().unwrap_or("-"),
+        );
+    }
+    let _ = writeln!(
+        r,
+        "\n### Named right, and the error falls less than 3x and stays above 1.5x a floor\n"
+    );
+    let _ = writeln!(r, "| case | family | hidden | validation | error before | after | fall | floor (both channels) | after / floor | probe's floor | after / probe's floor | second round: named, after, fall from before |");
+    let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for (c, o) in rows.iter().filter(|(c, o)| {
+        c.kind != Kind::None
+            && o.right_or_carried(c.kind)
+            && (o.falls(c.kind, true) == Some(false) || o.falls(c.kind, false) == Some(false))
+    }) {
+        let pct = |v: Option<f64>| v.map_or("-".into(), |x| format!("{:.3} %", 100.0 * x));
+        let (before, after, probe, both) = o.judged();
+        let after = if o.carried_right(c.kind) {
+            before
+        } else {
+            after
+        };
+        let ratio = |a: Option<f64>, b: Option<f64>| match (a, b) {
+            (Some(a), Some(b)) if b > 0.0 => format!("{:.2}x", a / b),
+            _ => "-".into(),
+        };
+        let _ = writeln!(
+            r,
+            "| case-{:03} | {} | {} | {}{} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            c.id,
+            c.family.name(),
+            c.kind.name(),
+            c.val.name,
+            if o.joint { " (judged on run.csv)" } else { "" },
+            pct(before),
+            pct(after),
+            ratio(before, after),
+            pct(both),
+            ratio(after, both),
+            pct(probe),
+            ratio(after, probe),
+            match (&o.round_two, o.after_two) {
+                (Some(n), Some(a)) => format!("{n}, {}, {}", pct(Some(a)), ratio(before, Some(a))),
+                (Some(n), None) => n.clone(),
+                _ => "-".into(),
+            },
+        );
+    }
+    r
+}

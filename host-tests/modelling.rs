@@ -959,6 +959,29 @@ fn nonlinear_damping_is_named_by_the_tests_fitted_together_and_judged_on_another
         .map(|s| s["role"].as_str().unwrap())
         .collect();
     assert_eq!(roles, ["estimation", "estimation", "validation"], "{v}");
+    // The uncertainty stated is the joint fit's, from both tests: the damping of the 50 Hz
+    // line known to a fraction of a percent, the loss within three of its standard
+    // deviations of the drawn 3.64e-9 (as the note states it).
+    let u = &v["fit"]["uncertainty"];
+    let mode = &u["resonances"][0];
+    assert!(
+        mode["damping_std"].as_f64().unwrap() < 0.01 * mode["damping"].as_f64().unwrap(),
+        "{u}"
+    );
+    let note = v["fit"]["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|n| n.as_str())
+        .find(|n| n.contains("fitted on") && n.contains("+/-"))
+        .unwrap_or_else(|| panic!("{v}"))
+        .to_string();
+    let number = |s: &str| s.trim_end_matches(|c: char| !c.is_ascii_digit()).parse::<f64>();
+    let after_loss = note.split("a loss of ").nth(1).unwrap();
+    let mut words = after_loss.split_whitespace();
+    let (loss, _, std) = (words.next().unwrap(), words.next(), words.next().unwrap());
+    let (loss, std) = (number(loss).unwrap(), number(std).unwrap());
+    assert!((loss - 3.64e-9).abs() < 3.0 * std, "{loss} +/- {std}");
 }
 
 /// Bank case 047: a capillary with a drift of 5 % of the step per second, two steps. A

@@ -25,7 +25,7 @@ pub mod noise;
 pub mod oe;
 pub mod selection;
 pub mod step;
-mod uncertainty;
+pub(crate) mod uncertainty;
 
 pub use error::{ContinuousError, FitError};
 pub use model::{Method, Model, TestRole};

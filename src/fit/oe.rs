@@ -238,24 +238,21 @@ pub fn covariance(sets: &[Data<'_>], (a, b): (&[f64], &[f64]), d: usize) -> Opti
     }
     let mut block = Mat::<f64>::zeros(np + 1 + BLOCK.min(rows), np + 1);
     let r_aug = triangle(sets, (a, b), d, &mut block);
+    covariance_of(&r_aug, np, rows)
+}
+
+/// The parameters' covariance `s^2 (R^T R)^-1` from the triangle `R` of `[J r]` over `rows`
+/// residuals and `np` parameters (`s^2` the residual variance), by inverting the triangle
+/// alone. `None` when a parameter is not identified (a diagonal element of `R` negligible).
+#[must_use]
+fn covariance_of(r_aug: &Mat<f64>, np: usize, rows: usize) -> Option<Mat<f64>> {
+    if rows <= np + 1 || r_aug.nrows() <= np || r_aug.ncols() <= np {
+        return None;
+    }
     // The last diagonal element of R of [J r] is the norm of the residual J cannot explain.
     let rss = r_aug[(np, np)] * r_aug[(np, np)];
     let s2 = rss / (rows - np) as f64;
-    let scale = (0..np).map(|i| r_aug[(i, i)].abs()).fold(0.0, f64::max);
-    if (0..np).any(|i| r_aug[(i, i)].abs() <= 1e-12 * scale || r_aug[(i, i)].is_nan()) {
-        return None;
-    }
-    // X = R^-1 (upper triangular), column by column.
-    let mut x = Mat::<f64>::zeros(np, np);
-    for c in 0..np {
-        for r in (0..=c).rev() {
-            let mut acc = if r == c { 1.0 } else { 0.0 };
-            for k in r + 1..=c {
-                acc -= r_aug[(r, k)] * x[(k, c)];
-            }
-            x[(r, c)] = acc / r_aug[(r, r)];
-        }
-    }
+    let x = upper_inverse(r_aug, np)?;
     let mut cov = Mat::<f64>::zeros(np, np);
     for i in 0..np {
         for j in 0..np {
@@ -263,6 +260,31 @@ pub fn covariance(sets: &[Data<'_>], (a, b): (&[f64], &[f64]), d: usize) -> Opti
         }
     }
     Some(cov)
+}
+
+/// The inverse of the leading `np x np` block of the upper triangle `r`, by back
+/// substitution column by column. `None` when a diagonal element is negligible (a parameter
+/// not identified) or the triangle is smaller.
+#[must_use]
+pub(crate) fn upper_inverse(r: &Mat<f64>, np: usize) -> Option<Mat<f64>> {
+    if r.nrows() < np || r.ncols() < np {
+        return None;
+    }
+    let scale = (0..np).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
+    if (0..np).any(|i| r[(i, i)].abs() <= 1e-12 * scale || r[(i, i)].is_nan()) {
+        return None;
+    }
+    let mut x = Mat::<f64>::zeros(np, np);
+    for c in 0..np {
+        for row in (0..=c).rev() {
+            let mut acc = if row == c { 1.0 } else { 0.0 };
+            for k in row + 1..=c {
+                acc -= r[(row, k)] * x[(k, c)];
+            }
+            x[(row, c)] = acc / r[(row, row)];
+        }
+    }
+    Some(x)
 }
 
 /// Output-error refinement by Levenberg-Marquardt from `init` (which should be stable).

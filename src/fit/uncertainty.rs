@@ -42,7 +42,23 @@ pub(super) fn uncertainty(sets: &[Data<'_>], model: &Model, method: Method) -> O
             ..model.clone()
         })
     };
-    let (dc, res) = at(&theta)?;
+    propagate(&cov, &theta, at, !ar.is_empty())
+}
+
+/// One standard deviation of a model's DC gain and resonances when its parameters `theta`
+/// (made a model's features by `at`) have the covariance `cov`: carried by central
+/// differences, a hundredth of each parameter's standard deviation. `noise_model` says
+/// whether the covariance was had on whitened residuals. `None` when a feature cannot be had.
+pub(crate) fn propagate(
+    cov: &faer::Mat<f64>,
+    theta: &[f64],
+    at: impl Fn(&[f64]) -> Option<(f64, Vec<(f64, f64)>)>,
+    noise_model: bool,
+) -> Option<Uncertainty> {
+    if cov.nrows() < theta.len() || cov.ncols() < theta.len() {
+        return None;
+    }
+    let (dc, res) = at(theta)?;
     if !dc.is_finite() {
         return None;
     }
@@ -61,8 +77,8 @@ pub(super) fn uncertainty(sets: &[Data<'_>], model: &Model, method: Method) -> O
         if h <= 0.0 || h.is_nan() {
             return None;
         }
-        let mut up = theta.clone();
-        let mut down = theta.clone();
+        let mut up = theta.to_vec();
+        let mut down = theta.to_vec();
         up[i] += h;
         down[i] -= h;
         let (fu, fd) = (flat(&at(&up)?)?, flat(&at(&down)?)?);
@@ -94,6 +110,6 @@ pub(super) fn uncertainty(sets: &[Data<'_>], model: &Model, method: Method) -> O
                 damping_std: std.get(2 + 2 * i).copied().unwrap_or(f64::NAN),
             })
             .collect(),
-        noise_model: !ar.is_empty(),
+        noise_model,
     })
 }

@@ -356,17 +356,22 @@ fn fit_loss_jointly(
     };
     fitted.report.notes.push(format!(
         "the linear part and the quadratic loss were fitted on {} together (one step cannot \
-         tell a quadratic loss from a linear damping): errors {} with a loss of {:.3e} s^2 per \
-         unit, where the best single linear model leaves {}",
+         tell a quadratic loss from a linear damping): errors {} with a loss of {:.3e}{} s^2 \
+         per unit, where the best single linear model leaves {}",
         names.join(" and "),
         pct(&joint.nrmse),
         joint.gain,
+        joint
+            .uncertainty
+            .as_ref()
+            .map_or_else(String::new, |(_, s)| format!(" +/- {s:.1e}")),
         pct(&linear.nrmse)
     ));
     fitted.nrmse_estimation = joint.nrmse.first().copied().unwrap_or(f64::NAN);
     fitted.model = joint.model;
-    // The one-test fit's standard deviations are not this model's.
-    fitted.report.uncertainty = None;
+    // The one-test fit's standard deviations are not this model's: the joint fit's, from all
+    // the tests, replace them.
+    fitted.report.uncertainty = joint.uncertainty.map(|(u, _)| u);
     joint.gain
 }
 

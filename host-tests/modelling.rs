@@ -976,7 +976,10 @@ fn nonlinear_damping_is_named_by_the_tests_fitted_together_and_judged_on_another
         .find(|n| n.contains("fitted on") && n.contains("+/-"))
         .unwrap_or_else(|| panic!("{v}"))
         .to_string();
-    let number = |s: &str| s.trim_end_matches(|c: char| !c.is_ascii_digit()).parse::<f64>();
+    let number = |s: &str| {
+        s.trim_end_matches(|c: char| !c.is_ascii_digit())
+            .parse::<f64>()
+    };
     let after_loss = note.split("a loss of ").nth(1).unwrap();
     let mut words = after_loss.split_whitespace();
     let (loss, _, std) = (words.next().unwrap(), words.next(), words.next().unwrap());

@@ -42,8 +42,8 @@ pub struct JointFit {
     /// Each test's simulation error over its range, in the order given.
     pub nrmse: Vec<f64>,
     /// One standard deviation of its DC gain and resonances, and of its loss (s^2 per probe
-    /// unit), from all the tests' residuals ([`joint_uncertainty`]); `None` when they cannot
-    /// be had.
+    /// unit), from all the tests' residuals (the sandwich covariance of the range-weighted
+    /// estimate); `None` when they cannot be had.
     pub uncertainty: Option<(Uncertainty, f64)>,
 }
 
@@ -389,35 +389,40 @@ mod tests {
     use crate::modelling::effects::simulate_nonlinear;
     use crate::testing::gaussian;
 
+    /// `x` with white noise of standard deviation 0.5 (draw `seed`).
+    fn noisy(x: &[f64], seed: u64) -> Vec<f64> {
+        x.iter()
+            .zip(gaussian(x.len(), seed))
+            .map(|(v, n)| v + 0.5 * n)
+            .collect()
+    }
+
+    /// The big and the small step as tests.
+    fn two_tests<'a>(big: (&'a [f64], &'a [f64]), small: (&'a [f64], &'a [f64])) -> [Test<'a>; 2] {
+        [
+            Test {
+                name: "big",
+                u: big.0,
+                y: big.1,
+            },
+            Test {
+                name: "small",
+                u: small.0,
+                y: small.1,
+            },
+        ]
+    }
+
     /// Two steps of different sizes through a probe with a quadratic loss: one linear model
     /// cannot explain both, and the joint fit finds the loss; through a linear probe it finds
     /// none.
     #[test]
     fn two_step_sizes_identify_a_quadratic_loss_and_a_linear_probe_shows_none() {
         let (truth, u_big, u_small, gain) = crate::testing::two_step_sizes();
-        let mut seed = 7;
-        let mut noisy = |x: Vec<f64>| -> Vec<f64> {
-            seed += 1;
-            x.iter()
-                .zip(gaussian(x.len(), seed))
-                .map(|(v, n)| v + 0.5 * n)
-                .collect()
-        };
-        for (g, expect_loss) in [(gain, true), (0.0, false)] {
-            let y_big = noisy(simulate_nonlinear(&truth, g, &u_big));
-            let y_small = noisy(simulate_nonlinear(&truth, g, &u_small));
-            let tests = [
-                Test {
-                    name: "big",
-                    u: &u_big,
-                    y: &y_big,
-                },
-                Test {
-                    name: "small",
-                    u: &u_small,
-                    y: &y_small,
-                },
-            ];
+        for (i, (g, expect_loss)) in [(gain, true), (0.0, false)].into_iter().enumerate() {
+            let y_big = noisy(&simulate_nonlinear(&truth, g, &u_big), 8 + 2 * i as u64);
+            let y_small = noisy(&simulate_nonlinear(&truth, g, &u_small), 9 + 2 * i as u64);
+            let tests = two_tests((&u_big, &y_big), (&u_small, &y_small));
             // Started from a model a little off, as a one-test fit leaves it.
             let start = Model {
                 a: vec![-1.78, 0.83],
@@ -451,28 +456,11 @@ mod tests {
         let (mut gains, mut dcs, mut stated_gain, mut stated_dc) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for seed in 0..12u64 {
-            let noisy = |x: &[f64], s: u64| -> Vec<f64> {
-                x.iter()
-                    .zip(gaussian(x.len(), s))
-                    .map(|(v, n)| v + 0.5 * n)
-                    .collect()
-            };
             let (y_big, y_small) = (
                 noisy(&clean_big, 100 + seed),
                 noisy(&clean_small, 200 + seed),
             );
-            let tests = [
-                Test {
-                    name: "big",
-                    u: &u_big,
-                    y: &y_big,
-                },
-                Test {
-                    name: "small",
-                    u: &u_small,
-                    y: &y_small,
-                },
-            ];
+            let tests = two_tests((&u_big, &y_big), (&u_small, &y_small));
             let (_, fit) = joint_loss(&truth, &tests).unwrap();
             let (u, loss_std) = fit.uncertainty.clone().unwrap();
             gains.push(fit.gain);

@@ -248,6 +248,23 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
                 && !matches!(o.first(), "none" | "unexplained"))
             .count()
     );
+    // The count the tests can support: an effect they cannot show is right when the diagnosis
+    // names nothing for it (`none`, or `unexplained`: something is missing, unnamed).
+    let supported = rows
+        .iter()
+        .filter(|(c, o)| {
+            o.right_or_carried(c.kind)
+                || (c.kind != Kind::None
+                    && o.visible(c.kind) == Some(false)
+                    && matches!(o.first(), "none" | "unexplained"))
+        })
+        .count();
+    let _ = writeln!(
+        r,
+        "- named right first, an effect its tests cannot show counted right when named `none` or `unexplained` (the count offered as option (b)): {supported}/{} ({:.0} %)",
+        rows.len(),
+        100.0 * supported as f64 / rows.len().max(1) as f64
+    );
     for k in KINDS.iter().filter(|k| **k != Kind::None) {
         let of_kind = |v: &Vec<&&(Case, LoopOutcome)>| -> (usize, usize) {
             let g: Vec<_> = v.iter().filter(|(c, _)| c.kind == *k).collect();

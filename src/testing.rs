@@ -20,6 +20,14 @@ pub(crate) fn gaussian(n: usize, seed: u64) -> Vec<f64> {
         .collect()
 }
 
+/// `x` with [`gaussian`] noise of standard deviation `sd` (draw `seed`) added.
+pub(crate) fn with_noise(x: &[f64], sd: f64, seed: u64) -> Vec<f64> {
+    x.iter()
+        .zip(gaussian(x.len(), seed))
+        .map(|(v, n)| v + sd * n)
+        .collect()
+}
+
 /// A second-order probe: natural frequency `f` Hz, damping `zeta`, sampled at `fs` behind
 /// `delay` samples, unit DC gain; with its continuous pole `s` (upper half-plane).
 pub(crate) fn second_order(

@@ -418,11 +418,11 @@ fn print_fit(file: &ModelFile, est: &Trace) {
         );
         if let Some(p) = &s.prediction_floor {
             crate::outln!(
-                "  {:<11} {:<40} the floor of a prediction error {:>10} (the probe noise's innovation, from {}'s quiet segment)",
+                "  {:<11} {:<40} the floor of a prediction error {:>10} ({})",
                 "",
                 "",
                 pct(p.value),
-                p.from
+                p.origin()
             );
         }
     }

@@ -407,11 +407,11 @@ fn prediction_lines(evidence: &[crate::modelling::evidence::TestEvidence]) {
     for e in evidence {
         if let Some(p) = &e.prediction {
             crate::outln!(
-                "{:<28} one-step-ahead prediction error {} against its floor {} (the probe noise's innovation, from {}'s quiet segment)",
+                "{:<28} one-step-ahead prediction error {} against its floor {} ({})",
                 e.file,
                 pct(p.nrmse),
                 pct(p.floor.value),
-                p.floor.from
+                p.floor.origin()
             );
         }
     }

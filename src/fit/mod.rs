@@ -112,12 +112,18 @@ pub fn nrmse_of_error(y: &[f64], error: impl IntoIterator<Item = f64>) -> f64 {
     if n == 0 {
         return f64::NAN;
     }
-    let (lo, hi) = y
+    (sum / n as f64).sqrt() / range(y)
+}
+
+/// `max(x) - min(x)`: what an NRMSE and a floor are over (`-inf` for no samples).
+#[must_use]
+pub(crate) fn range(x: &[f64]) -> f64 {
+    let (lo, hi) = x
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
             (l.min(*v), h.max(*v))
         });
-    (sum / n as f64).sqrt() / (hi - lo)
+    hi - lo
 }
 
 /// Noise floor of the probe channel: noise RMS / range(y), the noise as
@@ -125,15 +131,10 @@ pub fn nrmse_of_error(y: &[f64], error: impl IntoIterator<Item = f64>) -> f64 {
 /// [`step::quiet_until`] of the reference, else the highest frequencies).
 #[must_use]
 pub fn noise_floor(y: &[f64], quiet: usize) -> f64 {
-    let (lo, hi) = y
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(*v), h.max(*v))
-        });
     // Before the step when that segment is quiet, else from the highest frequencies (a
     // traverse has no quiet segment: its "pre-step" part is signal).
     let (sigma, _) = step::channel_noise(y, quiet);
-    sigma / (hi - lo)
+    sigma / range(y)
 }
 
 /// Deviations of a test from its pre-step levels.

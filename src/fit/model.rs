@@ -236,6 +236,18 @@ pub struct PredictionFloor {
     pub from: String,
 }
 
+impl PredictionFloor {
+    /// Where it comes from, in words: `the probe noise's innovation, from est.csv's quiet
+    /// segment`.
+    #[must_use]
+    pub fn origin(&self) -> String {
+        format!(
+            "the probe noise's innovation, from {}'s quiet segment",
+            self.from
+        )
+    }
+}
+
 /// What a step test is to a fit: the first file given is the estimation test, the model
 /// fitted on it; any others are validation tests, held out to choose the order and judge it.
 /// Stored and printed by its name ([`TestRole::as_str`]).

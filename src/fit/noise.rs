@@ -139,13 +139,9 @@ pub fn prediction_floors(tests: &[crate::fit::Test<'_>]) -> Vec<Option<Predictio
         .zip(&own)
         .map(|(t, f)| {
             let (from, pa) = f.map(|f| (t.name, f)).or(borrowed)?;
-            let (lo, hi) =
-                t.y.iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-                        (l.min(*v), h.max(*v))
-                    });
-            (hi > lo).then(|| PredictionFloor {
-                value: pa / (hi - lo),
+            let range = crate::fit::range(t.y);
+            (range > 0.0).then(|| PredictionFloor {
+                value: pa / range,
                 from: from.to_string(),
             })
         })

@@ -6,7 +6,7 @@ use super::{oe, padded, residual_noise, unpadded, whitened, Method};
 use crate::fit::model::{Model, ResonanceUncertainty, Uncertainty};
 
 /// The resonances of a model, lowest natural frequency first, and its DC gain.
-fn features(model: &Model) -> Option<(f64, Vec<(f64, f64)>)> {
+pub(crate) fn features(model: &Model) -> Option<(f64, Vec<(f64, f64)>)> {
     let mut r = crate::fit::analysis::Analysis::new(model)
         .ok()?
         .resonance_pairs();

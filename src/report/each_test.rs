@@ -61,11 +61,10 @@ pub(super) fn per_test(
         let _ = writeln!(
             h,
             "<p>With its noise model the model is judged by its one-step-ahead prediction \
-             error: {} against that error's floor of {}, the probe noise's innovation (from \
-             {}'s quiet segment).</p>",
+             error: {} against that error's floor of {} ({}).</p>",
             pct(p.nrmse),
             pct(p.floor.value),
-            escape(&p.floor.from)
+            escape(&p.floor.origin())
         );
     }
     // Probe against model, residual beneath on the same time axis.

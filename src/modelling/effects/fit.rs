@@ -492,12 +492,7 @@ mod tests {
     #[test]
     fn a_second_estimation_test_identifies_the_loss_and_needs_it() {
         let (truth, u_big, u_small, gain) = crate::testing::two_step_sizes();
-        let noisy = |x: Vec<f64>, seed: u64| -> Vec<f64> {
-            x.iter()
-                .zip(crate::testing::gaussian(x.len(), seed))
-                .map(|(v, n)| v + 0.5 * n)
-                .collect()
-        };
+        let noisy = |x: Vec<f64>, seed: u64| crate::testing::with_noise(&x, 0.5, seed);
         let y_big = noisy(simulate_nonlinear(&truth, gain, &u_big), 1);
         let y_small = noisy(simulate_nonlinear(&truth, gain, &u_small), 2);
         let big = Test {

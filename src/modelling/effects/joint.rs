@@ -95,13 +95,7 @@ fn loss_scale(fs: f64, test: &Test<'_>) -> Option<f64> {
     let q_max = quadratic_rate(test.y, fs)
         .iter()
         .fold(0.0f64, |m, v| m.max(v.abs()));
-    let (lo, hi) = test
-        .u
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(*v), h.max(*v))
-        });
-    let s = (hi - lo) / q_max;
+    let s = crate::fit::range(test.u) / q_max;
     (s.is_finite() && s > 0.0).then_some(s)
 }
 
@@ -127,12 +121,7 @@ fn weights(tests: &[Test<'_>]) -> Vec<f64> {
     tests
         .iter()
         .map(|t| {
-            let (lo, hi) =
-                t.y.iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-                        (l.min(*v), h.max(*v))
-                    });
-            let w = 1.0 / ((hi - lo) * (t.y.len() as f64).sqrt());
+            let w = 1.0 / (crate::fit::range(t.y) * (t.y.len() as f64).sqrt());
             if w.is_finite() {
                 w
             } else {
@@ -299,11 +288,7 @@ fn joint_uncertainty(
         let mut with = model.clone();
         with.a = t.get(..m)?.to_vec();
         with.b = t.get(m..m + nb)?.to_vec();
-        let mut r = crate::fit::analysis::Analysis::new(&with)
-            .ok()?
-            .resonance_pairs();
-        r.sort_by(|x, y| x.0.total_cmp(&y.0));
-        Some((with.dc_gain(), r))
+        crate::fit::uncertainty::features(&with)
     };
     let u =
         crate::fit::uncertainty::propagate(&cov, theta, at, white.iter().any(|d| !d.is_empty()))?;
@@ -387,14 +372,10 @@ fn triangle(
 mod tests {
     use super::*;
     use crate::modelling::effects::simulate_nonlinear;
-    use crate::testing::gaussian;
 
     /// `x` with white noise of standard deviation 0.5 (draw `seed`).
     fn noisy(x: &[f64], seed: u64) -> Vec<f64> {
-        x.iter()
-            .zip(gaussian(x.len(), seed))
-            .map(|(v, n)| v + 0.5 * n)
-            .collect()
+        crate::testing::with_noise(x, 0.5, seed)
     }
 
     /// The big and the small step as tests.

@@ -58,9 +58,11 @@ pub struct FitArgs {
     /// viscosity). Effects already in the output model file are kept.
     #[arg(long = "add", value_name = "KIND")]
     pub add: Vec<String>,
-    /// Another estimation test fitted together with the first (repeatable), for
-    /// nonlinear-damping only: one step cannot tell a quadratic loss from a linear damping,
-    /// two steps (or runs) of different size can. Its error is then not held out.
+    /// Another estimation test fitted together with the first (repeatable): one model for
+    /// several runs of the same probe (each test's error counted alike; an offset or a drift
+    /// is each test's own). With nonlinear-damping, the quadratic loss too: one step cannot
+    /// tell it from a linear damping, two steps (or runs) of different size can. Its error is
+    /// then not held out, nor is the compensator judged on it.
     #[arg(long = "also", value_name = "FILE")]
     pub also: Vec<PathBuf>,
     /// Start afresh: ignore the effects and history of an existing output model file.

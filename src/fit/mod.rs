@@ -678,7 +678,7 @@ pub const CALIBRATION_MAX_STD: f64 = 0.02;
 /// low-frequency noise before the step) rescales every run's level by it, where the probe,
 /// calibrated against the same static pressure as the reference, reads it right. `None`
 /// (the model untouched) when the gain is exactly 1, clearly not 1, or not known.
-fn calibrate(model: &mut Model, dc_gain_std: f64) -> Option<String> {
+pub(crate) fn calibrate(model: &mut Model, dc_gain_std: f64) -> Option<String> {
     let dc = model.dc_gain();
     let off = (dc - 1.0).abs();
     if !(dc.is_finite() && dc_gain_std.is_finite() && off > 0.0)

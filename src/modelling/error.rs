@@ -26,17 +26,6 @@ pub enum ModellingError {
          filter below; give the transducer's natural frequency: the effect sensor-resonance=HZ"
     )]
     NoSensorResonance,
-    /// More estimation tests were given without the one effect they are fitted together for.
-    #[error(
-        "more estimation tests ({}) are fitted together with the first only for \
-         nonlinear-damping, whose quadratic loss one test cannot identify: add that effect, or \
-         give them as held-out tests",
-        tests.join(", ")
-    )]
-    AlsoWithoutLoss {
-        /// The tests given.
-        tests: Vec<String>,
-    },
 }
 
 impl ModellingError {
@@ -47,7 +36,7 @@ impl ModellingError {
     pub fn kind(&self) -> &'static str {
         match self {
             Self::NoEstimationTest | Self::NoFit | Self::CoincidentPoles { .. } => "numerical",
-            Self::NoSensorResonance | Self::AlsoWithoutLoss { .. } => "invalid-argument",
+            Self::NoSensorResonance => "invalid-argument",
         }
     }
 }

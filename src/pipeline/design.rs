@@ -58,12 +58,16 @@ pub struct CompensatorSpec {
 /// Which tests a design learns from and which it is judged on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Roles {
-    /// A fit's tests, the estimation test first: the noise and the prior are learnt from it
-    /// and from the held-out tests that are clean steps (a quiet segment before the step);
-    /// the check judges on the held-out tests, or on the estimation test when it is alone. A
-    /// held-out run of another kind (a balloon, a traverse) is judged on, not learnt from: a
-    /// compensator learnt from the very run it is checked on passes its own check.
-    Fit,
+    /// A fit's tests, its `estimation` tests first (the model was fitted on them): the noise
+    /// and the prior are learnt from them and from the held-out tests that are clean steps (a
+    /// quiet segment before the step); the check judges on the held-out tests, or on the
+    /// estimation tests when there are none. A held-out run of another kind (a balloon, a
+    /// traverse) is judged on, not learnt from: a compensator learnt from the very run it is
+    /// checked on passes its own check.
+    Fit {
+        /// How many of the tests, from the first, the model was fitted on (at least 1).
+        estimation: usize,
+    },
     /// Every test alike, learnt from and judged on (`unlag invert`).
     Alike,
 }
@@ -140,12 +144,13 @@ pub fn design_compensator(request: &CompensatorRequest<'_>) -> Result<Compensato
     // The probe noise is measured on the raw tests (a sensor resonance's prefilter would hide
     // its level in band), the prior on the prefiltered ones.
     let (judge, raw, learnt) = match roles {
-        Roles::Fit => {
-            let (estimation, held_out) = filtered.split_at(1.min(filtered.len()));
+        Roles::Fit { estimation } => {
+            let fitted_on = estimation.max(1);
+            let (estimation, held_out) = filtered.split_at(fitted_on.min(filtered.len()));
             let is_step: Vec<bool> = tests
                 .iter()
                 .enumerate()
-                .map(|(i, t)| i == 0 || fit::step::quiet_until(t.u) >= optimal::MIN_QUIET)
+                .map(|(i, t)| i < fitted_on || fit::step::quiet_until(t.u) >= optimal::MIN_QUIET)
                 .collect();
             (
                 if held_out.is_empty() {
@@ -599,7 +604,7 @@ mod tests {
             model: &m,
             effects: &[],
             tests: &tests,
-            roles: Roles::Fit,
+            roles: Roles::Fit { estimation: 1 },
             stored: None,
             spec: &asked,
             exportable: true,

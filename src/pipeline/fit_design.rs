@@ -148,7 +148,9 @@ pub fn fit_and_design(request: &FitDesignRequest<'_>) -> Result<FitDesigned> {
         model: &file.model,
         effects: &file.effects,
         tests: request.tests,
-        roles: Roles::Fit,
+        roles: Roles::Fit {
+            estimation: request.estimation_tests,
+        },
         stored: None,
         spec: &spec,
         exportable: false,

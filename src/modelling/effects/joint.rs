@@ -6,7 +6,9 @@
 //! test whose rates are another size (bank case 052: a capillary's step to 0.370 % with the
 //! loss or without, a wake traverse at 2.9 % without it and 0.68 % with it). Two tests of
 //! different amplitude do identify it: one linear model cannot explain both, the loss can.
-//! [`joint_loss`] fits both on all the tests given and compares them.
+//! [`joint_loss`] fits both on all the tests given and compares them. [`joint_linear`] is the
+//! linear fit alone: one model from several runs of the same probe (shots of a shock tube,
+//! steps of a valve), each with its own noise, where one run would leave it less sure.
 
 use faer::Mat;
 
@@ -65,7 +67,7 @@ pub fn joint_loss(start: &Model, tests: &[Test<'_>]) -> Option<(JointFit, JointF
         return None;
     }
     let scale = loss_scale(start.fs, tests.first()?)?;
-    let linear = fit_jointly(start, 0.0, None, tests)?;
+    let linear = joint_linear(start, tests)?;
     let mut best: Option<JointFit> = None;
     for s in LOSS_STARTS {
         if let Some(f) = fit_jointly(
@@ -87,6 +89,18 @@ pub fn joint_loss(start: &Model, tests: &[Test<'_>]) -> Option<(JointFit, JointF
         },
     };
     Some((linear, nonlinear))
+}
+
+/// One linear model fitted to all `tests` (at least two) from `start` (its delay kept): the
+/// sum of the tests' squared simulation errors over their ranges is minimised, so that each
+/// test counts as much whatever its length or size. `None` with fewer than two tests, an
+/// unstable start or nothing to fit.
+#[must_use]
+pub fn joint_linear(start: &Model, tests: &[Test<'_>]) -> Option<JointFit> {
+    if tests.len() < 2 {
+        return None;
+    }
+    fit_jointly(start, 0.0, None, tests)
 }
 
 /// The loss that takes `test`'s reference range off the input at the peak rate of its probe

@@ -196,41 +196,48 @@ pub fn fit_with_also(
             .zip(&additive)
             .map(|(t, a)| a.removed_from(t.y, fs))
             .collect();
-        let mut cleaned = fitted_tests.iter().zip(&ys).map(|(t, y)| Test {
-            name: t.name,
-            u: t.u,
-            y,
-        });
-        let Some(est) = cleaned.next() else {
+        let cleaned: Vec<Test<'_>> = fitted_tests
+            .iter()
+            .zip(&ys)
+            .map(|(t, y)| Test {
+                name: t.name,
+                u: t.u,
+                y,
+            })
+            .collect();
+        let Some(est) = cleaned.first().copied() else {
             return Err(ModellingError::NoEstimationTest.into());
         };
-        let also: Vec<Test<'_>> = cleaned.collect();
+        let together = cleaned.len() > 1;
         let f = if changes.nonlinear {
             let (mut f, g) = fit_nonlinear(&est, validation, fs, &opts)?;
             gain = g;
-            if !also.is_empty() {
-                gain = fit_loss_jointly(&mut f, gain, &est, &also);
+            if together {
+                gain = fit_loss_jointly(&mut f, gain, &cleaned);
             }
             f
         } else {
             let mut f = crate::fit::fit(&est, validation, fs, &opts)?;
-            if !also.is_empty() {
-                fit_linear_jointly(&mut f, &est, &also, validation);
+            if together {
+                fit_linear_jointly(&mut f, &cleaned, validation);
             }
             f
         };
-        additive = fitted_tests
-            .iter()
-            .zip(&onsets)
-            .map(|(t, &o)| {
-                let r: Vec<f64> =
-                    t.y.iter()
-                        .zip(simulate_nonlinear(&f.model, gain, t.u))
-                        .map(|(a, b)| a - b)
-                        .collect();
-                estimate_additive(&changes, &r, o, fs)
-            })
-            .collect();
+        // Only an offset or a drift is estimated from what the dynamics leave.
+        if changes.offset || changes.drift {
+            additive = fitted_tests
+                .iter()
+                .zip(&onsets)
+                .map(|(t, &o)| {
+                    let r: Vec<f64> =
+                        t.y.iter()
+                            .zip(simulate_nonlinear(&f.model, gain, t.u))
+                            .map(|(a, b)| a - b)
+                            .collect();
+                    estimate_additive(&changes, &r, o, fs)
+                })
+                .collect();
+        }
         fitted = Some(f);
     }
     let additive = additive.first().copied().unwrap_or_default();
@@ -355,31 +362,34 @@ pub fn fit_with_also(
     Ok((fitted, out))
 }
 
+/// The tests' names, `a.csv and b.csv`, for a note.
+fn listed(tests: &[Test<'_>]) -> String {
+    tests
+        .iter()
+        .map(|t| t.name)
+        .collect::<Vec<_>>()
+        .join(" and ")
+}
+
+/// Errors as a note gives them: `0.184 %, 0.189 %`.
+fn percents(v: &[f64]) -> String {
+    v.iter()
+        .map(|e| format!("{:.3} %", 100.0 * e))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// The linear part and the quadratic loss of `fitted` (loss `gain`, from the estimation test
-/// alone) fitted again on `estimation` and `also` together ([`super::joint_loss`]); the note
+/// alone) fitted again on `tests` together, the estimation test first ([`super::joint_loss`]); the note
 /// gives each test's error with the loss and with the best single linear model. Returns the
 /// loss (`gain` unchanged when the joint fit cannot be made).
-fn fit_loss_jointly(
-    fitted: &mut Fitted,
-    gain: f64,
-    estimation: &Test<'_>,
-    also: &[Test<'_>],
-) -> f64 {
-    let tests: Vec<Test<'_>> = std::iter::once(*estimation)
-        .chain(also.iter().copied())
-        .collect();
-    let names: Vec<&str> = tests.iter().map(|t| t.name).collect();
-    let pct = |v: &[f64]| {
-        v.iter()
-            .map(|e| format!("{:.3} %", 100.0 * e))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    let Some((linear, joint)) = super::joint_loss(&fitted.model, &tests) else {
+fn fit_loss_jointly(fitted: &mut Fitted, gain: f64, tests: &[Test<'_>]) -> f64 {
+    let names = listed(tests);
+    let Some((linear, joint)) = super::joint_loss(&fitted.model, tests) else {
         fitted.report.notes.push(format!(
             "the loss could not be fitted on {} together (no stable start): it is the \
              estimation test's alone",
-            names.join(" and ")
+            names
         ));
         return gain;
     };
@@ -387,14 +397,14 @@ fn fit_loss_jointly(
         "the linear part and the quadratic loss were fitted on {} together (one step cannot \
          tell a quadratic loss from a linear damping): errors {} with a loss of {:.3e}{} s^2 \
          per unit, where the best single linear model leaves {}",
-        names.join(" and "),
-        pct(&joint.nrmse),
+        names,
+        percents(&joint.nrmse),
         joint.gain,
         joint
             .uncertainty
             .as_ref()
             .map_or_else(String::new, |(_, s)| format!(" +/- {s:.1e}")),
-        pct(&linear.nrmse)
+        percents(&linear.nrmse)
     ));
     fitted.nrmse_estimation = joint.nrmse.first().copied().unwrap_or(f64::NAN);
     fitted.model = joint.model;
@@ -404,25 +414,17 @@ fn fit_loss_jointly(
     joint.gain
 }
 
-/// The model of `fitted` (from the estimation test alone) fitted again on `estimation` and
-/// `also` together ([`super::joint_linear`]), its DC gain judged against 1 by the tests
+/// The model of `fitted` (from the estimation test alone) fitted again on `tests` together,
+/// the estimation test first ([`super::joint_linear`]), its DC gain judged against 1 by the tests
 /// together, and its errors and uncertainty replaced by the joint fit's; the note gives each
 /// test's error with the joint model and with the first test's own.
-fn fit_linear_jointly(
-    fitted: &mut Fitted,
-    estimation: &Test<'_>,
-    also: &[Test<'_>],
-    validation: &[Test<'_>],
-) {
-    let tests: Vec<Test<'_>> = std::iter::once(*estimation)
-        .chain(also.iter().copied())
-        .collect();
-    let names: Vec<&str> = tests.iter().map(|t| t.name).collect();
-    let Some(joint) = super::joint_linear(&fitted.model, &tests) else {
+fn fit_linear_jointly(fitted: &mut Fitted, tests: &[Test<'_>], validation: &[Test<'_>]) {
+    let names = listed(tests);
+    let Some(joint) = super::joint_linear(&fitted.model, tests) else {
         fitted.report.notes.push(format!(
             "one model could not be fitted to {} together (no stable start): it is the \
              estimation test's alone",
-            names.join(" and ")
+            names
         ));
         return;
     };
@@ -436,12 +438,6 @@ fn fit_linear_jointly(
     let calibration = uncertainty
         .as_ref()
         .and_then(|u| crate::fit::calibrate(&mut model, u.dc_gain_std));
-    let pct = |v: &[f64]| {
-        v.iter()
-            .map(|e| format!("{:.3} %", 100.0 * e))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
     let joint_errors: Vec<f64> = tests
         .iter()
         .map(|t| crate::fit::nrmse(&model, t.u, t.y))
@@ -449,9 +445,9 @@ fn fit_linear_jointly(
     fitted.report.notes.push(format!(
         "one model was fitted to {} together (each test's simulation error over its range \
          counted alike): errors {}, where the estimation test's own model leaves {}",
-        names.join(" and "),
-        pct(&joint_errors),
-        pct(&alone)
+        names,
+        percents(&joint_errors),
+        percents(&alone)
     ));
     match calibration {
         Some(note) => {

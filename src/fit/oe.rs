@@ -234,7 +234,11 @@ impl<'p> Rows<'p> {
             d,
             step,
             h,
-            bufs: [vec![0.0; h + step], vec![0.0; h + step], vec![0.0; h + step]],
+            bufs: [
+                vec![0.0; h + step],
+                vec![0.0; h + step],
+                vec![0.0; h + step],
+            ],
             row: vec![0.0; a.len() + b.len() + 1],
         }
     }
@@ -416,6 +420,57 @@ pub fn covariance_coloured(
     let rb = folder.finish();
     let x = upper_inverse(&ra, np)?;
     Some(sandwich(&x, &rb, np, innovation_var))
+}
+
+/// `cov` with the error of quantities the fit took as known added: each `(c, var)` a column
+/// `c` (one value per row of the sets, in order) of the residual's derivatives by such a
+/// quantity, whose error has variance `var`, independent of the residual and of the others.
+/// The estimate moves by `(J'J)^-1 J' c` per unit of it, so each adds
+/// `var (A^-1 J'c)(A^-1 J'c)'`. `None` when `J` is rank-deficient.
+#[must_use]
+pub fn with_nuisances(
+    mut cov: Mat<f64>,
+    sets: &[Data<'_>],
+    (a, b): (&[f64], &[f64]),
+    d: usize,
+    nuisances: &[(Vec<f64>, f64)],
+) -> Option<Mat<f64>> {
+    let np = a.len() + b.len();
+    if nuisances.is_empty() {
+        return Some(cov);
+    }
+    let rows: usize = sets.iter().map(|s| s.y.len()).sum();
+    let step = BLOCK.min(rows.max(1));
+    let mut block = Mat::<f64>::zeros(np + 1 + step, np + 1);
+    let ra = triangle(sets, (a, b), d, &mut block);
+    let x = upper_inverse(&ra, np)?;
+    // J'c for every nuisance, in one pass over the rows.
+    let mut jc = vec![vec![0.0; np]; nuisances.len()];
+    let mut k = 0;
+    each_row(sets, (a, b), d, step, |row| {
+        for (acc, (c, _)) in jc.iter_mut().zip(nuisances) {
+            let ck = c.get(k).copied().unwrap_or(0.0);
+            for (s, j) in acc.iter_mut().zip(row) {
+                *s += j * ck;
+            }
+        }
+        k += 1;
+    });
+    for (g, (_, var)) in jc.iter().zip(nuisances) {
+        // A^-1 g = X (X' g).
+        let xtg: Vec<f64> = (0..np)
+            .map(|i| (0..np).map(|r| x[(r, i)] * g[r]).sum())
+            .collect();
+        let v: Vec<f64> = (0..np)
+            .map(|r| (0..np).map(|i| x[(r, i)] * xtg[i]).sum())
+            .collect();
+        for r in 0..np {
+            for c in 0..np {
+                cov[(r, c)] += var * v[r] * v[c];
+            }
+        }
+    }
+    Some(cov)
 }
 
 /// `s2 (R_b X X')' (R_b X X')`: the covariance `A^-1 B A^-1` with `A^-1 = X X'` (`X` the
@@ -637,7 +692,10 @@ mod tests {
         for r in 0..np {
             for c in 0..np {
                 let (g, e) = (got[(r, c)], expected[(r, c)]);
-                assert!((g - e).abs() <= 1e-6 * e.abs().max(expected[(r, r)].abs()), "{r} {c}: {g} {e}");
+                assert!(
+                    (g - e).abs() <= 1e-6 * e.abs().max(expected[(r, r)].abs()),
+                    "{r} {c}: {g} {e}"
+                );
             }
         }
         let white = covariance_coloured(&sets, (&a, &b), d, &[], s2).unwrap();

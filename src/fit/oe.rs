@@ -719,3 +719,67 @@ mod tests {
         }
     }
 }
+
+#[cfg(test)]
+mod scratch_true_sigma {
+    use super::*;
+
+    #[test]
+    #[ignore]
+    fn sandwich_with_the_true_noise_covariance() {
+        let fs = 7078.0;
+        let (truth, _) = crate::testing::second_order(40.28488, 0.1529161, fs, 27);
+        let n = 2000;
+        let u: Vec<f64> = (0..n).map(|k| if k < 300 { 0.0 } else { 1051.0 }).collect();
+        let y0 = truth.simulate(&u);
+        let (su, sy) = (3.8, 2.62);
+        let nu = crate::testing::with_noise(&vec![0.0; n], su, 1000);
+        let gn = truth.simulate(&nu);
+        let y: Vec<f64> = y0.iter().zip(&gn).map(|(a, b)| a - b).collect();
+        let y = crate::testing::with_noise(&y, sy, 2000);
+        let sets = [Data { u: &u, y: &y }];
+        let (a, b, d) = (truth.a.clone(), truth.b.clone(), truth.delay);
+        let np = a.len() + b.len();
+        let mut j = Mat::<f64>::zeros(n, np);
+        let mut res = vec![0.0; n];
+        let mut k = 0;
+        each_row(&sets, (&a, &b), d, 512, |row| {
+            for c in 0..np {
+                j[(k, c)] = row[c];
+            }
+            res[k] = row[np];
+            k += 1;
+        });
+        // The true residual covariance: sy^2 I + su^2 G G' (G the probe's impulse response
+        // as a lower-triangular Toeplitz matrix, the reference noise from rest).
+        let mut imp = vec![0.0; n];
+        imp[0] = 1.0;
+        let g = filter(&truth.b, &truth.a, truth.delay, &imp);
+        let gm = Mat::<f64>::from_fn(n, n, |r, c| if r >= c { g[r - c] } else { 0.0 });
+        let gj = gm.transpose() * &j;
+        let bm = sy * sy * (j.transpose() * &j) + su * su * (gj.transpose() * &gj);
+        use faer::linalg::solvers::SolveLstsq;
+        let a_inv = (j.transpose() * &j)
+            .col_piv_qr()
+            .solve_lstsq(Mat::<f64>::identity(np, np));
+        let exact = &a_inv * &bm * &a_inv;
+        let colour = crate::fit::noise::fit(&res, crate::fit::noise::MAX_COLOUR_ORDER);
+        let est = covariance_coloured(
+            &sets,
+            (&a, &b),
+            d,
+            &colour.ar,
+            colour.innovation_std.powi(2),
+        )
+        .unwrap();
+        let plain = covariance(&sets, (&a, &b), d).unwrap();
+        eprintln!("colour order {}", colour.ar.len());
+        for i in 0..np {
+            eprintln!(
+                "param {i}: exact/ar32 var {:.2}, exact/plain {:.2}",
+                exact[(i, i)] / est[(i, i)],
+                exact[(i, i)] / plain[(i, i)]
+            );
+        }
+    }
+}

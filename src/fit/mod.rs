@@ -224,6 +224,10 @@ fn levels(p: &Prepared) -> uncertainty::Levels {
         (Some(u0), Some(y0)) if u0.len() >= 2 => uncertainty::Levels {
             probe_var: noise::variance_of_mean(y0),
             reference_var: noise::variance_of_mean(u0),
+            noise: (u0.len() >= crate::design::inverse::optimal::MIN_QUIET).then(|| {
+                let ar = |x: &[f64]| noise::fit(&step::detrend(x), noise::MAX_NOISE_ORDER);
+                (ar(y0), ar(u0))
+            }),
         },
         _ => uncertainty::Levels::default(),
     }

@@ -364,9 +364,43 @@ pub fn covariance_coloured(
     colour: &[f64],
     innovation_var: f64,
 ) -> Option<Mat<f64>> {
+    covariance_of_parts(
+        sets,
+        (a, b),
+        d,
+        &[Colour {
+            num: vec![1.0],
+            den: colour.to_vec(),
+            var: innovation_var,
+        }],
+    )
+}
+
+/// One independent part of a residual: white noise of variance `var` through the causal
+/// filter `num(q) / (1 + den(q))` (`num = [n0 n1 ..]` in powers of `q^-1`, `den = [m1 m2 ..]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Colour {
+    /// Numerator, from `q^0`.
+    pub num: Vec<f64>,
+    /// Denominator after its leading 1.
+    pub den: Vec<f64>,
+    /// Variance of the white noise that drives it.
+    pub var: f64,
+}
+
+/// As [`covariance_coloured`], the residual a sum of independent [`Colour`]s (the probe's
+/// noise and the reference's through the probe, each as measured): `B = sum var Z'Z`,
+/// `Z = H^T J` for each part's filter `H`, run backwards in time.
+#[must_use]
+pub fn covariance_of_parts(
+    sets: &[Data<'_>],
+    (a, b): (&[f64], &[f64]),
+    d: usize,
+    parts: &[Colour],
+) -> Option<Mat<f64>> {
     let np = a.len() + b.len();
     let rows: usize = sets.iter().map(|s| s.y.len()).sum();
-    if rows <= np + 1 || !(innovation_var >= 0.0) {
+    if rows <= np + 1 || parts.iter().any(|c| !(c.var >= 0.0) || c.num.is_empty()) {
         return None;
     }
     let step = BLOCK.min(rows);
@@ -379,47 +413,66 @@ pub fn covariance_coloured(
     let mut rows_of = Rows::new((a, b), d, step);
     let mut saved = Vec::new();
     let mut chunk = vec![0.0; step * np];
-    // z_(i+1) .. z_(i+p), nearest first, and one spare.
-    let mut later: Vec<Vec<f64>> = vec![vec![0.0; np]; colour.len() + 1];
-    for s in sets {
-        let n = s.y.len();
-        let starts: Vec<usize> = (0..n).step_by(step).collect();
-        saved.clear();
-        rows_of.restart();
-        for &k0 in &starts {
-            rows_of.save(&mut saved);
-            rows_of.chunk(s, (k0, (k0 + step).min(n)), &mut |_| {});
-        }
-        later.iter_mut().for_each(|z| z.fill(0.0));
-        let width = saved.len() / starts.len().max(1);
-        for (c, &k0) in starts.iter().enumerate().rev() {
-            rows_of.restore(saved.get(c * width..(c + 1) * width).unwrap_or(&[]));
-            let mut filled = 0;
-            rows_of.chunk(s, (k0, (k0 + step).min(n)), &mut |row| {
-                for (slot, v) in chunk.iter_mut().skip(filled * np).zip(row.iter().take(np)) {
-                    *slot = *v;
-                }
-                filled += 1;
-            });
-            for i in (0..filled).rev() {
-                // z_i = J_i - sum_j p_j z_(i+j): the filter 1/P run backwards.
-                let Some(mut z) = later.pop() else { break };
-                for (c, zc) in z.iter_mut().enumerate() {
-                    *zc = chunk.get(i * np + c).copied().unwrap_or(0.0)
-                        - colour
+    for part in parts {
+        let scale = part.var.sqrt();
+        // z_(i+1) .. z_(i+p) and J_(i+1) .. J_(i+q), nearest first, and one spare each.
+        let mut later: Vec<Vec<f64>> = vec![vec![0.0; np]; part.den.len() + 1];
+        let mut ahead: Vec<Vec<f64>> = vec![vec![0.0; np]; part.num.len()];
+        for s in sets {
+            let n = s.y.len();
+            let starts: Vec<usize> = (0..n).step_by(step).collect();
+            saved.clear();
+            rows_of.restart();
+            for &k0 in &starts {
+                rows_of.save(&mut saved);
+                rows_of.chunk(s, (k0, (k0 + step).min(n)), &mut |_| {});
+            }
+            later.iter_mut().for_each(|z| z.fill(0.0));
+            ahead.iter_mut().for_each(|z| z.fill(0.0));
+            let width = saved.len() / starts.len().max(1);
+            for (c, &k0) in starts.iter().enumerate().rev() {
+                rows_of.restore(saved.get(c * width..(c + 1) * width).unwrap_or(&[]));
+                let mut filled = 0;
+                rows_of.chunk(s, (k0, (k0 + step).min(n)), &mut |row| {
+                    for (slot, v) in chunk.iter_mut().skip(filled * np).zip(row.iter().take(np)) {
+                        *slot = *v;
+                    }
+                    filled += 1;
+                });
+                for i in (0..filled).rev() {
+                    // J_i joins the rows ahead: ahead = J_i, J_(i+1), ...
+                    let Some(mut j) = ahead.pop() else { break };
+                    for (cj, v) in j.iter_mut().zip(chunk.iter().skip(i * np).take(np)) {
+                        *cj = *v;
+                    }
+                    ahead.insert(0, j);
+                    // z_i = sum_j n_j J_(i+j) - sum_j m_j z_(i+j): H run backwards.
+                    let Some(mut z) = later.pop() else { break };
+                    for (c, zc) in z.iter_mut().enumerate() {
+                        let fir: f64 = part
+                            .num
+                            .iter()
+                            .zip(&ahead)
+                            .map(|(nj, jr)| nj * jr.get(c).copied().unwrap_or(0.0))
+                            .sum();
+                        let iir: f64 = part
+                            .den
                             .iter()
                             .zip(&later)
-                            .map(|(p, zl)| p * zl.get(c).copied().unwrap_or(0.0))
-                            .sum::<f64>();
+                            .map(|(m, zl)| m * zl.get(c).copied().unwrap_or(0.0))
+                            .sum();
+                        *zc = fir - iir;
+                    }
+                    let scaled: Vec<f64> = z.iter().map(|v| scale * v).collect();
+                    folder.push(&scaled);
+                    later.insert(0, z);
                 }
-                folder.push(&z);
-                later.insert(0, z);
             }
         }
     }
     let rb = folder.finish();
     let x = upper_inverse(&ra, np)?;
-    Some(sandwich(&x, &rb, np, innovation_var))
+    Some(sandwich(&x, &rb, np, 1.0))
 }
 
 /// `cov` with the error of quantities the fit took as known added: each `(c, var)` a column
@@ -773,6 +826,32 @@ mod scratch_true_sigma {
         )
         .unwrap();
         let plain = covariance(&sets, (&a, &b), d).unwrap();
+        let mut gnum = vec![0.0; d];
+        gnum.extend(&b);
+        let parts = covariance_of_parts(
+            &sets,
+            (&a, &b),
+            d,
+            &[
+                Colour {
+                    num: vec![1.0],
+                    den: vec![],
+                    var: sy * sy,
+                },
+                Colour {
+                    num: gnum,
+                    den: a.clone(),
+                    var: su * su,
+                },
+            ],
+        )
+        .unwrap();
+        for i in 0..np {
+            eprintln!(
+                "param {i}: exact/structural {:.4}",
+                exact[(i, i)] / parts[(i, i)]
+            );
+        }
         eprintln!("colour order {}", colour.ar.len());
         for i in 0..np {
             eprintln!(

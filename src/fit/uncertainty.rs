@@ -7,12 +7,29 @@ use crate::fit::model::{Model, ResonanceUncertainty, Uncertainty};
 
 /// The variances of the resting levels a fit took as known: the means of the probe's and the
 /// reference's samples before the step.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+/// With them, each channel's noise as its quiet segment shows it (the AR model of the
+/// detrended samples before the step), when there is one.
+#[derive(Debug, Clone, Default, PartialEq)]
 pub(super) struct Levels {
     /// The probe's level.
     pub probe_var: f64,
     /// The reference's level.
     pub reference_var: f64,
+    /// The probe's noise and the reference's, from before the step.
+    pub noise: Option<(crate::fit::noise::ArNoise, crate::fit::noise::ArNoise)>,
+}
+
+/// The product of two polynomials in `q^-1`.
+fn times(p: &[f64], q: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; (p.len() + q.len()).saturating_sub(1)];
+    for (i, a) in p.iter().enumerate() {
+        for (j, b) in q.iter().enumerate() {
+            if let Some(o) = out.get_mut(i + j) {
+                *o += a * b;
+            }
+        }
+    }
+    out
 }
 
 /// The resonances of a model, lowest natural frequency first, and its DC gain.
@@ -50,15 +67,48 @@ pub(super) fn uncertainty(
     // What colour the whitened residual keeps (the reference's noise through a resonant
     // probe rings longer than the noise model describes): the sandwich covariance of the
     // estimate under it, not `s^2 (J'J)^-1`, which takes the residual for white.
-    let kept = residuals(&wsets, (&model.a, &model.b), d);
-    let colour = crate::fit::noise::fit(&kept.concat(), crate::fit::noise::MAX_COLOUR_ORDER);
-    let cov = oe::covariance_coloured(
-        &wsets,
-        (&model.a, &b),
-        d,
-        &colour.ar,
-        colour.innovation_std * colour.innovation_std,
-    )?;
+    let cov = match &levels.noise {
+        // Both channels' noise measured before the step: the residual is the probe's noise
+        // plus the reference's through the model, each whitened by the noise model as the
+        // data are: `H_y = D / P_y`, `H_u = D q^-d B / (A P_u)`.
+        Some((probe, reference)) => {
+            let dpoly: Vec<f64> = std::iter::once(1.0).chain(ar.iter().copied()).collect();
+            let mut g = vec![0.0; d];
+            g.extend(&b);
+            let a1: Vec<f64> = std::iter::once(1.0)
+                .chain(model.a.iter().copied())
+                .collect();
+            let pu: Vec<f64> = std::iter::once(1.0)
+                .chain(reference.ar.iter().copied())
+                .collect();
+            let parts = [
+                oe::Colour {
+                    num: dpoly.clone(),
+                    den: probe.ar.clone(),
+                    var: probe.innovation_std * probe.innovation_std,
+                },
+                oe::Colour {
+                    num: times(&dpoly, &g),
+                    den: times(&a1, &pu).into_iter().skip(1).collect(),
+                    var: reference.innovation_std * reference.innovation_std,
+                },
+            ];
+            oe::covariance_of_parts(&wsets, (&model.a, &b), d, &parts)?
+        }
+        // Otherwise what colour the whitened residual keeps, as its long AR model says.
+        None => {
+            let kept = residuals(&wsets, (&model.a, &model.b), d);
+            let colour =
+                crate::fit::noise::fit(&kept.concat(), crate::fit::noise::MAX_COLOUR_ORDER);
+            oe::covariance_coloured(
+                &wsets,
+                (&model.a, &b),
+                d,
+                &colour.ar,
+                colour.innovation_std * colour.innovation_std,
+            )?
+        }
+    };
     // The resting levels the records were taken from (the means before the step): an error
     // in either is an offset through the whole record, which the dynamics partly take in.
     // Their derivatives, whitened as the data: the probe's level enters the residual as a

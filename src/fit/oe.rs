@@ -400,7 +400,11 @@ pub fn covariance_of_parts(
 ) -> Option<Mat<f64>> {
     let np = a.len() + b.len();
     let rows: usize = sets.iter().map(|s| s.y.len()).sum();
-    if rows <= np + 1 || parts.iter().any(|c| !(c.var >= 0.0) || c.num.is_empty()) {
+    if rows <= np + 1
+        || parts
+            .iter()
+            .any(|c| c.var.is_nan() || c.var < 0.0 || c.num.is_empty())
+    {
         return None;
     }
     let step = BLOCK.min(rows);

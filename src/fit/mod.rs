@@ -215,22 +215,22 @@ fn refine(whole: &[Data<'_>], model: &Model, method: Method) -> Result<(Vec<f64>
     }
 }
 
-/// The part of the DC gain's standard deviation that comes from the resting levels before
-/// the step, which the fit takes as known: `sqrt(var(y0) + g^2 var(u0)) / step`, each level's
-/// variance that of a mean of the samples before the step, correlated as their own AR model
-/// says ([`noise::variance_of_mean`]): low-frequency noise before the step moves the level
-/// far more than independent samples would.
-fn level_part(p: &Prepared, dc_gain: f64) -> f64 {
-    let (Some(u0), Some(y0)) = (p.u.get(..p.onset), p.y.get(..p.onset)) else {
-        return 0.0;
-    };
-    let n = p.y.len();
-    let step = step::mean_std(p.u.get(n - n / 10..).unwrap_or(&[])).0;
-    if u0.len() < 2 || step.abs() <= 0.0 || step.is_nan() {
-        return 0.0;
+/// The variances of the resting levels the fit takes as known, each that of a mean of the
+/// samples before the step, correlated as their own AR model says
+/// ([`noise::variance_of_mean`]): low-frequency noise before the step moves the level far
+/// more than independent samples would. Zero without two samples before the step.
+fn levels(p: &Prepared) -> uncertainty::Levels {
+    match (p.u.get(..p.onset), p.y.get(..p.onset)) {
+        (Some(u0), Some(y0)) if u0.len() >= 2 => uncertainty::Levels {
+            probe_var: noise::variance_of_mean(y0),
+            reference_var: noise::variance_of_mean(u0),
+            noise: (u0.len() >= crate::design::inverse::optimal::MIN_QUIET).then(|| {
+                let ar = |x: &[f64]| noise::fit(&step::detrend(x), noise::MAX_NOISE_ORDER);
+                (ar(y0), ar(u0))
+            }),
+        },
+        _ => uncertainty::Levels::default(),
     }
-    (noise::variance_of_mean(y0) + dc_gain * dc_gain * noise::variance_of_mean(u0)).sqrt()
-        / step.abs()
 }
 
 /// Rounds of the Box-Jenkins alternation (noise model, then dynamics on whitened data).
@@ -638,10 +638,7 @@ pub fn fit(
         delay_candidates: rows,
         step_onset: p.onset,
         notes: Vec::new(),
-        uncertainty: uncertainty::uncertainty(&whole, &model, options.method).map(|mut u| {
-            u.dc_gain_std = u.dc_gain_std.hypot(level_part(&p, model.dc_gain()));
-            u
-        }),
+        uncertainty: uncertainty::uncertainty(&whole, &model, options.method, levels(&p)),
         calibrated_from: None,
     };
     let fitted_dc = model.dc_gain();

@@ -12,6 +12,12 @@ use crate::fit::model::PredictionFloor;
 /// Highest order tried for the noise model.
 pub const MAX_NOISE_ORDER: usize = 4;
 
+/// Highest order of the AR model of what colour a whitened residual keeps, for the
+/// parameters' covariance ([`crate::fit::oe::covariance_coloured`]): long enough for the
+/// ringing that the reference's noise leaves through a resonant probe, which a noise model
+/// of order [`MAX_NOISE_ORDER`] does not whiten.
+pub const MAX_COLOUR_ORDER: usize = 32;
+
 /// An AR noise model: `v[k] + d1 v[k-1] + ... + dp v[k-p] = e[k]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ArNoise {

@@ -2,8 +2,35 @@
 //! the noise the tests show, from the covariance of the refit on the whitened data.
 
 use super::arx::Data;
-use super::{oe, padded, residual_noise, unpadded, whitened, Method};
+use super::{oe, padded, residual_noise, residuals, unpadded, whitened, Method};
 use crate::fit::model::{Model, ResonanceUncertainty, Uncertainty};
+
+/// The variances of the resting levels a fit took as known: the means of the probe's and the
+/// reference's samples before the step.
+/// With them, each channel's noise as its quiet segment shows it (the AR model of the
+/// detrended samples before the step), when there is one.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(super) struct Levels {
+    /// The probe's level.
+    pub probe_var: f64,
+    /// The reference's level.
+    pub reference_var: f64,
+    /// The probe's noise and the reference's, from before the step.
+    pub noise: Option<(crate::fit::noise::ArNoise, crate::fit::noise::ArNoise)>,
+}
+
+/// The product of two polynomials in `q^-1`.
+fn times(p: &[f64], q: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; (p.len() + q.len()).saturating_sub(1)];
+    for (i, a) in p.iter().enumerate() {
+        for (j, b) in q.iter().enumerate() {
+            if let Some(o) = out.get_mut(i + j) {
+                *o += a * b;
+            }
+        }
+    }
+    out
+}
 
 /// The resonances of a model, lowest natural frequency first, and its DC gain.
 pub(crate) fn features(model: &Model) -> Option<(f64, Vec<(f64, f64)>)> {
@@ -19,7 +46,12 @@ pub(crate) fn features(model: &Model) -> Option<(f64, Vec<(f64, f64)>)> {
 /// by the residual's AR noise model (Box-Jenkins) or as they are, carried to the features by
 /// central differences. `None` for the least-squares methods, or when the covariance or the
 /// features cannot be had.
-pub(super) fn uncertainty(sets: &[Data<'_>], model: &Model, method: Method) -> Option<Uncertainty> {
+pub(super) fn uncertainty(
+    sets: &[Data<'_>],
+    model: &Model,
+    method: Method,
+    levels: Levels,
+) -> Option<Uncertainty> {
     if !matches!(method, Method::Oe | Method::Bj) {
         return None;
     }
@@ -32,7 +64,64 @@ pub(super) fn uncertainty(sets: &[Data<'_>], model: &Model, method: Method) -> O
     };
     let white = whitened(sets, &ar);
     let wsets: Vec<Data<'_>> = white.iter().map(|(u, y)| Data { u, y }).collect();
-    let cov = oe::covariance(&wsets, (&model.a, &b), d)?;
+    // What colour the whitened residual keeps (the reference's noise through a resonant
+    // probe rings longer than the noise model describes): the sandwich covariance of the
+    // estimate under it, not `s^2 (J'J)^-1`, which takes the residual for white.
+    let cov = match &levels.noise {
+        // Both channels' noise measured before the step: the residual is the probe's noise
+        // plus the reference's through the model, each whitened by the noise model as the
+        // data are: `H_y = D / P_y`, `H_u = D q^-d B / (A P_u)`.
+        Some((probe, reference)) => {
+            let dpoly: Vec<f64> = std::iter::once(1.0).chain(ar.iter().copied()).collect();
+            let mut g = vec![0.0; d];
+            g.extend(&b);
+            let a1: Vec<f64> = std::iter::once(1.0)
+                .chain(model.a.iter().copied())
+                .collect();
+            let pu: Vec<f64> = std::iter::once(1.0)
+                .chain(reference.ar.iter().copied())
+                .collect();
+            let parts = [
+                oe::Colour {
+                    num: dpoly.clone(),
+                    den: probe.ar.clone(),
+                    var: probe.innovation_std * probe.innovation_std,
+                },
+                oe::Colour {
+                    num: times(&dpoly, &g),
+                    den: times(&a1, &pu).into_iter().skip(1).collect(),
+                    var: reference.innovation_std * reference.innovation_std,
+                },
+            ];
+            oe::covariance_of_parts(&wsets, (&model.a, &b), d, &parts)?
+        }
+        // Otherwise what colour the whitened residual keeps, as its long AR model says.
+        None => {
+            let kept = residuals(&wsets, (&model.a, &model.b), d);
+            let colour =
+                crate::fit::noise::fit(&kept.concat(), crate::fit::noise::MAX_COLOUR_ORDER);
+            oe::covariance_coloured(
+                &wsets,
+                (&model.a, &b),
+                d,
+                &colour.ar,
+                colour.innovation_std * colour.innovation_std,
+            )?
+        }
+    };
+    // The resting levels the records were taken from (the means before the step): an error
+    // in either is an offset through the whole record, which the dynamics partly take in.
+    // Their derivatives, whitened as the data: the probe's level enters the residual as a
+    // constant, the reference's through the model.
+    let nuisances: Vec<(Vec<f64>, f64)> = sets
+        .first()
+        .map(|s| {
+            let ones = crate::fit::noise::whiten(&ar, &vec![1.0; s.y.len()]);
+            let through = crate::fit::model::filter(&b, &model.a, d, &ones);
+            vec![(ones, levels.probe_var), (through, levels.reference_var)]
+        })
+        .unwrap_or_default();
+    let cov = oe::with_nuisances(cov, &wsets, (&model.a, &b), d, &nuisances)?;
     let m = model.a.len();
     let theta: Vec<f64> = model.a.iter().chain(&b).copied().collect();
     let at = |t: &[f64]| -> Option<(f64, Vec<(f64, f64)>)> {
@@ -112,4 +201,95 @@ pub(crate) fn propagate(
             .collect(),
         noise_model,
     })
+}
+
+#[cfg(test)]
+mod eiv_scratch {
+    use crate::fit::{fit, Method, Options, Order, Test};
+
+    #[test]
+    #[ignore]
+    fn eiv_bias() {
+        let fs = 7078.0;
+        let (truth, _) = crate::testing::second_order(40.28488, 0.1529161, fs, 27);
+        let on: usize = std::env::var("ON")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(300);
+        let n = 1700 + on;
+        let u0: Vec<f64> = (0..n).map(|k| if k < on { 0.0 } else { 1051.0 }).collect();
+        let y0 = truth.simulate(&u0);
+        for (label, su, sy) in [
+            ("y only", 0.0f64, 2.62),
+            ("both", 3.8, 2.62),
+            ("u x3", 11.4, 2.62),
+            ("indep", -3.8, 2.62),
+            ("ar1", 0.0, -1.0),
+        ] {
+            let mut z = Vec::new();
+            let mut f = Vec::new();
+            let mut stated = Vec::new();
+            for seed in 0..16u64 {
+                let nu = crate::testing::with_noise(&vec![0.0; n], su.abs(), 1000 + seed);
+                let u: Vec<f64> = if su >= 0.0 {
+                    u0.iter().zip(&nu).map(|(a, b)| a + b).collect()
+                } else {
+                    u0.clone()
+                };
+                let gn = truth.simulate(&nu);
+                let y0n: Vec<f64> = if su >= 0.0 {
+                    y0.clone()
+                } else {
+                    y0.iter().zip(&gn).map(|(a, b)| a - b).collect()
+                };
+                let y = if sy > 0.0 {
+                    crate::testing::with_noise(&y0n, sy, 2000 + seed)
+                } else {
+                    let e = crate::testing::gaussian(n, 2000 + seed);
+                    let mut v = 0.0;
+                    y0n.iter()
+                        .zip(&e)
+                        .map(|(a, e)| {
+                            v = 0.95 * v + e;
+                            a + v
+                        })
+                        .collect()
+                };
+                let t = Test {
+                    name: "t",
+                    u: &u,
+                    y: &y,
+                };
+                let o = Options {
+                    method: if std::env::var("OE").is_ok() {
+                        Method::Oe
+                    } else {
+                        Method::Bj
+                    },
+                    order: Order::Fixed(2),
+                    delay: Some(27),
+                };
+                let fit = fit(&t, &[], fs, &o).unwrap();
+                let r = fit.report.uncertainty.as_ref().unwrap().resonances[0];
+                z.push(r.damping);
+                if label == "both" {
+                    eprintln!(
+                        "  draw {seed}: damping {:.6} (z {:.2}) stated {:.2e} nrmse {:.4e}",
+                        r.damping,
+                        (r.damping - 0.1529161) / r.damping_std,
+                        r.damping_std,
+                        fit.nrmse_estimation
+                    );
+                }
+                f.push(r.natural_frequency_hz);
+                stated.push(r.damping_std);
+            }
+            let m = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+            let sd = |v: &[f64]| {
+                let a = m(v);
+                (v.iter().map(|x| (x - a).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
+            };
+            eprintln!("{label}: damping mean-truth {:.2e}, scatter {:.2e}, stated {:.2e}; freq mean-truth {:.3e} scatter {:.3e}", m(&z) - 0.1529161, sd(&z), m(&stated), m(&f) - 40.28488, sd(&f));
+        }
+    }
 }

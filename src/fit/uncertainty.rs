@@ -204,56 +204,46 @@ pub(crate) fn propagate(
 }
 
 #[cfg(test)]
-mod eiv_scratch {
+mod both_channels {
     use crate::fit::{fit, Method, Options, Order, Test};
 
+    /// A 40 Hz probe of damping 0.15 (bank case 108) behind a noisy reference, over 16 noise
+    /// draws: the stated deviation of the damping is its spread within the sampling error of
+    /// 16 draws, with the reference's noise ringing through the probe (where the whitened
+    /// residual taken for white stated 3.8x too narrow), three times that noise, and a
+    /// wandering (AR(1)) probe noise.
     #[test]
-    #[ignore]
-    fn eiv_bias() {
-        let fs = 7078.0;
-        let (truth, _) = crate::testing::second_order(40.28488, 0.1529161, fs, 27);
-        let on: usize = std::env::var("ON")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(300);
+    fn the_stated_damping_is_its_spread_with_noise_on_both_channels() {
+        let (fs, f0, zeta, on) = (7078.0, 40.28488, 0.1529161, 300);
+        let (truth, _) = crate::testing::second_order(f0, zeta, fs, 27);
         let n = 1700 + on;
         let u0: Vec<f64> = (0..n).map(|k| if k < on { 0.0 } else { 1051.0 }).collect();
         let y0 = truth.simulate(&u0);
-        for (label, su, sy) in [
-            ("y only", 0.0f64, 2.62),
-            ("both", 3.8, 2.62),
-            ("u x3", 11.4, 2.62),
-            ("indep", -3.8, 2.62),
-            ("ar1", 0.0, -1.0),
+        // (what, the reference's white noise, the probe's white noise or None for AR(1))
+        for (what, su, sy) in [
+            ("the probe's noise alone", 0.0, Some(2.62)),
+            ("both channels", 3.8, Some(2.62)),
+            ("three times the reference's noise", 11.4, Some(2.62)),
+            ("an AR(1) probe noise", 0.0, None),
         ] {
-            let mut z = Vec::new();
-            let mut f = Vec::new();
+            let mut damping = Vec::new();
             let mut stated = Vec::new();
             for seed in 0..16u64 {
-                let nu = crate::testing::with_noise(&vec![0.0; n], su.abs(), 1000 + seed);
-                let u: Vec<f64> = if su >= 0.0 {
-                    u0.iter().zip(&nu).map(|(a, b)| a + b).collect()
-                } else {
-                    u0.clone()
-                };
-                let gn = truth.simulate(&nu);
-                let y0n: Vec<f64> = if su >= 0.0 {
-                    y0.clone()
-                } else {
-                    y0.iter().zip(&gn).map(|(a, b)| a - b).collect()
-                };
-                let y = if sy > 0.0 {
-                    crate::testing::with_noise(&y0n, sy, 2000 + seed)
-                } else {
-                    let e = crate::testing::gaussian(n, 2000 + seed);
-                    let mut v = 0.0;
-                    y0n.iter()
-                        .zip(&e)
-                        .map(|(a, e)| {
-                            v = 0.95 * v + e;
-                            a + v
-                        })
-                        .collect()
+                let nu = crate::testing::with_noise(&vec![0.0; n], su, 1000 + seed);
+                let u: Vec<f64> = u0.iter().zip(&nu).map(|(a, b)| a + b).collect();
+                let y = match sy {
+                    Some(sy) => crate::testing::with_noise(&y0, sy, 2000 + seed),
+                    None => {
+                        let e = crate::testing::gaussian(n, 2000 + seed);
+                        let mut v = 0.0;
+                        y0.iter()
+                            .zip(&e)
+                            .map(|(a, e)| {
+                                v = 0.95 * v + e;
+                                a + v
+                            })
+                            .collect()
+                    }
                 };
                 let t = Test {
                     name: "t",
@@ -261,35 +251,32 @@ mod eiv_scratch {
                     y: &y,
                 };
                 let o = Options {
-                    method: if std::env::var("OE").is_ok() {
-                        Method::Oe
-                    } else {
-                        Method::Bj
-                    },
+                    method: Method::Bj,
                     order: Order::Fixed(2),
                     delay: Some(27),
                 };
                 let fit = fit(&t, &[], fs, &o).unwrap();
                 let r = fit.report.uncertainty.as_ref().unwrap().resonances[0];
-                z.push(r.damping);
-                if label == "both" {
-                    eprintln!(
-                        "  draw {seed}: damping {:.6} (z {:.2}) stated {:.2e} nrmse {:.4e}",
-                        r.damping,
-                        (r.damping - 0.1529161) / r.damping_std,
-                        r.damping_std,
-                        fit.nrmse_estimation
-                    );
-                }
-                f.push(r.natural_frequency_hz);
+                damping.push(r.damping);
                 stated.push(r.damping_std);
             }
-            let m = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-            let sd = |v: &[f64]| {
-                let a = m(v);
-                (v.iter().map(|x| (x - a).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
-            };
-            eprintln!("{label}: damping mean-truth {:.2e}, scatter {:.2e}, stated {:.2e}; freq mean-truth {:.3e} scatter {:.3e}", m(&z) - 0.1529161, sd(&z), m(&stated), m(&f) - 40.28488, sd(&f));
+            let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+            let m = mean(&damping);
+            let spread = (damping.iter().map(|x| (x - m).powi(2)).sum::<f64>()
+                / (damping.len() - 1) as f64)
+                .sqrt();
+            let ratio = spread / mean(&stated);
+            // 16 draws know a deviation to about 18 %: 0.6 to 1.8 is three of those each way
+            // around the 1.2 to 1.36 measured.
+            assert!(
+                (0.6..1.8).contains(&ratio),
+                "{what}: the damping's spread is {ratio:.2} times the stated deviation"
+            );
+            assert!(
+                (m - zeta).abs() < 3.0 * spread,
+                "{what}: the damping's mean is {:.2e} off the truth",
+                m - zeta
+            );
         }
     }
 }

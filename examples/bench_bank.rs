@@ -35,6 +35,8 @@
 
 #[path = "bench_bank/case.rs"]
 mod case;
+#[path = "bench_bank/coverage.rs"]
+mod coverage;
 #[path = "bench_bank/draw.rs"]
 mod draw;
 #[path = "bench_bank/loop_report.rs"]
@@ -219,6 +221,7 @@ fn run_loop(cases: &[Case], s: &Settings) -> Result<(), Box<dyn Error>> {
     let mut rows = rows.into_inner().map_err(|_| "poisoned lock")?;
     rows.sort_by_key(|(c, _)| c.id);
     print!("{}", loop_report::report(&rows));
+    print!("{}", coverage::report(&rows));
     println!(
         "\n{} cases in {:.0} s on {} threads, seed {}, {}.",
         rows.len(),

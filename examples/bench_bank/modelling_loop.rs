@@ -65,6 +65,8 @@ pub struct LoopOutcome {
     pub after_two: Option<f64>,
     /// ... and that error's floor when the second change fits a noise model.
     pub floor_prediction_two: Option<f64>,
+    /// A case with no hidden effect: what the plain fit stated, to set beside the truth.
+    pub stated: Option<super::coverage::Stated>,
     /// The failed step and its first stderr line.
     pub failure: Option<String>,
 }
@@ -287,6 +289,9 @@ pub fn run(bin: &Path, dir: &Path, kind: Kind) -> LoopOutcome {
                 .find(|t| t.get("role").and_then(serde_json::Value::as_str) == Some("validation"))
         })
         .and_then(|t| t.get("noise_floor")?.as_f64());
+    if kind == Kind::None {
+        o.stated = super::coverage::read(&dir.join("loop.toml"));
+    }
     if kind == Kind::None && dir.join("truth.toml").is_file() {
         o.truth_error = run(
             &["compare", "truth.toml", "val.csv", "--json"],

@@ -103,3 +103,14 @@ pub(crate) fn model_file(model: crate::fit::model::Model) -> crate::file::ModelF
         probe: None,
     }
 }
+
+/// The mean of `estimates`, their spread (the sample standard deviation), and the spread
+/// over the mean of the deviations `stated` for them: about 1 when those are right.
+pub(crate) fn spread_over_stated(estimates: &[f64], stated: &[f64]) -> (f64, f64, f64) {
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let m = mean(estimates);
+    let spread = (estimates.iter().map(|x| (x - m).powi(2)).sum::<f64>()
+        / (estimates.len() - 1) as f64)
+        .sqrt();
+    (m, spread, spread / mean(stated))
+}

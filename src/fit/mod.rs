@@ -19,6 +19,7 @@
 pub mod analysis;
 pub mod arx;
 pub mod continuous;
+pub mod covariance;
 mod error;
 pub mod model;
 pub mod noise;
@@ -215,24 +216,6 @@ fn refine(whole: &[Data<'_>], model: &Model, method: Method) -> Result<(Vec<f64>
     }
 }
 
-/// The variances of the resting levels the fit takes as known, each that of a mean of the
-/// samples before the step, correlated as their own AR model says
-/// ([`noise::variance_of_mean`]): low-frequency noise before the step moves the level far
-/// more than independent samples would. Zero without two samples before the step.
-fn levels(p: &Prepared) -> uncertainty::Levels {
-    match (p.u.get(..p.onset), p.y.get(..p.onset)) {
-        (Some(u0), Some(y0)) if u0.len() >= 2 => uncertainty::Levels {
-            probe_var: noise::variance_of_mean(y0),
-            reference_var: noise::variance_of_mean(u0),
-            noise: (u0.len() >= crate::design::inverse::optimal::MIN_QUIET).then(|| {
-                let ar = |x: &[f64]| noise::fit(&step::detrend(x), noise::MAX_NOISE_ORDER);
-                (ar(y0), ar(u0))
-            }),
-        },
-        _ => uncertainty::Levels::default(),
-    }
-}
-
 /// Rounds of the Box-Jenkins alternation (noise model, then dynamics on whitened data).
 const BJ_ROUNDS: usize = 4;
 
@@ -280,14 +263,14 @@ fn box_jenkins(
 
 /// A numerator without the zero that pads the short numerator (`m` coefficients stored as
 /// `m + 1`), and whether it was there; [`padded`] puts it back.
-fn unpadded(b: &[f64]) -> (Vec<f64>, bool) {
+pub(crate) fn unpadded(b: &[f64]) -> (Vec<f64>, bool) {
     let short = b.len() > 1 && b.last() == Some(&0.0);
     let kept = if short { &b[..b.len() - 1] } else { b };
     (kept.to_vec(), short)
 }
 
 /// `b` with the short numerator's padding zero back when `short`.
-fn padded(mut b: Vec<f64>, short: bool) -> Vec<f64> {
+pub(crate) fn padded(mut b: Vec<f64>, short: bool) -> Vec<f64> {
     if short {
         b.push(0.0);
     }
@@ -638,7 +621,12 @@ pub fn fit(
         delay_candidates: rows,
         step_onset: p.onset,
         notes: Vec::new(),
-        uncertainty: uncertainty::uncertainty(&whole, &model, options.method, levels(&p)),
+        uncertainty: uncertainty::uncertainty(
+            &whole,
+            &model,
+            options.method,
+            uncertainty::levels(&p.u, &p.y, p.onset),
+        ),
         calibrated_from: None,
     };
     let fitted_dc = model.dc_gain();

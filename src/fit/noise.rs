@@ -13,7 +13,7 @@ use crate::fit::model::PredictionFloor;
 pub const MAX_NOISE_ORDER: usize = 4;
 
 /// Highest order of the AR model of what colour a whitened residual keeps, for the
-/// parameters' covariance ([`crate::fit::oe::covariance_coloured`]): long enough for the
+/// parameters' covariance ([`crate::fit::covariance::covariance_coloured`]): long enough for the
 /// ringing that the reference's noise leaves through a resonant probe, which a noise model
 /// of order [`MAX_NOISE_ORDER`] does not whiten.
 pub const MAX_COLOUR_ORDER: usize = 32;

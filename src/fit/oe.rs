@@ -44,7 +44,7 @@ const LAMBDA_FLOOR: f64 = 1e-20;
 const UNDAMPED_BELOW: f64 = 1e-6;
 
 /// Rows of the Jacobian reduced to its triangle at a time.
-const BLOCK: usize = 8192;
+pub(super) const BLOCK: usize = 8192;
 
 /// Sum of squared simulation errors over all data sets.
 #[must_use]
@@ -130,7 +130,7 @@ pub fn steiglitz_mcbride_nb(
 /// residual as its last column ([`each_row`]), reduced `BLOCK` rows at a time in `block`
 /// (which must have `np + 1` columns and at least `np + 1 + BLOCK` rows, or all the rows there
 /// are): a long record is never held.
-fn triangle(
+pub(super) fn triangle(
     sets: &[Data<'_>],
     (a, b): (&[f64], &[f64]),
     d: usize,
@@ -145,7 +145,7 @@ fn triangle(
 
 /// Rows reduced to their triangle a block at a time ([`arx::fold`]): the triangle of all the
 /// rows pushed, in one block's memory.
-struct Folder<'m> {
+pub(super) struct Folder<'m> {
     block: &'m mut Mat<f64>,
     r: Mat<f64>,
     width: usize,
@@ -155,7 +155,7 @@ struct Folder<'m> {
 
 impl<'m> Folder<'m> {
     /// `block` has `width` columns and at least `width + step` rows.
-    fn new(block: &'m mut Mat<f64>, width: usize, step: usize) -> Self {
+    pub(super) fn new(block: &'m mut Mat<f64>, width: usize, step: usize) -> Self {
         Self {
             block,
             r: Mat::<f64>::zeros(width, width),
@@ -166,7 +166,7 @@ impl<'m> Folder<'m> {
     }
 
     /// One more row (its first `width` values).
-    fn push(&mut self, row: &[f64]) {
+    pub(super) fn push(&mut self, row: &[f64]) {
         for (c, v) in row.iter().take(self.width).enumerate() {
             self.block[(self.width + self.filled, c)] = *v;
         }
@@ -178,7 +178,7 @@ impl<'m> Folder<'m> {
     }
 
     /// The triangle of every row pushed.
-    fn finish(mut self) -> Mat<f64> {
+    pub(super) fn finish(mut self) -> Mat<f64> {
         if self.filled > 0 {
             self.r = arx::fold(self.block, &self.r, self.filled);
         }
@@ -191,7 +191,7 @@ impl<'m> Folder<'m> {
 /// `yh`, `u / A` and `yh / A`) run `step` samples at a time ([`chunk_rows`]) in buffers of
 /// one step and its history (zeros before each record): a long record is never held three
 /// times over.
-fn each_row(
+pub(super) fn each_row(
     sets: &[Data<'_>],
     (a, b): (&[f64], &[f64]),
     d: usize,
@@ -213,7 +213,7 @@ fn each_row(
 /// The recursions of the output-error Jacobian's rows, a chunk of samples at a time: the
 /// simulation `yh = q^-d B/A u`, `w = u/A` and `vv = yh/A`, each in a buffer of one chunk
 /// after the `h` samples of history before it.
-struct Rows<'p> {
+pub(super) struct Rows<'p> {
     a: &'p [f64],
     b: &'p [f64],
     d: usize,
@@ -224,7 +224,7 @@ struct Rows<'p> {
 }
 
 impl<'p> Rows<'p> {
-    fn new((a, b): (&'p [f64], &'p [f64]), d: usize, step: usize) -> Self {
+    pub(super) fn new((a, b): (&'p [f64], &'p [f64]), d: usize, step: usize) -> Self {
         let step = step.max(1);
         // Lags read: yh and vv up to m, w up to d + nb - 1.
         let h = a.len().max(d + b.len());
@@ -244,19 +244,19 @@ impl<'p> Rows<'p> {
     }
 
     /// Zero history: a record's start.
-    fn restart(&mut self) {
+    pub(super) fn restart(&mut self) {
         self.bufs.iter_mut().for_each(|t| t.fill(0.0));
     }
 
     /// The history before the next chunk, in `out` (`3 h` values).
-    fn save(&self, out: &mut Vec<f64>) {
+    pub(super) fn save(&self, out: &mut Vec<f64>) {
         for t in &self.bufs {
             out.extend(t.iter().take(self.h));
         }
     }
 
     /// Takes back a history [`Self::save`] gave.
-    fn restore(&mut self, saved: &[f64]) {
+    pub(super) fn restore(&mut self, saved: &[f64]) {
         let h = self.h;
         for (i, t) in self.bufs.iter_mut().enumerate() {
             for (slot, v) in t.iter_mut().zip(saved.iter().skip(i * h).take(h)) {
@@ -267,7 +267,12 @@ impl<'p> Rows<'p> {
 
     /// The rows of samples `k0..k1` of `s` (at most one step), given to `emit`; the last `h`
     /// samples then become the history before `k1`.
-    fn chunk(&mut self, s: &Data<'_>, (k0, k1): (usize, usize), emit: &mut impl FnMut(&[f64])) {
+    pub(super) fn chunk(
+        &mut self,
+        s: &Data<'_>,
+        (k0, k1): (usize, usize),
+        emit: &mut impl FnMut(&[f64]),
+    ) {
         let (a, b, d, h) = (self.a, self.b, self.d, self.h);
         let (m, np) = (a.len(), a.len() + b.len());
         let [yh, w, vv] = &mut self.bufs;
@@ -329,265 +334,6 @@ pub(crate) fn damped_problem(r_aug: &Mat<f64>, np: usize) -> (Vec<f64>, Mat<f64>
         target[(r, 0)] = r_aug[(r, np)];
     }
     (norms, small, target)
-}
-
-/// The asymptotic covariance of an output-error estimate `[a; b]`: `s^2 (J^T J)^-1` with
-/// `s^2` the residual variance, as `s^2 R^-1 R^-T` from the Jacobian's triangular factor (back
-/// substitution on `R`, never the normal equations). Valid for white residuals: give the data
-/// whitened by the noise model when there is one. `None` when the Jacobian is rank-deficient
-/// or there are no more rows than parameters.
-#[must_use]
-pub fn covariance(sets: &[Data<'_>], (a, b): (&[f64], &[f64]), d: usize) -> Option<Mat<f64>> {
-    let np = a.len() + b.len();
-    let rows: usize = sets.iter().map(|s| s.y.len()).sum();
-    if rows <= np + 1 {
-        return None;
-    }
-    let mut block = Mat::<f64>::zeros(np + 1 + BLOCK.min(rows), np + 1);
-    let r_aug = triangle(sets, (a, b), d, &mut block);
-    covariance_of(&r_aug, np, rows)
-}
-
-/// The asymptotic covariance of an output-error estimate `[a; b]` whose residual is not
-/// white: `P(q) r = e`, `P = 1 + p1 q^-1 + ...` the AR model `colour = [p1..pp]` of the
-/// residual (empty: white) and `e` white of variance `innovation_var`. The estimate's error
-/// is `(J'J)^-1 J' r`, so its covariance is the sandwich `A^-1 B A^-1` with `A = J'J` and
-/// `B = innovation_var Z'Z`, `Z = P^-T J` (each column of `J` filtered by `1/P` backwards in
-/// time), both by their triangles; the rows are made twice, chunk by chunk, so a long record
-/// is never held. With no colour it is [`covariance`] with the innovation's variance for the
-/// residual's. `None` as [`covariance`].
-#[must_use]
-pub fn covariance_coloured(
-    sets: &[Data<'_>],
-    (a, b): (&[f64], &[f64]),
-    d: usize,
-    colour: &[f64],
-    innovation_var: f64,
-) -> Option<Mat<f64>> {
-    covariance_of_parts(
-        sets,
-        (a, b),
-        d,
-        &[Colour {
-            num: vec![1.0],
-            den: colour.to_vec(),
-            var: innovation_var,
-        }],
-    )
-}
-
-/// One independent part of a residual: white noise of variance `var` through the causal
-/// filter `num(q) / (1 + den(q))` (`num = [n0 n1 ..]` in powers of `q^-1`, `den = [m1 m2 ..]`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Colour {
-    /// Numerator, from `q^0`.
-    pub num: Vec<f64>,
-    /// Denominator after its leading 1.
-    pub den: Vec<f64>,
-    /// Variance of the white noise that drives it.
-    pub var: f64,
-}
-
-/// As [`covariance_coloured`], the residual a sum of independent [`Colour`]s (the probe's
-/// noise and the reference's through the probe, each as measured): `B = sum var Z'Z`,
-/// `Z = H^T J` for each part's filter `H`, run backwards in time.
-#[must_use]
-pub fn covariance_of_parts(
-    sets: &[Data<'_>],
-    (a, b): (&[f64], &[f64]),
-    d: usize,
-    parts: &[Colour],
-) -> Option<Mat<f64>> {
-    let np = a.len() + b.len();
-    let rows: usize = sets.iter().map(|s| s.y.len()).sum();
-    if rows <= np + 1
-        || parts
-            .iter()
-            .any(|c| c.var.is_nan() || c.var < 0.0 || c.num.is_empty())
-    {
-        return None;
-    }
-    let step = BLOCK.min(rows);
-    let mut block = Mat::<f64>::zeros(np + 1 + step, np + 1);
-    let ra = triangle(sets, (a, b), d, &mut block);
-    let mut zblock = Mat::<f64>::zeros(np + step, np);
-    let mut folder = Folder::new(&mut zblock, np, step);
-    // z runs backwards in time: each record's rows are made again chunk by chunk from the
-    // last, from the recursions' history saved at each chunk's start on a first pass.
-    let mut rows_of = Rows::new((a, b), d, step);
-    let mut saved = Vec::new();
-    let mut chunk = vec![0.0; step * np];
-    for part in parts {
-        let scale = part.var.sqrt();
-        // z_(i+1) .. z_(i+p) and J_(i+1) .. J_(i+q), nearest first, and one spare each.
-        let mut later: Vec<Vec<f64>> = vec![vec![0.0; np]; part.den.len() + 1];
-        let mut ahead: Vec<Vec<f64>> = vec![vec![0.0; np]; part.num.len()];
-        for s in sets {
-            let n = s.y.len();
-            let starts: Vec<usize> = (0..n).step_by(step).collect();
-            saved.clear();
-            rows_of.restart();
-            for &k0 in &starts {
-                rows_of.save(&mut saved);
-                rows_of.chunk(s, (k0, (k0 + step).min(n)), &mut |_| {});
-            }
-            later.iter_mut().for_each(|z| z.fill(0.0));
-            ahead.iter_mut().for_each(|z| z.fill(0.0));
-            let width = saved.len() / starts.len().max(1);
-            for (c, &k0) in starts.iter().enumerate().rev() {
-                rows_of.restore(saved.get(c * width..(c + 1) * width).unwrap_or(&[]));
-                let mut filled = 0;
-                rows_of.chunk(s, (k0, (k0 + step).min(n)), &mut |row| {
-                    for (slot, v) in chunk.iter_mut().skip(filled * np).zip(row.iter().take(np)) {
-                        *slot = *v;
-                    }
-                    filled += 1;
-                });
-                for i in (0..filled).rev() {
-                    // J_i joins the rows ahead: ahead = J_i, J_(i+1), ...
-                    let Some(mut j) = ahead.pop() else { break };
-                    for (cj, v) in j.iter_mut().zip(chunk.iter().skip(i * np).take(np)) {
-                        *cj = *v;
-                    }
-                    ahead.insert(0, j);
-                    // z_i = sum_j n_j J_(i+j) - sum_j m_j z_(i+j): H run backwards.
-                    let Some(mut z) = later.pop() else { break };
-                    for (c, zc) in z.iter_mut().enumerate() {
-                        let fir: f64 = part
-                            .num
-                            .iter()
-                            .zip(&ahead)
-                            .map(|(nj, jr)| nj * jr.get(c).copied().unwrap_or(0.0))
-                            .sum();
-                        let iir: f64 = part
-                            .den
-                            .iter()
-                            .zip(&later)
-                            .map(|(m, zl)| m * zl.get(c).copied().unwrap_or(0.0))
-                            .sum();
-                        *zc = fir - iir;
-                    }
-                    let scaled: Vec<f64> = z.iter().map(|v| scale * v).collect();
-                    folder.push(&scaled);
-                    later.insert(0, z);
-                }
-            }
-        }
-    }
-    let rb = folder.finish();
-    let x = upper_inverse(&ra, np)?;
-    Some(sandwich(&x, &rb, np, 1.0))
-}
-
-/// `cov` with the error of quantities the fit took as known added: each `(c, var)` a column
-/// `c` (one value per row of the sets, in order) of the residual's derivatives by such a
-/// quantity, whose error has variance `var`, independent of the residual and of the others.
-/// The estimate moves by `(J'J)^-1 J' c` per unit of it, so each adds
-/// `var (A^-1 J'c)(A^-1 J'c)'`. `None` when `J` is rank-deficient.
-#[must_use]
-pub fn with_nuisances(
-    mut cov: Mat<f64>,
-    sets: &[Data<'_>],
-    (a, b): (&[f64], &[f64]),
-    d: usize,
-    nuisances: &[(Vec<f64>, f64)],
-) -> Option<Mat<f64>> {
-    let np = a.len() + b.len();
-    if nuisances.is_empty() {
-        return Some(cov);
-    }
-    let rows: usize = sets.iter().map(|s| s.y.len()).sum();
-    let step = BLOCK.min(rows.max(1));
-    let mut block = Mat::<f64>::zeros(np + 1 + step, np + 1);
-    let ra = triangle(sets, (a, b), d, &mut block);
-    let x = upper_inverse(&ra, np)?;
-    // J'c for every nuisance, in one pass over the rows.
-    let mut jc = vec![vec![0.0; np]; nuisances.len()];
-    let mut k = 0;
-    each_row(sets, (a, b), d, step, |row| {
-        for (acc, (c, _)) in jc.iter_mut().zip(nuisances) {
-            let ck = c.get(k).copied().unwrap_or(0.0);
-            for (s, j) in acc.iter_mut().zip(row) {
-                *s += j * ck;
-            }
-        }
-        k += 1;
-    });
-    for (g, (_, var)) in jc.iter().zip(nuisances) {
-        // A^-1 g = X (X' g).
-        let xtg: Vec<f64> = (0..np)
-            .map(|i| (0..np).map(|r| x[(r, i)] * g[r]).sum())
-            .collect();
-        let v: Vec<f64> = (0..np)
-            .map(|r| (0..np).map(|i| x[(r, i)] * xtg[i]).sum())
-            .collect();
-        for r in 0..np {
-            for c in 0..np {
-                cov[(r, c)] += var * v[r] * v[c];
-            }
-        }
-    }
-    Some(cov)
-}
-
-/// `s2 (R_b X X')' (R_b X X')`: the covariance `A^-1 B A^-1` with `A^-1 = X X'` (`X` the
-/// inverse of `A`'s triangle) and `B = s2 R_b' R_b` (`R_b` upper triangular), by products of
-/// `np x np` matrices alone.
-#[must_use]
-pub(crate) fn sandwich(x: &Mat<f64>, rb: &Mat<f64>, np: usize, s2: f64) -> Mat<f64> {
-    let xxt = Mat::<f64>::from_fn(np, np, |i, j| (0..np).map(|k| x[(i, k)] * x[(j, k)]).sum());
-    let c = Mat::<f64>::from_fn(np, np, |i, j| {
-        (i..np).map(|k| rb[(i, k)] * xxt[(k, j)]).sum()
-    });
-    Mat::<f64>::from_fn(np, np, |i, j| {
-        s2 * (0..np).map(|k| c[(k, i)] * c[(k, j)]).sum::<f64>()
-    })
-}
-
-/// The parameters' covariance `s^2 (R^T R)^-1` from the triangle `R` of `[J r]` over `rows`
-/// residuals and `np` parameters (`s^2` the residual variance), by inverting the triangle
-/// alone. `None` when a parameter is not identified (a diagonal element of `R` negligible).
-#[must_use]
-fn covariance_of(r_aug: &Mat<f64>, np: usize, rows: usize) -> Option<Mat<f64>> {
-    if rows <= np + 1 || r_aug.nrows() <= np || r_aug.ncols() <= np {
-        return None;
-    }
-    // The last diagonal element of R of [J r] is the norm of the residual J cannot explain.
-    let rss = r_aug[(np, np)] * r_aug[(np, np)];
-    let s2 = rss / (rows - np) as f64;
-    let x = upper_inverse(r_aug, np)?;
-    let mut cov = Mat::<f64>::zeros(np, np);
-    for i in 0..np {
-        for j in 0..np {
-            cov[(i, j)] = s2 * (0..np).map(|k| x[(i, k)] * x[(j, k)]).sum::<f64>();
-        }
-    }
-    Some(cov)
-}
-
-/// The inverse of the leading `np x np` block of the upper triangle `r`, by back
-/// substitution column by column. `None` when a diagonal element is negligible (a parameter
-/// not identified) or the triangle is smaller.
-#[must_use]
-pub(crate) fn upper_inverse(r: &Mat<f64>, np: usize) -> Option<Mat<f64>> {
-    if r.nrows() < np || r.ncols() < np {
-        return None;
-    }
-    let scale = (0..np).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
-    if (0..np).any(|i| r[(i, i)].abs() <= 1e-12 * scale || r[(i, i)].is_nan()) {
-        return None;
-    }
-    let mut x = Mat::<f64>::zeros(np, np);
-    for c in 0..np {
-        for row in (0..=c).rev() {
-            let mut acc = if row == c { 1.0 } else { 0.0 };
-            for k in row + 1..=c {
-                acc -= r[(row, k)] * x[(k, c)];
-            }
-            x[(row, c)] = acc / r[(row, row)];
-        }
-    }
-    Some(x)
 }
 
 /// Output-error refinement by Levenberg-Marquardt from `init` (which should be stable).
@@ -702,69 +448,6 @@ pub fn output_error_from(
 mod tests {
     use super::*;
 
-    /// The sandwich of a coloured residual, made twice in chunks backwards, is the one built
-    /// from the whole Jacobian and the AR residual's covariance `s2 P^-1 P^-T` as matrices;
-    /// with no colour it is `s2 (J'J)^-1`.
-    #[test]
-    fn the_coloured_covariance_is_the_sandwich_of_the_whole_jacobian() {
-        let (a, b, d) = (vec![-1.6, 0.7], vec![0.05, 0.05], 1);
-        let n = 300;
-        let u: Vec<f64> = (0..n).map(|k| if k < 40 { 0.0 } else { 1.0 }).collect();
-        let y: Vec<f64> = crate::testing::with_noise(&filter(&b, &a, d, &u), 0.01, 3);
-        let sets = [Data { u: &u, y: &y }];
-        let np = 4;
-        let mut j = Mat::<f64>::zeros(n, np);
-        let mut k = 0;
-        each_row(&sets, (&a, &b), d, 7, |row| {
-            for c in 0..np {
-                j[(k, c)] = row[c];
-            }
-            k += 1;
-        });
-        let (colour, s2) = (vec![-0.8, 0.15], 2.0);
-        // P as a lower-triangular matrix, and P^-1 by forward substitution on the identity.
-        let p = Mat::<f64>::from_fn(n, n, |r, c| match r.checked_sub(c) {
-            Some(0) => 1.0,
-            Some(l) => colour.get(l - 1).copied().unwrap_or(0.0),
-            None => 0.0,
-        });
-        // Z = P^-T J: back substitution on the dense upper triangle P^T, row by row from the
-        // last.
-        let pt = p.transpose().to_owned();
-        let mut z = Mat::<f64>::zeros(n, np);
-        for r in (0..n).rev() {
-            for c in 0..np {
-                let later: f64 = (r + 1..n).map(|q| pt[(r, q)] * z[(q, c)]).sum();
-                z[(r, c)] = (j[(r, c)] - later) / pt[(r, r)];
-            }
-        }
-        let bm = s2 * (z.transpose() * &z);
-        use faer::linalg::solvers::SolveLstsq;
-        let a_inv = (j.transpose() * &j)
-            .col_piv_qr()
-            .solve_lstsq(Mat::<f64>::identity(np, np));
-        let expected = &a_inv * &bm * &a_inv;
-        // Chunks of 7 rows: the buffers cross chunk borders many times.
-        let got = covariance_coloured(&sets, (&a, &b), d, &colour, s2).unwrap();
-        for r in 0..np {
-            for c in 0..np {
-                let (g, e) = (got[(r, c)], expected[(r, c)]);
-                assert!(
-                    (g - e).abs() <= 1e-6 * e.abs().max(expected[(r, r)].abs()),
-                    "{r} {c}: {g} {e}"
-                );
-            }
-        }
-        let white = covariance_coloured(&sets, (&a, &b), d, &[], s2).unwrap();
-        let plain = covariance(&sets, (&a, &b), d).unwrap();
-        let r_aug = triangle(&sets, (&a, &b), d, &mut Mat::<f64>::zeros(n + 5, 5));
-        let s2_plain = r_aug[(np, np)].powi(2) / (n - np) as f64;
-        for r in 0..np {
-            let ratio = white[(r, r)] / plain[(r, r)] * s2_plain / s2;
-            assert!((ratio - 1.0).abs() < 1e-6, "{ratio}");
-        }
-    }
-
     #[test]
     fn allpole_inverts_fir() {
         let a = [-0.5, 0.2];
@@ -774,101 +457,5 @@ mod tests {
         for (p, q) in back.iter().zip(&x) {
             assert!((p - q).abs() < 1e-12);
         }
-    }
-}
-
-#[cfg(test)]
-mod both_channels {
-    use super::*;
-
-    /// The two parts (the probe's white noise, and the reference's white noise through the
-    /// model from rest) give the dense sandwich with the true residual covariance
-    /// `sy^2 I + su^2 G G'`, and the residual's own AR colour comes near it.
-    #[test]
-    fn the_parts_are_the_sandwich_with_the_true_residual_covariance() {
-        let fs = 7078.0;
-        let (truth, _) = crate::testing::second_order(40.28488, 0.1529161, fs, 27);
-        let n = 2000;
-        let u: Vec<f64> = (0..n).map(|k| if k < 300 { 0.0 } else { 1051.0 }).collect();
-        let y0 = truth.simulate(&u);
-        let (su, sy) = (3.8, 2.62);
-        let nu = crate::testing::with_noise(&vec![0.0; n], su, 1000);
-        let gn = truth.simulate(&nu);
-        let y: Vec<f64> = y0.iter().zip(&gn).map(|(a, b)| a - b).collect();
-        let y = crate::testing::with_noise(&y, sy, 2000);
-        let sets = [Data { u: &u, y: &y }];
-        let (a, b, d) = (truth.a.clone(), truth.b.clone(), truth.delay);
-        let np = a.len() + b.len();
-        let mut j = Mat::<f64>::zeros(n, np);
-        let mut res = vec![0.0; n];
-        let mut k = 0;
-        each_row(&sets, (&a, &b), d, 512, |row| {
-            for c in 0..np {
-                j[(k, c)] = row[c];
-            }
-            res[k] = row[np];
-            k += 1;
-        });
-        // The true residual covariance: sy^2 I + su^2 G G' (G the probe's impulse response
-        // as a lower-triangular Toeplitz matrix, the reference noise from rest).
-        let mut imp = vec![0.0; n];
-        imp[0] = 1.0;
-        let g = filter(&truth.b, &truth.a, truth.delay, &imp);
-        let gm = Mat::<f64>::from_fn(n, n, |r, c| if r >= c { g[r - c] } else { 0.0 });
-        let gj = gm.transpose() * &j;
-        let bm = sy * sy * (j.transpose() * &j) + su * su * (gj.transpose() * &gj);
-        use faer::linalg::solvers::SolveLstsq;
-        let a_inv = (j.transpose() * &j)
-            .col_piv_qr()
-            .solve_lstsq(Mat::<f64>::identity(np, np));
-        let exact = &a_inv * &bm * &a_inv;
-        let colour = crate::fit::noise::fit(&res, crate::fit::noise::MAX_COLOUR_ORDER);
-        let est = covariance_coloured(
-            &sets,
-            (&a, &b),
-            d,
-            &colour.ar,
-            colour.innovation_std.powi(2),
-        )
-        .unwrap();
-        let plain = covariance(&sets, (&a, &b), d).unwrap();
-        let mut gnum = vec![0.0; d];
-        gnum.extend(&b);
-        let parts = covariance_of_parts(
-            &sets,
-            (&a, &b),
-            d,
-            &[
-                Colour {
-                    num: vec![1.0],
-                    den: vec![],
-                    var: sy * sy,
-                },
-                Colour {
-                    num: gnum,
-                    den: a.clone(),
-                    var: su * su,
-                },
-            ],
-        )
-        .unwrap();
-        for i in 0..np {
-            let exact_over_parts = exact[(i, i)] / parts[(i, i)];
-            assert!(
-                (exact_over_parts - 1.0).abs() < 1e-3,
-                "parameter {i}: the dense sandwich is {exact_over_parts} times the parts'"
-            );
-            // The fallback without a quiet segment, the AR colour of the residual, comes
-            // nearer the truth than the covariance of white noise, on every parameter.
-            let (ar, white) = (exact[(i, i)] / est[(i, i)], exact[(i, i)] / plain[(i, i)]);
-            assert!(
-                ar > 0.5 && ar < white,
-                "parameter {i}: the AR colour's variance is {ar} of the truth, white noise's {white}"
-            );
-        }
-        let worst_white = (0..np)
-            .map(|i| exact[(i, i)] / plain[(i, i)])
-            .fold(0.0f64, f64::max);
-        assert!(worst_white > 4.0, "white noise was right ({worst_white})");
     }
 }

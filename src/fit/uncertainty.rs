@@ -2,7 +2,9 @@
 //! the noise the tests show, from the covariance of the refit on the whitened data.
 
 use super::arx::Data;
-use super::{oe, padded, residual_noise, residuals, unpadded, whitened, Method};
+use super::covariance::{covariance_weighted, Colour, Weighted};
+use super::noise::{self, ArNoise};
+use super::{padded, residual_noise, residuals, step, unpadded, whitened, Method};
 use crate::fit::model::{Model, ResonanceUncertainty, Uncertainty};
 
 /// The variances of the resting levels a fit took as known: the means of the probe's and the
@@ -10,13 +12,13 @@ use crate::fit::model::{Model, ResonanceUncertainty, Uncertainty};
 /// With them, each channel's noise as its quiet segment shows it (the AR model of the
 /// detrended samples before the step), when there is one.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub(super) struct Levels {
+pub(crate) struct Levels {
     /// The probe's level.
     pub probe_var: f64,
     /// The reference's level.
     pub reference_var: f64,
     /// The probe's noise and the reference's, from before the step.
-    pub noise: Option<(crate::fit::noise::ArNoise, crate::fit::noise::ArNoise)>,
+    pub noise: Option<(ArNoise, ArNoise)>,
 }
 
 /// The product of two polynomials in `q^-1`.
@@ -41,11 +43,95 @@ pub(crate) fn features(model: &Model) -> Option<(f64, Vec<(f64, f64)>)> {
     Some((model.dc_gain(), r))
 }
 
+/// The variances of the resting levels a fit takes as known, each that of a mean of the
+/// samples before the step at `onset`, correlated as their own AR model says
+/// ([`noise::variance_of_mean`]): low-frequency noise before the step moves the level far
+/// more than independent samples would. With a quiet segment long enough, each channel's
+/// noise as it shows it. Zero without two samples before the step.
+pub(crate) fn levels(u: &[f64], y: &[f64], onset: usize) -> Levels {
+    match (u.get(..onset), y.get(..onset)) {
+        (Some(u0), Some(y0)) if u0.len() >= 2 => Levels {
+            probe_var: noise::variance_of_mean(y0),
+            reference_var: noise::variance_of_mean(u0),
+            noise: (u0.len() >= crate::design::inverse::optimal::MIN_QUIET).then(|| {
+                let ar = |x: &[f64]| noise::fit(&step::detrend(x), noise::MAX_NOISE_ORDER);
+                (ar(y0), ar(u0))
+            }),
+        },
+        _ => Levels::default(),
+    }
+}
+
+/// What a model's residual is made of, each part as the data whitened by `ar` (the noise
+/// model's `D = 1 + ar`, empty for none) carry it: with both channels' noise measured before
+/// the step, the probe's noise and the reference's through the model, `H_y = D / P_y` and
+/// `H_u = D q^-d B / (A P_u)`; otherwise the colour the residual `kept` (whitened) shows, as
+/// its long AR model says.
+pub(crate) fn parts(
+    model: &Model,
+    ar: &[f64],
+    noise: Option<&(ArNoise, ArNoise)>,
+    kept: impl FnOnce() -> Vec<f64>,
+) -> Vec<Colour> {
+    match noise {
+        Some((probe, reference)) => {
+            let (b, _) = unpadded(&model.b);
+            let dpoly: Vec<f64> = std::iter::once(1.0).chain(ar.iter().copied()).collect();
+            let mut g = vec![0.0; model.delay];
+            g.extend(&b);
+            let a1: Vec<f64> = std::iter::once(1.0)
+                .chain(model.a.iter().copied())
+                .collect();
+            let pu: Vec<f64> = std::iter::once(1.0)
+                .chain(reference.ar.iter().copied())
+                .collect();
+            vec![
+                Colour {
+                    num: dpoly.clone(),
+                    den: probe.ar.clone(),
+                    var: probe.innovation_std * probe.innovation_std,
+                },
+                Colour {
+                    num: times(&dpoly, &g),
+                    den: times(&a1, &pu).into_iter().skip(1).collect(),
+                    var: reference.innovation_std * reference.innovation_std,
+                },
+            ]
+        }
+        None => {
+            let colour = noise::fit(&kept(), noise::MAX_COLOUR_ORDER);
+            vec![Colour {
+                num: vec![1.0],
+                den: colour.ar,
+                var: colour.innovation_std * colour.innovation_std,
+            }]
+        }
+    }
+}
+
+/// The resting levels a test's record was taken from (the means before the step), as
+/// quantities taken as known ([`Weighted::nuisances`]): an error in either is an offset
+/// through the whole record, which the dynamics partly take in. Their derivatives over `n`
+/// samples, whitened by `ar` as the data: the probe's level enters the residual as a
+/// constant, the reference's through the model.
+pub(crate) fn level_nuisances(
+    model: &Model,
+    ar: &[f64],
+    n: usize,
+    levels: &Levels,
+) -> Vec<(Vec<f64>, f64)> {
+    let (b, _) = unpadded(&model.b);
+    let ones = noise::whiten(ar, &vec![1.0; n]);
+    let through = crate::fit::model::filter(&b, &model.a, model.delay, &ones);
+    vec![(ones, levels.probe_var), (through, levels.reference_var)]
+}
+
 /// One standard deviation of the fitted model's DC gain and resonances (see
-/// [`Uncertainty`]): the parameters' covariance from [`oe::covariance`] on the data whitened
-/// by the residual's AR noise model (Box-Jenkins) or as they are, carried to the features by
-/// central differences. `None` for the least-squares methods, or when the covariance or the
-/// features cannot be had.
+/// [`Uncertainty`]): the parameters' sandwich covariance ([`covariance_weighted`]) on the
+/// data whitened by the residual's AR noise model (Box-Jenkins) or as they are, the residual
+/// counted as its [`parts`], the first record's resting levels as [`level_nuisances`],
+/// carried to the features by central differences. `None` for the least-squares methods, or
+/// when the covariance or the features cannot be had.
 pub(super) fn uncertainty(
     sets: &[Data<'_>],
     model: &Model,
@@ -67,61 +153,23 @@ pub(super) fn uncertainty(
     // What colour the whitened residual keeps (the reference's noise through a resonant
     // probe rings longer than the noise model describes): the sandwich covariance of the
     // estimate under it, not `s^2 (J'J)^-1`, which takes the residual for white.
-    let cov = match &levels.noise {
-        // Both channels' noise measured before the step: the residual is the probe's noise
-        // plus the reference's through the model, each whitened by the noise model as the
-        // data are: `H_y = D / P_y`, `H_u = D q^-d B / (A P_u)`.
-        Some((probe, reference)) => {
-            let dpoly: Vec<f64> = std::iter::once(1.0).chain(ar.iter().copied()).collect();
-            let mut g = vec![0.0; d];
-            g.extend(&b);
-            let a1: Vec<f64> = std::iter::once(1.0)
-                .chain(model.a.iter().copied())
-                .collect();
-            let pu: Vec<f64> = std::iter::once(1.0)
-                .chain(reference.ar.iter().copied())
-                .collect();
-            let parts = [
-                oe::Colour {
-                    num: dpoly.clone(),
-                    den: probe.ar.clone(),
-                    var: probe.innovation_std * probe.innovation_std,
-                },
-                oe::Colour {
-                    num: times(&dpoly, &g),
-                    den: times(&a1, &pu).into_iter().skip(1).collect(),
-                    var: reference.innovation_std * reference.innovation_std,
-                },
-            ];
-            oe::covariance_of_parts(&wsets, (&model.a, &b), d, &parts)?
-        }
-        // Otherwise what colour the whitened residual keeps, as its long AR model says.
-        None => {
-            let kept = residuals(&wsets, (&model.a, &model.b), d);
-            let colour =
-                crate::fit::noise::fit(&kept.concat(), crate::fit::noise::MAX_COLOUR_ORDER);
-            oe::covariance_coloured(
-                &wsets,
-                (&model.a, &b),
-                d,
-                &colour.ar,
-                colour.innovation_std * colour.innovation_std,
-            )?
-        }
-    };
-    // The resting levels the records were taken from (the means before the step): an error
-    // in either is an offset through the whole record, which the dynamics partly take in.
-    // Their derivatives, whitened as the data: the probe's level enters the residual as a
-    // constant, the reference's through the model.
-    let nuisances: Vec<(Vec<f64>, f64)> = sets
+    let parts = parts(model, &ar, levels.noise.as_ref(), || {
+        residuals(&wsets, (&model.a, &model.b), d).concat()
+    });
+    let nuisances = sets
         .first()
-        .map(|s| {
-            let ones = crate::fit::noise::whiten(&ar, &vec![1.0; s.y.len()]);
-            let through = crate::fit::model::filter(&b, &model.a, d, &ones);
-            vec![(ones, levels.probe_var), (through, levels.reference_var)]
-        })
+        .map(|s| level_nuisances(model, &ar, s.y.len(), &levels))
         .unwrap_or_default();
-    let cov = oe::with_nuisances(cov, &wsets, (&model.a, &b), d, &nuisances)?;
+    let cov = covariance_weighted(
+        &[Weighted {
+            sets: &wsets,
+            weight: 1.0,
+            parts,
+            nuisances,
+        }],
+        (&model.a, &b),
+        d,
+    )?;
     let m = model.a.len();
     let theta: Vec<f64> = model.a.iter().chain(&b).copied().collect();
     let at = |t: &[f64]| -> Option<(f64, Vec<(f64, f64)>)> {
@@ -260,12 +308,7 @@ mod both_channels {
                 damping.push(r.damping);
                 stated.push(r.damping_std);
             }
-            let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-            let m = mean(&damping);
-            let spread = (damping.iter().map(|x| (x - m).powi(2)).sum::<f64>()
-                / (damping.len() - 1) as f64)
-                .sqrt();
-            let ratio = spread / mean(&stated);
+            let (m, sd, ratio) = crate::testing::spread_over_stated(&damping, &stated);
             // 16 draws know a deviation to about 18 %: 0.6 to 1.8 is three of those each way
             // around the 1.2 to 1.36 measured.
             assert!(
@@ -273,7 +316,7 @@ mod both_channels {
                 "{what}: the damping's spread is {ratio:.2} times the stated deviation"
             );
             assert!(
-                (m - zeta).abs() < 3.0 * spread,
+                (m - zeta).abs() < 3.0 * sd,
                 "{what}: the damping's mean is {:.2e} off the truth",
                 m - zeta
             );

@@ -108,10 +108,10 @@ pub struct Weighted<'a> {
 /// The covariance of an output-error estimate `[a; b]` fitted on several tests, test `t`'s
 /// squared error weighted by `w_t`: the sandwich `A^-1 B A^-1` with `A = sum w_t J_t'J_t` and
 /// `B = sum w_t^2 sum_parts var Z'Z` (each part's `Z = H^T J_t`, see
-/// [`covariance_of_parts`]), each test's triangles made alone and stacked. Each quantity
-/// taken as known moves the estimate by `A^-1 w_t J_t' c` per unit of it, and so adds
-/// `var (A^-1 w_t J_t'c)(A^-1 w_t J_t'c)'`. `None` when `J` is rank-deficient, a test has no
-/// more rows than parameters, or a weight or a variance is negative or not a number.
+/// [`covariance_of_parts`]), each test's triangles made alone and stacked.
+/// Each quantity taken as known moves the estimate by `A^-1 w_t J_t' c` per unit of it, and
+/// so adds `var (A^-1 w_t J_t'c)(A^-1 w_t J_t'c)'`. `None` when `J` is rank-deficient, a test
+/// has no more rows than parameters, or a weight or a variance is negative or not a number.
 #[must_use]
 pub fn covariance_weighted(
     tests: &[Weighted<'_>],
@@ -119,28 +119,66 @@ pub fn covariance_weighted(
     d: usize,
 ) -> Option<Mat<f64>> {
     let np = a.len() + b.len();
-    let rows = tests.len() * np;
+    let shares = tests
+        .iter()
+        .map(|t| {
+            let (ra, rb) = triangles(t.sets, (a, b), d, &t.parts)?;
+            Some(Share {
+                ra,
+                rb,
+                weight: t.weight,
+                moves: moved_by(t.sets, (a, b), d, &t.nuisances),
+            })
+        })
+        .collect::<Option<Vec<Share>>>()?;
+    combine(np, &shares)
+}
+
+/// One test's share of a weighted sandwich: the triangles of its `J'J` and of its `B` (at
+/// least `np x np`, their leading blocks read), the weight of its squared error, and `J'c`
+/// of each quantity it took as known, with that quantity's variance.
+pub(crate) struct Share {
+    /// Triangle of `J'J`.
+    pub ra: Mat<f64>,
+    /// Triangle of `B`.
+    pub rb: Mat<f64>,
+    /// Weight of the test's squared error.
+    pub weight: f64,
+    /// `J'c` and the variance of each quantity taken as known.
+    pub moves: Vec<(Vec<f64>, f64)>,
+}
+
+/// The sandwich of the tests' shares: `A = sum w A_t`, `B = sum w^2 B_t`, by stacking their
+/// triangles scaled and reducing them to one; the quantities taken as known added. `None`
+/// when `A` is rank-deficient or a weight is negative or not a number.
+pub(crate) fn combine(np: usize, shares: &[Share]) -> Option<Mat<f64>> {
+    let rows = (shares.len() * np).max(1);
     let mut blocks = (
-        Mat::<f64>::zeros(np + rows.max(1), np),
-        Mat::<f64>::zeros(np + rows.max(1), np),
+        Mat::<f64>::zeros(np + rows, np),
+        Mat::<f64>::zeros(np + rows, np),
     );
-    let mut fold_a = Folder::new(&mut blocks.0, np, rows.max(1));
-    let mut fold_b = Folder::new(&mut blocks.1, np, rows.max(1));
+    let mut fold_a = Folder::new(&mut blocks.0, np, rows);
+    let mut fold_b = Folder::new(&mut blocks.1, np, rows);
     let mut moves = Vec::new();
-    for t in tests {
-        if t.weight.is_nan() || t.weight < 0.0 {
+    for t in shares {
+        if t.weight.is_nan()
+            || t.weight < 0.0
+            || t.ra.nrows() < np
+            || t.ra.ncols() < np
+            || t.rb.nrows() < np
+            || t.rb.ncols() < np
+        {
             return None;
         }
-        let (ra, rb) = triangles(t.sets, (a, b), d, &t.parts)?;
         for i in 0..np {
             let row = |r: &Mat<f64>, scale: f64| -> Vec<f64> {
                 (0..np).map(|c| scale * r[(i, c)]).collect()
             };
-            fold_a.push(&row(&ra, t.weight.sqrt()));
-            fold_b.push(&row(&rb, t.weight));
+            fold_a.push(&row(&t.ra, t.weight.sqrt()));
+            fold_b.push(&row(&t.rb, t.weight));
         }
-        for (g, var) in moved_by(t.sets, (a, b), d, &t.nuisances) {
-            moves.push((g.iter().map(|v| t.weight * v).collect::<Vec<f64>>(), var));
+        for (g, var) in &t.moves {
+            moves.push((g.iter().map(|v| t.weight * v).collect::<Vec<f64>>(), *var));
         }
     }
     let (ra, rb) = (fold_a.finish(), fold_b.finish());
@@ -149,7 +187,11 @@ pub fn covariance_weighted(
     for (g, var) in &moves {
         // A^-1 g = X (X' g).
         let xtg: Vec<f64> = (0..np)
-            .map(|i| (0..np).map(|r| x[(r, i)] * g[r]).sum())
+            .map(|i| {
+                (0..np)
+                    .map(|r| x[(r, i)] * g.get(r).copied().unwrap_or(0.0))
+                    .sum()
+            })
             .collect();
         let v: Vec<f64> = (0..np)
             .map(|r| (0..np).map(|i| x[(r, i)] * xtg[i]).sum())
@@ -163,6 +205,127 @@ pub fn covariance_weighted(
     Some(cov)
 }
 
+/// A record's Jacobian rows, made chunk by chunk from its start, that can be made again from
+/// a mark taken before a chunk: what running a filter backwards over them needs without
+/// holding them.
+pub(crate) trait Replay {
+    /// What the rows' recursions hold before a chunk.
+    type Mark;
+    /// The state before the next chunk.
+    fn mark(&self) -> Self::Mark;
+    /// Takes back a state [`Replay::mark`] gave.
+    fn resume(&mut self, mark: &Self::Mark);
+    /// The rows of samples `k0..k1`, in order, each its `np` derivatives first.
+    fn rows(&mut self, range: (usize, usize), emit: &mut dyn FnMut(&[f64]));
+}
+
+/// The output-error rows of one record.
+struct OeReplay<'r, 'p, 'd> {
+    rows: &'r mut Rows<'p>,
+    data: &'r Data<'d>,
+}
+
+impl Replay for OeReplay<'_, '_, '_> {
+    type Mark = Vec<f64>;
+    fn mark(&self) -> Vec<f64> {
+        let mut saved = Vec::new();
+        self.rows.save(&mut saved);
+        saved
+    }
+    fn resume(&mut self, mark: &Vec<f64>) {
+        self.rows.restore(mark);
+    }
+    fn rows(&mut self, range: (usize, usize), emit: &mut dyn FnMut(&[f64])) {
+        self.rows.chunk(self.data, range, &mut |r: &[f64]| emit(r));
+    }
+}
+
+/// The triangle of `B = sum var Z'Z` (`Z = H^T J` for each part's filter `H`) over the `n`
+/// rows of `np` derivatives that `replay` makes from its start, `step` at a time: the rows
+/// are made once forwards, marking each chunk's start, and again chunk by chunk from the
+/// last, each part's filter run backwards over them. `None` when a part is malformed.
+pub(crate) fn parts_triangle(
+    replay: &mut impl Replay,
+    (n, np, step): (usize, usize, usize),
+    parts: &[Colour],
+) -> Option<Mat<f64>> {
+    let step = step.max(1);
+    if malformed(parts) {
+        return None;
+    }
+    let mut zblock = Mat::<f64>::zeros(np + step, np);
+    let mut folder = Folder::new(&mut zblock, np, step);
+    fold_parts(replay, (n, np, step), parts, &mut folder);
+    Some(folder.finish())
+}
+
+/// A part with a variance negative or not a number, or no numerator.
+fn malformed(parts: &[Colour]) -> bool {
+    parts
+        .iter()
+        .any(|c| c.var.is_nan() || c.var < 0.0 || c.num.is_empty())
+}
+
+/// [`parts_triangle`]'s rows pushed to `folder`.
+fn fold_parts(
+    replay: &mut impl Replay,
+    (n, np, step): (usize, usize, usize),
+    parts: &[Colour],
+    folder: &mut Folder<'_>,
+) {
+    let starts: Vec<usize> = (0..n).step_by(step.max(1)).collect();
+    let mut marks = Vec::with_capacity(starts.len());
+    for &k0 in &starts {
+        marks.push(replay.mark());
+        replay.rows((k0, (k0 + step).min(n)), &mut |_| {});
+    }
+    let mut chunk = vec![0.0; step * np];
+    for part in parts {
+        let scale = part.var.sqrt();
+        // z_(i+1) .. z_(i+p) and J_(i+1) .. J_(i+q), nearest first, and one spare each.
+        let mut later: Vec<Vec<f64>> = vec![vec![0.0; np]; part.den.len() + 1];
+        let mut ahead: Vec<Vec<f64>> = vec![vec![0.0; np]; part.num.len()];
+        for (&k0, mark) in starts.iter().zip(&marks).rev() {
+            replay.resume(mark);
+            let mut filled = 0;
+            replay.rows((k0, (k0 + step).min(n)), &mut |row| {
+                for (slot, v) in chunk.iter_mut().skip(filled * np).zip(row.iter().take(np)) {
+                    *slot = *v;
+                }
+                filled += 1;
+            });
+            for i in (0..filled).rev() {
+                // J_i joins the rows ahead: ahead = J_i, J_(i+1), ...
+                let Some(mut j) = ahead.pop() else { break };
+                for (cj, v) in j.iter_mut().zip(chunk.iter().skip(i * np).take(np)) {
+                    *cj = *v;
+                }
+                ahead.insert(0, j);
+                // z_i = sum_j n_j J_(i+j) - sum_j m_j z_(i+j): H run backwards.
+                let Some(mut z) = later.pop() else { break };
+                for (c, zc) in z.iter_mut().enumerate() {
+                    let fir: f64 = part
+                        .num
+                        .iter()
+                        .zip(&ahead)
+                        .map(|(nj, jr)| nj * jr.get(c).copied().unwrap_or(0.0))
+                        .sum();
+                    let iir: f64 = part
+                        .den
+                        .iter()
+                        .zip(&later)
+                        .map(|(m, zl)| m * zl.get(c).copied().unwrap_or(0.0))
+                        .sum();
+                    *zc = fir - iir;
+                }
+                let scaled: Vec<f64> = z.iter().map(|v| scale * v).collect();
+                folder.push(&scaled);
+                later.insert(0, z);
+            }
+        }
+    }
+}
+
 /// The triangles of `A = J'J` and of `B = sum var Z'Z` over one test's records (see
 /// [`covariance_of_parts`]). `None` when there are no more rows than parameters or a part is
 /// malformed.
@@ -174,11 +337,7 @@ fn triangles(
 ) -> Option<(Mat<f64>, Mat<f64>)> {
     let np = a.len() + b.len();
     let rows: usize = sets.iter().map(|s| s.y.len()).sum();
-    if rows <= np + 1
-        || parts
-            .iter()
-            .any(|c| c.var.is_nan() || c.var < 0.0 || c.num.is_empty())
-    {
+    if rows <= np + 1 || malformed(parts) {
         return None;
     }
     let step = BLOCK.min(rows);
@@ -186,67 +345,14 @@ fn triangles(
     let ra = triangle(sets, (a, b), d, &mut block);
     let mut zblock = Mat::<f64>::zeros(np + step, np);
     let mut folder = Folder::new(&mut zblock, np, step);
-    // z runs backwards in time: each record's rows are made again chunk by chunk from the
-    // last, from the recursions' history saved at each chunk's start on a first pass.
     let mut rows_of = Rows::new((a, b), d, step);
-    let mut saved = Vec::new();
-    let mut chunk = vec![0.0; step * np];
-    for part in parts {
-        let scale = part.var.sqrt();
-        // z_(i+1) .. z_(i+p) and J_(i+1) .. J_(i+q), nearest first, and one spare each.
-        let mut later: Vec<Vec<f64>> = vec![vec![0.0; np]; part.den.len() + 1];
-        let mut ahead: Vec<Vec<f64>> = vec![vec![0.0; np]; part.num.len()];
-        for s in sets {
-            let n = s.y.len();
-            let starts: Vec<usize> = (0..n).step_by(step).collect();
-            saved.clear();
-            rows_of.restart();
-            for &k0 in &starts {
-                rows_of.save(&mut saved);
-                rows_of.chunk(s, (k0, (k0 + step).min(n)), &mut |_| {});
-            }
-            later.iter_mut().for_each(|z| z.fill(0.0));
-            ahead.iter_mut().for_each(|z| z.fill(0.0));
-            let width = saved.len() / starts.len().max(1);
-            for (c, &k0) in starts.iter().enumerate().rev() {
-                rows_of.restore(saved.get(c * width..(c + 1) * width).unwrap_or(&[]));
-                let mut filled = 0;
-                rows_of.chunk(s, (k0, (k0 + step).min(n)), &mut |row| {
-                    for (slot, v) in chunk.iter_mut().skip(filled * np).zip(row.iter().take(np)) {
-                        *slot = *v;
-                    }
-                    filled += 1;
-                });
-                for i in (0..filled).rev() {
-                    // J_i joins the rows ahead: ahead = J_i, J_(i+1), ...
-                    let Some(mut j) = ahead.pop() else { break };
-                    for (cj, v) in j.iter_mut().zip(chunk.iter().skip(i * np).take(np)) {
-                        *cj = *v;
-                    }
-                    ahead.insert(0, j);
-                    // z_i = sum_j n_j J_(i+j) - sum_j m_j z_(i+j): H run backwards.
-                    let Some(mut z) = later.pop() else { break };
-                    for (c, zc) in z.iter_mut().enumerate() {
-                        let fir: f64 = part
-                            .num
-                            .iter()
-                            .zip(&ahead)
-                            .map(|(nj, jr)| nj * jr.get(c).copied().unwrap_or(0.0))
-                            .sum();
-                        let iir: f64 = part
-                            .den
-                            .iter()
-                            .zip(&later)
-                            .map(|(m, zl)| m * zl.get(c).copied().unwrap_or(0.0))
-                            .sum();
-                        *zc = fir - iir;
-                    }
-                    let scaled: Vec<f64> = z.iter().map(|v| scale * v).collect();
-                    folder.push(&scaled);
-                    later.insert(0, z);
-                }
-            }
-        }
+    for data in sets {
+        rows_of.restart();
+        let mut replay = OeReplay {
+            rows: &mut rows_of,
+            data,
+        };
+        fold_parts(&mut replay, (data.y.len(), np, step), parts, &mut folder);
     }
     Some((ra, folder.finish()))
 }

@@ -46,19 +46,30 @@ pub(crate) fn features(model: &Model) -> Option<(f64, Vec<(f64, f64)>)> {
 /// The variances of the resting levels a fit takes as known, each that of a mean of the
 /// samples before the step at `onset`, correlated as their own AR model says
 /// ([`noise::variance_of_mean`]): low-frequency noise before the step moves the level far
-/// more than independent samples would. With a quiet segment long enough, each channel's
-/// noise as it shows it. Zero without two samples before the step.
+/// more than independent samples would. Each channel's noise as the quiet segment shows it,
+/// where the record is a clean step with one long enough ([`step::quiet_until`]: what comes
+/// before a traverse's dip is signal, not noise). Zero without two samples before the step.
 pub(crate) fn levels(u: &[f64], y: &[f64], onset: usize) -> Levels {
+    let quiet = step::quiet_until(u);
+    let noise = (quiet >= crate::design::inverse::optimal::MIN_QUIET)
+        .then(|| match (u.get(..quiet), y.get(..quiet)) {
+            (Some(u0), Some(y0)) => {
+                let ar = |x: &[f64]| noise::fit(&step::detrend(x), noise::MAX_NOISE_ORDER);
+                Some((ar(y0), ar(u0)))
+            }
+            _ => None,
+        })
+        .flatten();
     match (u.get(..onset), y.get(..onset)) {
         (Some(u0), Some(y0)) if u0.len() >= 2 => Levels {
             probe_var: noise::variance_of_mean(y0),
             reference_var: noise::variance_of_mean(u0),
-            noise: (u0.len() >= crate::design::inverse::optimal::MIN_QUIET).then(|| {
-                let ar = |x: &[f64]| noise::fit(&step::detrend(x), noise::MAX_NOISE_ORDER);
-                (ar(y0), ar(u0))
-            }),
+            noise,
         },
-        _ => Levels::default(),
+        _ => Levels {
+            noise,
+            ..Levels::default()
+        },
     }
 }
 

@@ -44,6 +44,7 @@ pub fn simulate_nonlinear(model: &Model, gain: f64, u: &[f64]) -> Vec<f64> {
 
 /// [`simulate_nonlinear`] one sample at a time, holding only the model's history: what a
 /// fit over a long record runs block by block.
+#[derive(Debug, Clone)]
 pub(super) struct Stepper<'m> {
     model: &'m Model,
     gain: f64,

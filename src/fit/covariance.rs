@@ -280,6 +280,7 @@ fn fold_parts(
         replay.rows((k0, (k0 + step).min(n)), &mut |_| {});
     }
     let mut chunk = vec![0.0; step * np];
+    let mut scaled = vec![0.0; np];
     for part in parts {
         let scale = part.var.sqrt();
         // z_(i+1) .. z_(i+p) and J_(i+1) .. J_(i+q), nearest first, and one spare each.
@@ -318,7 +319,9 @@ fn fold_parts(
                         .sum();
                     *zc = fir - iir;
                 }
-                let scaled: Vec<f64> = z.iter().map(|v| scale * v).collect();
+                for (out, v) in scaled.iter_mut().zip(&z) {
+                    *out = scale * v;
+                }
                 folder.push(&scaled);
                 later.insert(0, z);
             }

@@ -51,15 +51,13 @@ pub(crate) fn features(model: &Model) -> Option<(f64, Vec<(f64, f64)>)> {
 /// before a traverse's dip is signal, not noise). Zero without two samples before the step.
 pub(crate) fn levels(u: &[f64], y: &[f64], onset: usize) -> Levels {
     let quiet = step::quiet_until(u);
-    let noise = (quiet >= crate::design::inverse::optimal::MIN_QUIET)
-        .then(|| match (u.get(..quiet), y.get(..quiet)) {
-            (Some(u0), Some(y0)) => {
-                let ar = |x: &[f64]| noise::fit(&step::detrend(x), noise::MAX_NOISE_ORDER);
-                Some((ar(y0), ar(u0)))
-            }
-            _ => None,
-        })
-        .flatten();
+    let ar = |x: &[f64]| noise::fit(&step::detrend(x), noise::MAX_NOISE_ORDER);
+    let noise = match (u.get(..quiet), y.get(..quiet)) {
+        (Some(u0), Some(y0)) if quiet >= crate::design::inverse::optimal::MIN_QUIET => {
+            Some((ar(y0), ar(u0)))
+        }
+        _ => None,
+    };
     match (u.get(..onset), y.get(..onset)) {
         (Some(u0), Some(y0)) if u0.len() >= 2 => Levels {
             probe_var: noise::variance_of_mean(y0),
@@ -153,7 +151,7 @@ pub(super) fn uncertainty(
         return None;
     }
     let d = model.delay;
-    let (b, short) = unpadded(&model.b);
+    let (b, _) = unpadded(&model.b);
     let ar = if method == Method::Bj {
         residual_noise(sets, (&model.a, &model.b), d).0
     } else {
@@ -181,6 +179,18 @@ pub(super) fn uncertainty(
         (&model.a, &b),
         d,
     )?;
+    stated(model, &cov, !ar.is_empty())
+}
+
+/// `model`'s DC gain and resonances with their standard deviations, when its parameters
+/// `[a; b]` (the numerator without a short numerator's trailing zero, as [`oe`](super::oe)
+/// fits it) have the covariance `cov` ([`propagate`]).
+pub(crate) fn stated(
+    model: &Model,
+    cov: &faer::Mat<f64>,
+    noise_model: bool,
+) -> Option<Uncertainty> {
+    let (b, short) = unpadded(&model.b);
     let m = model.a.len();
     let theta: Vec<f64> = model.a.iter().chain(&b).copied().collect();
     let at = |t: &[f64]| -> Option<(f64, Vec<(f64, f64)>)> {
@@ -190,7 +200,7 @@ pub(super) fn uncertainty(
             ..model.clone()
         })
     };
-    propagate(&cov, &theta, at, !ar.is_empty())
+    propagate(cov, &theta, at, noise_model)
 }
 
 /// One standard deviation of a model's DC gain and resonances when its parameters `theta`

@@ -200,7 +200,8 @@ fn fit_jointly(
     let mut lambda: f64 = 1e-3;
     let mut block = Mat::<f64>::zeros(width + BLOCK.min(rows), width);
     for _ in 0..MAX_ITERATIONS {
-        let r_aug = triangle(start, &theta, loss, (tests, &w), &mut block);
+        let derivatives = Derivatives::at(start, &theta, loss);
+        let r_aug = triangle(&derivatives, (tests, &w), &mut block);
         let (norms, mut small, target) = crate::fit::oe::damped_problem(&r_aug, np);
         let mut improved = false;
         for _ in 0..12 {
@@ -274,11 +275,12 @@ fn joint_uncertainty(
         return linear_uncertainty(&model, tests, w).map(|u| (u, 0.0));
     }
     let np = theta.len();
+    let derivatives = Derivatives::at(start, theta, loss);
     let shares = tests
         .iter()
         .zip(w)
         .map(|(t, w)| {
-            let ra = triangle(start, theta, loss, (std::slice::from_ref(t), &[1.0]), block);
+            let ra = triangle(&derivatives, (std::slice::from_ref(t), &[1.0]), block);
             let quiet = crate::fit::uncertainty::levels(t.u, t.y, 0).noise;
             let parts = crate::fit::uncertainty::parts(&model, &[], quiet.as_ref(), || {
                 let mut s = Stepper::new(&model, gain, t.u);
@@ -287,7 +289,6 @@ fn joint_uncertainty(
                     .map(|(k, y)| y - s.next(t.u, k))
                     .collect()
             });
-            let derivatives = Derivatives::at(start, theta, loss);
             let mut rows = LossRows::new(&derivatives, t);
             let rb = parts_triangle(&mut rows, (t.y.len(), np, BLOCK), &parts)?;
             Some(Share {
@@ -344,7 +345,8 @@ impl Derivatives {
 }
 
 /// One test's Jacobian rows through the model with its loss, unweighted, each followed by the
-/// simulation itself, made again from a mark ([`Replay`](crate::fit::covariance::Replay)): the simulations' steppers, cloned.
+/// simulation itself, made again from a mark ([`Replay`](crate::fit::covariance::Replay)):
+/// the simulations' steppers, cloned.
 struct LossRows<'m, 't> {
     derivatives: &'m Derivatives,
     u: &'t [f64],
@@ -409,8 +411,8 @@ impl<'m> crate::fit::covariance::Replay for LossRows<'m, '_> {
 /// rows are the analytic output-error Jacobian of each test's deviations from the level the
 /// fit starts in equilibrium with.
 fn linear_uncertainty(model: &Model, tests: &[Test<'_>], w: &[f64]) -> Option<Uncertainty> {
-    use crate::fit::uncertainty::{features, levels, parts, propagate};
-    let (b, short) = crate::fit::unpadded(&model.b);
+    use crate::fit::uncertainty::{levels, parts, stated};
+    let (b, _) = crate::fit::unpadded(&model.b);
     let deviations: Vec<(Vec<f64>, Vec<f64>)> = tests
         .iter()
         .map(|t| {
@@ -441,35 +443,22 @@ fn linear_uncertainty(model: &Model, tests: &[Test<'_>], w: &[f64]) -> Option<Un
         })
         .collect();
     let cov = covariance_weighted(&weighted, (&model.a, &b), model.delay)?;
-    let m = model.a.len();
-    let theta: Vec<f64> = model.a.iter().chain(&b).copied().collect();
-    let at = |t: &[f64]| -> Option<(f64, Vec<(f64, f64)>)> {
-        features(&Model {
-            a: t.get(..m)?.to_vec(),
-            b: crate::fit::padded(t.get(m..)?.to_vec(), short),
-            ..model.clone()
-        })
-    };
-    propagate(&cov, &theta, at, false)
+    stated(model, &cov, false)
 }
 
 /// The triangle `R` of `[J r]` over all tests: `J` the forward-difference derivatives of the
-/// weighted simulations at `theta` ([`Derivatives`]), `r` the weighted residual, block by
-/// block.
+/// weighted simulations ([`Derivatives`]), `r` the weighted residual, block by block.
 fn triangle(
-    start: &Model,
-    theta: &[f64],
-    loss: Option<(f64, f64)>,
+    derivatives: &Derivatives,
     (tests, w): (&[Test<'_>], &[f64]),
     block: &mut Mat<f64>,
 ) -> Mat<f64> {
-    let np = theta.len();
+    let np = derivatives.steps.len();
     let width = np + 1;
     let step = BLOCK.min(block.nrows().saturating_sub(width).max(1));
-    let derivatives = Derivatives::at(start, theta, loss);
     let mut r_aug = Mat::<f64>::zeros(width, width);
     for (test, w) in tests.iter().zip(w) {
-        let mut rows = LossRows::new(&derivatives, test);
+        let mut rows = LossRows::new(derivatives, test);
         let n = test.y.len();
         let mut k0 = 0;
         while k0 < n {

@@ -29,7 +29,7 @@ pub mod step;
 pub(crate) mod uncertainty;
 
 pub use error::{ContinuousError, FitError};
-pub use model::{Method, Model, TestRole};
+pub use model::{Method, Model, NoiseSource, TestRole};
 pub use selection::{OrderRule, OrderSelection, UnknownOrderSelection};
 
 use crate::error::{Error, Result};

@@ -417,10 +417,10 @@ pub struct FitReport {
     pub calibrated_from: Option<f64>,
 }
 
-/// One standard deviation of what a fit found, from the Jacobian at the estimate and the
-/// residual variance (the asymptotic covariance of the prediction-error estimate; with a
-/// noise model, on the whitened data, so that coloured noise is not counted as independent
-/// samples). It covers the noise, not the model's structure.
+/// One standard deviation of what a fit found: the sandwich covariance of the estimate, the
+/// residual counted as what both channels' noise leaves (the probe's, and the reference's
+/// through the model), with a noise model on the whitened data, carried to the model's
+/// features. It covers the noise, not the model's structure.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Uncertainty {
@@ -431,6 +431,24 @@ pub struct Uncertainty {
     pub resonances: Vec<ResonanceUncertainty>,
     /// Whether the residual was whitened by a noise model first.
     pub noise_model: bool,
+    /// Where the noise it counts was read (absent in a file written before this was kept).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_from: Option<NoiseSource>,
+}
+
+/// Where the noise a stated uncertainty counts was read, the surest first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum NoiseSource {
+    /// Each test's quiet segment before its step, both channels: the probe's noise and the
+    /// reference's, which passes through the model into the residual.
+    QuietSegment,
+    /// A test without a quiet segment (a traverse) took both channels' noise from the quiet
+    /// segment of a test fitted with it: the same sensors.
+    Borrowed,
+    /// No quiet segment to read: the residual's own colour (its AR model), which can state
+    /// the deviations too narrow when the reference's noise rings through a resonant probe.
+    ResidualColour,
 }
 
 impl Uncertainty {
@@ -450,14 +468,26 @@ impl Uncertainty {
         format!("DC gain +/- {:.1e}{modes}", self.dc_gain_std)
     }
 
-    /// How the noise was counted: `the noise as its AR model whitens it` or `the noise taken as
-    /// white`.
+    /// How the noise was counted, in words: where it was read, and whether a noise model
+    /// whitened the residual first.
     #[must_use]
-    pub fn noise_text(&self) -> &'static str {
+    pub fn noise_text(&self) -> String {
+        let read = match self.noise_from {
+            Some(NoiseSource::QuietSegment) => "both channels' noise read before the step",
+            Some(NoiseSource::Borrowed) => {
+                "both channels' noise read before the step, a test without a quiet segment \
+                 taking it from one fitted with it"
+            }
+            Some(NoiseSource::ResidualColour) => {
+                "the residual's own colour (no quiet segment before a step; can understate \
+                 behind a noisy reference)"
+            }
+            None => "the residual",
+        };
         if self.noise_model {
-            "the noise as its AR model whitens it"
+            format!("{read}, whitened by the noise model")
         } else {
-            "the noise taken as white"
+            read.to_string()
         }
     }
 }

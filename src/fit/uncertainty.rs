@@ -5,7 +5,7 @@ use super::arx::Data;
 use super::covariance::{covariance_weighted, Colour, Weighted};
 use super::noise::{self, ArNoise};
 use super::{padded, residual_noise, residuals, step, unpadded, whitened, Method};
-use crate::fit::model::{Model, ResonanceUncertainty, Uncertainty};
+use crate::fit::model::{Model, NoiseSource, ResonanceUncertainty, Uncertainty};
 
 /// The variances of the resting levels a fit took as known: the means of the probe's and the
 /// reference's samples before the step.
@@ -162,6 +162,7 @@ pub(super) fn uncertainty(
     // What colour the whitened residual keeps (the reference's noise through a resonant
     // probe rings longer than the noise model describes): the sandwich covariance of the
     // estimate under it, not `s^2 (J'J)^-1`, which takes the residual for white.
+    let source = source_of(levels.noise.is_some(), false);
     let parts = parts(model, &ar, levels.noise.as_ref(), || {
         residuals(&wsets, (&model.a, &model.b), d).concat()
     });
@@ -179,7 +180,38 @@ pub(super) fn uncertainty(
         (&model.a, &b),
         d,
     )?;
-    stated(model, &cov, !ar.is_empty())
+    stated(model, &cov, !ar.is_empty()).map(|u| Uncertainty {
+        noise_from: Some(source),
+        ..u
+    })
+}
+
+/// Where a test's noise was read: its own quiet segment, another test's, or, with neither,
+/// its residual's colour.
+fn source_of(own: bool, borrowed: bool) -> NoiseSource {
+    match (own, borrowed) {
+        (true, _) => NoiseSource::QuietSegment,
+        (false, true) => NoiseSource::Borrowed,
+        (false, false) => NoiseSource::ResidualColour,
+    }
+}
+
+/// Both channels' noise for tests fitted together, each as its own quiet segment shows it
+/// ([`levels`]); a test without one (a traverse, a record cut at its step) takes the first
+/// other test's, since the sensors are the same. With where the weakest was read.
+pub(crate) fn shared_noise(
+    own: Vec<Option<(ArNoise, ArNoise)>>,
+) -> (Vec<Option<(ArNoise, ArNoise)>>, NoiseSource) {
+    let lender = own.iter().flatten().next().cloned();
+    let mut weakest = NoiseSource::QuietSegment;
+    let noise = own
+        .into_iter()
+        .map(|n| {
+            weakest = weakest.max(source_of(n.is_some(), lender.is_some()));
+            n.or_else(|| lender.clone())
+        })
+        .collect();
+    (noise, weakest)
 }
 
 /// `model`'s DC gain and resonances with their standard deviations, when its parameters
@@ -269,12 +301,13 @@ pub(crate) fn propagate(
             })
             .collect(),
         noise_model,
+        noise_from: None,
     })
 }
 
 #[cfg(test)]
 mod both_channels {
-    use crate::fit::{fit, Method, Options, Order, Test};
+    use crate::fit::{fit, Method, NoiseSource, Options, Order, Test};
 
     /// A 40 Hz probe of damping 0.15 (bank case 108) behind a noisy reference, over 16 noise
     /// draws: the stated deviation of the damping is its spread within the sampling error of
@@ -325,7 +358,9 @@ mod both_channels {
                     delay: Some(27),
                 };
                 let fit = fit(&t, &[], fs, &o).unwrap();
-                let r = fit.report.uncertainty.as_ref().unwrap().resonances[0];
+                let stated_u = fit.report.uncertainty.as_ref().unwrap();
+                assert_eq!(stated_u.noise_from, Some(NoiseSource::QuietSegment));
+                let r = stated_u.resonances[0];
                 damping.push(r.damping);
                 stated.push(r.damping_std);
             }
@@ -342,5 +377,35 @@ mod both_channels {
                 m - zeta
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod shared {
+    use super::*;
+
+    fn white(std: f64) -> (ArNoise, ArNoise) {
+        let n = ArNoise {
+            ar: Vec::new(),
+            innovation_std: std,
+            std,
+        };
+        (n.clone(), n)
+    }
+
+    /// A test without a quiet segment takes the first other test's noise and the fit says
+    /// it borrowed; with none to lend, it says it went by the residual's colour.
+    #[test]
+    fn a_test_without_a_quiet_segment_borrows_the_first_others() {
+        let (a, b) = (white(1.0), white(2.0));
+        let (n, s) = shared_noise(vec![None, Some(a.clone()), Some(b.clone())]);
+        assert_eq!(n, vec![Some(a.clone()), Some(a.clone()), Some(b.clone())]);
+        assert_eq!(s, NoiseSource::Borrowed);
+        let (n, s) = shared_noise(vec![Some(b.clone()), Some(a.clone())]);
+        assert_eq!(n, vec![Some(b), Some(a)]);
+        assert_eq!(s, NoiseSource::QuietSegment);
+        let (n, s) = shared_noise(vec![None, None]);
+        assert_eq!(n, vec![None, None]);
+        assert_eq!(s, NoiseSource::ResidualColour);
     }
 }

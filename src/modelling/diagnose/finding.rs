@@ -160,8 +160,8 @@ impl Candidate {
             self.uncertainty_after.as_ref()?,
         );
         let quote = if !b.noise_model && a.noise_model {
-            " (the white-noise figure counts correlated samples as independent: it understates; \
-             the whitened one is the one to quote)"
+            " (both count the noise's colour; the whitened one is the model's own, the one to \
+             quote)"
         } else {
             ""
         };

@@ -29,7 +29,7 @@ pub mod step;
 pub(crate) mod uncertainty;
 
 pub use error::{ContinuousError, FitError};
-pub use model::{Method, Model, NoiseSource, TestRole};
+pub use model::{Method, Model, NoiseOrigin, TestRole};
 pub use selection::{OrderRule, OrderSelection, UnknownOrderSelection};
 
 use crate::error::{Error, Result};
@@ -625,7 +625,7 @@ pub fn fit(
             &whole,
             &model,
             options.method,
-            uncertainty::levels(&p.u, &p.y, p.onset),
+            uncertainty::levels(&p.u, &p.y, p.onset).or_borrowed(validation),
         ),
         calibrated_from: None,
     };

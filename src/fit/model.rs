@@ -433,13 +433,13 @@ pub struct Uncertainty {
     pub noise_model: bool,
     /// Where the noise it counts was read (absent in a file written before this was kept).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub noise_from: Option<NoiseSource>,
+    pub noise_from: Option<NoiseOrigin>,
 }
 
 /// Where the noise a stated uncertainty counts was read, the surest first.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum NoiseSource {
+pub enum NoiseOrigin {
     /// Each test's quiet segment before its step, both channels: the probe's noise and the
     /// reference's, which passes through the model into the residual.
     QuietSegment,
@@ -473,12 +473,12 @@ impl Uncertainty {
     #[must_use]
     pub fn noise_text(&self) -> String {
         let read = match self.noise_from {
-            Some(NoiseSource::QuietSegment) => "both channels' noise read before the step",
-            Some(NoiseSource::Borrowed) => {
+            Some(NoiseOrigin::QuietSegment) => "both channels' noise read before the step",
+            Some(NoiseOrigin::Borrowed) => {
                 "both channels' noise read before the step, a test without a quiet segment \
                  taking it from one fitted with it"
             }
-            Some(NoiseSource::ResidualColour) => {
+            Some(NoiseOrigin::ResidualColour) => {
                 "the residual's own colour (no quiet segment before a step; can understate \
                  behind a noisy reference)"
             }

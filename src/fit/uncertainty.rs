@@ -5,7 +5,7 @@ use super::arx::Data;
 use super::covariance::{covariance_weighted, Colour, Weighted};
 use super::noise::{self, ArNoise};
 use super::{padded, residual_noise, residuals, step, unpadded, whitened, Method};
-use crate::fit::model::{Model, NoiseSource, ResonanceUncertainty, Uncertainty};
+use crate::fit::model::{Model, NoiseOrigin, ResonanceUncertainty, Uncertainty};
 
 /// The variances of the resting levels a fit took as known: the means of the probe's and the
 /// reference's samples before the step.
@@ -19,6 +19,25 @@ pub(crate) struct Levels {
     pub reference_var: f64,
     /// The probe's noise and the reference's, from before the step.
     pub noise: Option<(ArNoise, ArNoise)>,
+    /// The noise is another test's (see [`Levels::or_borrowed`]).
+    pub borrowed: bool,
+}
+
+impl Levels {
+    /// Without a quiet segment of its own (a record that starts at its step), the noise of
+    /// the first of `others` (the tests held out) that has one: the same sensors. Only the
+    /// noise is taken from them, never their signal.
+    pub(crate) fn or_borrowed(self, others: &[super::Test<'_>]) -> Self {
+        if self.noise.is_some() {
+            return self;
+        }
+        let noise = others.iter().find_map(|t| levels(t.u, t.y, 0).noise);
+        Self {
+            borrowed: noise.is_some(),
+            noise,
+            ..self
+        }
+    }
 }
 
 /// The product of two polynomials in `q^-1`.
@@ -63,6 +82,7 @@ pub(crate) fn levels(u: &[f64], y: &[f64], onset: usize) -> Levels {
             probe_var: noise::variance_of_mean(y0),
             reference_var: noise::variance_of_mean(u0),
             noise,
+            borrowed: false,
         },
         _ => Levels {
             noise,
@@ -162,7 +182,7 @@ pub(super) fn uncertainty(
     // What colour the whitened residual keeps (the reference's noise through a resonant
     // probe rings longer than the noise model describes): the sandwich covariance of the
     // estimate under it, not `s^2 (J'J)^-1`, which takes the residual for white.
-    let source = source_of(levels.noise.is_some(), false);
+    let source = source_of(levels.noise.is_some() && !levels.borrowed, levels.borrowed);
     let parts = parts(model, &ar, levels.noise.as_ref(), || {
         residuals(&wsets, (&model.a, &model.b), d).concat()
     });
@@ -188,11 +208,11 @@ pub(super) fn uncertainty(
 
 /// Where a test's noise was read: its own quiet segment, another test's, or, with neither,
 /// its residual's colour.
-fn source_of(own: bool, borrowed: bool) -> NoiseSource {
+fn source_of(own: bool, borrowed: bool) -> NoiseOrigin {
     match (own, borrowed) {
-        (true, _) => NoiseSource::QuietSegment,
-        (false, true) => NoiseSource::Borrowed,
-        (false, false) => NoiseSource::ResidualColour,
+        (true, _) => NoiseOrigin::QuietSegment,
+        (false, true) => NoiseOrigin::Borrowed,
+        (false, false) => NoiseOrigin::ResidualColour,
     }
 }
 
@@ -201,9 +221,9 @@ fn source_of(own: bool, borrowed: bool) -> NoiseSource {
 /// other test's, since the sensors are the same. With where the weakest was read.
 pub(crate) fn shared_noise(
     own: Vec<Option<(ArNoise, ArNoise)>>,
-) -> (Vec<Option<(ArNoise, ArNoise)>>, NoiseSource) {
+) -> (Vec<Option<(ArNoise, ArNoise)>>, NoiseOrigin) {
     let lender = own.iter().flatten().next().cloned();
-    let mut weakest = NoiseSource::QuietSegment;
+    let mut weakest = NoiseOrigin::QuietSegment;
     let noise = own
         .into_iter()
         .map(|n| {
@@ -307,7 +327,7 @@ pub(crate) fn propagate(
 
 #[cfg(test)]
 mod both_channels {
-    use crate::fit::{fit, Method, NoiseSource, Options, Order, Test};
+    use crate::fit::{fit, Method, NoiseOrigin, Options, Order, Test};
 
     /// A 40 Hz probe of damping 0.15 (bank case 108) behind a noisy reference, over 16 noise
     /// draws: the stated deviation of the damping is its spread within the sampling error of
@@ -359,7 +379,7 @@ mod both_channels {
                 };
                 let fit = fit(&t, &[], fs, &o).unwrap();
                 let stated_u = fit.report.uncertainty.as_ref().unwrap();
-                assert_eq!(stated_u.noise_from, Some(NoiseSource::QuietSegment));
+                assert_eq!(stated_u.noise_from, Some(NoiseOrigin::QuietSegment));
                 let r = stated_u.resonances[0];
                 damping.push(r.damping);
                 stated.push(r.damping_std);
@@ -377,6 +397,69 @@ mod both_channels {
                 m - zeta
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod borrowed {
+    use crate::fit::{fit, Method, NoiseOrigin, Options, Order, Test};
+
+    /// A record that starts at its step has no quiet segment: the one-test fit reads both
+    /// channels' noise from a held-out step test's (and says so), and the damping's stated
+    /// deviation is its spread over 16 draws (0.80 of it; by the residual's own colour, which
+    /// it goes by without a held-out test and says so, 1.49: stated too narrow).
+    #[test]
+    fn a_record_cut_at_its_step_borrows_a_held_out_tests_noise() {
+        let (fs, zeta, on) = (7078.0, 0.1529161, 300);
+        let (truth, _) = crate::testing::second_order(40.28488, zeta, fs, 27);
+        let step = |n: usize, on: usize| -> Vec<f64> {
+            (0..n).map(|k| if k < on { 0.0 } else { 1051.0 }).collect()
+        };
+        // Cut 20 samples before its step, against a held-out test with 300 quiet ones.
+        let (u_cut, u_held) = (step(1720, 20), step(2000, on));
+        let (y_cut, y_held) = (truth.simulate(&u_cut), truth.simulate(&u_held));
+        let o = Options {
+            method: Method::Oe,
+            order: Order::Fixed(2),
+            delay: Some(27),
+        };
+        let (mut damping, mut stated) = (Vec::new(), Vec::new());
+        for seed in 0..16u64 {
+            let noisy = |x: &[f64], s: f64, k: u64| crate::testing::with_noise(x, s, k);
+            let (u, y) = (
+                noisy(&u_cut, 3.8, 100 + seed),
+                noisy(&y_cut, 2.62, 200 + seed),
+            );
+            let (uh, yh) = (
+                noisy(&u_held, 3.8, 300 + seed),
+                noisy(&y_held, 2.62, 400 + seed),
+            );
+            let est = Test {
+                name: "cut",
+                u: &u,
+                y: &y,
+            };
+            let held = Test {
+                name: "held",
+                u: &uh,
+                y: &yh,
+            };
+            let f = fit(&est, &[held], fs, &o).unwrap();
+            let s = f.report.uncertainty.unwrap();
+            assert_eq!(s.noise_from, Some(NoiseOrigin::Borrowed));
+            damping.push(s.resonances[0].damping);
+            stated.push(s.resonances[0].damping_std);
+            if seed == 0 {
+                let alone = fit(&est, &[], fs, &o).unwrap().report.uncertainty.unwrap();
+                assert_eq!(alone.noise_from, Some(NoiseOrigin::ResidualColour));
+            }
+        }
+        let (m, sd, ratio) = crate::testing::spread_over_stated(&damping, &stated);
+        assert!(
+            (0.6..1.3).contains(&ratio),
+            "the damping's spread is {ratio:.2} times the stated deviation"
+        );
+        assert!((m - zeta).abs() < 3.0 * sd, "{m} against {zeta}");
     }
 }
 
@@ -400,12 +483,12 @@ mod shared {
         let (a, b) = (white(1.0), white(2.0));
         let (n, s) = shared_noise(vec![None, Some(a.clone()), Some(b.clone())]);
         assert_eq!(n, vec![Some(a.clone()), Some(a.clone()), Some(b.clone())]);
-        assert_eq!(s, NoiseSource::Borrowed);
+        assert_eq!(s, NoiseOrigin::Borrowed);
         let (n, s) = shared_noise(vec![Some(b.clone()), Some(a.clone())]);
         assert_eq!(n, vec![Some(b), Some(a)]);
-        assert_eq!(s, NoiseSource::QuietSegment);
+        assert_eq!(s, NoiseOrigin::QuietSegment);
         let (n, s) = shared_noise(vec![None, None]);
         assert_eq!(n, vec![None, None]);
-        assert_eq!(s, NoiseSource::ResidualColour);
+        assert_eq!(s, NoiseOrigin::ResidualColour);
     }
 }

@@ -15,7 +15,7 @@ use faer::Mat;
 use super::nonlinear::{quadratic_rate, Stepper};
 use crate::fit::arx::{self, Data};
 use crate::fit::covariance::{covariance_weighted, Weighted};
-use crate::fit::model::{NoiseSource, Uncertainty};
+use crate::fit::model::{NoiseOrigin, Uncertainty};
 use crate::fit::noise::ArNoise;
 use crate::fit::oe::stable;
 use crate::fit::{Model, Test};
@@ -456,7 +456,7 @@ fn linear_uncertainty(model: &Model, tests: &[Test<'_>], w: &[f64]) -> Option<Un
 /// Each test's noise, both channels, from its own quiet segment before its step or, for a
 /// test without one (a traverse), from another test's: the same sensors
 /// ([`crate::fit::uncertainty::shared_noise`]).
-fn quiet_noise(tests: &[Test<'_>]) -> (Vec<Option<(ArNoise, ArNoise)>>, NoiseSource) {
+fn quiet_noise(tests: &[Test<'_>]) -> (Vec<Option<(ArNoise, ArNoise)>>, NoiseOrigin) {
     crate::fit::uncertainty::shared_noise(
         tests
             .iter()
@@ -683,16 +683,16 @@ mod tests {
                 },
             ];
             let (u, _) = joint_linear(&truth, &tests).unwrap().uncertainty.unwrap();
-            assert_eq!(u.noise_from, Some(NoiseSource::Borrowed));
+            assert_eq!(u.noise_from, Some(NoiseOrigin::Borrowed));
             damping.push(u.resonances[0].damping);
             stated.push(u.resonances[0].damping_std);
             if seed == 0 {
                 let alone = joint_linear(&truth, &[tests[1], tests[1]]).unwrap();
                 let alone = alone.uncertainty.unwrap();
-                assert_eq!(alone.0.noise_from, Some(NoiseSource::ResidualColour));
+                assert_eq!(alone.0.noise_from, Some(NoiseOrigin::ResidualColour));
                 let both_steps = joint_linear(&truth, &[tests[0], tests[0]]).unwrap();
                 let own = both_steps.uncertainty.unwrap().0.noise_from;
-                assert_eq!(own, Some(NoiseSource::QuietSegment));
+                assert_eq!(own, Some(NoiseOrigin::QuietSegment));
             }
         }
         let (m, sd, ratio) = crate::testing::spread_over_stated(&damping, &stated);

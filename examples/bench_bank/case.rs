@@ -92,6 +92,16 @@ impl Kind {
             Self::Temperature => "temperature",
         }
     }
+
+    /// The case's `truth.toml` leaves this effect out (it is put on the measured channels, or
+    /// the validation is at another temperature than the truth's): the true model's error on
+    /// a test with the effect is then at least what the probe's own dynamics leave.
+    pub fn truth_lacks_it(self) -> bool {
+        matches!(
+            self,
+            Self::None | Self::Drift | Self::Offset | Self::ColouredNoise | Self::Temperature
+        )
+    }
 }
 
 /// The drawn effect with its size.

@@ -446,8 +446,8 @@ pub enum NoiseOrigin {
     /// A test without a quiet segment (a traverse) took both channels' noise from the quiet
     /// segment of a test fitted with it: the same sensors.
     Borrowed,
-    /// No quiet segment to read: the residual's own colour (its AR model), which can state
-    /// the deviations too narrow when the reference's noise rings through a resonant probe.
+    /// No quiet segment to read: the residual's own colour (its AR model), and beside it the
+    /// reference's noise from its highest frequencies through the model, which errs wide.
     ResidualColour,
 }
 
@@ -479,8 +479,8 @@ impl Uncertainty {
                  taking it from one fitted with it"
             }
             Some(NoiseOrigin::ResidualColour) => {
-                "the residual's own colour (no quiet segment before a step; can understate \
-                 behind a noisy reference)"
+                "the residual's own colour and the reference's high-frequency noise through \
+                 the model (no quiet segment before a step; errs wide)"
             }
             None => "the residual",
         };

@@ -284,13 +284,15 @@ fn joint_uncertainty(
         .zip(&noise)
         .map(|((t, w), quiet)| {
             let ra = triangle(&derivatives, (std::slice::from_ref(t), &[1.0]), block);
-            let parts = crate::fit::uncertainty::parts(&model, &[], quiet.as_ref(), || {
-                let mut s = Stepper::new(&model, gain, t.u);
-                t.y.iter()
-                    .enumerate()
-                    .map(|(k, y)| y - s.next(t.u, k))
-                    .collect()
-            });
+            let high_band = crate::fit::step::channel_noise(t.u, 0).0;
+            let parts =
+                crate::fit::uncertainty::parts(&model, &[], quiet.as_ref(), high_band, || {
+                    let mut s = Stepper::new(&model, gain, t.u);
+                    t.y.iter()
+                        .enumerate()
+                        .map(|(k, y)| y - s.next(t.u, k))
+                        .collect()
+                });
             let mut rows = LossRows::new(&derivatives, t);
             let rb = parts_triangle(&mut rows, (t.y.len(), np, BLOCK), &parts)?;
             Some(Share {
@@ -416,6 +418,7 @@ impl<'m> crate::fit::covariance::Replay for LossRows<'m, '_> {
 /// rows are the analytic output-error Jacobian of each test's deviations from the level the
 /// fit starts in equilibrium with.
 fn linear_uncertainty(model: &Model, tests: &[Test<'_>], w: &[f64]) -> Option<Uncertainty> {
+    use crate::fit::step;
     use crate::fit::uncertainty::{parts, stated};
     let (b, _) = crate::fit::unpadded(&model.b);
     let deviations: Vec<(Vec<f64>, Vec<f64>)> = tests
@@ -439,10 +442,16 @@ fn linear_uncertainty(model: &Model, tests: &[Test<'_>], w: &[f64]) -> Option<Un
         .map(|(((t, set), w), quiet)| Weighted {
             sets: set,
             weight: w * w,
-            parts: parts(model, &[], quiet.as_ref(), || {
-                let sim = model.simulate(t.u);
-                t.y.iter().zip(&sim).map(|(y, s)| y - s).collect()
-            }),
+            parts: parts(
+                model,
+                &[],
+                quiet.as_ref(),
+                step::channel_noise(t.u, 0).0,
+                || {
+                    let sim = model.simulate(t.u);
+                    t.y.iter().zip(&sim).map(|(y, s)| y - s).collect()
+                },
+            ),
             nuisances: Vec::new(),
         })
         .collect();

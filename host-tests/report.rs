@@ -201,6 +201,27 @@ fn report_of_a_model_missing_a_mode_opens_in_chromium() {
         assert!(!html.contains(banned), "the report contains {banned}");
     }
     assert!(html.len() < 2_000_000, "{} bytes", html.len());
+    // The modes table carries the fit's stated deviations, and says where the noise was read.
+    let file: toml::Value = std::fs::read_to_string(model).unwrap().parse().unwrap();
+    let stated = &file["fit"]["uncertainty"]["resonances"][0];
+    let (f, sf) = (
+        stated["natural_frequency_hz"].as_float().unwrap(),
+        stated["natural_frequency_std_hz"].as_float().unwrap(),
+    );
+    let cell = "resonance (pole pair)</td><td class=\"num\">";
+    let row = &html[html.find(cell).expect("no resonance in the modes table") + cell.len()..];
+    let shown: Vec<f64> = row[..row.find(" Hz").unwrap()]
+        .split(" &plusmn; ")
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert!(
+        shown.len() == 2 && (shown[0] - f).abs() <= sf && (shown[1] / sf - 1.0).abs() < 0.05,
+        "the modes table shows {shown:?} for {f} +/- {sf} Hz"
+    );
+    assert!(
+        html.contains("one standard deviation as the fit states it, from both channels' noise"),
+        "no note of where the noise was read"
+    );
 
     let compare: Value =
         serde_json::from_str(&ok(&["compare", model, &t1, &t2, "--json"])).unwrap();

@@ -88,6 +88,18 @@ pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
             }
         ),
     );
+    let stated = inputs
+        .file
+        .fit
+        .as_ref()
+        .and_then(|f| f.uncertainty.as_ref());
+    // A resonance's stated deviations: the fit's entry at the same natural frequency.
+    let deviation = |f_hz: f64| {
+        stated?
+            .resonances
+            .iter()
+            .find(|r| (r.natural_frequency_hz - f_hz).abs() <= 1e-6 * f_hz.abs().max(1.0))
+    };
     h.push_str(
         "<table class=\"modes\"><tr><th>mode</th><th>natural frequency</th><th>damping ratio</th>\
          <th>time constant</th><th>pole</th></tr>\n",
@@ -104,11 +116,21 @@ pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
                 natural_frequency_hz,
                 damping,
                 ..
-            } => (
-                format!("{natural_frequency_hz:.1} Hz"),
-                format!("{damping:.3}"),
-                "&ndash;".to_string(),
-            ),
+            } => match deviation(*natural_frequency_hz) {
+                Some(d) => (
+                    format!(
+                        "{} Hz",
+                        with_deviation(*natural_frequency_hz, d.natural_frequency_std_hz)
+                    ),
+                    with_deviation(*damping, d.damping_std),
+                    "&ndash;".to_string(),
+                ),
+                None => (
+                    format!("{natural_frequency_hz:.1} Hz"),
+                    format!("{damping:.3}"),
+                    "&ndash;".to_string(),
+                ),
+            },
             ModeKind::Real {
                 time_constant_s, ..
             } => (
@@ -131,5 +153,39 @@ pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
         );
     }
     h.push_str("</table>\n");
+    if let Some(u) = stated {
+        let _ = writeln!(
+            h,
+            "<p class=\"note\">&plusmn; one standard deviation as the fit states it, from {}; \
+             DC gain &plusmn; {:.1e}. It covers the noise, not a wrong model structure.</p>",
+            escape(&u.noise_text()),
+            u.dc_gain_std
+        );
+    }
     Ok(())
+}
+
+/// `value &plusmn; std`, the deviation to two significant digits and the value to the same
+/// decimal place (as the GUM quotes a result); `value` alone, to four significant digits,
+/// when the deviation is zero or not a number.
+fn with_deviation(value: f64, std: f64) -> String {
+    if !(std.is_finite() && std > 0.0) {
+        return format!("{value:.4}");
+    }
+    let decimals = (1.0 - std.log10().floor()).clamp(0.0, 12.0) as usize;
+    format!("{value:.decimals$} &plusmn; {std:.decimals$}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::with_deviation;
+
+    #[test]
+    fn a_deviation_has_two_significant_digits_and_the_value_its_decimal_place() {
+        assert_eq!(with_deviation(112.6312, 0.0312), "112.631 &plusmn; 0.031");
+        assert_eq!(with_deviation(0.32004, 0.00041), "0.32004 &plusmn; 0.00041");
+        assert_eq!(with_deviation(1523.4, 27.0), "1523 &plusmn; 27");
+        assert_eq!(with_deviation(0.5, 0.0), "0.5000");
+        assert_eq!(with_deviation(0.5, f64::NAN), "0.5000");
+    }
 }

@@ -436,6 +436,35 @@ pub struct Uncertainty {
     pub noise_from: Option<NoiseOrigin>,
 }
 
+/// `value`, `between` and `std`, the deviation to two significant digits and the value to
+/// the same decimal place, as the GUM quotes a result (`112.631 +/- 0.031`); `value` alone to
+/// four decimals when the deviation is zero or not a number.
+#[must_use]
+pub fn quoted(value: f64, std: f64, between: &str) -> String {
+    match decimals(std) {
+        Some(d) => format!("{value:.d$}{between}{std:.d$}"),
+        None => format!("{value:.4}"),
+    }
+}
+
+/// The decimal places that give `std` two significant digits (none for a zero or non-finite
+/// deviation).
+fn decimals(std: f64) -> Option<usize> {
+    (std.is_finite() && std > 0.0).then(|| (1.0 - std.log10().floor()).clamp(0.0, 12.0) as usize)
+}
+
+/// A deviation alone, to two significant digits.
+struct Sig2(f64);
+
+impl std::fmt::Display for Sig2 {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match decimals(self.0) {
+            Some(d) => write!(f, "{:.d$}", self.0),
+            None => write!(f, "{}", self.0),
+        }
+    }
+}
+
 /// Where the noise a stated uncertainty counts was read, the surest first.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -452,7 +481,8 @@ pub enum NoiseOrigin {
 }
 
 impl Uncertainty {
-    /// One line: `DC gain +/- 1.2e-4; 113.3 +/- 2.1e-1 Hz, damping 0.2506 +/- 1.0e-3`.
+    /// One line: `DC gain +/- 0.00012; 113.33 +/- 0.21 Hz, damping 0.2506 +/- 0.0010` (each
+    /// deviation to two significant digits, [`quoted`]).
     #[must_use]
     pub fn summary(&self) -> String {
         let modes: String = self
@@ -460,12 +490,13 @@ impl Uncertainty {
             .iter()
             .map(|q| {
                 format!(
-                    "; {:.4} +/- {:.2e} Hz, damping {:.4} +/- {:.1e}",
-                    q.natural_frequency_hz, q.natural_frequency_std_hz, q.damping, q.damping_std
+                    "; {} Hz, damping {}",
+                    quoted(q.natural_frequency_hz, q.natural_frequency_std_hz, " +/- "),
+                    quoted(q.damping, q.damping_std, " +/- ")
                 )
             })
             .collect();
-        format!("DC gain +/- {:.1e}{modes}", self.dc_gain_std)
+        format!("DC gain +/- {}{modes}", Sig2(self.dc_gain_std))
     }
 
     /// How the noise was counted, in words: where it was read, and whether a noise model
@@ -565,6 +596,16 @@ pub fn resting_level(x: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_deviation_has_two_significant_digits_and_the_value_its_decimal_place() {
+        assert_eq!(quoted(112.6312, 0.0312, " +/- "), "112.631 +/- 0.031");
+        assert_eq!(quoted(0.32004, 0.00041, " +/- "), "0.32004 +/- 0.00041");
+        assert_eq!(quoted(1523.4, 27.0, " +/- "), "1523 +/- 27");
+        assert_eq!(quoted(0.5, 0.0, " +/- "), "0.5000");
+        assert_eq!(quoted(0.5, f64::NAN, " +/- "), "0.5000");
+        assert_eq!(Sig2(0.004489).to_string(), "0.0045");
+    }
 
     /// A role is stored as the same word it always was, both ways, in JSON and in a model
     /// file; another word is refused with the words there are.

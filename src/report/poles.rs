@@ -8,6 +8,10 @@ use super::plot::{self, colour, Panel, Series, Style};
 use super::{escape, push_figure, Inputs};
 use crate::error::Result;
 use crate::fit::analysis::{self, Analysis, ModeKind};
+use crate::fit::model::quoted;
+
+/// Between a value and its deviation.
+const PLUS_MINUS: &str = " &plusmn; ";
 
 pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
     let model = &inputs.file.model;
@@ -120,9 +124,13 @@ pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
                 Some(d) => (
                     format!(
                         "{} Hz",
-                        with_deviation(*natural_frequency_hz, d.natural_frequency_std_hz)
+                        quoted(
+                            *natural_frequency_hz,
+                            d.natural_frequency_std_hz,
+                            PLUS_MINUS
+                        )
                     ),
-                    with_deviation(*damping, d.damping_std),
+                    quoted(*damping, d.damping_std, PLUS_MINUS),
                     "&ndash;".to_string(),
                 ),
                 None => (
@@ -163,29 +171,4 @@ pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
         );
     }
     Ok(())
-}
-
-/// `value &plusmn; std`, the deviation to two significant digits and the value to the same
-/// decimal place (as the GUM quotes a result); `value` alone, to four significant digits,
-/// when the deviation is zero or not a number.
-fn with_deviation(value: f64, std: f64) -> String {
-    if !(std.is_finite() && std > 0.0) {
-        return format!("{value:.4}");
-    }
-    let decimals = (1.0 - std.log10().floor()).clamp(0.0, 12.0) as usize;
-    format!("{value:.decimals$} &plusmn; {std:.decimals$}")
-}
-
-#[cfg(test)]
-mod tests {
-    use super::with_deviation;
-
-    #[test]
-    fn a_deviation_has_two_significant_digits_and_the_value_its_decimal_place() {
-        assert_eq!(with_deviation(112.6312, 0.0312), "112.631 &plusmn; 0.031");
-        assert_eq!(with_deviation(0.32004, 0.00041), "0.32004 &plusmn; 0.00041");
-        assert_eq!(with_deviation(1523.4, 27.0), "1523 &plusmn; 27");
-        assert_eq!(with_deviation(0.5, 0.0), "0.5000");
-        assert_eq!(with_deviation(0.5, f64::NAN), "0.5000");
-    }
 }

@@ -454,14 +454,10 @@ fn decimals(std: f64) -> Option<usize> {
 }
 
 /// A deviation alone, to two significant digits.
-struct Sig2(f64);
-
-impl std::fmt::Display for Sig2 {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match decimals(self.0) {
-            Some(d) => write!(f, "{:.d$}", self.0),
-            None => write!(f, "{}", self.0),
-        }
+fn two_digits(std: f64) -> String {
+    match decimals(std) {
+        Some(d) => format!("{std:.d$}"),
+        None => format!("{std}"),
     }
 }
 
@@ -496,7 +492,7 @@ impl Uncertainty {
                 )
             })
             .collect();
-        format!("DC gain +/- {}{modes}", Sig2(self.dc_gain_std))
+        format!("DC gain +/- {}{modes}", two_digits(self.dc_gain_std))
     }
 
     /// How the noise was counted, in words: where it was read, and whether a noise model
@@ -604,7 +600,7 @@ mod tests {
         assert_eq!(quoted(1523.4, 27.0, " +/- "), "1523 +/- 27");
         assert_eq!(quoted(0.5, 0.0, " +/- "), "0.5000");
         assert_eq!(quoted(0.5, f64::NAN, " +/- "), "0.5000");
-        assert_eq!(Sig2(0.004489).to_string(), "0.0045");
+        assert_eq!(two_digits(0.004489), "0.0045");
     }
 
     /// A role is stored as the same word it always was, both ways, in JSON and in a model

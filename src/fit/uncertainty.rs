@@ -11,7 +11,7 @@ use crate::fit::model::{Model, NoiseOrigin, ResonanceUncertainty, Uncertainty};
 /// reference's samples before the step.
 /// With them, each channel's noise as its quiet segment shows it (the AR model of the
 /// detrended samples before the step), when there is one.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Levels {
     /// The probe's level.
     pub probe_var: f64,
@@ -19,27 +19,37 @@ pub(crate) struct Levels {
     pub reference_var: f64,
     /// The probe's noise and the reference's, from before the step.
     pub noise: Option<(ArNoise, ArNoise)>,
-    /// The noise is another test's (see [`Levels::or_borrowed`]).
-    pub borrowed: bool,
+    /// Where `noise` was read: this record's quiet segment, another test's
+    /// ([`Levels::borrow`]), or, with neither, nowhere (the residual's colour stands in).
+    pub origin: NoiseOrigin,
     /// The reference's white noise from its highest frequencies, for a record whose noise
-    /// cannot be read before a step ([`parts`]).
+    /// cannot be read before a step ([`parts`]); read only for such a record (0 otherwise).
     pub reference_high_band: f64,
 }
 
 impl Levels {
-    /// Without a quiet segment of its own (a record that starts at its step), the noise of
-    /// the first of `others` (the tests held out) that has one: the same sensors. Only the
-    /// noise is taken from them, never their signal.
-    pub(crate) fn or_borrowed(self, others: &[super::Test<'_>]) -> Self {
-        if self.noise.is_some() {
-            return self;
+    /// Without a quiet segment of its own (a traverse, a record that starts at its step),
+    /// `lender`'s noise: the same sensors. Only the noise is taken, never the signal.
+    fn borrow(&mut self, lender: &Self) {
+        if self.noise.is_none() && lender.noise.is_some() {
+            self.noise.clone_from(&lender.noise);
+            self.origin = NoiseOrigin::Borrowed;
         }
-        let noise = others.iter().find_map(|t| levels(t.u, t.y, 0).noise);
-        Self {
-            borrowed: noise.is_some(),
-            noise,
-            ..self
+    }
+
+    /// [`Levels::borrow`] from the first of `others` (the tests held out) that has a quiet
+    /// segment, read only when this record has none.
+    pub(crate) fn or_borrowed(mut self, others: &[super::Test<'_>]) -> Self {
+        if self.noise.is_none() {
+            if let Some(lender) = others
+                .iter()
+                .map(|t| levels(t.u, t.y, 0))
+                .find(|l| l.noise.is_some())
+            {
+                self.borrow(&lender);
+            }
         }
+        self
     }
 }
 
@@ -80,37 +90,43 @@ pub(crate) fn levels(u: &[f64], y: &[f64], onset: usize) -> Levels {
         }
         _ => None,
     };
-    let reference_high_band = step::channel_noise(u, 0).0;
-    match (u.get(..onset), y.get(..onset)) {
-        (Some(u0), Some(y0)) if u0.len() >= 2 => Levels {
-            probe_var: noise::variance_of_mean(y0),
-            reference_var: noise::variance_of_mean(u0),
-            noise,
-            borrowed: false,
-            reference_high_band,
+    let (probe_var, reference_var) = match (u.get(..onset), y.get(..onset)) {
+        (Some(u0), Some(y0)) if u0.len() >= 2 => {
+            (noise::variance_of_mean(y0), noise::variance_of_mean(u0))
+        }
+        _ => (0.0, 0.0),
+    };
+    Levels {
+        probe_var,
+        reference_var,
+        origin: if noise.is_some() {
+            NoiseOrigin::QuietSegment
+        } else {
+            NoiseOrigin::ResidualColour
         },
-        _ => Levels {
-            noise,
-            reference_high_band,
-            ..Levels::default()
+        // Only needed where no quiet segment gives the reference's noise.
+        reference_high_band: if noise.is_none() {
+            step::channel_noise(u, 0).0
+        } else {
+            0.0
         },
+        noise,
     }
 }
 
 /// What a model's residual is made of, each part as the data whitened by `ar` (the noise
 /// model's `D = 1 + ar`, empty for none) carry it: with both channels' noise measured before
-/// the step, the probe's noise and the reference's through the model, `H_y = D / P_y` and
-/// `H_u = D q^-d B / (A P_u)`. Otherwise the colour the residual `kept` (whitened) shows, as
-/// its long AR model says, and beside it the reference's noise through the model once more,
-/// white at `reference_high_band` (its highest frequencies): the residual's AR model misses
+/// a step (`levels.noise`), the probe's noise and the reference's through the model,
+/// `H_y = D / P_y` and `H_u = D q^-d B / (A P_u)`. Otherwise the colour the residual `kept`
+/// (whitened) shows, as its long AR model says, and beside it the reference's noise through
+/// the model once more, white at its highest frequencies' level: the residual's AR model misses
 /// the narrow ring of the reference's noise through a resonant probe and states too narrow
 /// (up to 2.1 times), and the high band alone misses a wandering probe noise (4.9 times);
 /// their sum counts the ring twice at worst and errs wide (1.35 times at most, unit test).
 pub(crate) fn parts(
     model: &Model,
     ar: &[f64],
-    noise: Option<&(ArNoise, ArNoise)>,
-    reference_high_band: f64,
+    levels: &Levels,
     kept: impl FnOnce() -> Vec<f64>,
 ) -> Vec<Colour> {
     let dpoly: Vec<f64> = std::iter::once(1.0).chain(ar.iter().copied()).collect();
@@ -129,7 +145,7 @@ pub(crate) fn parts(
             var,
         }
     };
-    match noise {
+    match &levels.noise {
         Some((probe, reference)) => vec![
             Colour {
                 num: dpoly.clone(),
@@ -146,7 +162,7 @@ pub(crate) fn parts(
                     den: colour.ar,
                     var: colour.innovation_std * colour.innovation_std,
                 },
-                through_model(&[], reference_high_band * reference_high_band),
+                through_model(&[], levels.reference_high_band.powi(2)),
             ]
         }
     }
@@ -196,14 +212,9 @@ pub(super) fn uncertainty(
     // What colour the whitened residual keeps (the reference's noise through a resonant
     // probe rings longer than the noise model describes): the sandwich covariance of the
     // estimate under it, not `s^2 (J'J)^-1`, which takes the residual for white.
-    let source = source_of(levels.noise.is_some() && !levels.borrowed, levels.borrowed);
-    let parts = parts(
-        model,
-        &ar,
-        levels.noise.as_ref(),
-        levels.reference_high_band,
-        || residuals(&wsets, (&model.a, &model.b), d).concat(),
-    );
+    let parts = parts(model, &ar, &levels, || {
+        residuals(&wsets, (&model.a, &model.b), d).concat()
+    });
     let nuisances = sets
         .first()
         .map(|s| level_nuisances(model, &ar, s.y.len(), &levels))
@@ -219,37 +230,24 @@ pub(super) fn uncertainty(
         d,
     )?;
     stated(model, &cov, !ar.is_empty()).map(|u| Uncertainty {
-        noise_from: Some(source),
+        noise_from: Some(levels.origin),
         ..u
     })
 }
 
-/// Where a test's noise was read: its own quiet segment, another test's, or, with neither,
-/// its residual's colour.
-fn source_of(own: bool, borrowed: bool) -> NoiseOrigin {
-    match (own, borrowed) {
-        (true, _) => NoiseOrigin::QuietSegment,
-        (false, true) => NoiseOrigin::Borrowed,
-        (false, false) => NoiseOrigin::ResidualColour,
+/// Tests fitted together, each with its own [`levels`]; a test without a quiet segment (a
+/// traverse, a record cut at its step) borrows the first other test's noise
+/// ([`Levels::borrow`]). With where the weakest was read.
+pub(crate) fn shared_noise(mut own: Vec<Levels>) -> (Vec<Levels>, NoiseOrigin) {
+    if let Some(lender) = own.iter().find(|l| l.noise.is_some()).cloned() {
+        own.iter_mut().for_each(|l| l.borrow(&lender));
     }
-}
-
-/// Both channels' noise for tests fitted together, each as its own quiet segment shows it
-/// ([`levels`]); a test without one (a traverse, a record cut at its step) takes the first
-/// other test's, since the sensors are the same. With where the weakest was read.
-pub(crate) fn shared_noise(
-    own: Vec<Option<(ArNoise, ArNoise)>>,
-) -> (Vec<Option<(ArNoise, ArNoise)>>, NoiseOrigin) {
-    let lender = own.iter().flatten().next().cloned();
-    let mut weakest = NoiseOrigin::QuietSegment;
-    let noise = own
-        .into_iter()
-        .map(|n| {
-            weakest = weakest.max(source_of(n.is_some(), lender.is_some()));
-            n.or_else(|| lender.clone())
-        })
-        .collect();
-    (noise, weakest)
+    let weakest = own
+        .iter()
+        .map(|l| l.origin)
+        .max()
+        .unwrap_or(NoiseOrigin::ResidualColour);
+    (own, weakest)
 }
 
 /// `model`'s DC gain and resonances with their standard deviations, when its parameters
@@ -565,19 +563,45 @@ mod shared {
         (n.clone(), n)
     }
 
+    /// A test's levels with the noise its quiet segment showed, or none.
+    fn test(noise: Option<(ArNoise, ArNoise)>) -> Levels {
+        Levels {
+            probe_var: 0.0,
+            reference_var: 0.0,
+            origin: if noise.is_some() {
+                NoiseOrigin::QuietSegment
+            } else {
+                NoiseOrigin::ResidualColour
+            },
+            noise,
+            reference_high_band: 1.0,
+        }
+    }
+
+    fn noise(levels: &[Levels]) -> Vec<Option<(ArNoise, ArNoise)>> {
+        levels.iter().map(|l| l.noise.clone()).collect()
+    }
+
     /// A test without a quiet segment takes the first other test's noise and the fit says
     /// it borrowed; with none to lend, it says it went by the residual's colour.
     #[test]
     fn a_test_without_a_quiet_segment_borrows_the_first_others() {
         let (a, b) = (white(1.0), white(2.0));
-        let (n, s) = shared_noise(vec![None, Some(a.clone()), Some(b.clone())]);
-        assert_eq!(n, vec![Some(a.clone()), Some(a.clone()), Some(b.clone())]);
+        let (n, s) = shared_noise(vec![
+            test(None),
+            test(Some(a.clone())),
+            test(Some(b.clone())),
+        ]);
+        assert_eq!(
+            noise(&n),
+            vec![Some(a.clone()), Some(a.clone()), Some(b.clone())]
+        );
         assert_eq!(s, NoiseOrigin::Borrowed);
-        let (n, s) = shared_noise(vec![Some(b.clone()), Some(a.clone())]);
-        assert_eq!(n, vec![Some(b), Some(a)]);
+        let (n, s) = shared_noise(vec![test(Some(b.clone())), test(Some(a.clone()))]);
+        assert_eq!(noise(&n), vec![Some(b), Some(a)]);
         assert_eq!(s, NoiseOrigin::QuietSegment);
-        let (n, s) = shared_noise(vec![None, None]);
-        assert_eq!(n, vec![None, None]);
+        let (n, s) = shared_noise(vec![test(None), test(None)]);
+        assert_eq!(noise(&n), vec![None, None]);
         assert_eq!(s, NoiseOrigin::ResidualColour);
     }
 }

@@ -16,8 +16,8 @@ use super::nonlinear::{quadratic_rate, Stepper};
 use crate::fit::arx::{self, Data};
 use crate::fit::covariance::{covariance_weighted, Weighted};
 use crate::fit::model::{NoiseOrigin, Uncertainty};
-use crate::fit::noise::ArNoise;
 use crate::fit::oe::stable;
+use crate::fit::uncertainty::Levels;
 use crate::fit::{Model, Test};
 
 /// Rows of the Jacobian reduced to its triangle at a time.
@@ -282,17 +282,15 @@ fn joint_uncertainty(
         .iter()
         .zip(w)
         .zip(&noise)
-        .map(|((t, w), quiet)| {
+        .map(|((t, w), levels)| {
             let ra = triangle(&derivatives, (std::slice::from_ref(t), &[1.0]), block);
-            let high_band = crate::fit::step::channel_noise(t.u, 0).0;
-            let parts =
-                crate::fit::uncertainty::parts(&model, &[], quiet.as_ref(), high_band, || {
-                    let mut s = Stepper::new(&model, gain, t.u);
-                    t.y.iter()
-                        .enumerate()
-                        .map(|(k, y)| y - s.next(t.u, k))
-                        .collect()
-                });
+            let parts = crate::fit::uncertainty::parts(&model, &[], levels, || {
+                let mut s = Stepper::new(&model, gain, t.u);
+                t.y.iter()
+                    .enumerate()
+                    .map(|(k, y)| y - s.next(t.u, k))
+                    .collect()
+            });
             let mut rows = LossRows::new(&derivatives, t);
             let rb = parts_triangle(&mut rows, (t.y.len(), np, BLOCK), &parts)?;
             Some(Share {
@@ -418,7 +416,6 @@ impl<'m> crate::fit::covariance::Replay for LossRows<'m, '_> {
 /// rows are the analytic output-error Jacobian of each test's deviations from the level the
 /// fit starts in equilibrium with.
 fn linear_uncertainty(model: &Model, tests: &[Test<'_>], w: &[f64]) -> Option<Uncertainty> {
-    use crate::fit::step;
     use crate::fit::uncertainty::{parts, stated};
     let (b, _) = crate::fit::unpadded(&model.b);
     let deviations: Vec<(Vec<f64>, Vec<f64>)> = tests
@@ -439,19 +436,13 @@ fn linear_uncertainty(model: &Model, tests: &[Test<'_>], w: &[f64]) -> Option<Un
         .zip(&sets)
         .zip(w)
         .zip(&noise)
-        .map(|(((t, set), w), quiet)| Weighted {
+        .map(|(((t, set), w), levels)| Weighted {
             sets: set,
             weight: w * w,
-            parts: parts(
-                model,
-                &[],
-                quiet.as_ref(),
-                step::channel_noise(t.u, 0).0,
-                || {
-                    let sim = model.simulate(t.u);
-                    t.y.iter().zip(&sim).map(|(y, s)| y - s).collect()
-                },
-            ),
+            parts: parts(model, &[], levels, || {
+                let sim = model.simulate(t.u);
+                t.y.iter().zip(&sim).map(|(y, s)| y - s).collect()
+            }),
             nuisances: Vec::new(),
         })
         .collect();
@@ -465,11 +456,11 @@ fn linear_uncertainty(model: &Model, tests: &[Test<'_>], w: &[f64]) -> Option<Un
 /// Each test's noise, both channels, from its own quiet segment before its step or, for a
 /// test without one (a traverse), from another test's: the same sensors
 /// ([`crate::fit::uncertainty::shared_noise`]).
-fn quiet_noise(tests: &[Test<'_>]) -> (Vec<Option<(ArNoise, ArNoise)>>, NoiseOrigin) {
+fn quiet_noise(tests: &[Test<'_>]) -> (Vec<Levels>, NoiseOrigin) {
     crate::fit::uncertainty::shared_noise(
         tests
             .iter()
-            .map(|t| crate::fit::uncertainty::levels(t.u, t.y, 0).noise)
+            .map(|t| crate::fit::uncertainty::levels(t.u, t.y, 0))
             .collect(),
     )
 }

@@ -6,8 +6,8 @@
 //!
 //! 1. the residual's signature on each test ([`crate::modelling::evidence`]): a narrow spectral peak for
 //!    a mode, a level before the step for an offset, a ramp for a drift, a slow creep after
-//!    the step for a leak, correlation in time without a cause in the input for coloured
-//!    noise, a peak in the reference's own increments at the frequency where the probe's
+//!    the step for a leak, correlation in time for coloured noise where the probe's own noise
+//!    before the step is coloured (without a quiet segment: no cause in the input), a peak in the reference's own increments at the frequency where the probe's
 //!    residual peaks for a sensor resonance (a line or cavity mode never shows in the
 //!    reference, so a matched sensor resonance goes before `mode`), and natural frequencies of
 //!    the tests fitted alone that all move by one common factor against the model's, with the

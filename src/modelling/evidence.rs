@@ -409,7 +409,12 @@ pub struct TestEvidence {
     pub reference_ringing: Option<Peak>,
 }
 
-/// The reference channel's own ringing: the highest narrow peak (Q at least 2) of the spectrum
+/// A spectral peak at least this sharp (centre frequency over its -3 dB width) is a resonance:
+/// a mode of damping below 0.25. A slow creep or a drift leaves a broad low-frequency hump
+/// (Q about 1 or below) that can stand as far out of the floor.
+pub const NARROW_PEAK_Q: f64 = 2.0;
+
+/// The reference channel's own ringing: the highest narrow peak (Q at least [`NARROW_PEAK_Q`]) of the spectrum
 /// of its increments from the step on. A clean step's increments are an impulse with a flat
 /// spectrum; a transducer's diaphragm ringing in the reference makes a peak at its natural
 /// frequency. A line or cavity mode of the probe never shows here. `None` for a record that
@@ -431,7 +436,10 @@ fn ringing_after(u: &[f64], found: Option<&step::Step>, fs: f64) -> Option<Peak>
     if du.len() < 32 {
         return None;
     }
-    spectrum(&du, fs).peaks.into_iter().find(|p| p.q >= 2.0)
+    spectrum(&du, fs)
+        .peaks
+        .into_iter()
+        .find(|p| p.q >= NARROW_PEAK_Q)
 }
 
 fn mean(x: &[f64]) -> f64 {

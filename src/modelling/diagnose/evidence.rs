@@ -93,6 +93,11 @@ pub enum Evidence {
         lag1_autocorrelation: f64,
         /// The smallest Ljung-Box p-value over the tests.
         ljung_box_p: f64,
+        /// How many times a one-step predictor lowers the probe's own noise before a step
+        /// ([`crate::fit::noise::probe_predictability`]); `None` where no test has a quiet
+        /// segment.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        probe_noise_predictability: Option<f64>,
     },
     /// `unexplained`: above the noise floor, and no effect's trial lowers it.
     Unexplained {
@@ -399,6 +404,7 @@ mod tests {
                 fit: COLOURED_NOISE_FIT.into(),
                 lag1_autocorrelation: 0.5,
                 ljung_box_p: 1e-9,
+                probe_noise_predictability: None,
             })
             .unwrap(),
             format!(

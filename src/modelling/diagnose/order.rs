@@ -3,6 +3,7 @@
 
 use super::{Candidate, Evidence, ModeEvidence, NonlinearDamping, CLOSE_MARGIN};
 use crate::modelling::effects::EffectKind;
+use crate::modelling::evidence::NARROW_PEAK_Q;
 
 /// A leak lowers the probe's static gain (`1 / (1 + R G)` for a leaking cavity, below 1 for a
 /// leaking side volume too); a thermal creep, the other slow pole the `leak` effect models,
@@ -11,8 +12,10 @@ use crate::modelling::effects::EffectKind;
 /// [`MODE_PEAK_OVER_CREEP_DB`] out of the floor goes after it.
 pub const LEAK_DC_GAIN_BELOW: f64 = 0.998;
 
-/// A residual peak this far above the floor (dB) is a resonance, which a slow creep does not
-/// leave.
+/// A residual peak this far above the floor (dB), and narrow ([`NARROW_PEAK_Q`]), is a
+/// resonance, which a slow creep does not leave: a creep's broad low-frequency hump can stand
+/// as far out (bank seed 14, case 019: a leak's creep read as a peak at 2 Hz, 31 dB out, Q
+/// about 1).
 pub const MODE_PEAK_OVER_CREEP_DB: f64 = 20.0;
 
 /// A residual slope before the step this many standard errors from a drift's fitted rate, and
@@ -76,8 +79,12 @@ pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64
             out,
             |c| c.kind == EffectKind::Leak,
             |c| match &c.evidence {
-                Evidence::Mode(ModeEvidence::Peak { above_floor_db, .. }) => {
-                    c.kind == EffectKind::Mode && *above_floor_db >= MODE_PEAK_OVER_CREEP_DB
+                Evidence::Mode(ModeEvidence::Peak {
+                    above_floor_db, q, ..
+                }) => {
+                    c.kind == EffectKind::Mode
+                        && *above_floor_db >= MODE_PEAK_OVER_CREEP_DB
+                        && *q >= NARROW_PEAK_Q
                 }
                 Evidence::SensorResonance(s) => {
                     c.kind == EffectKind::SensorResonance
@@ -239,6 +246,24 @@ mod tests {
         let mut out = make(7.0, 1.48);
         order(&mut out, false, 1.004);
         assert_eq!(kinds(&out), leak_first);
+        // Nor is a broad hump, however far out (seed 14's case 019: a creep read as a peak at
+        // 2 Hz, 31 dB out, Q about 1).
+        let mut out = vec![
+            candidate(
+                EffectKind::Mode,
+                1.48,
+                Evidence::Mode(ModeEvidence::Peak {
+                    spectrum: Spectrum::Residual,
+                    frequency_hz: 2.0,
+                    above_floor_db: 31.0,
+                    q: 1.0,
+                    test: "t.csv".into(),
+                }),
+            ),
+            candidate(EffectKind::Leak, 1.54, leak()),
+        ];
+        order(&mut out, false, 1.004);
+        assert_eq!(kinds(&out), leak_first);
         // Not close.
         let mut out = make(39.0, 1.0);
         order(&mut out, false, 1.004);
@@ -283,6 +308,7 @@ mod tests {
                     fit: String::new(),
                     lag1_autocorrelation: 0.98,
                     ljung_box_p: 0.0,
+                    probe_noise_predictability: None,
                 },
             ),
             candidate(EffectKind::Mode, 1.48, peak(39.0)),

@@ -530,9 +530,14 @@ pub fn diagnose(
         .iter()
         .any(|e| e.cross_correlation.peak.abs() > 2.0 * e.cross_correlation.band);
     // With least squares (ARX, SM) an output-error refit is the trial, whatever the residual
-    // correlates with: noise biases least squares; with output error already, the signature
+    // correlates with: noise biases least squares. With output error already, the probe's own
+    // noise before a step decides where a test has one: white there, the residual's colour is
+    // the reference's noise through the model (errors in variables); coloured, it scatters the
+    // residual's correlation with the input beyond the white band. Without one, the signature
     // must be clean (no cause in the input).
-    if p < 1e-3 && (!matches!(current.method, Method::Oe | Method::Bj) || !input_explains) {
+    let own = crate::fit::noise::probe_predictability(tests);
+    let coloured = own.map_or(!input_explains, |c| c >= MIN_IMPROVEMENT);
+    if p < 1e-3 && (!matches!(current.method, Method::Oe | Method::Bj) || coloured) {
         let added = Effect::ColouredNoise {
             ar: Vec::new(),
             innovation_std: 0.0,
@@ -550,13 +555,17 @@ pub fn diagnose(
                 fit: how.into(),
                 lag1_autocorrelation: rho1,
                 ljung_box_p: p,
+                probe_noise_predictability: own,
             },
             format!(
                 "the residual is correlated in time beyond what both channels' noise through \
-                 the model explains (Ljung-Box p = {p:.1e}, lag-1 correlation {rho1:.2}): \
+                 the model explains (Ljung-Box p = {p:.1e}, lag-1 correlation {rho1:.2}){}: \
                  coloured measurement noise. The remedy is a noise model beside the dynamics \
                  ({how}: what a predictor of the probe one sample ahead cannot remove, against \
-                 the simulation error before)"
+                 the simulation error before)",
+                own.map_or(String::new(), |c| format!(
+                    ", and a predictor lowers the probe's own noise before the step {c:.2} times"
+                )),
             ),
             Remedy::Add(Effect::ColouredNoise {
                 ar: Vec::new(),

@@ -1726,3 +1726,73 @@ fn a_creeps_broad_hump_does_not_put_a_mode_before_a_leak() {
         "{mode}"
     );
 }
+
+/// Case 033 of seed 15's bank: a pneumatic probe whose transducers ring at 2.3 kHz, validated
+/// on a valve test. The reference rings there in both tests; the probe shows no peak near it
+/// (the line before its transducer filters the ringing out), so the signature that wanted a
+/// probe peak beside the reference's was never read, and the mode's trial, two free poles and
+/// zeros that land on the same model, was named. A reference that rings at one frequency in
+/// every step is its transducer: the sensor resonance is tried and goes first.
+#[test]
+fn a_reference_ringing_in_every_step_names_the_transducers_the_probe_hides() {
+    let case = diagnose_bank(
+        "sensor-unseen",
+        "sensor-unseen-est.csv",
+        "sensor-unseen-val.csv",
+    );
+    let d = &case.json;
+    let first = &d["candidates"][0];
+    assert_eq!(first["kind"], "sensor-resonance", "{d}");
+    let evidence = &first["evidence"];
+    assert!(evidence.get("probe_peak_hz").is_none(), "{evidence}");
+    let f = evidence["reference_peak_hz"].as_f64().unwrap();
+    assert!((2.1e3..2.5e3).contains(&f), "{evidence}");
+    // Both tests' references ring there.
+    for t in d["tests"].as_array().unwrap() {
+        let r = t["reference_ringing"]["frequency_hz"].as_f64().unwrap();
+        assert!((r / f - 1.0).abs() < 0.15, "{t}");
+    }
+    let (before, after) = (
+        first["nrmse_before"].as_f64().unwrap(),
+        first["nrmse_after"].as_f64().unwrap(),
+    );
+    assert!(before / after >= 1.15, "{before} -> {after}");
+}
+
+/// Case 013 of seed 15's bank: a flush sensor whose probe noise is coloured (a slow AR(1)),
+/// validated on a step. Both tests' errors are within 1.2x of what both channels' noise
+/// leaves and the residual looks white enough (Ljung-Box p above 1e-3), so the diagnosis
+/// said `none`. The probe's quiet segment before the step shows its noise is coloured, and a
+/// noise model lowers the error it reports, the one-step-ahead prediction error, threefold.
+#[test]
+fn coloured_probe_noise_is_named_at_the_floor_of_a_simulation_error() {
+    let case = diagnose_bank(
+        "coloured-at-floor",
+        "coloured-at-floor-est.csv",
+        "coloured-at-floor-val.csv",
+    );
+    let d = &case.json;
+    let first = &d["candidates"][0];
+    assert_eq!(first["kind"], "coloured-noise", "{d}");
+    let evidence = &first["evidence"];
+    assert!(
+        evidence["probe_noise_predictability"].as_f64().unwrap() >= 1.15,
+        "{evidence}"
+    );
+    assert!(
+        evidence["ljung_box_p"].as_f64().unwrap() > 1e-3,
+        "{evidence}"
+    );
+    for t in d["tests"].as_array().unwrap() {
+        let (e, floor) = (
+            t["nrmse"].as_f64().unwrap(),
+            t["noise_floor"].as_f64().unwrap(),
+        );
+        assert!(e <= 1.2 * floor, "{e} against {floor}");
+    }
+    let (before, after) = (
+        first["nrmse_before"].as_f64().unwrap(),
+        first["nrmse_after"].as_f64().unwrap(),
+    );
+    assert!(before / after >= 2.0, "{before} -> {after}");
+}

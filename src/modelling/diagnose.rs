@@ -7,9 +7,11 @@
 //! 1. the residual's signature on each test ([`crate::modelling::evidence`]): a narrow spectral peak for
 //!    a mode, a level before the step for an offset, a ramp for a drift, a slow creep after
 //!    the step for a leak, correlation in time for coloured noise where the probe's own noise
-//!    before the step is coloured (without a quiet segment: no cause in the input), a peak in the reference's own increments at the frequency where the probe's
-//!    residual peaks for a sensor resonance (a line or cavity mode never shows in the
-//!    reference, so a matched sensor resonance goes before `mode`), and natural frequencies of
+//!    before the step is coloured (without a quiet segment: no cause in the input), a peak in
+//!    the reference's own increments for a sensor resonance, at the frequency where the
+//!    probe's residual peaks or at one frequency in every step whose reference rings (a line
+//!    or cavity mode never shows in the reference, so a sensor resonance goes before a `mode`
+//!    that ties with it), and natural frequencies of
 //!    the tests fitted alone that all move by one common factor against the model's, with the
 //!    damping about the same, for a temperature ([`temperature_evidence`]; both damping laws
 //!    of [`crate::modelling::effects::TemperatureDamping`] are tried and the better offered, its `change`
@@ -35,6 +37,7 @@ mod finding;
 mod order;
 mod rank;
 mod remedy;
+mod sensor;
 mod trial;
 
 pub use across::{
@@ -47,8 +50,8 @@ use across::{
     temperature_reading,
 };
 pub use evidence::{
-    Evidence, JointLoss, ModeEvidence, NonlinearDamping, ScaleEstimate, SensorResonance, Spectrum,
-    TemperatureShift, COLOURED_NOISE_FIT, SENSOR_RESONANCE_REMEDY,
+    Evidence, JointLoss, ModeEvidence, NonlinearDamping, ProbePeak, ScaleEstimate, SensorResonance,
+    Spectrum, TemperatureShift, COLOURED_NOISE_FIT, SENSOR_RESONANCE_REMEDY,
 };
 pub use finding::{separating_test, Candidate, Finding, CLOSE_MARGIN};
 pub use order::{

@@ -223,15 +223,14 @@ impl Serialize for ModeEvidence {
 }
 
 /// The evidence of a sensor resonance: the reference's own ringing and the probe's peak
-/// beside it.
+/// beside it, where the probe shows one.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SensorResonance {
-    /// The probe's peak's height above its floor (dB).
-    pub probe_above_floor_db: f64,
-    /// The probe's peak's frequency (Hz).
-    pub probe_peak_hz: f64,
-    /// The spectrum the probe's peak is in.
-    pub probe_source: Spectrum,
+    /// The probe's peak near the reference's ringing; `None` where the probe shows none (the
+    /// line before its transducer filters the diaphragm's ringing out) and the reference's
+    /// ringing in every step test is the evidence.
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub probe: Option<ProbePeak>,
     /// The reference's ringing's height above the floor of its increments (dB).
     pub reference_above_floor_db: f64,
     /// The reference's ringing frequency (Hz).
@@ -242,6 +241,20 @@ pub struct SensorResonance {
     pub reference_test: String,
     /// What the remedy does ([`SENSOR_RESONANCE_REMEDY`]).
     pub remedy: String,
+}
+
+/// The probe's peak beside the reference's ringing ([`SensorResonance::probe`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ProbePeak {
+    /// The probe's peak's height above its floor (dB).
+    #[serde(rename = "probe_above_floor_db")]
+    pub above_floor_db: f64,
+    /// The probe's peak's frequency (Hz).
+    #[serde(rename = "probe_peak_hz")]
+    pub frequency_hz: f64,
+    /// The spectrum the probe's peak is in.
+    #[serde(rename = "probe_source")]
+    pub source: Spectrum,
 }
 
 /// The evidence of a temperature change: the natural frequencies of the tests fitted alone
@@ -421,9 +434,11 @@ mod tests {
             r#"{"noise_floor":0.001,"nrmse":0.002,"white":true}"#
         );
         let sensor = Evidence::SensorResonance(SensorResonance {
-            probe_above_floor_db: 20.0,
-            probe_peak_hz: 2990.0,
-            probe_source: Spectrum::Residual,
+            probe: Some(ProbePeak {
+                above_floor_db: 20.0,
+                frequency_hz: 2990.0,
+                source: Spectrum::Residual,
+            }),
             reference_above_floor_db: 30.0,
             reference_peak_hz: 2998.0,
             reference_q: 25.0,

@@ -39,13 +39,14 @@ pub fn drift_contradicted(pre: f64, pre_se: f64, rate: f64) -> bool {
 pub const CREEP_SEEN_STANDARD_ERRORS: f64 = 3.0;
 
 /// Sorts the candidates by score, best first, then applies the rules for close ones, in order:
-/// the physics before a noise model; a sensor resonance the reference shows (`sensor_matched`)
-/// before a mode that would only model it; a clear resonance (a mode's or the transducers')
+/// the physics before a noise model; a sensor resonance the reference shows before a mode
+/// that would only model it (at any margin where the probe peaks beside it, else when they
+/// tie); a clear resonance (a mode's or the transducers')
 /// before a leak that ties with it when the model's DC gain (`dc_gain`) is not below
 /// [`LEAK_DC_GAIN_BELOW`], and a resonance whose peak was seen before a leak with neither of its
 /// signatures, whatever their scores; an effect whose signature was seen before nonlinear
 /// damping read from its trial alone.
-pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64) {
+pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64) {
     out.sort_by(|a, b| b.score.total_cmp(&a.score));
     // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
     // too: when an effect in the dynamics scores within CLOSE_MARGIN of it, the physics goes
@@ -57,17 +58,20 @@ pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64
         |c| c.kind != EffectKind::ColouredNoise,
     );
     // A resonance that shows in the reference as well is the transducers', not the line's:
-    // the sensor resonance goes before a mode that would only model it.
-    if sensor_matched {
-        let s = out
-            .iter()
-            .position(|c| c.kind == EffectKind::SensorResonance);
-        let m = out.iter().position(|c| c.kind == EffectKind::Mode);
-        if let (Some(s), Some(m)) = (s, m) {
-            if m < s {
-                let c = out.remove(s);
-                out.insert(m, c);
-            }
+    // the sensor resonance goes before a mode that would only model it, at any margin where
+    // the probe peaks beside the reference's ringing, and where the two tie when the probe
+    // shows no peak there (the line before its transducer filters the diaphragm out).
+    let s = out
+        .iter()
+        .position(|c| c.kind == EffectKind::SensorResonance);
+    let m = out.iter().position(|c| c.kind == EffectKind::Mode);
+    if let (Some(s), Some(m)) = (s, m) {
+        let (sensor, mode) = (&out[s], &out[m]);
+        let in_probe =
+            matches!(&sensor.evidence, Evidence::SensorResonance(e) if e.probe.is_some());
+        if m < s && (in_probe || mode.score - sensor.score < CLOSE_MARGIN) {
+            let c = out.remove(s);
+            out.insert(m, c);
         }
     }
     // A leak lowers the static gain: with the DC gain at 1 or above (no leaking volume; a
@@ -88,7 +92,9 @@ pub(super) fn order(out: &mut Vec<Candidate>, sensor_matched: bool, dc_gain: f64
                 }
                 Evidence::SensorResonance(s) => {
                     c.kind == EffectKind::SensorResonance
-                        && s.probe_above_floor_db >= MODE_PEAK_OVER_CREEP_DB
+                        && s.probe
+                            .as_ref()
+                            .is_some_and(|p| p.above_floor_db >= MODE_PEAK_OVER_CREEP_DB)
                 }
                 _ => false,
             },
@@ -236,15 +242,15 @@ mod tests {
             Finding::Missing(EffectKind::Mode),
         ];
         let mut out = make(39.0, 1.48);
-        order(&mut out, false, 1.004);
+        order(&mut out, 1.004);
         assert_eq!(kinds(&out), mode_first);
         // A leaking volume: the gain is below 1, the leak keeps its place.
         let mut out = make(39.0, 1.48);
-        order(&mut out, false, 0.95);
+        order(&mut out, 0.95);
         assert_eq!(kinds(&out), leak_first);
         // A weak peak is no resonance a creep could not leave.
         let mut out = make(7.0, 1.48);
-        order(&mut out, false, 1.004);
+        order(&mut out, 1.004);
         assert_eq!(kinds(&out), leak_first);
         // Nor is a broad hump, however far out (seed 14's case 019: a creep read as a peak at
         // 2 Hz, 31 dB out, Q about 1).
@@ -262,11 +268,11 @@ mod tests {
             ),
             candidate(EffectKind::Leak, 1.54, leak()),
         ];
-        order(&mut out, false, 1.004);
+        order(&mut out, 1.004);
         assert_eq!(kinds(&out), leak_first);
         // Not close.
         let mut out = make(39.0, 1.0);
-        order(&mut out, false, 1.004);
+        order(&mut out, 1.004);
         assert_eq!(kinds(&out), leak_first);
     }
 
@@ -279,7 +285,7 @@ mod tests {
                 candidate(EffectKind::Leak, 0.82, creep(z)),
                 candidate(EffectKind::Mode, 0.48, mode),
             ];
-            order(&mut out, false, dc_gain);
+            order(&mut out, dc_gain);
             out[0].kind
         };
         let mode = Finding::Missing(EffectKind::Mode);
@@ -313,7 +319,7 @@ mod tests {
             ),
             candidate(EffectKind::Mode, 1.48, peak(39.0)),
         ];
-        order(&mut out, false, 1.004);
+        order(&mut out, 1.004);
         assert_eq!(
             kinds(&out),
             vec![
@@ -325,15 +331,54 @@ mod tests {
     }
 
     #[test]
+    fn a_ringing_reference_puts_the_transducers_before_a_mode_they_tie_with() {
+        // Seed 15's case 033: the reference rings at 2.3 kHz in both tests, the probe shows
+        // no peak there, and the mode's trial (two free poles and zeros) scores as the
+        // transducers' does.
+        let sensor = |probe: Option<f64>| {
+            Evidence::SensorResonance(crate::modelling::diagnose::SensorResonance {
+                probe: probe.map(|db| crate::modelling::diagnose::ProbePeak {
+                    above_floor_db: db,
+                    frequency_hz: 2.29e3,
+                    source: Spectrum::Residual,
+                }),
+                reference_above_floor_db: 16.0,
+                reference_peak_hz: 2.29e3,
+                reference_q: 9.8,
+                reference_test: "est.csv".into(),
+                remedy: String::new(),
+            })
+        };
+        let first = |mode: f64, probe: Option<f64>| {
+            let mut out = vec![
+                candidate(EffectKind::Mode, mode, peak(16.0)),
+                candidate(EffectKind::SensorResonance, 0.11, sensor(probe)),
+            ];
+            order(&mut out, 1.0);
+            out[0].kind
+        };
+        let (sensor_first, mode_first) = (
+            Finding::Missing(EffectKind::SensorResonance),
+            Finding::Missing(EffectKind::Mode),
+        );
+        assert_eq!(first(0.112, None), sensor_first);
+        // The mode well ahead: it keeps its place, unless the probe peaks beside the ringing.
+        assert_eq!(first(0.9, None), mode_first);
+        assert_eq!(first(0.9, Some(12.0)), sensor_first);
+    }
+
+    #[test]
     fn a_leak_goes_after_a_clear_transducer_resonance_it_ties_with() {
         // Bank case 096: a flush hole whose transducers ring near 290 kHz (the reference at
         // 291.5 kHz, the probe's residual 24 dB out at 272 kHz); the leak's trial scores 0.07
         // more, with the model's DC gain at 1.
         let sensor = |probe_db: f64| {
             Evidence::SensorResonance(crate::modelling::diagnose::SensorResonance {
-                probe_above_floor_db: probe_db,
-                probe_peak_hz: 272e3,
-                probe_source: Spectrum::Residual,
+                probe: Some(crate::modelling::diagnose::ProbePeak {
+                    above_floor_db: probe_db,
+                    frequency_hz: 272e3,
+                    source: Spectrum::Residual,
+                }),
                 reference_above_floor_db: 18.0,
                 reference_peak_hz: 291.5e3,
                 reference_q: 11.0,
@@ -346,7 +391,7 @@ mod tests {
                 candidate(EffectKind::Leak, 0.69, leak()),
                 candidate(EffectKind::SensorResonance, 0.62, sensor(probe_db)),
             ];
-            order(&mut out, true, dc_gain);
+            order(&mut out, dc_gain);
             out[0].kind
         };
         assert_eq!(
@@ -388,7 +433,7 @@ mod tests {
                 candidate(EffectKind::Drift, 1.67, drift.clone()),
                 candidate(EffectKind::NonlinearDamping, 1.70, loss(signature, joint)),
             ];
-            order(&mut out, false, 1.0);
+            order(&mut out, 1.0);
             assert_eq!(
                 out[0].kind,
                 Finding::Missing(first),
@@ -418,7 +463,7 @@ mod tests {
                 candidate(EffectKind::Drift, 0.9, drift(pre)),
                 candidate(EffectKind::Mode, 0.3, peak(10.0)),
             ];
-            order(&mut out, false, 1.0);
+            order(&mut out, 1.0);
             assert_eq!(out[0].kind, Finding::Missing(first), "{pre}");
         }
     }

@@ -7,8 +7,8 @@ use super::{
     amplitude_signature, creep_in_standard_errors, drift_before_step, joint_loss_evidence, mean,
     per_test, pre_step_slope, separating_test, temperature_evidence, temperature_reading,
     AmplitudeSignature, Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping,
-    Remedy, ScaleEstimate, SensorResonance, Spectrum, TemperatureShift, CLOSE_MARGIN,
-    COLOURED_NOISE_FIT, LEAK_DC_GAIN_BELOW, SENSOR_RESONANCE_REMEDY,
+    Remedy, ScaleEstimate, Spectrum, TemperatureShift, CLOSE_MARGIN, COLOURED_NOISE_FIT,
+    LEAK_DC_GAIN_BELOW,
 };
 use crate::error::Result;
 use crate::fit::model::Uncertainty;
@@ -282,69 +282,23 @@ pub fn diagnose(
         );
     }
 
-    // sensor-resonance: the reference rings too, at the frequency where the probe's residual
-    // or model error peaks: the transducers' own diaphragm, in both channels. A line or cavity
-    // mode never shows in the reference.
-    let ringing = evidence
-        .iter()
-        .filter_map(|e| e.reference_ringing.map(|p| (e, p)))
-        .max_by(|a, b| a.1.above_floor_db.total_cmp(&b.1.above_floor_db));
-    let mut sensor_matched = false;
-    if let (Some((e, rp)), None) = (ringing, effects::prefilter_hz(current.effects)) {
-        let near = |f: f64| (f / rp.frequency_hz - 1.0).abs() < SAME_FREQUENCY;
-        let probe = evidence
-            .iter()
-            .flat_map(|e| {
-                e.spectrum
-                    .peaks
-                    .iter()
-                    .map(|p| (p, Spectrum::Residual))
-                    .chain(
-                        e.model_error
-                            .peaks
-                            .iter()
-                            .map(|p| (p, Spectrum::ModelError)),
-                    )
-            })
-            .filter(|(p, _)| near(p.frequency_hz))
-            .max_by(|a, b| a.0.above_floor_db.total_cmp(&b.0.above_floor_db));
-        if let Some((pp, source)) = probe {
-            let f = rp.frequency_hz;
-            let added = Effect::SensorResonance {
-                natural_frequency_hz: f,
-                prefilter_hz: 0.0,
-                remedy: effects::SensorRemedy::Modes,
-            };
-            if let Some((after, _)) = trial(added.clone(), &base) {
-                sensor_matched = true;
-                offer(
-                    EffectKind::SensorResonance,
-                    after,
-                    Evidence::SensorResonance(SensorResonance {
-                        probe_above_floor_db: pp.above_floor_db,
-                        probe_peak_hz: pp.frequency_hz,
-                        probe_source: source,
-                        reference_above_floor_db: rp.above_floor_db,
-                        reference_peak_hz: f,
-                        reference_q: rp.q,
-                        reference_test: e.file.clone(),
-                        remedy: SENSOR_RESONANCE_REMEDY.into(),
-                    }),
-                    format!(
-                        "the reference itself rings at {f:.0} Hz ({:.0} dB above the floor of its \
-                         increments, Q about {:.0}) and the probe's {source} peaks at {:.0} Hz: the \
-                         transducers' own diaphragm resonance, in both channels, not the line's; \
-                         model the transducers' modes (two more poles and zeros, on the raw \
-                         signals), or, as the paper does, fit below it with both channels \
-                         prefiltered at {:.0} Hz (sensor-resonance-prefilter)",
-                        rp.above_floor_db,
-                        rp.q,
-                        pp.frequency_hz,
-                        0.5 * f
-                    ),
-                    Remedy::Add(added),
-                );
-            }
+    // sensor-resonance: the reference rings too (a line or cavity mode never shows in the
+    // reference): the transducers' own diaphragm, in both channels ([`super::sensor`]).
+    let signature = super::sensor::signature(evidence);
+    if let (Some(sig), None) = (signature, effects::prefilter_hz(current.effects)) {
+        let added = Effect::SensorResonance {
+            natural_frequency_hz: sig.reference.frequency_hz,
+            prefilter_hz: 0.0,
+            remedy: effects::SensorRemedy::Modes,
+        };
+        if let Some((after, _)) = trial(added.clone(), &base) {
+            offer(
+                EffectKind::SensorResonance,
+                after,
+                Evidence::SensorResonance(sig.evidence()),
+                sig.reading(),
+                Remedy::Add(added),
+            );
         }
     }
 
@@ -533,11 +487,16 @@ pub fn diagnose(
     // correlates with: noise biases least squares. With output error already, the probe's own
     // noise before a step decides where a test has one: white there, the residual's colour is
     // the reference's noise through the model (errors in variables); coloured, it scatters the
-    // residual's correlation with the input beyond the white band. Without one, the signature
-    // must be clean (no cause in the input).
+    // residual's correlation with the input beyond the white band, and is itself the
+    // evidence, at the floor of a simulation error too (a noise model lowers the error it
+    // reports, the prediction error, and states the uncertainty right). Without one, the
+    // signature must be clean (no cause in the input).
     let own = crate::fit::noise::probe_predictability(tests);
-    let coloured = own.map_or(!input_explains, |c| c >= MIN_IMPROVEMENT);
-    if p < 1e-3 && (!matches!(current.method, Method::Oe | Method::Bj) || coloured) {
+    let seen = own.is_some_and(|c| c >= MIN_IMPROVEMENT);
+    let least_squares = !matches!(current.method, Method::Oe | Method::Bj);
+    if seen && effects::noise_model(current.effects).is_none()
+        || p < 1e-3 && (least_squares || own.is_none() && !input_explains)
+    {
         let added = Effect::ColouredNoise {
             ar: Vec::new(),
             innovation_std: 0.0,
@@ -558,11 +517,18 @@ pub fn diagnose(
                 probe_noise_predictability: own,
             },
             format!(
-                "the residual is correlated in time beyond what both channels' noise through \
-                 the model explains (Ljung-Box p = {p:.1e}, lag-1 correlation {rho1:.2}){}: \
-                 coloured measurement noise. The remedy is a noise model beside the dynamics \
-                 ({how}: what a predictor of the probe one sample ahead cannot remove, against \
-                 the simulation error before)",
+                "{}{}: coloured measurement noise. The remedy is a noise model beside the \
+                 dynamics ({how}: what a predictor of the probe one sample ahead cannot remove, \
+                 against the simulation error before)",
+                if p < 1e-3 {
+                    format!(
+                        "the residual is correlated in time beyond what both channels' noise \
+                         through the model explains (Ljung-Box p = {p:.1e}, lag-1 correlation \
+                         {rho1:.2})"
+                    )
+                } else {
+                    "the residual is within what both channels' noise leaves".into()
+                },
                 own.map_or(String::new(), |c| format!(
                     ", and a predictor lowers the probe's own noise before the step {c:.2} times"
                 )),
@@ -606,7 +572,7 @@ pub fn diagnose(
         }
     }
 
-    super::order::order(&mut out, sensor_matched, current.model.dc_gain());
+    super::order::order(&mut out, current.model.dc_gain());
     // Nothing is missing when the residual is what both channels' noise leaves (at the floor,
     // correlated only as that noise is), or at the floor with no effect's trial lowering it.
     // A residual above the floor that no effect's trial lowers is not "none": something

@@ -454,7 +454,8 @@ fn decimals(std: f64) -> Option<usize> {
 }
 
 /// A deviation alone, to two significant digits.
-fn two_digits(std: f64) -> String {
+#[must_use]
+pub fn two_digits(std: f64) -> String {
     match decimals(std) {
         Some(d) => format!("{std:.d$}"),
         None => format!("{std}"),

@@ -123,8 +123,18 @@ pub fn variance_of_mean(x: &[f64]) -> f64 {
 /// of 64 samples (a traverse).
 #[must_use]
 pub fn innovation_floor(x: &[f64], quiet: usize) -> Option<f64> {
-    let pre = x.get(..quiet).filter(|p| p.len() >= 64)?;
-    Some(fit(&crate::fit::step::detrend(pre), MAX_NOISE_ORDER).innovation_std)
+    of_quiet_segment(x, quiet).map(|m| m.innovation_std)
+}
+
+/// The AR model (order up to [`MAX_NOISE_ORDER`]) of a channel's quiet segment, the first
+/// `quiet` samples detrended: its noise alone, the signal still. `None` below
+/// [`crate::design::inverse::optimal::MIN_QUIET`] samples (a traverse).
+#[must_use]
+pub fn of_quiet_segment(x: &[f64], quiet: usize) -> Option<ArNoise> {
+    let pre = x
+        .get(..quiet)
+        .filter(|p| p.len() >= crate::design::inverse::optimal::MIN_QUIET)?;
+    Some(fit(&crate::fit::step::detrend(pre), MAX_NOISE_ORDER))
 }
 
 /// How much of a channel's noise a predictor removes: the standard deviation of its quiet
@@ -133,8 +143,7 @@ pub fn innovation_floor(x: &[f64], quiet: usize) -> Option<f64> {
 /// pole 0.9 gives 2.3. `None` without a quiet segment of 64 samples.
 #[must_use]
 pub fn predictability(x: &[f64], quiet: usize) -> Option<f64> {
-    let pre = x.get(..quiet).filter(|p| p.len() >= 64)?;
-    let model = fit(&crate::fit::step::detrend(pre), MAX_NOISE_ORDER);
+    let model = of_quiet_segment(x, quiet)?;
     (model.innovation_std > 0.0).then(|| model.std / model.innovation_std)
 }
 

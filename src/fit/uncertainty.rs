@@ -83,13 +83,7 @@ pub(crate) fn features(model: &Model) -> Option<(f64, Vec<(f64, f64)>)> {
 /// before a traverse's dip is signal, not noise). Zero without two samples before the step.
 pub(crate) fn levels(u: &[f64], y: &[f64], onset: usize) -> Levels {
     let quiet = step::quiet_until(u);
-    let ar = |x: &[f64]| noise::fit(&step::detrend(x), noise::MAX_NOISE_ORDER);
-    let noise = match (u.get(..quiet), y.get(..quiet)) {
-        (Some(u0), Some(y0)) if quiet >= crate::design::inverse::optimal::MIN_QUIET => {
-            Some((ar(y0), ar(u0)))
-        }
-        _ => None,
-    };
+    let noise = noise::of_quiet_segment(y, quiet).zip(noise::of_quiet_segment(u, quiet));
     let (probe_var, reference_var) = match (u.get(..onset), y.get(..onset)) {
         (Some(u0), Some(y0)) if u0.len() >= 2 => {
             (noise::variance_of_mean(y0), noise::variance_of_mean(u0))

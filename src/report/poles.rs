@@ -8,7 +8,7 @@ use super::plot::{self, colour, Panel, Series, Style};
 use super::{escape, push_figure, Inputs};
 use crate::error::Result;
 use crate::fit::analysis::{self, Analysis, ModeKind};
-use crate::fit::model::quoted;
+use crate::fit::model::{quoted, two_digits};
 
 /// Between a value and its deviation.
 const PLUS_MINUS: &str = " &plusmn; ";
@@ -120,25 +120,23 @@ pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
                 natural_frequency_hz,
                 damping,
                 ..
-            } => match deviation(*natural_frequency_hz) {
-                Some(d) => (
-                    format!(
-                        "{} Hz",
+            } => {
+                let (f, z) = match deviation(*natural_frequency_hz) {
+                    Some(d) => (
                         quoted(
                             *natural_frequency_hz,
                             d.natural_frequency_std_hz,
-                            PLUS_MINUS
-                        )
+                            PLUS_MINUS,
+                        ),
+                        quoted(*damping, d.damping_std, PLUS_MINUS),
                     ),
-                    quoted(*damping, d.damping_std, PLUS_MINUS),
-                    "&ndash;".to_string(),
-                ),
-                None => (
-                    format!("{natural_frequency_hz:.1} Hz"),
-                    format!("{damping:.3}"),
-                    "&ndash;".to_string(),
-                ),
-            },
+                    None => (
+                        format!("{natural_frequency_hz:.1}"),
+                        format!("{damping:.3}"),
+                    ),
+                };
+                (format!("{f} Hz"), z, "&ndash;".to_string())
+            }
             ModeKind::Real {
                 time_constant_s, ..
             } => (
@@ -165,9 +163,9 @@ pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
         let _ = writeln!(
             h,
             "<p class=\"note\">&plusmn; one standard deviation as the fit states it, from {}; \
-             DC gain &plusmn; {:.1e}. It covers the noise, not a wrong model structure.</p>",
+             DC gain &plusmn; {}. It covers the noise, not a wrong model structure.</p>",
             escape(&u.noise_text()),
-            u.dc_gain_std
+            two_digits(u.dc_gain_std)
         );
     }
     Ok(())

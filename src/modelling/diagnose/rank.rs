@@ -475,7 +475,8 @@ pub fn diagnose(
         }
     }
 
-    // coloured noise: correlated residuals with no cause in the input and no peak.
+    // coloured noise: the probe's own noise coloured before a step, or correlated residuals
+    // with no cause in the input.
     let p = evidence
         .iter()
         .map(|e| e.autocorrelation.p_value)

@@ -56,7 +56,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
-use case::Case;
+use case::{Case, Effect, Kind};
 use runner::{make_files, run_case, Outcome};
 
 /// Command-line settings.
@@ -193,7 +193,17 @@ fn run_loop(cases: &[Case], s: &Settings) -> Result<(), Box<dyn Error>> {
                 let Some(case) = cases.get(i) else { break };
                 let dir = s.out.join(format!("case-{:03}", case.id));
                 let mut ignored = Outcome::default();
-                let o = match make_files(case, &dir, &s.unlag, &mut ignored) {
+                // The same probe without the hidden effect, on the same noise (`bare/`): the
+                // oracle for what its own dynamics show beyond the second-order start.
+                let bare = Case {
+                    kind: Kind::None,
+                    effect: Effect::None,
+                    ..case.clone()
+                };
+                let made = make_files(case, &dir, &s.unlag, &mut ignored).and_then(|_| {
+                    make_files(&bare, &dir.join("bare"), &s.unlag, &mut Outcome::default())
+                });
+                let o = match made {
                     Ok(_) => modelling_loop::run(&s.unlag, &dir, case.kind),
                     Err(e) => modelling_loop::LoopOutcome {
                         failure: Some(format!("simulation: {e}")),

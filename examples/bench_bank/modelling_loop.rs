@@ -40,6 +40,13 @@ pub struct LoopOutcome {
     /// effect, what the floors should predict; with a hidden effect the true model leaves
     /// out ([`Kind::truth_lacks_it`]), an upper bound on what the probe's own dynamics leave.
     pub truth_error: Option<f64>,
+    /// The same probe without the hidden effect, on the same noise (`bare/`, made beside the
+    /// case): the second-order start's errors there, on the estimation and validation
+    /// tests, ...
+    pub bare_before: Option<[f64; 2]>,
+    /// ... and its true model's: their ratio says whether the probe's own dynamics beyond
+    /// second order show in tests like these, whatever the hidden effect.
+    pub bare_truth: Option<[f64; 2]>,
     /// The first name's change fits on the estimation and validation tests together (`--also
     /// val.csv`, a quadratic loss): it is judged on `run.csv`, another run of the validation's
     /// kind, held out; the `*_run` figures are that test's.
@@ -122,12 +129,41 @@ impl LoopOutcome {
     /// The probe's own dynamics beyond the second-order start are visible in these tests: the
     /// true model, which leaves the hidden effect out, still beats the plain fit's validation
     /// error by the diagnosis' threshold. The gap, when it does.
+    ///
+    /// Read on the bare twin where it was made (any kind), else on the case itself where the
+    /// true model leaves the hidden effect out.
     pub fn own_dynamics_visible(&self, kind: Kind) -> Option<f64> {
-        if !kind.truth_lacks_it() {
-            return None;
-        }
-        let gap = self.before? / self.truth_error?;
+        let gap = match (self.bare_before, self.bare_truth) {
+            (Some([be, bv]), Some([te, tv])) => (be / te).max(bv / tv),
+            _ if kind.truth_lacks_it() => self.before? / self.truth_error?,
+            _ => return None,
+        };
         (gap >= VISIBLE_FALL).then_some(gap)
+    }
+
+    /// Named right for what the tests show: the hidden kind where it is visible (or carried);
+    /// where it is not, `mode` or `unexplained` (whose change is a higher order) if the
+    /// probe's own dynamics beyond second order show on the bare twin, else `none` or
+    /// `unexplained` (`none` alone when nothing is hidden). Where both show, `mode` first is
+    /// right too when its change lowers the error more than the hidden kind's.
+    pub fn right_by_tests(&self, kind: Kind) -> bool {
+        if self.right_or_carried(kind)
+            && (kind != Kind::None || self.own_dynamics_visible(kind).is_none())
+        {
+            return true;
+        }
+        let hidden_unseen = kind == Kind::None || self.visible(kind) == Some(false);
+        if !hidden_unseen {
+            // Both are missing: `mode` first is right where its change lowers the error more
+            // than the hidden kind's does.
+            return self.first() == "mode"
+                && self.own_dynamics_visible(kind).is_some()
+                && matches!((self.after, self.true_after), (Some(a), Some(t)) if a < t);
+        }
+        match self.own_dynamics_visible(kind) {
+            Some(_) => matches!(self.first(), "mode" | "unexplained"),
+            None => kind != Kind::None && matches!(self.first(), "none" | "unexplained"),
+        }
     }
 }
 
@@ -320,9 +356,28 @@ pub fn run(bin: &Path, dir: &Path, kind: Kind) -> LoopOutcome {
         .and_then(|j| serde_json::from_str::<serde_json::Value>(j.trim()).ok())
         .and_then(|v| v.get("tests")?.get(0)?.get("nrmse")?.as_f64());
     }
+    let base = ["fit", "--order", "2", "est.csv", "val.csv", "--json"];
+    if dir.join("bare").join("truth.toml").is_file() {
+        let bare = dir.join("bare");
+        let quiet = |args: &[&str], log: &str| super::runner::unlag(bin, &bare, args, log);
+        // The two tests' errors, in order, from a list of them in the JSON.
+        let both = |json: String, list: &str| -> Option<[f64; 2]> {
+            let v: serde_json::Value = serde_json::from_str(json.trim()).ok()?;
+            let nrmse = |i: usize| v.get(list)?.get(i)?.get("nrmse")?.as_f64();
+            Some([nrmse(0)?, nrmse(1)?])
+        };
+        o.bare_before = quiet(&[&base[..], &["-o", "base.toml"]].concat(), "loop-base.log")
+            .ok()
+            .and_then(|j| both(j, "sources"));
+        o.bare_truth = quiet(
+            &["compare", "truth.toml", "est.csv", "val.csv", "--json"],
+            "loop-truth-compare.log",
+        )
+        .ok()
+        .and_then(|j| both(j, "tests"));
+    }
     let score = |i: usize| candidates.get(i).and_then(|c| c.get("score")?.as_f64());
     o.margin = score(0).map(|a| a - score(1).unwrap_or(0.0));
-    let base = ["fit", "--order", "2", "est.csv", "val.csv", "--json"];
     match run(&[&base[..], &["-o", "base.toml"]].concat(), "loop-base.log")
         .and_then(|j| validation_error(&j))
     {

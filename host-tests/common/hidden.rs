@@ -386,8 +386,8 @@ pub fn quadratic_line(u: &[f64], fs: f64, mode: (f64, f64), k: f64, delay: usize
     y
 }
 
-/// The catalogue's cases: every supported kind twice, with different parameters and sample
-/// rates, and two cases with nothing hidden.
+/// The catalogue's cases: every supported kind at least twice, with different parameters and
+/// sample rates, and two cases with nothing hidden.
 #[must_use]
 pub fn cases() -> Vec<Case> {
     let line = |name, kind, fs, delay, hidden, order| Case {
@@ -582,6 +582,28 @@ pub fn cases() -> Vec<Case> {
             hidden: Hidden::NonlinearDamping(0.3),
             order: 2,
             steps: &[(-0.5, 1.0), (1.0, 0.5)],
+            second: None,
+        },
+        // A 5 kHz ringing of half the step that dies in 13 samples: the plain model sits under
+        // this test's noise floor (0.82 % against 0.94 %), and was kept apart as one the
+        // diagnosis cannot see while its trial kept the plain model's delay. The transducers'
+        // modes move the step's apparent onset; searched again, the delay lets their trial
+        // lower the held-out error 1.5x, to 0.55 %, and the diagnosis names them.
+        Case {
+            name: "sensor resonance: 5 kHz, falling step, 20 kHz",
+            kind: "sensor-resonance",
+            fs: 20_000.0,
+            mode: (95.0, 0.3),
+            delay: 30,
+            noise: 0.002,
+            n: 4000,
+            hidden: Hidden::SensorResonance {
+                f: 5_000.0,
+                zeta: 0.05,
+                probe: 0.5,
+            },
+            order: 2,
+            steps: &[(1.0, 0.0), (0.2, 0.9)],
             second: None,
         },
     ];
@@ -937,7 +959,7 @@ pub fn physical_limits() -> Vec<Case> {
         steps,
         second: None,
     };
-    let mut limits = vec![
+    vec![
         // The thermal creep is there, but so is the 1 m line's second acoustic mode: the
         // diagnosis names `mode` first (both are real; the user's plain model misses both).
         case(
@@ -997,27 +1019,5 @@ pub fn physical_limits() -> Vec<Case> {
                 ..tight
             },
         ),
-    ];
-    // Judged against the raw probe (not a prefiltered one, whose fall was an artefact of
-    // filtering the probe it is compared with), a 5 kHz ringing of half the step that dies in
-    // 13 samples stays under this test's noise floor (0.82 % against 0.94 %): the residual is
-    // consistent with noise and the diagnosis says `none`.
-    limits.push(Case {
-        name: "sensor resonance: 5 kHz, falling step, 20 kHz",
-        kind: "sensor-resonance",
-        fs: 20_000.0,
-        mode: (95.0, 0.3),
-        delay: 30,
-        noise: 0.002,
-        n: 4000,
-        hidden: Hidden::SensorResonance {
-            f: 5_000.0,
-            zeta: 0.05,
-            probe: 0.5,
-        },
-        order: 2,
-        steps: &[(1.0, 0.0), (0.2, 0.9)],
-        second: None,
-    });
-    limits
+    ]
 }

@@ -204,7 +204,7 @@ fn run_loop(cases: &[Case], s: &Settings) -> Result<(), Box<dyn Error>> {
                     make_files(&bare, &dir.join("bare"), &s.unlag, &mut Outcome::default())
                 });
                 let o = match made {
-                    Ok(_) => modelling_loop::run(&s.unlag, &dir, case.kind),
+                    Ok(_) => modelling_loop::run(&s.unlag, &dir, case),
                     Err(e) => modelling_loop::LoopOutcome {
                         failure: Some(format!("simulation: {e}")),
                         ..Default::default()

@@ -328,6 +328,16 @@ pub struct Case {
 }
 
 impl Case {
+    /// The `--add` argument of the hidden effect as the truth knows it: a sensor resonance
+    /// with its diaphragm's frequency (which `fit` cannot read where the estimation step's
+    /// reference does not ring), else the kind's name.
+    pub fn true_add(&self) -> String {
+        match self.effect {
+            Effect::SensorResonance { f_hz, .. } => format!("sensor-resonance={f_hz:.0}"),
+            _ => self.kind.name().into(),
+        }
+    }
+
     /// The 16-bit ADC of both channels for signals within `[lo, hi]`: 2.5 steps of full
     /// scale centred on them, wider (by a fifth of a step of margin) only when a ringing
     /// probe or a drift needs it, as an experimenter sets the range after a trial run.

@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use super::case::Kind;
+use super::case::{Case, Kind};
 
 /// What the loop gave on one case.
 #[derive(Debug, Default, Clone)]
@@ -290,8 +290,9 @@ impl LoopOutcome {
     }
 }
 
-/// Runs the loop in the case's folder (its `est.csv` and `val.csv` made), `kind` hidden.
-pub fn run(bin: &Path, dir: &Path, kind: Kind) -> LoopOutcome {
+/// Runs the loop in the case's folder (its `est.csv` and `val.csv` made), `case.kind` hidden.
+pub fn run(bin: &Path, dir: &Path, case: &Case) -> LoopOutcome {
+    let kind = case.kind;
     let mut o = LoopOutcome::default();
     let run = |args: &[&str], log: &str| super::runner::unlag(bin, dir, args, log);
     let diagnosis = run(
@@ -443,7 +444,11 @@ pub fn run(bin: &Path, dir: &Path, kind: Kind) -> LoopOutcome {
     // The right answer's refit: is the hidden effect visible in these tests at all?
     if kind != Kind::None {
         if let Ok((e, _)) = run(
-            &[&base[..], &["--add", kind.name(), "-o", "true-added.toml"]].concat(),
+            &[
+                &base[..],
+                &["--add", &case.true_add(), "-o", "true-added.toml"],
+            ]
+            .concat(),
             "loop-true-added.log",
         )
         .and_then(|j| validation_error(&j))

@@ -226,7 +226,7 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         .collect();
     let _ = writeln!(
         r,
-        "- visible in its tests (adding the hidden kind itself lowers the validation error by at least {VISIBLE_FALL}x, the diagnosis' own threshold, or that refit failed; a nonlinear damping also when, fitted on both tests together, a loss is found and it lowers `run.csv`'s): {} of {} hidden effects; named right first among them: {}/{} ({:.0} %); within two rounds {}/{}",
+        "- visible in its tests (adding the hidden kind itself lowers the validation error by at least {VISIBLE_FALL}x, the diagnosis' own threshold, or that refit failed; a nonlinear damping also when, fitted on both tests together, a loss is found and it lowers both their own error, as the diagnosis sees it, and `run.csv`'s, held out, by that factor): {} of {} hidden effects; named right first among them: {}/{} ({:.0} %); within two rounds {}/{}",
         visible.len(),
         hidden.len(),
         visible.iter().filter(|(c, o)| o.right_or_carried(c.kind)).count(),

@@ -58,6 +58,10 @@ pub struct LoopOutcome {
     /// ... after the hidden kind fitted on both tests together (nonlinear damping; `None`
     /// when that fit finds no loss), ...
     pub true_after_run: Option<f64>,
+    /// The estimation and validation tests' RMS error fitted together, by one linear model
+    /// and with the hidden quadratic loss: what the diagnosis' tests themselves show of a
+    /// nonlinear damping (in-sample, as the diagnosis reads it).
+    pub joint_in_sample: Option<(f64, f64)>,
     /// ... the probe's floor and the floor both channels leave.
     pub floor_run: Option<f64>,
     /// See [`LoopOutcome::floor_run`].
@@ -202,6 +206,20 @@ fn prediction_floor(json: &str) -> Option<f64> {
 }
 
 /// The quadratic loss in the JSON of `unlag fit ... --json` (0 without one).
+/// The RMS of the errors of the tests a fit was made on (the sources other than its
+/// validation), in the JSON of `unlag fit ... --json`.
+fn in_sample(json: &str) -> Option<f64> {
+    let v: serde_json::Value = serde_json::from_str(json.trim()).ok()?;
+    let e: Vec<f64> = v
+        .get("sources")?
+        .as_array()?
+        .iter()
+        .filter(|s| s.get("role").and_then(serde_json::Value::as_str) != Some("validation"))
+        .filter_map(|s| s.get("nrmse")?.as_f64())
+        .collect();
+    (!e.is_empty()).then(|| (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt())
+}
+
 fn loss_of(json: &str) -> f64 {
     serde_json::from_str::<serde_json::Value>(json.trim())
         .ok()
@@ -273,17 +291,20 @@ impl LoopOutcome {
 
     /// Whether these tests can show the hidden effect at all: adding the hidden kind itself
     /// lowers the validation error by at least the diagnosis' threshold ([`VISIBLE_FALL`]) (a
-    /// nonlinear damping fitted on both tests together: the error of `run.csv`).
+    /// nonlinear damping fitted on both tests together: their own error, and `run.csv`'s).
     /// An effect the plain fit carried by itself was visible to it. `None` when that refit
     /// failed or there is nothing hidden.
     pub fn visible(&self, kind: Kind) -> Option<bool> {
         if self.carried_right(kind) {
             return Some(true);
         }
-        // Nonlinear damping also counts as visible when fitted on both tests together (what
-        // identifies it) it lowers the error of a further run held out.
-        let jointly = match (self.before_run, self.true_after_run) {
-            (Some(b), Some(a)) => b >= VISIBLE_FALL * a,
+        // Nonlinear damping also counts as visible when, fitted on both tests together (what
+        // identifies it), it lowers their own error and the error of a further run held out:
+        // the diagnosis sees the first, the second says the loss is real.
+        let jointly = match (self.before_run, self.true_after_run, self.joint_in_sample) {
+            (Some(b), Some(a), Some((linear, loss))) => {
+                b >= VISIBLE_FALL * a && linear >= VISIBLE_FALL * loss
+            }
             _ => false,
         };
         Some(self.before? >= VISIBLE_FALL * self.true_after? || jointly)
@@ -428,7 +449,7 @@ pub fn run(bin: &Path, dir: &Path, case: &Case) -> LoopOutcome {
     if kind == Kind::NonlinearDamping {
         // Only a loss found counts: fitting the linear part on two tests alone also lowers the
         // further run's error.
-        if let Ok((e, gain)) = run(
+        if let Ok((e, gain, loss)) = run(
             &[
                 &joint_fit[..],
                 &["--add", kind.name(), "-o", "true-added-run.toml"],
@@ -436,9 +457,16 @@ pub fn run(bin: &Path, dir: &Path, case: &Case) -> LoopOutcome {
             .concat(),
             "loop-true-added-run.log",
         )
-        .and_then(|j| Ok((validation_error(&j)?.0, loss_of(&j))))
+        .and_then(|j| Ok((validation_error(&j)?.0, loss_of(&j), in_sample(&j))))
         {
             o.true_after_run = (gain > 0.0).then_some(e);
+            let linear = run(
+                &[&joint_fit[..], &["-o", "linear-run.toml"]].concat(),
+                "loop-linear-run.log",
+            )
+            .ok()
+            .and_then(|j| in_sample(&j));
+            o.joint_in_sample = linear.zip(loss);
         }
     }
     // The right answer's refit: is the hidden effect visible in these tests at all?

@@ -8,10 +8,11 @@
 //!    a mode, a level before the step for an offset, a ramp for a drift, a slow creep after
 //!    the step for a leak, correlation in time for coloured noise where the probe's own noise
 //!    before the step is coloured (without a quiet segment: no cause in the input), a peak in
-//!    the reference's own increments for a sensor resonance, at the frequency where the
-//!    probe's residual peaks or at one frequency in every step whose reference rings (a line
-//!    or cavity mode never shows in the reference, so a sensor resonance goes before a `mode`
-//!    that ties with it), and natural frequencies of
+//!    the reference's own increments after the estimation step for a sensor resonance (a
+//!    diaphragm rings in a step; a reference ringing only in another test is the pressure), at
+//!    the frequency where the probe's residual peaks or at one frequency in every step whose
+//!    reference rings (a line or cavity mode never shows in the reference, so a sensor
+//!    resonance goes before a `mode` that ties with it), and natural frequencies of
 //!    the tests fitted alone that all move by one common factor against the model's, with the
 //!    damping about the same, for a temperature ([`temperature_evidence`]; both damping laws
 //!    of [`crate::modelling::effects::TemperatureDamping`] are tried and the better offered, its `change`

@@ -21,9 +21,9 @@ pub(super) struct Signature {
 /// The estimation step's reference must ring: a step is the sharpest edge a transducer meets,
 /// and its diaphragm rings in it. A reference that rings only in another test rings with the
 /// pressure itself (a valve's chamber), which the probe's model must follow: over nine banks,
-/// seeds 13 to 21, each case whose reference rang in another test but not in the step hid a
-/// drift, a leak or a mode, never a sensor resonance (bank seed 20, case 002: a valve's
-/// chamber at 248 Hz, named a sensor resonance).
+/// seeds 13 to 21, the reference rang in another test but not in the step in 85 cases, and
+/// none of them hid a sensor resonance (bank seed 20, case 002: a drift, validated on a valve
+/// whose chamber rings at 248 Hz, was named a sensor resonance).
 ///
 /// Then, as a line or cavity mode never shows in the reference, that ringing is the
 /// transducers' where either the probe peaks near it in some test, or, where the probe shows

@@ -131,11 +131,12 @@ impl LoopOutcome {
     }
 
     /// The probe's own dynamics beyond the second-order start are visible in these tests: the
-    /// true model, which leaves the hidden effect out, still beats the plain fit's validation
-    /// error by the diagnosis' threshold. The gap, when it does.
+    /// true model without the hidden effect beats the plain fit by the diagnosis' threshold.
+    /// The gap, when it does.
     ///
-    /// Read on the bare twin where it was made (any kind), else on the case itself where the
-    /// true model leaves the hidden effect out.
+    /// Read on the bare twin where it was made (any kind; the larger gap of its estimation
+    /// and validation tests), else on the case's validation test where the true model leaves
+    /// the hidden effect out.
     pub fn own_dynamics_visible(&self, kind: Kind) -> Option<f64> {
         let gap = match (self.bare_before, self.bare_truth) {
             (Some([be, bv]), Some([te, tv])) => (be / te).max(bv / tv),
@@ -205,7 +206,6 @@ fn prediction_floor(json: &str) -> Option<f64> {
         .as_f64()
 }
 
-/// The quadratic loss in the JSON of `unlag fit ... --json` (0 without one).
 /// The RMS of the errors of the tests a fit was made on (the sources other than its
 /// validation), in the JSON of `unlag fit ... --json`.
 fn in_sample(json: &str) -> Option<f64> {
@@ -220,6 +220,7 @@ fn in_sample(json: &str) -> Option<f64> {
     (!e.is_empty()).then(|| (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt())
 }
 
+/// The quadratic loss in the JSON of `unlag fit ... --json` (0 without one).
 fn loss_of(json: &str) -> f64 {
     serde_json::from_str::<serde_json::Value>(json.trim())
         .ok()

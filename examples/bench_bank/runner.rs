@@ -152,44 +152,31 @@ fn order_delay(path: &Path) -> Option<(usize, usize)> {
     Some((order?, delay?))
 }
 
-/// The estimation nrmse `unlag fit` prints (`  estimation FILE nrmse X % ...`), as a fraction.
-fn fitted_nrmse(text: &str) -> Option<f64> {
-    let line = text
-        .lines()
-        .find(|l| l.trim_start().starts_with("estimation") && l.contains("nrmse"))?;
-    let mut words = line
-        .split_whitespace()
-        .skip_while(|w| *w != "nrmse")
-        .skip(1);
-    words.next()?.parse::<f64>().ok().map(|p| p / 100.0)
+/// The estimation test's error in the JSON of `unlag fit ... --json`.
+fn fitted_nrmse(json: &str) -> Option<f64> {
+    let v: serde_json::Value = serde_json::from_str(json.trim()).ok()?;
+    v.get("sources")?.get(0)?.get("nrmse")?.as_f64()
 }
 
-/// In the order table of `unlag fit --order auto`'s text, the stable order with the lowest
-/// estimation error, when that is lower than the chosen order's. Rows without an error (an
-/// unstable fit, `n/a`) are skipped.
-fn closest_order(text: &str) -> Option<usize> {
-    // (order, error, chosen)
-    let rows: Vec<(usize, f64, bool)> = text
-        .lines()
-        .skip_while(|l| !l.starts_with("order selection"))
-        .skip(2)
-        .take_while(|l| l.starts_with("  "))
-        .filter_map(|l| {
-            let w: Vec<&str> = l.split_whitespace().collect();
-            let order = w.first()?.parse().ok()?;
-            let stable = w.get(5).or(w.get(4)).is_some_and(|s| *s == "yes");
-            let error = match (w.get(2), w.get(3)) {
-                (Some(e), Some(&"%")) if stable => e.parse().unwrap_or(f64::INFINITY),
-                _ => f64::INFINITY,
-            };
-            Some((order, error, l.contains("<- chosen")))
+/// In the JSON of `unlag fit --order auto --json`, the stable order with the lowest estimation
+/// error, when that is lower than the error of the order chosen (the model's).
+fn closest_order(json: &str) -> Option<usize> {
+    let v: serde_json::Value = serde_json::from_str(json.trim()).ok()?;
+    let chosen = v.get("a")?.as_array()?.len();
+    // (order, error) of the stable orders that have one.
+    let rows: Vec<(usize, f64)> = v
+        .get("fit")?
+        .get("orders")?
+        .as_array()?
+        .iter()
+        .filter(|r| r.get("stable").and_then(serde_json::Value::as_bool) == Some(true))
+        .filter_map(|r| {
+            let order = usize::try_from(r.get("order")?.as_u64()?).ok()?;
+            Some((order, r.get("nrmse_estimation")?.as_f64()?))
         })
         .collect();
-    let chosen = rows.iter().find(|r| r.2)?;
-    let best = rows
-        .iter()
-        .filter(|r| r.1.is_finite())
-        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let chosen = rows.iter().find(|r| r.0 == chosen)?;
+    let best = rows.iter().min_by(|a, b| a.1.total_cmp(&b.1))?;
     (best.1 < chosen.1).then_some(best.0)
 }
 
@@ -399,10 +386,9 @@ pub fn make_files(
             simulate::write_csv(&dir.join("truth_est.csv"), case.fs, &u, &y)?;
             // The order the fit's criterion chooses weighs a smaller error against more
             // parameters as noise would; on a noise-free test every error is the model's, so the
-            // truth is the stable order that leaves the least.
-            // The refit at that order searches its delay again, so it is kept only where it
-            // leaves less than the criterion's choice.
-            let fit = ["fit", "truth_est.csv", "-o", "truth.toml"];
+            // truth is the stable order that leaves the least. The refit at that order searches
+            // its delay again, so it is kept only where it does leave less.
+            let fit = ["fit", "truth_est.csv", "-o", "truth.toml", "--json"];
             match unlag(bin, dir, &fit, "truth.log") {
                 Ok(text) => {
                     o.truth_fit = fitted_nrmse(&text);
@@ -416,6 +402,7 @@ pub fn make_files(
                             "-o",
                             "truth-order.toml",
                             "--fresh",
+                            "--json",
                         ];
                         let closer = unlag(bin, dir, &fit, "truth-order.log")
                             .ok()
@@ -438,47 +425,50 @@ pub fn make_files(
 #[cfg(test)]
 mod tests {
     use super::closest_order;
+    use serde_json::json;
 
-    /// The order table of seed 27's case 108, a pneumatic line fitted on its noise-free test.
-    const TABLE: &str = "order selection (auto 1..=6: lowest BIC on the estimation test):
-  order  delay    nrmse (est)      criterion  stable
-      1     18       12.234 %        -1791.9     yes
-      2     22        2.558 %        -9904.1     yes
-      3     24        0.546 %       -22034.0     yes  <- chosen
-      4     24        0.172 %       -19909.5     yes
-      5     24        0.052 %       -12106.1     yes
-      6     24        0.018 %       -16366.1     yes
-model: order 3, delay 24 samples (0.003284 s), method bj
-";
+    /// `unlag fit --json` of a model of order `chosen` whose order table has `errors` (order
+    /// 1 first; `None` for an unstable order, whose error is null).
+    fn fit_json(chosen: usize, errors: &[Option<f64>]) -> String {
+        let orders: Vec<_> = errors
+            .iter()
+            .enumerate()
+            .map(|(i, e)| json!({"order": i + 1, "nrmse_estimation": e, "stable": e.is_some()}))
+            .collect();
+        json!({"a": vec![0.0; chosen], "fit": {"orders": orders}}).to_string()
+    }
 
     #[test]
     fn a_noise_free_truth_is_the_stable_order_that_leaves_least() {
-        assert_eq!(closest_order(TABLE), Some(6));
+        // Seed 27's case 108, a pneumatic line fitted on its noise-free test.
+        let table = [
+            Some(0.12234),
+            Some(0.02558),
+            Some(0.00546),
+            Some(0.00172),
+            Some(0.00052),
+            Some(0.00018),
+        ];
+        assert_eq!(closest_order(&fit_json(3, &table)), Some(6));
         // The lowest is unstable: the next stable one.
-        let unstable = TABLE.replace(
-            "0.018 %       -16366.1     yes",
-            "0.018 %       -16366.1      no",
-        );
-        assert_eq!(closest_order(&unstable), Some(5));
+        let mut unstable = table;
+        unstable[5] = None;
+        assert_eq!(closest_order(&fit_json(3, &unstable)), Some(5));
         // The criterion chose the closest already: nothing to refit.
-        let chosen = TABLE
-            .replace("yes  <- chosen", "yes")
-            .replace("-16366.1     yes", "-16366.1     yes  <- chosen");
-        assert_eq!(closest_order(&chosen), None);
+        assert_eq!(closest_order(&fit_json(6, &table)), None);
         assert_eq!(closest_order("no table"), None);
         // Seed 13's case 054: unstable orders without an error sit between the rows.
-        let gaps = "order selection (auto 1..=6: lowest BIC on the estimation test):
-  order  delay    nrmse (est)      criterion  stable
-      1     34        1.973 %         1201.1     yes
-      2     38        0.323 %        -2950.3     yes
-      3     39            n/a     -2796212.0      no
-      4     38            n/a     -2796195.4      no
-      5     37        0.006 %       -23782.0     yes  <- chosen
-      6     37        0.003 %       -19982.5     yes
-model: order 5, delay 37 samples (0.004753 s), method bj
-";
-        assert_eq!(closest_order(gaps), Some(6));
-        let worse = gaps.replace("0.003 %", "0.009 %");
-        assert_eq!(closest_order(&worse), None);
+        let gaps = [
+            Some(0.01973),
+            Some(0.00323),
+            None,
+            None,
+            Some(6e-5),
+            Some(3e-5),
+        ];
+        assert_eq!(closest_order(&fit_json(5, &gaps)), Some(6));
+        let mut worse = gaps;
+        worse[5] = Some(9e-5);
+        assert_eq!(closest_order(&fit_json(5, &worse)), None);
     }
 }

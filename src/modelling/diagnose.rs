@@ -56,8 +56,9 @@ pub use evidence::{
 };
 pub use finding::{separating_test, Candidate, Finding, CLOSE_MARGIN};
 pub use order::{
-    drift_contradicted, CREEP_SEEN_STANDARD_ERRORS, DRIFT_CONTRADICTED_STANDARD_ERRORS,
-    LEAK_DC_GAIN_BELOW, MODE_PEAK_OVER_CREEP_DB,
+    drift_contradicted, ramp_kept, ramp_returns, CREEP_SEEN_STANDARD_ERRORS,
+    DRIFT_CONTRADICTED_STANDARD_ERRORS, LEAK_DC_GAIN_BELOW, MODE_PEAK_OVER_CREEP_DB,
+    RAMP_KEPT_BELOW,
 };
 pub use rank::{diagnose, FLOOR_OVERRULED, MIN_IMPROVEMENT, PARAMETER_PENALTY, SAME_FREQUENCY};
 pub use remedy::Remedy;

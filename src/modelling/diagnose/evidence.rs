@@ -57,6 +57,10 @@ pub enum Evidence {
         ramp_in_standard_errors: f64,
         /// The drift rate the trial fitted (probe units per second).
         rate_per_s: f64,
+        /// How much of the line through the residual its level keeps at the end of the record,
+        /// on the test of the largest ramp ([`super::ramp_kept`]): about 1 for a drift, which
+        /// runs on; a hump that comes back is not offered as one.
+        ramp_kept_at_end: Option<f64>,
     },
     /// `leak`: a slow creep after the step.
     Leak {

@@ -3,7 +3,7 @@
 
 use super::{Candidate, Evidence, ModeEvidence, NonlinearDamping, CLOSE_MARGIN};
 use crate::modelling::effects::EffectKind;
-use crate::modelling::evidence::NARROW_PEAK_Q;
+use crate::modelling::evidence::{Trend, NARROW_PEAK_Q};
 
 /// A leak lowers the probe's static gain (`1 / (1 + R G)` for a leaking cavity, below 1 for a
 /// leaking side volume too); a thermal creep, the other slow pole the `leak` effect models,
@@ -32,6 +32,48 @@ pub fn drift_contradicted(pre: f64, pre_se: f64, rate: f64) -> bool {
     pre_se.is_finite()
         && (pre - rate).abs() > DRIFT_CONTRADICTED_STANDARD_ERRORS * pre_se
         && pre * rate <= 0.0
+}
+
+/// A ramp whose level at the end of the record keeps less than this fraction of what the
+/// straight line through the residual puts there has come back: a hump the dynamics leave
+/// after the step, not a drift ([`ramp_kept`]).
+pub const RAMP_KEPT_BELOW: f64 = 0.25;
+
+/// How much of a straight line through a test's residual its level keeps at the end: the
+/// residual's mean over the last 30 % of the record less its mean before the step, over what
+/// the line (slope `trend.slope_per_s`) rises between the two segments' centres; and that
+/// difference less the line's rise, in standard errors of the two means under the noise both
+/// channels leave. The test is `samples` long with its step at `onset`, sampled at `fs`.
+///
+/// A sensor's drift runs on to the end of the record: about 1, less where the fit took part of
+/// it into its dynamics (0.34 to 1.27 over the drifts of banks 13 to 25). A hump the dynamics
+/// leave after a step returns to the level before it (-0.18 to 0.22 where a capillary's tail
+/// after a step of another size or temperature was named `drift` on the same banks), though
+/// the line through it climbs. `None` without a segment before the step, or a line that does
+/// not rise.
+#[must_use]
+pub fn ramp_kept(trend: &Trend, samples: usize, onset: usize, fs: f64) -> Option<(f64, f64)> {
+    let late = (3 * samples / 10).max(1);
+    if onset == 0 || onset + late > samples || fs.is_nan() || fs <= 0.0 {
+        return None;
+    }
+    // Centres of the segment before the step and of the last 30 %, in seconds.
+    let pre_centre = 0.5 * (onset as f64 - 1.0) / fs;
+    let late_centre = (samples as f64 - 0.5 * late as f64 - 0.5) / fs;
+    let rise = trend.slope_per_s * (late_centre - pre_centre);
+    let moved = trend.late_mean - trend.pre_mean;
+    let se = trend.late_mean_se.hypot(trend.pre_mean_se);
+    let kept = moved / rise;
+    let z = (moved - rise) / se;
+    (kept.is_finite() && z.is_finite()).then_some((kept, z))
+}
+
+/// Whether a ramp keeps so little of its rise at the end of the record ([`ramp_kept`]: less
+/// than [`RAMP_KEPT_BELOW`] of it, and [`DRIFT_CONTRADICTED_STANDARD_ERRORS`] or more from the
+/// line) that it is a hump the dynamics leave, not a drift.
+#[must_use]
+pub fn ramp_returns(kept: Option<(f64, f64)>) -> bool {
+    kept.is_some_and(|(k, z)| k < RAMP_KEPT_BELOW && z.abs() >= DRIFT_CONTRADICTED_STANDARD_ERRORS)
 }
 
 /// A creep after the step this many standard errors of the two levels' means out of the noise
@@ -423,6 +465,7 @@ mod tests {
             pre_step_slope_se_per_s: 0.01,
             ramp_in_standard_errors: 12.0,
             rate_per_s: 0.05,
+            ramp_kept_at_end: Some(1.0),
         };
         for (signature, joint, first) in [
             (false, false, EffectKind::Drift),
@@ -457,6 +500,7 @@ mod tests {
             pre_step_slope_se_per_s: 22.0,
             ramp_in_standard_errors: 190.0,
             rate_per_s: 103.0,
+            ramp_kept_at_end: Some(0.9),
         };
         for (pre, first) in [(-31.0, EffectKind::Mode), (95.0, EffectKind::Drift)] {
             let mut out = vec![
@@ -466,5 +510,55 @@ mod tests {
             order(&mut out, 1.0);
             assert_eq!(out[0].kind, Finding::Missing(first), "{pre}");
         }
+    }
+
+    /// A capillary's probe (8 kHz, corners 4 and 60 Hz) after a step at sample 1000, with white
+    /// noise on the probe and `extra` added to its output: the evidence the diagnosis reads.
+    fn residual_evidence(extra: impl Fn(f64) -> f64) -> crate::modelling::evidence::TestEvidence {
+        let fs = 8000.0;
+        let model = crate::testing::overdamped(4.0, 60.0, fs, 3);
+        let u: Vec<f64> = (0..8000)
+            .map(|k| if k < 1000 { 0.0 } else { 1000.0 })
+            .collect();
+        let clean = model.simulate(&u);
+        let y: Vec<f64> = crate::testing::with_noise(&clean, 0.5, 7)
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + extra(k as f64 / fs))
+            .collect();
+        crate::modelling::evidence::TestEvidence::measure(
+            "t",
+            crate::fit::TestRole::Validation,
+            &model,
+            (&u, &y),
+            &clean,
+        )
+    }
+
+    #[test]
+    fn a_drift_keeps_its_ramp_to_the_end_and_a_hump_after_the_step_does_not() {
+        let kept = |e: &crate::modelling::evidence::TestEvidence| {
+            ramp_kept(&e.trend, e.samples, e.step_onset, 8000.0)
+        };
+        // A sensor drifting at 20 units per second, from the record's start.
+        let drift = residual_evidence(|t| 20.0 * t);
+        let (k, z) = kept(&drift).expect("a line and a segment before the step");
+        assert!((k - 1.0).abs() < 0.05 && z.abs() < 4.0, "{k} {z}");
+        assert!(!ramp_returns(Some((k, z))));
+        // A tail the model misses: 30 units low just after the step, gone by the end. The line
+        // through it climbs, but the level at the end is the level before the step.
+        let hump = residual_evidence(|t| {
+            if t < 0.125 {
+                0.0
+            } else {
+                -30.0 * (-(t - 0.125) / 0.1).exp()
+            }
+        });
+        assert!(hump.trend.slope_per_s > 5.0, "{:?}", hump.trend);
+        let (k, z) = kept(&hump).expect("a line and a segment before the step");
+        assert!(k.abs() < 0.1 && z.abs() > 10.0, "{k} {z}");
+        assert!(ramp_returns(Some((k, z))));
+        // Without a segment before the step there is nothing to compare.
+        assert_eq!(ramp_kept(&hump.trend, hump.samples, 0, 8000.0), None);
     }
 }

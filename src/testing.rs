@@ -69,6 +69,21 @@ pub(crate) fn overdamped(
     }
 }
 
+/// A wake traverse at `fs`: a tunnel's oscillation at `tunnel_hz` (a tenth of the level) and
+/// three wakes, 0.5, 0.3 and 0.2 deep, `lead + n` samples: the first `lead` are what came
+/// before a record that starts in the middle of it, and the wakes are counted from there.
+pub(crate) fn traverse(fs: f64, tunnel_hz: f64, lead: usize, n: usize) -> Vec<f64> {
+    (0..lead + n)
+        .map(|k| {
+            let t = k as f64 / fs;
+            1.0 + 0.1 * (2.0 * std::f64::consts::PI * tunnel_hz * t).sin()
+                - 0.5 * (-((t - 0.08) / 0.02).powi(2)).exp()
+                - 0.3 * (-((t - 0.35) / 0.01).powi(2)).exp()
+                - 0.2 * (-((t - 0.5) / 0.01).powi(2)).exp()
+        })
+        .collect()
+}
+
 /// Two steps from rest, of 1000 and of 150, 1500 samples at 2 kHz, through a resonant probe
 /// with a quadratic loss that takes half the big step off the input at its peak rate:
 /// `(the probe's linear part, the big step, the small one, the loss)`.

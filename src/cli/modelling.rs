@@ -150,10 +150,16 @@ fn print_evidence(evidence: &[TestEvidence]) {
                 p.q
             );
         }
+        let before = if e.trend.pre_mean.is_finite() {
+            format!(
+                "{:+.3e} before the step (+-{:.1e})",
+                e.trend.pre_mean, e.trend.pre_mean_se
+            )
+        } else {
+            "no quiet segment before a step".to_string()
+        };
         crate::outln!(
-            "  level: {:+.3e} before the step (+-{:.1e}), {:+.3e} at the end (+-{:.1e}); slope {:+.3e}/s; step {:+.4}",
-            e.trend.pre_mean,
-            e.trend.pre_mean_se,
+            "  level: {before}, {:+.3e} at the end (+-{:.1e}); slope {:+.3e}/s; step {:+.4}",
             e.trend.late_mean,
             e.trend.late_mean_se,
             e.trend.slope_per_s,

@@ -90,10 +90,11 @@ pub struct Fitted {
 }
 
 /// Normalised simulation error of `model` on a test: `RMS(y - y_model) / range(y)`, with the
-/// model started in equilibrium with the reference's resting level.
+/// model started in equilibrium with the reference's resting level, or from the state that
+/// best explains the test where it does not start at rest ([`Model::simulate_matched`]).
 #[must_use]
 pub fn nrmse(model: &Model, u: &[f64], y: &[f64]) -> f64 {
-    let ym = model.simulate(u);
+    let ym = model.simulate_matched(u, y);
     nrmse_of(y, &ym)
 }
 

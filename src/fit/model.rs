@@ -16,6 +16,11 @@ use crate::poly::{self, Complex};
 /// Largest model order the host compensator handles.
 pub const MAX_ORDER: usize = 16;
 
+/// A mode's free response ends within a record when its motion falls below this share of its
+/// start by the record's last sample (`e^-5`, five time constants): only such modes start a
+/// record that does not start at rest ([`Model::fit_free_response`]).
+pub const FREE_RESPONSE_ENDS: f64 = 6.737_946_999_085_467e-3;
+
 /// A discrete probe model:
 /// `y[k] = sum_{i=0..m} b[i] u[k-i-d] - sum_{i=1..m} a[i] y[k-i]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -134,6 +139,95 @@ impl Model {
             *v += y0;
         }
         y
+    }
+
+    /// The model's output for `u` as it explains the probe's `y`: [`Model::simulate`] for a
+    /// record that starts at rest (a quiet segment before its step); for one that does not
+    /// (a traverse caught among its wakes: [`crate::fit::step::quiet_until`] finds no quiet
+    /// segment), with the free response that best explains `y` added
+    /// ([`Model::add_free_response`]). A simulation from rest cannot know where the probe was
+    /// when such a record began: a slow probe misses its first tenths of a second by far more
+    /// than its noise (bank seed 30, case 023: a capillary 180 Pa off at the start of a
+    /// traverse, within its noise after 0.3 s). Estimating the initial state is what
+    /// MATLAB's `compare` does by default.
+    #[must_use]
+    pub fn simulate_matched(&self, u: &[f64], y: &[f64]) -> Vec<f64> {
+        let mut ym = self.simulate(u);
+        if crate::fit::step::quiet_until(u) == 0 {
+            self.add_free_response(&mut ym, y);
+        }
+        ym
+    }
+
+    /// Adds to a simulation `ym` of the probe's `y` the model's free response (the motion of
+    /// its poles from an initial state) that best explains what `ym` leaves of `y`
+    /// ([`Model::fit_free_response`] with no other columns).
+    pub fn add_free_response(&self, ym: &mut [f64], y: &[f64]) {
+        let _ = self.fit_free_response(ym, y, &[]);
+    }
+
+    /// Fits to what the simulation `ym` leaves of the probe's `y` the model's free response
+    /// and the `extra` columns (each a function of the sample index: a level, a ramp) together,
+    /// by least squares (column-pivoted QR); adds the free response to `ym` and returns the
+    /// extra columns' coefficients. Fitted together, a slow free response does not take part
+    /// of a level it cannot hold to the end of the record.
+    ///
+    /// The free response is that of the modes that end within the record (a pole whose motion
+    /// falls below [`FREE_RESPONSE_ENDS`] of its start by the last sample; a complex pair
+    /// gives two columns): a mode slower than that is, over the record, a level or a ramp, and
+    /// would take a drift or an offset as its initial state (bank seed 31, case 074: a
+    /// capillary's slowest pole took a drift of 480 units per second off a traverse). `None`,
+    /// with `ym` as it was, for a model with a pole on or outside the unit circle, or a record
+    /// that does not determine the fit.
+    pub fn fit_free_response(
+        &self,
+        ym: &mut [f64],
+        y: &[f64],
+        extra: &[&dyn Fn(usize) -> f64],
+    ) -> Option<Vec<f64>> {
+        let n = ym.len().min(y.len());
+        let poles = self.poles().ok()?;
+        if poles.iter().any(|p| p.norm().is_nan() || p.norm() >= 1.0) {
+            return None;
+        }
+        // One pole of each pair; a real pole once.
+        let ending: Vec<Complex> = poles
+            .iter()
+            .filter(|p| p.im >= 0.0)
+            .filter(|p| (n as f64) * p.norm().ln() < FREE_RESPONSE_ENDS.ln())
+            .copied()
+            .collect();
+        let columns = ending
+            .iter()
+            .map(|p| if p.im > 1e-12 { 2 } else { 1 })
+            .sum::<usize>();
+        if columns + extra.len() == 0 || n < 4 * (columns + extra.len()) {
+            return None;
+        }
+        let mut x = faer::Mat::<f64>::zeros(n, columns + extra.len());
+        let mut j = 0;
+        for p in &ending {
+            let mut z = Complex::new(1.0, 0.0);
+            for k in 0..n {
+                x[(k, j)] = z.re;
+                if p.im > 1e-12 {
+                    x[(k, j + 1)] = z.im;
+                }
+                z *= *p;
+            }
+            j += if p.im > 1e-12 { 2 } else { 1 };
+        }
+        for (i, column) in extra.iter().enumerate() {
+            for k in 0..n {
+                x[(k, columns + i)] = column(k);
+            }
+        }
+        let t = faer::Mat::<f64>::from_fn(n, 1, |k, _| y[k] - ym[k]);
+        let c = crate::fit::arx::lstsq(&x, &t, "the free response").ok()?;
+        for (k, v) in ym.iter_mut().take(n).enumerate() {
+            *v += (0..columns).map(|j| c[j] * x[(k, j)]).sum::<f64>();
+        }
+        Some(c[columns..].to_vec())
     }
 
     /// Reconstructs the reference from the probe's `y` with the board's compensator in
@@ -593,6 +687,62 @@ pub fn resting_level(x: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_record_that_does_not_start_at_rest_is_simulated_from_the_state_that_explains_it() {
+        // A capillary (corners 3 and 50 Hz, 10 kHz) under a traverse: a tunnel's oscillation
+        // and three wakes, recorded from the middle of it.
+        let fs = 10_000.0;
+        let m = crate::testing::overdamped(3.0, 50.0, fs, 17);
+        let before = 2013;
+        let whole = crate::testing::traverse(fs, 7.0, before, 6000);
+        let u = &whole[before..];
+        assert_eq!(crate::fit::step::quiet_until(u), 0);
+        let y = crate::testing::with_noise(&m.simulate(&whole)[before..], 0.001, 3);
+        // From rest the model misses the record's first tenth of a second by far more than the
+        // noise; from the state that explains the record it leaves the noise (the error of
+        // the true probe's own output against the record).
+        let from_rest = crate::fit::nrmse_of(&y, &m.simulate(u));
+        let matched = crate::fit::nrmse_of(&y, &m.simulate_matched(u, &y));
+        let clean = &m.simulate(&whole)[before..];
+        let noise = crate::fit::nrmse_of(&y, clean);
+        assert!(from_rest > 5.0 * noise, "{from_rest}");
+        assert!(matched < 1.2 * noise, "{matched}");
+        // A mode slower than the record is a level or a ramp over it: its free response is not
+        // fitted, and a drift on the probe stays in what the model leaves (with that mode's
+        // free response it would go: 0.9999^k is a ramp over 6000 samples).
+        let creeping = Model {
+            a: vec![-(0.9999 + 0.98), 0.9999 * 0.98],
+            b: vec![0.0, 0.6 * 0.0001 * 0.02, 0.4 * 0.0001 * 0.02],
+            ..m.clone()
+        };
+        let drifting: Vec<f64> = y
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + 1e-5 * k as f64)
+            .collect();
+        let taken: Vec<f64> = creeping
+            .simulate_matched(u, &drifting)
+            .iter()
+            .zip(creeping.simulate_matched(u, &y))
+            .map(|(a, b)| a - b)
+            .collect();
+        let end = taken.last().copied().unwrap_or(f64::NAN);
+        assert!(end.abs() < 0.1 * 1e-5 * 6000.0, "{end}");
+        // A step test starts at rest: simulated from rest, as it always was.
+        let step: Vec<f64> = (0..4000).map(|k| f64::from(u8::from(k >= 500))).collect();
+        let y = crate::testing::with_noise(&m.simulate(&step), 0.001, 4);
+        assert_eq!(m.simulate_matched(&step, &y), m.simulate(&step));
+        // An unstable model's free response is not fitted.
+        let unstable = Model {
+            a: vec![-2.1, 1.1],
+            ..m.clone()
+        };
+        assert_eq!(
+            unstable.simulate_matched(u, &y[..u.len().min(y.len())]),
+            unstable.simulate(u)
+        );
+    }
 
     #[test]
     fn a_deviation_has_two_significant_digits_and_the_value_its_decimal_place() {

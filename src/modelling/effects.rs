@@ -501,6 +501,45 @@ mod tests {
     }
 
     #[test]
+    fn a_traverse_takes_its_offset_from_the_whole_record_a_step_from_before_its_step() {
+        let fs = 10_000.0;
+        let (m, _) = second_order(95.0, 0.3, fs, 17);
+        let offset = [Effect::Offset { value: 0.0 }];
+        let level = |m: &crate::fit::model::Model, u: &[f64], y: &[f64]| {
+            let ym = predict(m, &offset, u, y);
+            let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len() as f64;
+            (mean(y) - mean(&ym), crate::fit::nrmse_of(y, &ym))
+        };
+        // A traverse: wakes of several sizes over a tunnel's oscillation, recorded from the
+        // middle of it (the probe is not at rest when the record starts, and the model's
+        // simulation, which starts at rest, misses its first samples). The probe reads 0.04
+        // high throughout. Its samples before the largest wake are no level before a step:
+        // the offset is the whole record's.
+        let before = 2013;
+        let whole = crate::testing::traverse(fs, 40.0, before, 6000);
+        let u = whole[before..].to_vec();
+        assert_eq!(crate::fit::step::quiet_until(&u), 0);
+        // A capillary (corners 3 and 50 Hz): slow to forget where the record caught it.
+        let slow = crate::testing::overdamped(3.0, 50.0, fs, 17);
+        let probe: Vec<f64> = slow.simulate(&whole)[before..]
+            .iter()
+            .map(|v| v + 0.04)
+            .collect();
+        let y = crate::testing::with_noise(&probe, 0.002, 5);
+        let (left, _) = level(&slow, &u, &y);
+        assert!(left.abs() < 1e-4, "{left}");
+        // A step: its offset is read before the step, and a level after it that the dynamics
+        // leave (here a gain 2 % low) stays in the residual for the evidence to see.
+        let u: Vec<f64> = (0..4000)
+            .map(|k| if k >= 500 { 1.0 } else { 0.0 })
+            .collect();
+        let low: Vec<f64> = m.simulate(&u).iter().map(|v| 0.98 * v + 0.04).collect();
+        let y = crate::testing::with_noise(&low, 0.002, 6);
+        let (left, _) = level(&m, &u, &y);
+        assert!((left + 0.02 * 3500.0 / 4000.0).abs() < 2e-3, "{left}");
+    }
+
+    #[test]
     fn the_scale_of_a_test_is_estimated_from_it() {
         let fs = 10_000.0;
         let (m, _) = second_order(95.0, 0.3, fs, 17);

@@ -335,7 +335,8 @@ pub fn model_error(y: &[f64], y_model: &[f64], noise_std: f64, fs: f64) -> Model
 /// Level and trend of the residual before the step and at the end of the record.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct Trend {
-    /// Mean before the step.
+    /// Mean of the quiet segment before the step (NaN, `null` in JSON, for a record without
+    /// one, such as a traverse).
     pub pre_mean: f64,
     /// Slope before the step (units per second).
     pub pre_slope_per_s: f64,
@@ -348,7 +349,7 @@ pub struct Trend {
     pub late_slope_per_s: f64,
     /// Slope of a straight line through the whole residual (units per second).
     pub slope_per_s: f64,
-    /// Standard error of a mean of the noise over the pre-step segment.
+    /// Standard error of a mean of the noise over the pre-step segment (infinite without one).
     pub pre_mean_se: f64,
     /// Standard error of a mean of the noise over the late segment.
     pub late_mean_se: f64,
@@ -593,7 +594,9 @@ impl TestEvidence {
             });
         let range = (hi - lo).max(f64::MIN_POSITIVE);
         let late = &r[n - (3 * n / 10).max(1)..];
-        let pre = &r[..onset];
+        // Only a step test has a level before its step: a traverse's first samples are signal,
+        // where the model's free response was fitted ([`Model::simulate_matched`]).
+        let pre = &r[..quiet.min(onset)];
         Self {
             file: file.to_string(),
             role,
@@ -617,13 +620,17 @@ impl TestEvidence {
             }),
             model_error: model_error(&y[..n], &y_model[..n], noise_std, fs),
             trend: Trend {
-                pre_mean: mean(pre),
+                pre_mean: if pre.is_empty() { f64::NAN } else { mean(pre) },
                 pre_slope_per_s: slope(pre) * fs,
                 pre_slope_se_per_s: expected.slope_se(pre.len(), fs),
                 late_mean: mean(late),
                 late_slope_per_s: slope(late) * fs,
                 slope_per_s: slope(&r) * fs,
-                pre_mean_se: expected.mean_se(pre.len()),
+                pre_mean_se: if pre.is_empty() {
+                    f64::INFINITY
+                } else {
+                    expected.mean_se(pre.len())
+                },
                 late_mean_se: expected.mean_se(late.len()),
             },
             reference_ringing: ringing_after(&u[..n], found.as_ref(), fs),

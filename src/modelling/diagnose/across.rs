@@ -518,7 +518,7 @@ pub fn per_test(
         .map(|(t, e)| {
             let own = crate::fit::fit(t, &[], current.model.fs, &options).ok();
             let own_rms = own.as_ref().map_or(f64::NAN, |f| {
-                let ym = f.model.simulate(t.u);
+                let ym = f.model.simulate_matched(t.u, t.y);
                 let n = t.y.len().min(ym.len()).max(1) as f64;
                 (t.y.iter()
                     .zip(&ym)

@@ -54,8 +54,10 @@ impl Additive {
 }
 
 /// The additive effects of one test, estimated from its residual `r = y - y_dynamics` by
-/// least squares: an offset from the samples before the step (or all, without a step), an
-/// offset and a rate from the whole record. They are nuisances of each record (a drift is not
+/// least squares: an offset from the samples before `onset`, where the quiet segment before
+/// the step ends ([`crate::fit::step::quiet_until`]; all of them without one, as in a
+/// traverse, whose first samples are signal the model may not yet follow); an offset and a
+/// rate from the whole record. They are nuisances of each record (a drift is not
 /// the same in two tests), so each test gets its own.
 #[must_use]
 pub fn estimate_additive(changes: &FitChanges, r: &[f64], onset: usize, fs: f64) -> Additive {

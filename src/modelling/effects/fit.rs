@@ -163,7 +163,7 @@ pub fn fit_with_also(
         .collect();
     let onsets: Vec<usize> = fitted_tests
         .iter()
-        .map(|t| crate::fit::step::find_step(t.u).map_or(0, |s| s.onset))
+        .map(|t| crate::fit::step::quiet_until(t.u))
         .collect();
     let onset = onsets.first().copied().unwrap_or(0);
     // A drift starts from the record's ends, so that the first fit does not take it into

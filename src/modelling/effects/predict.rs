@@ -3,7 +3,7 @@
 
 use super::{
     estimate_additive, estimate_scale_with, nonlinear_gain, prefilter_hz, prefiltered, scaled_with,
-    simulate_nonlinear, temperature_law, Effect, FitChanges,
+    simulate_nonlinear, temperature_law, Additive, Effect, FitChanges,
 };
 #[cfg(doc)]
 use super::{estimate_scale, TemperatureDamping};
@@ -53,8 +53,28 @@ pub fn predict_with(
         simulate_nonlinear(model, gain, &u)
     };
     let changes = FitChanges::of(effects);
+    // A record that does not start at rest (a traverse) starts from the state that best
+    // explains it ([`Model::simulate_matched`]), fitted together with its offset or drift,
+    // which are then its whole record's.
+    let onset = crate::fit::step::quiet_until(&u);
+    if onset == 0 {
+        let level = |_: usize| 1.0;
+        let ramp = |k: usize| k as f64 / fs;
+        let extra: &[&dyn Fn(usize) -> f64] = match (changes.drift, changes.offset) {
+            (true, _) => &[&level, &ramp],
+            (false, true) => &[&level],
+            (false, false) => &[],
+        };
+        if let Some(c) = model.fit_free_response(&mut ym, &y, extra) {
+            let additive = Additive {
+                offset: c.first().copied().unwrap_or(0.0),
+                rate_per_s: c.get(1).copied().unwrap_or(0.0),
+            };
+            additive.add_to(&mut ym, fs);
+            return ym;
+        }
+    }
     if changes.offset || changes.drift {
-        let onset = crate::fit::step::find_step(&u).map_or(0, |s| s.onset);
         let r: Vec<f64> = y.iter().zip(&ym).map(|(a, b)| a - b).collect();
         estimate_additive(&changes, &r, onset, fs).add_to(&mut ym, fs);
     }

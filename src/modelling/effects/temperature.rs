@@ -364,7 +364,11 @@ pub fn estimate_scale_with(
         let Ok(m) = scale_continuous(&ct, k, damping.factor(k, reference_k), model.fs) else {
             return f64::INFINITY;
         };
-        let r: Vec<f64> = y.iter().zip(m.simulate(u)).map(|(a, b)| a - b).collect();
+        let r: Vec<f64> = y
+            .iter()
+            .zip(m.simulate_matched(u, y))
+            .map(|(a, b)| a - b)
+            .collect();
         let mean = r.iter().sum::<f64>() / r.len().max(1) as f64;
         let sse: f64 = r.iter().map(|v| (v - mean) * (v - mean)).sum();
         if sse.is_finite() {

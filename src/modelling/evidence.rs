@@ -596,7 +596,7 @@ impl TestEvidence {
         let late = &r[n - (3 * n / 10).max(1)..];
         // Only a step test has a level before its step: a traverse's first samples are signal,
         // where the model's free response was fitted ([`Model::simulate_matched`]).
-        let pre = &r[..quiet.min(onset)];
+        let pre = &r[..quiet];
         Self {
             file: file.to_string(),
             role,

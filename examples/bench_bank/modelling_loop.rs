@@ -40,6 +40,10 @@ pub struct LoopOutcome {
     /// effect, what the floors should predict; with a hidden effect the true model leaves
     /// out ([`Kind::truth_lacks_it`]), an upper bound on what the probe's own dynamics leave.
     pub truth_error: Option<f64>,
+    /// The floor both channels' noise leaves on the validation test through the true model
+    /// (`unlag compare truth.toml val.csv`'s `noise_floor`): what no model can go below
+    /// without passing less of the reference's noise than the probe does.
+    pub truth_floor: Option<f64>,
     /// The same probe without the hidden effect, on the same noise (`bare/`, made beside the
     /// case): the second-order start's errors there, on the estimation and validation
     /// tests, ...
@@ -152,12 +156,18 @@ impl LoopOutcome {
     /// `unexplained` (`none` alone when nothing is hidden). Where both show, `mode` first is
     /// right too when its change lowers the error more than the hidden kind's.
     pub fn right_by_tests(&self, kind: Kind) -> bool {
+        self.right_by_tests_to(kind, self.truth_floor)
+    }
+
+    /// As [`LoopOutcome::right_by_tests`], with visibility counted to `floor`
+    /// ([`LoopOutcome::visible_to`]).
+    pub fn right_by_tests_to(&self, kind: Kind, floor: Option<f64>) -> bool {
         if self.right_or_carried(kind)
             && (kind != Kind::None || self.own_dynamics_visible(kind).is_none())
         {
             return true;
         }
-        let hidden_unseen = kind == Kind::None || self.visible(kind) == Some(false);
+        let hidden_unseen = kind == Kind::None || self.visible_to(kind, floor) == Some(false);
         if !hidden_unseen {
             // Both are missing: `mode` first is right where its change lowers the error more
             // than the hidden kind's does.
@@ -295,7 +305,20 @@ impl LoopOutcome {
     /// nonlinear damping fitted on both tests together: their own error, and `run.csv`'s).
     /// An effect the plain fit carried by itself was visible to it. `None` when that refit
     /// failed or there is nothing hidden.
+    ///
+    /// The fall is counted down to the floor both channels leave through the true model
+    /// ([`LoopOutcome::truth_floor`]) and no further: a refit with a free time scale can pass
+    /// less of the reference's noise through a light resonance than the probe does, and beat
+    /// the true model on the test it is fitted to (errors in variables). On seed 31's case
+    /// 071, adding the temperature took the validation error from 0.773 % to 0.434 % where the
+    /// true model leaves 0.85 % and its floor is 0.92 %: no physics is seen there.
     pub fn visible(&self, kind: Kind) -> Option<bool> {
+        self.visible_to(kind, self.truth_floor)
+    }
+
+    /// As [`LoopOutcome::visible`] with the fall counted to `floor` (`None`: to any depth,
+    /// as the bench did up to stop 41).
+    pub fn visible_to(&self, kind: Kind, floor: Option<f64>) -> Option<bool> {
         if self.carried_right(kind) {
             return Some(true);
         }
@@ -308,7 +331,8 @@ impl LoopOutcome {
             }
             _ => false,
         };
-        Some(self.before? >= VISIBLE_FALL * self.true_after? || jointly)
+        let after = self.true_after?.max(floor.unwrap_or(0.0));
+        Some(self.before? >= VISIBLE_FALL * after || jointly)
     }
 }
 
@@ -370,14 +394,18 @@ pub fn run(bin: &Path, dir: &Path, case: &Case) -> LoopOutcome {
     if kind == Kind::None {
         o.stated = super::coverage::read(&dir.join("loop.toml"));
     }
-    if kind.truth_lacks_it() && dir.join("truth.toml").is_file() {
-        o.truth_error = run(
+    if dir.join("truth.toml").is_file() {
+        let truth = run(
             &["compare", "truth.toml", "val.csv", "--json"],
             "loop-truth-compare.log",
         )
         .ok()
-        .and_then(|j| serde_json::from_str::<serde_json::Value>(j.trim()).ok())
-        .and_then(|v| v.get("tests")?.get(0)?.get("nrmse")?.as_f64());
+        .and_then(|j| serde_json::from_str::<serde_json::Value>(j.trim()).ok());
+        let get = |k: &str| truth.as_ref()?.get("tests")?.get(0)?.get(k)?.as_f64();
+        o.truth_floor = get("noise_floor");
+        if kind.truth_lacks_it() {
+            o.truth_error = get("nrmse");
+        }
     }
     let base = ["fit", "--order", "2", "est.csv", "val.csv", "--json"];
     if dir.join("bare").join("truth.toml").is_file() {

@@ -14,7 +14,8 @@
 //!    reference rings (a line or cavity mode never shows in the reference, so a sensor
 //!    resonance goes before a `mode` that ties with it), and natural frequencies of
 //!    the tests fitted alone that all move by one common factor against the model's, with the
-//!    damping about the same, for a temperature ([`temperature_evidence`]; both damping laws
+//!    damping about the same, for a temperature ([`temperature_evidence`]; where no test
+//!    fitted alone can show it, its trial alone, counted down to the noise floor; both damping laws
 //!    of [`crate::modelling::effects::TemperatureDamping`] are tried and the better offered, its `change`
 //!    adding `temperature`, `temperature-viscous` or `temperature-diffusive`); and across tests
 //!    ([`amplitude_signature`]), a damping that rises with the step's amplitude and a residual
@@ -39,6 +40,7 @@ mod order;
 mod rank;
 mod remedy;
 mod sensor;
+mod temperature;
 mod trial;
 
 pub use across::{
@@ -48,7 +50,7 @@ pub use across::{
 };
 use across::{
     creep_in_standard_errors, drift_before_step, joint_loss_evidence, pre_step_slope,
-    temperature_reading,
+    temperature_reading, temperature_shift,
 };
 pub use evidence::{
     Evidence, JointLoss, ModeEvidence, NonlinearDamping, ProbePeak, ScaleEstimate, SensorResonance,

@@ -275,7 +275,8 @@ pub struct TemperatureShift {
     pub damping_ratio: f64,
     /// Per test, the scale the trial's model estimates.
     pub estimated_scale: Vec<ScaleEstimate>,
-    /// Per test, its resonances against the model's.
+    /// Per test, its resonances against the model's (empty when no test fitted alone showed
+    /// the shift: `signature` false).
     pub per_test: Vec<TemperatureRow>,
     /// The model's reference temperature (K).
     pub reference_k: f64,
@@ -283,6 +284,10 @@ pub struct TemperatureShift {
     /// of sound's (`temperature`, `temperature-viscous`), through the viscosity for
     /// `temperature-diffusive`.
     pub temperature_ratio: f64,
+    /// Whether the tests fitted alone showed every natural frequency moved by one factor;
+    /// `false`: the trial alone named it, `common_ratio` is then the scale it fitted to
+    /// `test` and `damping_ratio` the law's factor at that scale.
+    pub signature: bool,
     /// The strongest test.
     pub test: String,
     /// The damping factor the viscous law gives for `common_ratio`.
@@ -477,6 +482,7 @@ mod tests {
             }],
             reference_k: 293.15,
             temperature_ratio: 1.1025,
+            signature: true,
             test: "t2.csv".into(),
             viscous_damping_ratio: 1.2,
         });
@@ -485,6 +491,7 @@ mod tests {
             json!({"per_test": [{"file": "t2.csv", "modes": [[105.0, 100.0, 1.05]],
                                  "ratio": 1.05, "spread": 0.0, "damping_ratio": 1.1}],
                    "common_ratio": 1.05, "test": "t2.csv", "temperature_ratio": 1.1025,
+                   "signature": true,
                    "damping_ratio": 1.1, "viscous_damping_ratio": 1.2,
                    "damping": "viscous", "add": "temperature-viscous",
                    "estimated_scale": [{"test": "t1.csv", "scale": 1.0, "temperature_k": 293.15,

@@ -5,10 +5,9 @@
 use super::trial::{held_out, trial_window};
 use super::{
     amplitude_signature, creep_in_standard_errors, drift_before_step, joint_loss_evidence, mean,
-    per_test, pre_step_slope, ramp_kept, ramp_returns, separating_test, temperature_evidence,
-    temperature_reading, AmplitudeSignature, Candidate, Current, Evidence, Finding, ModeEvidence,
-    NonlinearDamping, Remedy, ScaleEstimate, Spectrum, TemperatureShift, CLOSE_MARGIN,
-    COLOURED_NOISE_FIT, LEAK_DC_GAIN_BELOW,
+    per_test, pre_step_slope, ramp_kept, ramp_returns, separating_test, AmplitudeSignature,
+    Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping, Remedy, Spectrum,
+    CLOSE_MARGIN, COLOURED_NOISE_FIT, LEAK_DC_GAIN_BELOW,
 };
 use crate::error::Result;
 use crate::fit::model::Uncertainty;
@@ -326,89 +325,12 @@ pub fn diagnose(
     }
 
     // temperature: every natural frequency of the per-test fits moves by one common factor
-    // against the model's, with the damping about the same or moving as the viscous law says:
-    // the speed of sound (and the kinematic viscosity) changed. Both damping laws are tried;
-    // the one that lowers the held-out error more is offered. An overdamped probe's time
-    // scales go as the viscosity where the pressure diffuses along a capillary: the diffusive
-    // law is tried in place of the speed of sound's, which scales time the same way but reads
-    // the temperature the wrong way round (a hotter gas slows a capillary).
-    if tests.len() >= 2 && effects::reference_k(current.effects).is_none() {
-        if let Some(t) = temperature_evidence(current, tests, evidence) {
-            // A model with a pole on the negative real axis cannot be scaled: its trial searches
-            // the delay again, which lets the fit step back to a model that can
-            // ([`effects::fit_with`]).
-            let scalable = crate::fit::continuous::Continuous::from_model(current.model).is_ok();
-            let options = Options {
-                delay: if scalable { base.delay } else { None },
-                ..base
-            };
-            let best = [
-                if t.overdamped {
-                    effects::TemperatureDamping::Diffusive
-                } else {
-                    effects::TemperatureDamping::Constant
-                },
-                effects::TemperatureDamping::Viscous,
-            ]
-            .into_iter()
-            .filter_map(|damping| {
-                let added = Effect::Temperature {
-                    reference_k: effects::DEFAULT_REFERENCE_K,
-                    damping,
-                };
-                trial(added, &options).map(|(after, fx)| (after, fx, damping))
-            })
-            .min_by(|a, b| a.0.total_cmp(&b.0));
-            if let Some((after, fx, damping)) = best {
-                let reference_k = effects::reference_k(&fx).unwrap_or(effects::DEFAULT_REFERENCE_K);
-                let estimated: Vec<ScaleEstimate> = tests
-                    .iter()
-                    .map(|t| {
-                        let k = effects::estimate_scale_with(
-                            current.model,
-                            damping,
-                            reference_k,
-                            t.u,
-                            t.y,
-                        );
-                        ScaleEstimate {
-                            damping_factor: damping.factor(k, reference_k),
-                            scale: k,
-                            temperature_k: damping.temperature(k, reference_k),
-                            test: t.name.to_string(),
-                        }
-                    })
-                    .collect();
-                let (file, ratio) = t.strongest();
-                let viscous = effects::TemperatureDamping::Viscous.factor(ratio, reference_k);
-                let spelling = damping.spelling();
-                let (reading, temperature_ratio) =
-                    temperature_reading(&t, damping, &file, reference_k);
-                // The kind names the law: `temperature`, `temperature-viscous` or
-                // `temperature-diffusive`.
-                offer(
-                    spelling,
-                    after,
-                    Evidence::Temperature(TemperatureShift {
-                        add: spelling,
-                        common_ratio: ratio,
-                        damping,
-                        damping_ratio: t.damping_ratio,
-                        estimated_scale: estimated,
-                        per_test: t.rows.clone(),
-                        reference_k,
-                        temperature_ratio,
-                        test: file.clone(),
-                        viscous_damping_ratio: viscous,
-                    }),
-                    reading,
-                    Remedy::Add(Effect::Temperature {
-                        reference_k: effects::DEFAULT_REFERENCE_K,
-                        damping,
-                    }),
-                );
-            }
-        }
+    // against the model's (the speed of sound, and the kinematic viscosity, changed), or,
+    // where no test fitted alone can show it, the trial alone held to the floor.
+    if let Some(t) =
+        super::temperature::candidate(current, tests, evidence, &trial, &base, before, at_floor)
+    {
+        offer(t.kind, t.after, t.evidence, t.reading, t.change);
     }
 
     // delay: a refit that searches the delay.

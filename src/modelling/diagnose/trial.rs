@@ -5,6 +5,7 @@ use super::mean;
 use crate::fit::model::Model;
 use crate::fit::Test;
 use crate::modelling::effects::{self, Effect};
+use crate::modelling::evidence::TestEvidence;
 
 /// A trial on a record longer than this refits on this many samples from just before the step
 /// (the held-out error is still judged on the whole records): ranking the candidates needs
@@ -42,6 +43,17 @@ pub(super) fn held_out(model: &Model, effects: &[Effect], tests: &[Test<'_>]) ->
             .iter()
             .map(|t| effects::judged_nrmse(model, effects, t.u, t.y)),
     )
+}
+
+/// The floor both channels' noise leaves on the held-out tests (the estimation test's when
+/// there are none), as [`held_out`] averages them.
+pub(super) fn held_out_floor(evidence: &[TestEvidence]) -> f64 {
+    let judged = if evidence.len() > 1 {
+        &evidence[1..]
+    } else {
+        evidence
+    };
+    mean(judged.iter().map(TestEvidence::judged_floor))
 }
 
 #[cfg(test)]

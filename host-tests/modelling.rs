@@ -766,6 +766,33 @@ impl Diagnosed {
             "--json",
         ])
     }
+
+    /// The validation test's error after `--add kind` ([`Diagnosed::fit_adding`]).
+    fn validation_after(&self, kind: &str) -> f64 {
+        let fitted = self.fit_adding(kind);
+        let val = &fitted["sources"][1];
+        assert_eq!(val["role"], "validation", "{fitted}");
+        val["nrmse"].as_f64().unwrap()
+    }
+
+    /// The validation test's error before any change and the floor both channels leave on it,
+    /// as the diagnosis states them.
+    fn validation_before(&self) -> (f64, f64) {
+        let val = &self.json["tests"][1];
+        (
+            val["nrmse"].as_f64().unwrap(),
+            val["noise_floor"].as_f64().unwrap(),
+        )
+    }
+
+    /// Whether any candidate is a temperature, under any damping law.
+    fn names_temperature(&self) -> bool {
+        self.json["candidates"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|c| c["kind"].as_str().unwrap().starts_with("temperature"))
+    }
 }
 
 impl Drop for Diagnosed {
@@ -1904,12 +1931,9 @@ fn a_sensor_trial_searches_the_delay_its_modes_move() {
         .split_whitespace()
         .next()
         .unwrap();
-    let fitted = case.fit_adding(add);
     let before = first["nrmse_before"].as_f64().unwrap();
-    let val = &fitted["sources"][1];
-    assert_eq!(val["role"], "validation", "{fitted}");
-    let after = val["nrmse"].as_f64().unwrap();
-    assert!(before / after >= 2.0, "{before} -> {after}: {fitted}");
+    let after = case.validation_after(add);
+    assert!(before / after >= 2.0, "{before} -> {after}");
 }
 
 /// Case 002 of seed 20's bank: a pneumatic probe with a slow drift (too small to show),
@@ -2004,13 +2028,10 @@ fn a_traverse_at_another_temperature_is_read_from_its_trial_alone() {
     let k = e["common_ratio"].as_f64().unwrap();
     assert!((0.85..0.97).contains(&k), "{e}");
     let before = first["nrmse_before"].as_f64().unwrap();
-    let floor = d["tests"][1]["noise_floor"].as_f64().unwrap();
+    let (_, floor) = case.validation_before();
     assert!(before > 20.0 * floor, "{before} against {floor}");
-    let fitted = case.fit_adding("temperature-viscous");
-    let val = &fitted["sources"][1];
-    assert_eq!(val["role"], "validation", "{fitted}");
-    let after = val["nrmse"].as_f64().unwrap();
-    assert!(before / after >= 10.0, "{before} -> {after}: {fitted}");
+    let after = case.validation_after("temperature-viscous");
+    assert!(before / after >= 10.0, "{before} -> {after}");
 }
 
 /// Bank seed 34, case 036: a flush probe with nothing hidden, validated on a wake traverse.
@@ -2028,22 +2049,11 @@ fn a_time_scale_that_beats_the_noise_floor_is_not_a_temperature() {
         "flush-plain-traverse-est.csv",
         "flush-plain-traverse-val.csv",
     );
-    let d = &case.json;
-    let c = d["candidates"].as_array().unwrap();
-    assert!(
-        !c.iter()
-            .any(|c| c["kind"].as_str().unwrap().starts_with("temperature")),
-        "{d}"
-    );
+    assert!(!case.names_temperature(), "{}", case.json);
     // The trap is there: adding a temperature lowers the traverse's error by more than a
     // temperature read from its trial alone needs, to below the floor.
-    let val = &d["tests"][1];
-    let (before, floor) = (
-        val["nrmse"].as_f64().unwrap(),
-        val["noise_floor"].as_f64().unwrap(),
-    );
-    let fitted = case.fit_adding("temperature");
-    let after = fitted["sources"][1]["nrmse"].as_f64().unwrap();
+    let (before, floor) = case.validation_before();
+    let after = case.validation_after("temperature");
     assert!(
         before / after >= 1.32 && after < floor,
         "{before} -> {after}, floor {floor}"
@@ -2065,22 +2075,12 @@ fn a_time_scale_without_a_resonant_peak_is_not_read_as_a_temperature() {
         "capillary-loss-traverse-val.csv",
     );
     let d = &case.json;
-    let c = d["candidates"].as_array().unwrap();
-    assert!(
-        !c.iter()
-            .any(|c| c["kind"].as_str().unwrap().starts_with("temperature")),
-        "{d}"
-    );
-    assert_eq!(c[0]["kind"], "unexplained", "{d}");
+    assert!(!case.names_temperature(), "{d}");
+    assert_eq!(d["candidates"][0]["kind"], "unexplained", "{d}");
     // The trial alone would have passed: a temperature lowers the traverse's error by more
     // than 1.32x counted to the floor.
-    let val = &d["tests"][1];
-    let (before, floor) = (
-        val["nrmse"].as_f64().unwrap(),
-        val["noise_floor"].as_f64().unwrap(),
-    );
-    let fitted = case.fit_adding("temperature");
-    let after = fitted["sources"][1]["nrmse"].as_f64().unwrap();
+    let (before, floor) = case.validation_before();
+    let after = case.validation_after("temperature");
     assert!(
         before / after.max(floor) >= 1.32,
         "{before} -> {after}, floor {floor}"

@@ -152,8 +152,16 @@ impl Model {
     /// MATLAB's `compare` does by default.
     #[must_use]
     pub fn simulate_matched(&self, u: &[f64], y: &[f64]) -> Vec<f64> {
+        self.simulate_matched_from(u, y, crate::fit::step::quiet_until(u) != 0)
+    }
+
+    /// As [`Model::simulate_matched`], told whether the record starts at rest
+    /// (`quiet_until(u) != 0`): for a search that simulates one record under many models,
+    /// which need not find its step again each time.
+    #[must_use]
+    pub fn simulate_matched_from(&self, u: &[f64], y: &[f64], at_rest: bool) -> Vec<f64> {
         let mut ym = self.simulate(u);
-        if crate::fit::step::quiet_until(u) == 0 {
+        if !at_rest {
             self.add_free_response(&mut ym, y);
         }
         ym

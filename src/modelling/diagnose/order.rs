@@ -154,16 +154,18 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64) {
                 if z.abs() < CREEP_SEEN_STANDARD_ERRORS
         )
     };
-    if dc_gain >= LEAK_DC_GAIN_BELOW && out.first().is_some_and(unseen_leak) {
-        if let Some(i) = out.iter().position(|c| {
-            matches!(c.evidence, Evidence::Mode(ModeEvidence::Peak { .. }))
-                && c.kind == EffectKind::Mode
-                || matches!(c.evidence, Evidence::SensorResonance(_))
-                    && c.kind == EffectKind::SensorResonance
-        }) {
-            let c = out.remove(i);
-            out.insert(0, c);
-        }
+    if dc_gain >= LEAK_DC_GAIN_BELOW {
+        yield_first_within(
+            out,
+            unseen_leak,
+            |c| {
+                matches!(c.evidence, Evidence::Mode(ModeEvidence::Peak { .. }))
+                    && c.kind == EffectKind::Mode
+                    || matches!(c.evidence, Evidence::SensorResonance(_))
+                        && c.kind == EffectKind::SensorResonance
+            },
+            f64::INFINITY,
+        );
     }
     // A drift that the slope before the step contradicts goes after every other candidate.
     if let Some(i) = out.iter().position(|c| {
@@ -204,19 +206,17 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64) {
     // effect, and goes before it at any margin (bank seed 36, case 097: a flush probe's
     // quadratic loss, a traverse's time scale 1.165 times the model's, 3.04x against the loss's
     // 2.21x fitted on both tests).
-    let unseen_temperature =
-        |c: &Candidate| matches!(&c.evidence, Evidence::Temperature(t) if !t.signature);
-    if out.first().is_some_and(unseen_temperature) {
-        if let Some(i) = out.iter().position(|c| {
+    yield_first_within(
+        out,
+        |c| matches!(&c.evidence, Evidence::Temperature(t) if !t.signature),
+        |c| {
             matches!(
                 &c.evidence,
                 Evidence::NonlinearDamping(n) if n.amplitude_signature || n.joint.is_some()
             )
-        }) {
-            let c = out.remove(i);
-            out.insert(0, c);
-        }
-    }
+        },
+        f64::INFINITY,
+    );
 }
 
 /// When the first candidate is one `first` picks, the first candidate `before` picks that
@@ -226,13 +226,23 @@ fn yield_first(
     first: impl Fn(&Candidate) -> bool,
     before: impl Fn(&Candidate) -> bool,
 ) {
+    yield_first_within(out, first, before, CLOSE_MARGIN);
+}
+
+/// As [`yield_first`], within `margin` of the first's score (infinite: at any margin).
+fn yield_first_within(
+    out: &mut Vec<Candidate>,
+    first: impl Fn(&Candidate) -> bool,
+    before: impl Fn(&Candidate) -> bool,
+    margin: f64,
+) {
     if !out.first().is_some_and(&first) {
         return;
     }
     let top = out.first().map_or(0.0, |c| c.score);
     if let Some(i) = out
         .iter()
-        .position(|c| before(c) && c.score >= top - CLOSE_MARGIN)
+        .position(|c| before(c) && c.score >= top - margin)
     {
         let c = out.remove(i);
         out.insert(0, c);

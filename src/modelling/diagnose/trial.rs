@@ -37,9 +37,8 @@ pub(super) fn trial_window<'a>(test: &Test<'a>) -> Test<'a> {
 /// The held-out error of a model with effects: mean nrmse over the validation tests, or the
 /// estimation test's when there are none.
 pub(super) fn held_out(model: &Model, effects: &[Effect], tests: &[Test<'_>]) -> f64 {
-    let judged = if tests.len() > 1 { &tests[1..] } else { tests };
     mean(
-        judged
+        judged(tests)
             .iter()
             .map(|t| effects::judged_nrmse(model, effects, t.u, t.y)),
     )
@@ -48,12 +47,13 @@ pub(super) fn held_out(model: &Model, effects: &[Effect], tests: &[Test<'_>]) ->
 /// The floor both channels' noise leaves on the held-out tests (the estimation test's when
 /// there are none), as [`held_out`] averages them.
 pub(super) fn held_out_floor(evidence: &[TestEvidence]) -> f64 {
-    let judged = if evidence.len() > 1 {
-        &evidence[1..]
-    } else {
-        evidence
-    };
-    mean(judged.iter().map(TestEvidence::judged_floor))
+    mean(judged(evidence).iter().map(TestEvidence::judged_floor))
+}
+
+/// What a held-out error is judged on: the validation tests (all after the first), or the
+/// estimation test when there are none.
+fn judged<T>(tests: &[T]) -> &[T] {
+    tests.get(1..).filter(|v| !v.is_empty()).unwrap_or(tests)
 }
 
 #[cfg(test)]

@@ -359,6 +359,8 @@ pub fn estimate_scale_with(
     let Ok(ct) = Continuous::from_model(model) else {
         return 1.0;
     };
+    // Whether the record starts at rest is its reference's, the same at every scale.
+    let at_rest = crate::fit::step::quiet_until(u) != 0;
     let cost = |ln_k: f64| -> f64 {
         let k = ln_k.exp();
         let Ok(m) = scale_continuous(&ct, k, damping.factor(k, reference_k), model.fs) else {
@@ -366,7 +368,7 @@ pub fn estimate_scale_with(
         };
         let r: Vec<f64> = y
             .iter()
-            .zip(m.simulate_matched(u, y))
+            .zip(m.simulate_matched_from(u, y, at_rest))
             .map(|(a, b)| a - b)
             .collect();
         let mean = r.iter().sum::<f64>() / r.len().max(1) as f64;

@@ -290,6 +290,9 @@ pub struct TemperatureShift {
     pub signature: bool,
     /// The strongest test.
     pub test: String,
+    /// Each test's error after the trial, the estimation test's first: on the same footing
+    /// as a loss fitted on the tests together ([`JointLoss::nrmse`]), for the order of the two.
+    pub trial_nrmse: Vec<f64>,
     /// The damping factor the viscous law gives for `common_ratio`.
     pub viscous_damping_ratio: f64,
 }
@@ -375,6 +378,28 @@ pub struct JointLoss {
     pub gain_s2_per_unit: f64,
     /// The fall of the tests' RMS error the loss brings (linear over with the loss).
     pub fall: f64,
+}
+
+impl JointLoss {
+    /// The root mean square of the tests' errors with the loss: what the joint fit minimises.
+    #[must_use]
+    pub fn rms(&self) -> f64 {
+        rms(&self.nrmse)
+    }
+}
+
+impl TemperatureShift {
+    /// The root mean square of the tests' errors after the trial, on the footing of
+    /// [`JointLoss::rms`]; `None` without them.
+    #[must_use]
+    pub fn trial_rms(&self) -> Option<f64> {
+        (!self.trial_nrmse.is_empty()).then(|| rms(&self.trial_nrmse))
+    }
+}
+
+/// The root mean square of each test's error.
+fn rms(nrmse: &[f64]) -> f64 {
+    (nrmse.iter().map(|e| e * e).sum::<f64>() / nrmse.len().max(1) as f64).sqrt()
 }
 
 #[cfg(test)]
@@ -484,6 +509,7 @@ mod tests {
             temperature_ratio: 1.1025,
             signature: true,
             test: "t2.csv".into(),
+            trial_nrmse: vec![0.002, 0.003],
             viscous_damping_ratio: 1.2,
         });
         assert_eq!(
@@ -491,7 +517,7 @@ mod tests {
             json!({"per_test": [{"file": "t2.csv", "modes": [[105.0, 100.0, 1.05]],
                                  "ratio": 1.05, "spread": 0.0, "damping_ratio": 1.1}],
                    "common_ratio": 1.05, "test": "t2.csv", "temperature_ratio": 1.1025,
-                   "signature": true,
+                   "signature": true, "trial_nrmse": [0.002, 0.003],
                    "damping_ratio": 1.1, "viscous_damping_ratio": 1.2,
                    "damping": "viscous", "add": "temperature-viscous",
                    "estimated_scale": [{"test": "t1.csv", "scale": 1.0, "temperature_k": 293.15,

@@ -2,7 +2,7 @@
 //! scored, and the verdict when none is offered (`none` or `unexplained`); their order is
 //! [`super::order`]'s.
 
-use super::trial::{held_out, trial_window};
+use super::trial::{held_out, trial_window, Tried};
 use super::{
     amplitude_signature, creep_in_standard_errors, drift_before_step, joint_loss_evidence, mean,
     per_test, pre_step_slope, ramp_kept, ramp_returns, separating_test, AmplitudeSignature,
@@ -59,17 +59,17 @@ pub fn diagnose(
     let validation: &[Test<'_>] = &validation.iter().map(trial_window).collect::<Vec<_>>();
     // Each trial's held-out error and stated uncertainty, for the candidate it becomes.
     let stated: std::cell::RefCell<Vec<(f64, Option<Uncertainty>)>> = Default::default();
-    let trial = |added: Effect, options: &Options| -> Option<(f64, Vec<Effect>)> {
+    let trial = |added: Effect, options: &Options| -> Option<Tried> {
         let mut with = current.effects.to_vec();
         with.retain(|e| e.kind() != added.kind());
         with.push(added);
         let (fitted, fx) = effects::fit_with(estimation, validation, fs, options, &with).ok()?;
         fitted.model.check_stable("trial").ok()?;
-        let after = held_out(&fitted.model, &fx, tests);
+        let tried = Tried::of(&fitted.model, fx, tests);
         stated
             .borrow_mut()
-            .push((after, fitted.report.uncertainty.clone()));
-        Some((after, fx))
+            .push((tried.after, fitted.report.uncertainty.clone()));
+        Some(tried)
     };
     let floor = mean(evidence.iter().map(TestEvidence::judged_floor));
     let white = evidence.iter().all(|e| e.autocorrelation.p_value > 0.01);
@@ -121,7 +121,10 @@ pub fn diagnose(
         .iter()
         .flat_map(|e| e.spectrum.peaks.iter().map(move |p| (e, p)))
         .max_by(|a, b| a.1.above_floor_db.total_cmp(&b.1.above_floor_db));
-    if let Some((after, fx)) = trial(Effect::Mode { near_hz: None }, &base) {
+    if let Some(Tried {
+        after, effects: fx, ..
+    }) = trial(Effect::Mode { near_hz: None }, &base)
+    {
         let (near, ev, reading) = if let Some((e, p)) = peak {
             (
                 Some(p.frequency_hz),
@@ -194,7 +197,10 @@ pub fn diagnose(
         .map(|e| e.trend.pre_mean / e.trend.pre_mean_se.max(1e-300))
         .fold(0.0f64, |m, z| if z.abs() > m.abs() { z } else { m });
     if offset.abs() > 5.0 && !have.offset {
-        if let Some((after, fx)) = trial(Effect::Offset { value: 0.0 }, &base) {
+        if let Some(Tried {
+            after, effects: fx, ..
+        }) = trial(Effect::Offset { value: 0.0 }, &base)
+        {
             let value = effects::Additive::of(&fx).offset;
             offer(
                 EffectKind::Offset,
@@ -231,7 +237,9 @@ pub fn diagnose(
         );
     let kept = strongest.and_then(|e| ramp_kept(&e.trend, e.samples, e.step_onset, fs));
     if drift.abs() > 10.0 && !have.drift && !ramp_returns(kept) {
-        if let Some((after, fx)) = trial(
+        if let Some(Tried {
+            after, effects: fx, ..
+        }) = trial(
             Effect::Drift {
                 value: 0.0,
                 rate_per_s: 0.0,
@@ -266,7 +274,7 @@ pub fn diagnose(
         .map(|e| (e.trend.late_mean - e.trend.pre_mean) / e.step_size.abs().max(1e-300))
         .fold(0.0f64, |m, v| if v.abs() > m.abs() { v } else { m });
     let creep_z = creep_in_standard_errors(evidence);
-    if let Some((after, _)) = trial(Effect::Leak, &base) {
+    if let Some(Tried { after, .. }) = trial(Effect::Leak, &base) {
         offer(
             EffectKind::Leak,
             after,
@@ -312,8 +320,8 @@ pub fn diagnose(
         let best = [trial(added.clone(), &base), trial(added.clone(), &searched)]
             .into_iter()
             .flatten()
-            .min_by(|a, b| a.0.total_cmp(&b.0));
-        if let Some((after, _)) = best {
+            .min_by(|a, b| a.after.total_cmp(&b.after));
+        if let Some(Tried { after, .. }) = best {
             offer(
                 EffectKind::SensorResonance,
                 after,
@@ -343,7 +351,7 @@ pub fn diagnose(
         if let Ok(f) = crate::fit::fit(estimation, validation, fs, &search) {
             let d = f.model.delay;
             if d != current.model.delay {
-                if let Some((after, _)) = trial(Effect::Delay { samples: d }, &base) {
+                if let Some(Tried { after, .. }) = trial(Effect::Delay { samples: d }, &base) {
                     offer(
                         EffectKind::Delay,
                         after,
@@ -375,7 +383,10 @@ pub fn diagnose(
             amplitude_signature(&across).filter(AmplitudeSignature::nonlinear_damping)
         {
             nonlinear_tried = true;
-            if let Some((after, fx)) = trial(Effect::NonlinearDamping { gain: 0.0 }, &base) {
+            if let Some(Tried {
+                after, effects: fx, ..
+            }) = trial(Effect::NonlinearDamping { gain: 0.0 }, &base)
+            {
                 let gain = effects::nonlinear_gain(&fx);
                 offer(
                     EffectKind::NonlinearDamping,
@@ -447,7 +458,7 @@ pub fn diagnose(
             ar: Vec::new(),
             innovation_std: 0.0,
         };
-        let after = trial(added, &base).map_or(f64::NAN, |t| t.0);
+        let after = trial(added, &base).map_or(f64::NAN, |t| t.after);
         let how = COLOURED_NOISE_FIT;
         let rho1 = evidence
             .first()
@@ -492,7 +503,10 @@ pub fn diagnose(
     // which test would confirm it.
     if !at_floor && !have.nonlinear && !nonlinear_tried && tests.len() > 1 {
         let alone = offered.get() == 0;
-        if let Some((after, fx)) = trial(Effect::NonlinearDamping { gain: 0.0 }, &base) {
+        if let Some(Tried {
+            after, effects: fx, ..
+        }) = trial(Effect::NonlinearDamping { gain: 0.0 }, &base)
+        {
             let gain = effects::nonlinear_gain(&fx);
             let sig = amplitude_signature(&per_test(current, tests, evidence));
             offer(

@@ -2,7 +2,7 @@
 //! factor ([`super::temperature_evidence`]), or, where no test fitted alone can show it, the
 //! trial alone, held to the noise floor both channels leave.
 
-use super::trial::held_out_floor;
+use super::trial::{held_out_floor, Tried};
 use super::{
     temperature_evidence, temperature_reading, temperature_shift, Current, Evidence, Remedy,
     ScaleEstimate, TemperatureShift, MIN_IMPROVEMENT,
@@ -32,9 +32,8 @@ pub(super) struct Offer {
     pub change: Remedy,
 }
 
-/// A trial: the held-out error with `effect` added, fitted with the options, and the effects
-/// it fitted.
-pub(super) type Trial<'t> = dyn Fn(Effect, &Options) -> Option<(f64, Vec<Effect>)> + 't;
+/// A trial: what adding `effect`, fitted with the options, leaves ([`Tried`]).
+pub(super) type Trial<'t> = dyn Fn(Effect, &Options) -> Option<Tried> + 't;
 
 /// The temperature candidate for `current` on `tests`, if any: both damping laws are tried and
 /// the one that lowers the held-out error more is offered. With the tests' signature
@@ -91,7 +90,7 @@ pub(super) fn candidate(
     // a capillary: the diffusive law is tried in place of the speed of sound's, which scales
     // time the same way but reads the temperature the wrong way round (a hotter gas slows a
     // capillary).
-    let (after, fx, damping) = [
+    let (tried, damping) = [
         if overdamped {
             TemperatureDamping::Diffusive
         } else {
@@ -105,10 +104,11 @@ pub(super) fn candidate(
             reference_k: effects::DEFAULT_REFERENCE_K,
             damping,
         };
-        trial(added, &options).map(|(after, fx)| (after, fx, damping))
+        trial(added, &options).map(|t| (t, damping))
     })
-    .min_by(|a, b| a.0.total_cmp(&b.0))?;
-    let reference_k = effects::reference_k(&fx).unwrap_or(effects::DEFAULT_REFERENCE_K);
+    .min_by(|a, b| a.0.after.total_cmp(&b.0.after))?;
+    let (after, fx) = (tried.after, &tried.effects);
+    let reference_k = effects::reference_k(fx).unwrap_or(effects::DEFAULT_REFERENCE_K);
     let estimated: Vec<ScaleEstimate> = tests
         .iter()
         .map(|t| {
@@ -192,6 +192,7 @@ pub(super) fn candidate(
             temperature_ratio,
             signature: seen,
             test: file,
+            trial_nrmse: tried.nrmse,
             viscous_damping_ratio: TemperatureDamping::Viscous.factor(ratio, reference_k),
         }),
         reading,

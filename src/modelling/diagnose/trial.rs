@@ -34,6 +34,29 @@ pub(super) fn trial_window<'a>(test: &Test<'a>) -> Test<'a> {
     }
 }
 
+/// What a trial leaves: the held-out error ([`held_out`]), the effects it fitted, and every
+/// test's error, the estimation test's first.
+pub(super) struct Tried {
+    pub after: f64,
+    pub effects: Vec<Effect>,
+    pub nrmse: Vec<f64>,
+}
+
+impl Tried {
+    /// The trial of `model` with `effects` on `tests`.
+    pub(super) fn of(model: &Model, effects: Vec<Effect>, tests: &[Test<'_>]) -> Self {
+        let nrmse: Vec<f64> = tests
+            .iter()
+            .map(|t| effects::judged_nrmse(model, &effects, t.u, t.y))
+            .collect();
+        Self {
+            after: mean(judged(&nrmse).iter().copied()),
+            effects,
+            nrmse,
+        }
+    }
+}
+
 /// The held-out error of a model with effects: mean nrmse over the validation tests, or the
 /// estimation test's when there are none.
 pub(super) fn held_out(model: &Model, effects: &[Effect], tests: &[Test<'_>]) -> f64 {

@@ -6,7 +6,7 @@ use serde::ser::SerializeStruct;
 use serde::{Serialize, Serializer};
 
 use super::TemperatureRow;
-use crate::modelling::effects::{rms, EffectKind, TemperatureDamping};
+use crate::modelling::effects::{EffectKind, TemperatureDamping};
 
 /// What a coloured-noise trial fits, and the error it then reports
 /// ([`Evidence::ColouredNoise`]'s `fit`).
@@ -290,8 +290,8 @@ pub struct TemperatureShift {
     pub signature: bool,
     /// The strongest test.
     pub test: String,
-    /// Each test's error after the trial, the estimation test's first: on the same footing
-    /// as a loss fitted on the tests together ([`JointLoss::nrmse`]), for the order of the two.
+    /// Each test's error after the trial, the estimation test's first: set beside a loss
+    /// fitted on the tests together ([`JointLoss::nrmse`]), what each leaves on every test.
     pub trial_nrmse: Vec<f64>,
     /// The damping factor the viscous law gives for `common_ratio`.
     pub viscous_damping_ratio: f64,
@@ -378,23 +378,6 @@ pub struct JointLoss {
     pub gain_s2_per_unit: f64,
     /// The fall of the tests' RMS error the loss brings (linear over with the loss).
     pub fall: f64,
-}
-
-impl JointLoss {
-    /// The root mean square of the tests' errors with the loss: what the joint fit minimises.
-    #[must_use]
-    pub fn rms(&self) -> f64 {
-        rms(&self.nrmse)
-    }
-}
-
-impl TemperatureShift {
-    /// The root mean square of the tests' errors after the trial, on the footing of
-    /// [`JointLoss::rms`]; `None` without them.
-    #[must_use]
-    pub fn trial_rms(&self) -> Option<f64> {
-        (!self.trial_nrmse.is_empty()).then(|| rms(&self.trial_nrmse))
-    }
 }
 
 #[cfg(test)]

@@ -293,6 +293,12 @@ pub struct TemperatureShift {
     /// Each test's error after the trial, the estimation test's first: set beside a loss
     /// fitted on the tests together ([`JointLoss::nrmse`]), what each leaves on every test.
     pub trial_nrmse: Vec<f64>,
+    /// Each test's error, the estimation test's first, with one model fitted to all the
+    /// tests and each test's own time scale (`fit --also`, as a loss is fitted on them):
+    /// reckoned where a nonlinear damping fitted on the tests together is offered beside it,
+    /// to set the two on one footing.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joint_nrmse: Option<Vec<f64>>,
     /// The damping factor the viscous law gives for `common_ratio`.
     pub viscous_damping_ratio: f64,
 }
@@ -378,6 +384,34 @@ pub struct JointLoss {
     pub gain_s2_per_unit: f64,
     /// The fall of the tests' RMS error the loss brings (linear over with the loss).
     pub fall: f64,
+}
+
+impl JointLoss {
+    /// The root mean square of the tests' errors with the loss: what the joint fit minimises.
+    #[must_use]
+    pub fn rms(&self) -> f64 {
+        rms(&self.nrmse)
+    }
+}
+
+impl TemperatureShift {
+    /// The least root mean square of the tests' errors a temperature model leaves, the trial's
+    /// or one model fitted to all the tests with each test's own time scale, on the footing
+    /// of [`JointLoss::rms`]; `None` until the latter was reckoned.
+    #[must_use]
+    pub fn joint_rms(&self) -> Option<f64> {
+        let joint = rms(self.joint_nrmse.as_deref()?);
+        Some(if self.trial_nrmse.is_empty() {
+            joint
+        } else {
+            joint.min(rms(&self.trial_nrmse))
+        })
+    }
+}
+
+/// The root mean square of each test's error.
+fn rms(nrmse: &[f64]) -> f64 {
+    (nrmse.iter().map(|e| e * e).sum::<f64>() / nrmse.len().max(1) as f64).sqrt()
 }
 
 #[cfg(test)]
@@ -488,6 +522,7 @@ mod tests {
             signature: true,
             test: "t2.csv".into(),
             trial_nrmse: vec![0.002, 0.003],
+            joint_nrmse: None,
             viscous_damping_ratio: 1.2,
         });
         assert_eq!(

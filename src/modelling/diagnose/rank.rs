@@ -532,6 +532,26 @@ pub fn diagnose(
         }
     }
 
+    // A temperature offered beside a loss fitted on the tests together is fitted on them
+    // together too (one model, each test its own time scale), so that the order can set the
+    // two on one footing: the loss's dynamics are refitted on every test, the trial's are
+    // the estimation test's.
+    let joint_loss = out
+        .iter()
+        .any(|c| matches!(&c.evidence, Evidence::NonlinearDamping(n) if n.joint.is_some()));
+    if joint_loss {
+        for c in &mut out {
+            if let (Evidence::Temperature(t), Remedy::Add(added)) = (&mut c.evidence, &c.change) {
+                let mut with = current.effects.to_vec();
+                with.retain(|e| e.kind() != added.kind());
+                with.push(added.clone());
+                t.joint_nrmse =
+                    effects::fit_with_also(estimation, validation, &[], fs, &base, &with)
+                        .ok()
+                        .map(|(fitted, fx)| Tried::of(&fitted.model, fx, tests).nrmse);
+            }
+        }
+    }
     super::order::order(&mut out, current.model.dc_gain());
     // Nothing is missing when the residual is what both channels' noise leaves (at the floor,
     // correlated only as that noise is), or at the floor with no effect's trial lowering it.

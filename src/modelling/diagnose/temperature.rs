@@ -193,6 +193,7 @@ pub(super) fn candidate(
             signature: seen,
             test: file,
             trial_nrmse: tried.nrmse,
+            joint_nrmse: None,
             viscous_damping_ratio: TemperatureDamping::Viscous.factor(ratio, reference_k),
         }),
         reading,

@@ -6,7 +6,7 @@ use serde::ser::SerializeStruct;
 use serde::{Serialize, Serializer};
 
 use super::TemperatureRow;
-use crate::modelling::effects::{EffectKind, TemperatureDamping};
+use crate::modelling::effects::{rms, EffectKind, TemperatureDamping};
 
 /// What a coloured-noise trial fits, and the error it then reports
 /// ([`Evidence::ColouredNoise`]'s `fit`).
@@ -407,11 +407,6 @@ impl TemperatureShift {
             joint.min(rms(&self.trial_nrmse))
         })
     }
-}
-
-/// The root mean square of each test's error.
-fn rms(nrmse: &[f64]) -> f64 {
-    (nrmse.iter().map(|e| e * e).sum::<f64>() / nrmse.len().max(1) as f64).sqrt()
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! The order of the candidates: by score, then the physics that decides between two that
 //! score within [`CLOSE_MARGIN`] of each other.
 
-use super::{Candidate, Evidence, JointLoss, ModeEvidence, NonlinearDamping, CLOSE_MARGIN};
+use super::{Candidate, Evidence, ModeEvidence, NonlinearDamping, CLOSE_MARGIN};
 use crate::modelling::effects::EffectKind;
 use crate::modelling::evidence::{Trend, NARROW_PEAK_Q};
 
@@ -226,28 +226,22 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64) {
 /// the loss's against one linear model fitted to all the tests, the temperature's against the
 /// model fitted on the estimation test. Where the temperature was fitted on all the tests
 /// too (one model, each test its own time scale), the one that leaves less over all the tests
-/// ([`JointLoss::rms`] against
+/// ([`JointLoss::rms`](super::JointLoss::rms) against
 /// [`TemperatureShift::joint_rms`](super::TemperatureShift::joint_rms)) goes before the other
 /// at any margin. Against the trial alone, whose dynamics keep the estimation test's, the
 /// loss's refit of the dynamics on every test decided where the plain model misses the
 /// probe's own dynamics (bank seed 46, case 008: a temperature, 0.60 % against the loss's
 /// 0.53 %; fitted on both tests, 0.45 %).
 fn temperature_or_loss(out: &mut Vec<Candidate>) {
-    let rms = |c: &Candidate| match &c.evidence {
-        Evidence::Temperature(t) => t.joint_rms(),
-        Evidence::NonlinearDamping(n) => n.joint.as_ref().map(JointLoss::rms),
-        _ => None,
+    // The first temperature (`true`) or loss with its RMS over all the tests, and where it is.
+    let find = |temperature: bool| {
+        out.iter().enumerate().find_map(|(i, c)| match &c.evidence {
+            Evidence::Temperature(t) if temperature => t.joint_rms().map(|r| (i, r)),
+            Evidence::NonlinearDamping(n) if !temperature => n.joint.as_ref().map(|j| (i, j.rms())),
+            _ => None,
+        })
     };
-    let t = out
-        .iter()
-        .position(|c| matches!(c.evidence, Evidence::Temperature(_)) && rms(c).is_some());
-    let l = out
-        .iter()
-        .position(|c| matches!(c.evidence, Evidence::NonlinearDamping(_)) && rms(c).is_some());
-    let (Some(t), Some(l)) = (t, l) else {
-        return;
-    };
-    let (Some(tr), Some(lr)) = (out.get(t).and_then(rms), out.get(l).and_then(rms)) else {
+    let (Some((t, tr)), Some((l, lr))) = (find(true), find(false)) else {
         return;
     };
     let (better, worse) = if lr < tr { (l, t) } else { (t, l) };

@@ -59,10 +59,15 @@ pub fn diagnose(
     let validation: &[Test<'_>] = &validation.iter().map(trial_window).collect::<Vec<_>>();
     // Each trial's held-out error and stated uncertainty, for the candidate it becomes.
     let stated: std::cell::RefCell<Vec<(f64, Option<Uncertainty>)>> = Default::default();
-    let trial = |added: Effect, options: &Options| -> Option<Tried> {
+    // The current effects with `added` in place of any of its kind.
+    let adding = |added: &Effect| -> Vec<Effect> {
         let mut with = current.effects.to_vec();
         with.retain(|e| e.kind() != added.kind());
-        with.push(added);
+        with.push(added.clone());
+        with
+    };
+    let trial = |added: Effect, options: &Options| -> Option<Tried> {
+        let with = adding(&added);
         let (fitted, fx) = effects::fit_with(estimation, validation, fs, options, &with).ok()?;
         fitted.model.check_stable("trial").ok()?;
         let tried = Tried::of(&fitted.model, fx, tests);
@@ -542,9 +547,7 @@ pub fn diagnose(
     if joint_loss {
         for c in &mut out {
             if let (Evidence::Temperature(t), Remedy::Add(added)) = (&mut c.evidence, &c.change) {
-                let mut with = current.effects.to_vec();
-                with.retain(|e| e.kind() != added.kind());
-                with.push(added.clone());
+                let with = adding(added);
                 t.joint_nrmse =
                     effects::fit_with_also(estimation, validation, &[], fs, &base, &with)
                         .ok()

@@ -55,9 +55,15 @@ impl JointFit {
     /// The root mean square of the tests' errors: what the fit minimises.
     #[must_use]
     pub fn rms(&self) -> f64 {
-        let n = self.nrmse.len().max(1) as f64;
-        (self.nrmse.iter().map(|e| e * e).sum::<f64>() / n).sqrt()
+        rms(&self.nrmse)
     }
+}
+
+/// The root mean square of each test's error: what a fit of one model to several tests
+/// minimises, and the footing candidates fitted on all of them are compared on.
+#[must_use]
+pub fn rms(nrmse: &[f64]) -> f64 {
+    (nrmse.iter().map(|e| e * e).sum::<f64>() / nrmse.len().max(1) as f64).sqrt()
 }
 
 /// The linear fit and the fit with a quadratic loss, each of one model to all `tests` (at

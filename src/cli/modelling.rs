@@ -395,10 +395,20 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
         }
         crate::outln!("    change: {}", c.change.command());
         if let Some(test) = &c.separated_by {
-            crate::outln!(
-                "    close to the next ({:.2} in score): to tell them apart, {test}",
-                c.margin
-            );
+            let rule = c
+                .ordered_by
+                .or_else(|| candidates.get(i + 1).and_then(|n| n.ordered_by));
+            match rule {
+                Some(rule) if c.margin < 0.0 => crate::outln!(
+                    "    ahead of the next though it scores {:.2} less, since {rule}: to tell them \
+                     apart, {test}",
+                    -c.margin
+                ),
+                _ => crate::outln!(
+                    "    close to the next ({:.2} in score): to tell them apart, {test}",
+                    c.margin
+                ),
+            }
         }
     }
     if let Some(path) = &args.report {

@@ -405,6 +405,7 @@ mod tests {
                 dc_gain: 0.5,
                 late_residual_over_step: 1.0,
                 creep_in_standard_errors: 40.0,
+                creep_slope_kept: Some(0.02),
             },
             reading: "a slow creep & more".into(),
             change: Remedy::Add(crate::modelling::effects::Effect::Leak),
@@ -412,6 +413,7 @@ mod tests {
             nrmse_after: 0.00456,
             margin: 0.5,
             separated_by: None,
+            ordered_by: None,
             uncertainty_before: None,
             uncertainty_after: None,
         };
@@ -433,8 +435,8 @@ mod tests {
         assert!(html.contains("no effects added") && !html.contains("effects []"));
         assert!(
             html.contains(
-                "<code>creep in standard errors: 40.0; dc gain: 0.5; late residual over step: \
-                 1.0</code>"
+                "<code>creep in standard errors: 40.0; creep slope kept: 0.02; dc gain: 0.5; \
+                 late residual over step: 1.0</code>"
             ),
             "evidence as text"
         );

@@ -27,10 +27,11 @@ pub const SENSOR_RESONANCE_REMEDY: &str = "the transducers' modes in the model: 
 ///     dc_gain: 0.98,
 ///     late_residual_over_step: -0.01,
 ///     creep_in_standard_errors: -7.5,
+///     creep_slope_kept: Some(0.04),
 /// };
 /// assert_eq!(
 ///     serde_json::to_string(&e).unwrap(),
-///     r#"{"dc_gain":0.98,"late_residual_over_step":-0.01,"creep_in_standard_errors":-7.5}"#
+///     r#"{"dc_gain":0.98,"late_residual_over_step":-0.01,"creep_in_standard_errors":-7.5,"creep_slope_kept":0.04}"#
 /// );
 /// ```
 #[derive(Debug, Clone, Serialize)]
@@ -73,6 +74,11 @@ pub enum Evidence {
         /// both channels leave (the largest in size over the tests): a creep the noise could
         /// not make when it is large.
         creep_in_standard_errors: f64,
+        /// How much of the slope of a line through the estimation test's residual its slope
+        /// over the last 30 % of the record keeps ([`super::slope_kept`]): near 0 for a creep
+        /// that settles, as a leak's does; about 1 or more for a drift, which runs on. `null`
+        /// where the line is flat.
+        creep_slope_kept: Option<f64>,
     },
     /// `sensor-resonance`: the reference rings where the probe's residual peaks.
     SensorResonance(SensorResonance),

@@ -5,7 +5,7 @@ use serde::Serialize;
 
 #[cfg(doc)]
 use super::PARAMETER_PENALTY;
-use super::{Evidence, Remedy};
+use super::{Evidence, OrderRule, Remedy};
 use crate::fit::model::Uncertainty;
 use crate::modelling::effects::{self, EffectKind};
 
@@ -116,10 +116,15 @@ pub struct Candidate {
     /// fit shows ([`Candidate::error_change`] says so).
     pub nrmse_after: f64,
     /// How far ahead of the next candidate it is (score difference; the last one's score).
+    /// Negative where a rule of the order put it ahead of one that scores more, or put the
+    /// next one behind it ([`Candidate::ordered_by`] of the one or the other).
     pub margin: f64,
-    /// When the next candidate is within [`CLOSE_MARGIN`]: the test that would tell the two
-    /// apart.
-    pub separated_by: Option<String>,
+    /// When the next candidate is within [`CLOSE_MARGIN`], or ahead of it in score: the test
+    /// that would tell the two apart.
+    pub separated_by: Option<SeparatingTest>,
+    /// The rule of the order that moved it from where its score put it, if one did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ordered_by: Option<OrderRule>,
     /// The model's stated uncertainty before the trial (its fit report's), when it has one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub uncertainty_before: Option<Uncertainty>,
@@ -179,31 +184,139 @@ impl Candidate {
 /// would separate them.
 pub const CLOSE_MARGIN: f64 = 0.3;
 
+/// What to record to tell two close candidates apart ([`SeparatingTest`]). Its JSON name is
+/// kebab-case: `longer-record`, `steady-record`, `another-temperature`, `steps-of-other-sizes`,
+/// `reference-alone`, `another-step`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TestToRecord {
+    /// A longer record after the step.
+    LongerRecord,
+    /// A record with no step, the pressure steady.
+    SteadyRecord,
+    /// A test at another gas temperature, or at the estimation test's.
+    AnotherTemperature,
+    /// Steps of other sizes at the estimation test's temperature.
+    StepsOfOtherSizes,
+    /// The reference transducer alone on a step.
+    ReferenceAlone,
+    /// Another step test, of another size and direction, held out.
+    AnotherStep,
+}
+
+impl TestToRecord {
+    /// What to record, in words.
+    #[must_use]
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Self::LongerRecord => "a longer record after the step",
+            Self::SteadyRecord => "a record with no step, the pressure steady",
+            Self::AnotherTemperature => {
+                "a test at another gas temperature, or the same temperature as the estimation test"
+            }
+            Self::StepsOfOtherSizes => "steps of other sizes at the estimation test's temperature",
+            Self::ReferenceAlone => "the reference transducer alone on a step",
+            Self::AnotherStep => "another step test of another size and direction, held out",
+        }
+    }
+}
+
+/// The test that would tell two close candidates apart: what to record, and what each one's
+/// signature does in it. In `--json`, `{"test": "longer-record", "text": "a longer record
+/// after the step (...)"}`; its text is its [`Display`](core::fmt::Display).
+///
+/// ```
+/// use unlag::modelling::diagnose::{separating_test, Finding, TestToRecord};
+/// use unlag::modelling::effects::EffectKind;
+///
+/// let t = separating_test(
+///     Finding::Missing(EffectKind::Temperature),
+///     Finding::Missing(EffectKind::NonlinearDamping),
+/// );
+/// assert_eq!(t.test, TestToRecord::StepsOfOtherSizes);
+/// assert!(t.to_string().starts_with("steps of other sizes"));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SeparatingTest {
+    /// What to record.
+    pub test: TestToRecord,
+    /// What each candidate's signature does in it.
+    pub why: &'static str,
+}
+
+impl core::fmt::Display for SeparatingTest {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "{} ({})", self.test.as_str(), self.why)
+    }
+}
+
+impl Serialize for SeparatingTest {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> core::result::Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut st = s.serialize_struct("SeparatingTest", 2)?;
+        st.serialize_field("test", &self.test)?;
+        st.serialize_field("text", &self.to_string())?;
+        st.end()
+    }
+}
+
 /// The test that tells what `a` names from what `b` names, by what each one's signature
 /// depends on.
 #[must_use]
-pub fn separating_test(a: Finding, b: Finding) -> String {
+pub fn separating_test(a: Finding, b: Finding) -> SeparatingTest {
     use EffectKind::{ColouredNoise, Drift, Leak, Mode, NonlinearDamping, Offset, SensorResonance};
+    use TestToRecord::{
+        AnotherStep, AnotherTemperature, LongerRecord, ReferenceAlone, SteadyRecord,
+        StepsOfOtherSizes,
+    };
     let pair = |x: EffectKind, y: EffectKind| (a == x && b == y) || (a == y && b == x);
     let temperature = |k: Finding| {
         k.effect()
             .is_some_and(|k| k.family() == EffectKind::Temperature)
     };
-    if pair(Leak, Mode) {
-        "a longer record after the step (a leak settles below the step, its DC gain under 1; a mode rings out at its frequency and settles at the step)".into()
+    let (test, why) = if pair(Leak, Mode) {
+        (
+            LongerRecord,
+            "a leak settles below the step, its DC gain under 1; a mode rings out at its \
+             frequency and settles at the step",
+        )
     } else if pair(Drift, Offset) || pair(Leak, Drift) {
-        "a longer record after the step (a drift keeps growing, an offset stays, a leak settles)"
-            .into()
+        (
+            LongerRecord,
+            "a drift keeps growing, an offset stays, a leak settles",
+        )
     } else if pair(ColouredNoise, Drift) || pair(ColouredNoise, Offset) {
-        "a record with no step, the pressure steady (the noise alone: it wanders both ways, a drift one way)".into()
+        (
+            SteadyRecord,
+            "the noise alone: it wanders both ways, a drift one way",
+        )
+    } else if (temperature(a) && b == NonlinearDamping) || (temperature(b) && a == NonlinearDamping)
+    {
+        (
+            StepsOfOtherSizes,
+            "a quadratic loss damps a larger step more; a temperature moves every natural \
+             frequency by one factor whatever the step",
+        )
     } else if temperature(a) || temperature(b) {
-        "a test at another gas temperature, or the same temperature as the estimation test (a temperature moves every natural frequency by one factor)".into()
+        (
+            AnotherTemperature,
+            "a temperature moves every natural frequency by one factor",
+        )
     } else if a == NonlinearDamping || b == NonlinearDamping {
-        "steps of other sizes (amplitude-dependent losses change with the step, a linear effect does not)".into()
+        (
+            StepsOfOtherSizes,
+            "amplitude-dependent losses change with the step, a linear effect does not",
+        )
     } else if pair(Mode, SensorResonance) {
-        "the reference transducer alone on a step (a diaphragm rings in it, a line mode does not)"
-            .into()
+        (
+            ReferenceAlone,
+            "a diaphragm rings in it, a line mode does not",
+        )
     } else {
-        "another step test of another size and direction, held out".into()
-    }
+        (
+            AnotherStep,
+            "each effect's trial judged on a test it was not fitted on",
+        )
+    };
+    SeparatingTest { test, why }
 }

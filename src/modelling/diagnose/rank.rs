@@ -5,13 +5,13 @@
 use super::trial::{held_out, trial_window, Tried};
 use super::{
     amplitude_signature, creep_in_standard_errors, drift_before_step, joint_loss_evidence, mean,
-    per_test, pre_step_slope, ramp_kept, ramp_returns, separating_test, AmplitudeSignature,
-    Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping, Remedy, Spectrum,
-    CLOSE_MARGIN, COLOURED_NOISE_FIT, LEAK_DC_GAIN_BELOW,
+    per_test, pre_step_slope, ramp_kept, ramp_returns, separating_test, slope_kept,
+    AmplitudeSignature, Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping,
+    Remedy, Spectrum, CLOSE_MARGIN, COLOURED_NOISE_FIT, CREEP_SETTLED_BELOW, LEAK_DC_GAIN_BELOW,
 };
 use crate::error::Result;
 use crate::fit::model::Uncertainty;
-use crate::fit::{Method, Options, Order, Test};
+use crate::fit::{Method, Options, Order, Test, TestRole};
 use crate::modelling::effects::{self, Effect, EffectKind, FitChanges};
 use crate::modelling::evidence::TestEvidence;
 
@@ -97,6 +97,7 @@ pub fn diagnose(
                     nrmse_after: after,
                     margin: 0.0,
                     separated_by: None,
+                    ordered_by: None,
                     uncertainty_before: current.uncertainty.cloned(),
                     uncertainty_after: stated
                         .borrow()
@@ -279,6 +280,12 @@ pub fn diagnose(
         .map(|e| (e.trend.late_mean - e.trend.pre_mean) / e.step_size.abs().max(1e-300))
         .fold(0.0f64, |m, v| if v.abs() > m.abs() { v } else { m });
     let creep_z = creep_in_standard_errors(evidence);
+    // Whether it settles: read on the estimation test, a step; a held-out test of another
+    // excitation (a traverse, a balloon) has no creep's shape to keep.
+    let creep_slope_kept = evidence
+        .iter()
+        .find(|e| e.role == TestRole::Estimation)
+        .and_then(|e| slope_kept(&e.trend));
     if let Some(Tried { after, .. }) = trial(Effect::Leak, &base) {
         offer(
             EffectKind::Leak,
@@ -287,12 +294,24 @@ pub fn diagnose(
                 dc_gain: current.model.dc_gain(),
                 late_residual_over_step: creep,
                 creep_in_standard_errors: creep_z,
+                creep_slope_kept,
             },
             format!(
                 "after the step the residual creeps slowly ({:+.2} % of the step at the end of the \
-                 record, {creep_z:+.1} standard errors of the noise) and the model's DC gain is \
+                 record, {creep_z:+.1} standard errors of the noise{}) and the model's DC gain is \
                  {:.4}{}: a leaking cavity or side volume, a second, slow time scale",
                 100.0 * creep,
+                match creep_slope_kept {
+                    Some(k) if k.abs() < CREEP_SETTLED_BELOW => format!(
+                        "; settled at the end, its slope there {:.2} of a line's through it",
+                        k
+                    ),
+                    Some(k) => format!(
+                        "; still running at the end, its slope there {k:.2} of a line's through \
+                         it, as a sensor's drift does"
+                    ),
+                    None => String::new(),
+                },
                 current.model.dc_gain(),
                 if current.model.dc_gain() < LEAK_DC_GAIN_BELOW {
                     ""
@@ -590,6 +609,7 @@ pub fn diagnose(
             nrmse_after: before,
             margin: 0.0,
             separated_by: None,
+            ordered_by: None,
             uncertainty_before: current.uncertainty.cloned(),
             uncertainty_after: None,
         });
@@ -626,6 +646,7 @@ pub fn diagnose(
             nrmse_after: before,
             margin: 0.0,
             separated_by: None,
+            ordered_by: None,
             uncertainty_before: current.uncertainty.cloned(),
             uncertainty_after: None,
         };

@@ -66,6 +66,7 @@ pub use order::{
 };
 pub use rank::{diagnose, FLOOR_OVERRULED, MIN_IMPROVEMENT, PARAMETER_PENALTY, SAME_FREQUENCY};
 pub use remedy::Remedy;
+pub use temperature::{TRIAL_ALONE_DAMPING_BELOW, TRIAL_ALONE_FALL};
 pub use trial::TRIAL_WINDOW;
 
 /// The current state of a model file that a diagnosis starts from.

@@ -309,6 +309,10 @@ pub struct FitChanges {
     pub drift: bool,
     /// Whether a quadratic damping term is fitted.
     pub nonlinear: bool,
+    /// Whether a leak is fitted: its DC gain is kept as fitted, however close to 1 (a leak
+    /// lowers the static gain, so the calibration that takes a gain the fit cannot tell
+    /// from 1 as 1 does not apply).
+    pub leak: bool,
 }
 
 impl FitChanges {
@@ -319,7 +323,10 @@ impl FitChanges {
         for e in effects {
             match e {
                 Effect::Mode { .. } => c.extra_order += 2,
-                Effect::Leak => c.extra_order += 1,
+                Effect::Leak => {
+                    c.extra_order += 1;
+                    c.leak = true;
+                }
                 Effect::Offset { .. } => c.offset = true,
                 Effect::Drift { .. } => c.drift = true,
                 Effect::Delay { samples } => c.delay = Some(*samples),

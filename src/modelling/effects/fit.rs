@@ -423,13 +423,15 @@ fn fit_loss_jointly(fitted: &mut Fitted, gain: f64, tests: &[Test<'_>]) -> f64 {
 /// tests, and the note says so. Taken as 1, a leak's fitted gain of 0.96 left a bank probe's
 /// step 1.9 % off where the fit had left 0.34 % (seed 50, case 118).
 fn keep_fitted_gain(fitted: &mut Fitted, est: &Test<'_>, validation: &[Test<'_>]) {
-    let Some(fitted_dc) = fitted.report.calibrated_from.take() else {
+    let dc = fitted.model.dc_gain();
+    let Some(fitted_dc) = fitted
+        .report
+        .calibrated_from
+        .filter(|_| dc.is_finite() && dc != 0.0)
+    else {
         return;
     };
-    let dc = fitted.model.dc_gain();
-    if !(dc.is_finite() && dc != 0.0) {
-        return;
-    }
+    fitted.report.calibrated_from = None;
     fitted.model.b.iter_mut().for_each(|b| *b *= fitted_dc / dc);
     fitted
         .report

@@ -141,12 +141,11 @@ impl Candidate {
     #[must_use]
     pub fn error_change(&self) -> String {
         let pct = |v: f64| format!("{:.3} %", 100.0 * v);
-        let rms = |v: &[f64]| (v.iter().map(|e| e * e).sum::<f64>() / v.len().max(1) as f64).sqrt();
         match &self.evidence {
             Evidence::NonlinearDamping(super::NonlinearDamping { joint: Some(j), .. }) => format!(
                 "the tests fitted together {} -> {} (RMS; none held out)",
-                pct(rms(&j.linear_nrmse)),
-                pct(rms(&j.nrmse))
+                pct(effects::rms(&j.linear_nrmse)),
+                pct(j.rms())
             ),
             _ => format!(
                 "held-out error {} -> {}",

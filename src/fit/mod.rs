@@ -18,6 +18,7 @@
 
 pub mod analysis;
 pub mod arx;
+pub mod calibration;
 pub mod continuous;
 pub mod covariance;
 mod error;
@@ -28,6 +29,7 @@ pub mod selection;
 pub mod step;
 pub(crate) mod uncertainty;
 
+pub use calibration::{CALIBRATED_SIGMAS, CALIBRATION_MAX_STD};
 pub use error::{ContinuousError, FitError};
 pub use model::{Method, Model, NoiseOrigin, TestRole};
 pub use selection::{OrderRule, OrderSelection, UnknownOrderSelection};
@@ -443,13 +445,30 @@ fn in_parallel<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec
 }
 
 /// Fits a model to the estimation test; validation tests are held out (used for the order
-/// choice and reported).
+/// choice and reported). A DC gain the fit cannot tell from 1 is then taken as 1
+/// ([`calibration::calibrate_fitted`]); [`fit_as_found`] keeps it.
 ///
 /// # Errors
 /// [`Error::NoStep`] when the reference has no step, [`Error::TooShort`] when the test is too
 /// short for the order and delay, [`Error::UnstableModel`] when the chosen fit is unstable,
 /// [`FitError`] when the data do not determine a model.
 pub fn fit(
+    estimation: &Test<'_>,
+    validation: &[Test<'_>],
+    sample_rate_hz: f64,
+    options: &Options,
+) -> Result<Fitted> {
+    let mut fitted = fit_as_found(estimation, validation, sample_rate_hz, options)?;
+    calibration::calibrate_fitted(&mut fitted, estimation, validation);
+    Ok(fitted)
+}
+
+/// [`fit`] without the calibration: the DC gain is the one the data give, even where it
+/// cannot be told from 1. For a model whose physics sets the static gain below 1 (a leak).
+///
+/// # Errors
+/// As [`fit`].
+pub fn fit_as_found(
     estimation: &Test<'_>,
     validation: &[Test<'_>],
     sample_rate_hz: f64,
@@ -596,7 +615,7 @@ pub fn fit(
             val = validation.iter().map(|t| nrmse(&model, t.u, t.y)).collect();
         }
     }
-    let mut report = FitReport {
+    let report = FitReport {
         method: options.method,
         order_selection: match options.order {
             Order::Fixed(_) => OrderSelection::Fixed,
@@ -630,17 +649,6 @@ pub fn fit(
         ),
         calibrated_from: None,
     };
-    let fitted_dc = model.dc_gain();
-    if let Some(note) = report
-        .uncertainty
-        .as_ref()
-        .and_then(|u| calibrate(&mut model, u.dc_gain_std))
-    {
-        report.notes.push(note);
-        report.calibrated_from = Some(fitted_dc);
-        est = nrmse(&model, estimation.u, estimation.y);
-        val = validation.iter().map(|t| nrmse(&model, t.u, t.y)).collect();
-    }
     Ok(Fitted {
         model,
         report,
@@ -649,70 +657,9 @@ pub fn fit(
     })
 }
 
-/// A fitted DC gain within this many of its standard deviations of 1 is not evidence that the
-/// probe's static calibration differs from the reference's.
-pub const CALIBRATED_SIGMAS: f64 = 3.0;
-
-/// The calibration is judged only when the DC gain is known to this standard deviation (2 %):
-/// a less certain one is a model whose slow part the record does not determine (a slow
-/// pole-zero pair that a drift or a leak leaves), not a level read through noise.
-pub const CALIBRATION_MAX_STD: f64 = 0.02;
-
-/// Takes the DC gain as 1 when the fit cannot tell it from 1 ([`CALIBRATED_SIGMAS`] of
-/// `dc_gain_std`, itself at most [`CALIBRATION_MAX_STD`]): the numerator is scaled by
-/// `1 / G(1)`, the poles and zeros kept, and the note says so. A compensator made for a DC gain that is noise (a level read through
-/// low-frequency noise before the step) rescales every run's level by it, where the probe,
-/// calibrated against the same static pressure as the reference, reads it right. `None`
-/// (the model untouched) when the gain is exactly 1, clearly not 1, or not known.
-pub(crate) fn calibrate(model: &mut Model, dc_gain_std: f64) -> Option<String> {
-    let dc = model.dc_gain();
-    let off = (dc - 1.0).abs();
-    if !(dc.is_finite() && dc_gain_std.is_finite() && off > 0.0)
-        || off > CALIBRATED_SIGMAS * dc_gain_std
-        || dc_gain_std > CALIBRATION_MAX_STD
-    {
-        return None;
-    }
-    model.b.iter_mut().for_each(|b| *b /= dc);
-    Some(format!(
-        "the fitted DC gain {dc:.6} is within {CALIBRATED_SIGMAS} standard deviations ({dc_gain_std:.1e}) of 1: taken as 1 (a probe calibrated against the reference), the numerator scaled by {:.6}",
-        1.0 / dc
-    ))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_dc_gain_the_fit_cannot_tell_from_one_is_taken_as_one() {
-        let model = Model {
-            fs: 1000.0,
-            delay: 2,
-            a: vec![-0.9],
-            b: vec![0.101, 0.0],
-        };
-        assert!((model.dc_gain() - 1.01).abs() < 1e-12);
-        // 1 % off with a standard deviation of 0.5 %: two sigma, taken as 1.
-        let mut near = model.clone();
-        let note = calibrate(&mut near, 0.005).unwrap();
-        assert!((near.dc_gain() - 1.0).abs() < 1e-12, "{}", near.dc_gain());
-        assert_eq!((near.a.clone(), near.delay), (model.a.clone(), model.delay));
-        assert!(note.contains("1.010000"), "{note}");
-        // 1 % off with 0.1 %: ten sigma, a real calibration difference, kept.
-        let mut far = model.clone();
-        assert!(calibrate(&mut far, 0.001).is_none());
-        assert_eq!(far, model);
-        // A DC gain known to 10 %: the record does not determine the slow part.
-        let mut vague = model.clone();
-        assert!(calibrate(&mut vague, 0.1).is_none());
-        assert_eq!(vague, model);
-        // No uncertainty: nothing to judge by.
-        let mut unknown = model.clone();
-        assert!(calibrate(&mut unknown, f64::NAN).is_none());
-        assert!(calibrate(&mut unknown, 0.0).is_none());
-        assert_eq!(unknown, model);
-    }
 
     #[test]
     fn in_parallel_keeps_the_items_order() {

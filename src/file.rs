@@ -152,6 +152,27 @@ impl HistoryRow {
     }
 }
 
+/// A held-out test whose simulation error the latest fit in a model file's history raised
+/// over the fit before it ([`ModelFile::error_rises`]): the change made the model worse on data
+/// it was not fitted to.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ErrorRise {
+    /// The test's file name.
+    pub file: String,
+    /// Its error with the fit before.
+    pub before: f64,
+    /// Its error with the latest fit.
+    pub after: f64,
+    /// The fit before's delay (samples).
+    pub delay_before: usize,
+    /// The latest fit's delay (samples).
+    pub delay_after: usize,
+}
+
+/// A held-out error that rises by more than this share is an [`ErrorRise`]: a refit of the
+/// same model on the same data moves it by far less.
+pub const ERROR_RISE_NOTED: f64 = 0.01;
+
 /// One test's error in a history row.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -188,6 +209,38 @@ impl ModelFile {
             method: self.fit.as_ref().map_or(Method::Oe, |f| f.method),
             uncertainty: self.uncertainty(),
         }
+    }
+
+    /// The validation tests, in both of the last two rows of the history, whose error the
+    /// latest fit raised by more than [`ERROR_RISE_NOTED`] of the one before: a change of
+    /// the modelling loop that made the model worse where it is judged. Empty for a file
+    /// with fewer than two rows.
+    #[must_use]
+    pub fn error_rises(&self) -> Vec<ErrorRise> {
+        let [.., before, after] = self.history.as_slice() else {
+            return Vec::new();
+        };
+        let held_out = |row: &'_ HistoryRow, file: &str| {
+            row.tests
+                .iter()
+                .find(|t| t.file == file && t.role == TestRole::Validation)
+                .map(|t| t.nrmse)
+        };
+        after
+            .tests
+            .iter()
+            .filter(|t| t.role == TestRole::Validation)
+            .filter_map(|t| {
+                let was = held_out(before, &t.file)?;
+                (t.nrmse > was * (1.0 + ERROR_RISE_NOTED)).then(|| ErrorRise {
+                    file: t.file.clone(),
+                    before: was,
+                    after: t.nrmse,
+                    delay_before: before.delay,
+                    delay_after: after.delay,
+                })
+            })
+            .collect()
     }
 
     /// Renders the file as TOML.
@@ -455,6 +508,66 @@ mod tests {
         // A file with no fit is diagnosed as an output-error fit.
         assert_eq!(f.current().method, crate::fit::Method::Oe);
         assert!(f.current().uncertainty.is_none());
+    }
+
+    #[test]
+    fn a_held_out_error_the_latest_fit_raised_is_an_error_rise() {
+        let row = |delay: usize, val: f64, other: f64| HistoryRow {
+            effects: Vec::new(),
+            order: 2,
+            delay,
+            tests: vec![
+                HistoryTest {
+                    file: "est.csv".into(),
+                    role: TestRole::Estimation,
+                    nrmse: 0.02,
+                },
+                HistoryTest {
+                    file: "val.csv".into(),
+                    role: TestRole::Validation,
+                    nrmse: val,
+                },
+                HistoryTest {
+                    file: "wake.csv".into(),
+                    role: TestRole::Validation,
+                    nrmse: other,
+                },
+            ],
+        };
+        let mut f = ModelFile {
+            format_version: FORMAT_VERSION,
+            model: Model {
+                fs: 1000.0,
+                delay: 3,
+                a: vec![-0.5],
+                b: vec![0.5],
+            },
+            fit: None,
+            sources: vec![],
+            inverse: None,
+            effects: Vec::new(),
+            history: vec![row(6, 0.00963, 0.004)],
+
+            probe: None,
+        };
+        assert!(f.error_rises().is_empty(), "one row: nothing to compare");
+        // val.csv rises 14 %, wake.csv falls; an estimation error that rose is not held out.
+        let mut latest = row(8, 0.0110, 0.003);
+        latest.tests[0].nrmse = 0.05;
+        f.history.push(latest);
+        assert_eq!(
+            f.error_rises(),
+            [ErrorRise {
+                file: "val.csv".into(),
+                before: 0.00963,
+                after: 0.0110,
+                delay_before: 6,
+                delay_after: 8,
+            }]
+        );
+        // A rise within the refit's own spread is not one.
+        f.history.push(row(8, 0.0110 * 1.005, 0.003));
+        assert!(f.error_rises().is_empty());
     }
 
     /// The fit's method is stored by its name, read back as the method, and written as it

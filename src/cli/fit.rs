@@ -9,7 +9,7 @@ use serde_json::json;
 use super::invert::{print_inverse, warn_unplanned, InverseArgs};
 use super::{as_tests, console, json_err, name, number, pct, read_test, report, ColumnArgs};
 use crate::error::{Error, Result};
-use crate::file::ModelFile;
+use crate::file::{ErrorRise, HistoryRow, ModelFile};
 use crate::fit::{Method, Options, Order};
 use crate::pipeline::{self, FitDesignRequest, FitDesigned, FitStage};
 use crate::trace::Trace;
@@ -259,6 +259,8 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     warn_unplanned(&unplanned);
     progress.step("writing the model");
     file.save(&args.output)?;
+    let rises = file.error_rises();
+    warn_error_rises(&rises, &file);
     let report_bytes = match &args.report {
         Some(path) => {
             let diagnosis = report::diagnosis(&file, &tests, false, &progress)?;
@@ -278,6 +280,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         let mut v = serde_json::to_value(&file).map_err(json_err)?;
         v["output"] = json!(name(&args.output));
         v["dc_gain"] = json!(file.model.dc_gain());
+        v["error_rises"] = json!(rises);
         if let Some(path) = &args.report {
             v["report"] = json!(name(path));
         }
@@ -297,6 +300,43 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Warns of each held-out test whose error this fit raised over the fit the model file had
+/// ([`ModelFile::error_rises`]): the loop's change made the model worse there, which must not
+/// pass silently. Where the delay, searched again, moved, `--delay` keeps the one before.
+fn warn_error_rises(rises: &[ErrorRise], file: &ModelFile) {
+    let [.., before, after] = file.history.as_slice() else {
+        return;
+    };
+    let described = |row: &HistoryRow| {
+        format!(
+            "order {}, delay {}, effects [{}]",
+            row.order,
+            row.delay,
+            row.effect_names(", ")
+        )
+    };
+    for r in rises {
+        let delay = if r.delay_after == r.delay_before {
+            String::new()
+        } else {
+            format!(
+                "; the delay, searched again, moved from {} to {} samples: `--delay {}` keeps \
+                 the one before",
+                r.delay_before, r.delay_after, r.delay_before
+            )
+        };
+        crate::errln!(
+            "warning: the held-out error of {} rose from {} to {} with this fit ({}; before: \
+             {}): the change does not help on data it was not fitted to{delay}",
+            r.file,
+            pct(r.before),
+            pct(r.after),
+            described(after),
+            described(before),
+        );
+    }
 }
 
 /// The fit as `unlag fit` prints it: the step, the delay and order searches, the model, its

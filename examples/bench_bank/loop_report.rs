@@ -144,6 +144,49 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         "- no effect named as an effect: {false_alarm}/{} (target at most 5 %)",
         none.len()
     );
+    // A change that made the model worse where it is judged: the first name added, its
+    // held-out error against the plain fit's (on the further run for a change fitted on two
+    // tests together), by the share `unlag fit` warns of when it continues a model file.
+    let judged = |o: &LoopOutcome| {
+        if o.joint {
+            o.before_run.zip(o.after_run)
+        } else {
+            o.before.zip(o.after)
+        }
+    };
+    let changed: Vec<&(Case, LoopOutcome)> = rows
+        .iter()
+        .filter(|(_, o)| !matches!(o.first(), "none" | "unexplained" | ""))
+        .filter(|(_, o)| judged(o).is_some())
+        .collect();
+    let raised: Vec<String> = changed
+        .iter()
+        .filter_map(|(c, o)| {
+            let (before, after) = judged(o)?;
+            (after > before * (1.0 + unlag::file::ERROR_RISE_NOTED)).then(|| {
+                format!(
+                    "case-{:03} ({} named {}, {:.3} % -> {:.3} %)",
+                    c.id,
+                    c.kind.name(),
+                    o.first(),
+                    100.0 * before,
+                    100.0 * after
+                )
+            })
+        })
+        .collect();
+    let _ = writeln!(
+        r,
+        "- the first name's change raised the held-out error (by more than {:.0} %, what `unlag fit` warns of when it continues a model file): {}/{}{}",
+        100.0 * unlag::file::ERROR_RISE_NOTED,
+        raised.len(),
+        changed.len(),
+        if raised.is_empty() {
+            String::new()
+        } else {
+            format!(": {}", raised.join("; "))
+        }
+    );
     // Nothing is hidden, but the probe itself may be more than the second-order start: where
     // its true model beats the plain fit by the diagnosis' own threshold, the probe's own
     // dynamics are visible in these tests, as a hidden effect is, and `mode` names them.

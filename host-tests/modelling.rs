@@ -2365,6 +2365,31 @@ fn a_change_that_raises_the_held_out_error_is_said_with_the_delay_that_moved() {
     };
     let (plain, before, _) = fit(&[]);
     assert_eq!(plain["error_rises"], serde_json::json!([]), "{plain}");
+    // A copy of the plain model, continued in text: the fit says what the change did.
+    let text_model = dir.join("probe-text.toml");
+    std::fs::copy(&model, &text_model).unwrap();
+    let (ok, printed, _) = unlag(&[
+        "fit",
+        &est,
+        &val,
+        "--order",
+        "2",
+        "--add",
+        "leak",
+        "--delay",
+        "6",
+        "-o",
+        text_model.to_str().unwrap(),
+    ]);
+    assert!(ok, "{printed}");
+    let line = printed
+        .lines()
+        .find(|l| l.starts_with("held-out errors against the fit before (order 2, delay 6"))
+        .unwrap_or_else(|| panic!("{printed}"));
+    assert!(
+        line.contains(&format!("{:.3} % ->", 100.0 * before)) && line.ends_with("x lower)"),
+        "{line}"
+    );
     let (leak, after, warned) = fit(&["--add", "leak"]);
     assert!(after > 1.05 * before, "{before} -> {after}");
     let rises = leak["error_rises"].as_array().unwrap();

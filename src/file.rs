@@ -152,11 +152,11 @@ impl HistoryRow {
     }
 }
 
-/// A held-out test whose simulation error the latest fit in a model file's history raised
-/// over the fit before it ([`ModelFile::error_rises`]): the change made the model worse on data
-/// it was not fitted to.
+/// A held-out test's simulation error with the latest fit in a model file's history and with
+/// the fit before it ([`ModelFile::held_out_changes`]): what the loop's last change did where
+/// the model is judged.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ErrorRise {
+pub struct HeldOutChange {
     /// The test's file name.
     pub file: String,
     /// Its error with the fit before.
@@ -169,8 +169,17 @@ pub struct ErrorRise {
     pub delay_after: usize,
 }
 
-/// A held-out error that rises by more than this share is an [`ErrorRise`]: a refit of the
-/// same model on the same data moves it by far less.
+impl HeldOutChange {
+    /// Whether the error rose by more than [`ERROR_RISE_NOTED`]: the change made the model
+    /// worse on data it was not fitted to.
+    #[must_use]
+    pub fn rose(&self) -> bool {
+        self.after > self.before * (1.0 + ERROR_RISE_NOTED)
+    }
+}
+
+/// A held-out error that rises by more than this share has risen ([`HeldOutChange::rose`]): a
+/// refit of the same model on the same data moves it by far less.
 pub const ERROR_RISE_NOTED: f64 = 0.01;
 
 /// One test's error in a history row.
@@ -211,12 +220,10 @@ impl ModelFile {
         }
     }
 
-    /// The validation tests, in both of the last two rows of the history, whose error the
-    /// latest fit raised by more than [`ERROR_RISE_NOTED`] of the one before: a change of
-    /// the modelling loop that made the model worse where it is judged. Empty for a file
-    /// with fewer than two rows.
+    /// Each validation test in both of the last two rows of the history, with its error before
+    /// and after the latest fit. Empty for a file with fewer than two rows.
     #[must_use]
-    pub fn error_rises(&self) -> Vec<ErrorRise> {
+    pub fn held_out_changes(&self) -> Vec<HeldOutChange> {
         let [.., before, after] = self.history.as_slice() else {
             return Vec::new();
         };
@@ -231,15 +238,24 @@ impl ModelFile {
             .iter()
             .filter(|t| t.role == TestRole::Validation)
             .filter_map(|t| {
-                let was = held_out(before, &t.file)?;
-                (t.nrmse > was * (1.0 + ERROR_RISE_NOTED)).then(|| ErrorRise {
+                Some(HeldOutChange {
                     file: t.file.clone(),
-                    before: was,
+                    before: held_out(before, &t.file)?,
                     after: t.nrmse,
                     delay_before: before.delay,
                     delay_after: after.delay,
                 })
             })
+            .collect()
+    }
+
+    /// The [`ModelFile::held_out_changes`] whose error rose ([`HeldOutChange::rose`]): a
+    /// change of the modelling loop that made the model worse where it is judged.
+    #[must_use]
+    pub fn error_rises(&self) -> Vec<HeldOutChange> {
+        self.held_out_changes()
+            .into_iter()
+            .filter(HeldOutChange::rose)
             .collect()
     }
 
@@ -550,21 +566,24 @@ mod tests {
 
             probe: None,
         };
-        assert!(f.error_rises().is_empty(), "one row: nothing to compare");
+        assert!(
+            f.held_out_changes().is_empty(),
+            "one row: nothing to compare"
+        );
         // val.csv rises 14 %, wake.csv falls; an estimation error that rose is not held out.
         let mut latest = row(8, 0.0110, 0.003);
         latest.tests[0].nrmse = 0.05;
         f.history.push(latest);
-        assert_eq!(
-            f.error_rises(),
-            [ErrorRise {
-                file: "val.csv".into(),
-                before: 0.00963,
-                after: 0.0110,
-                delay_before: 6,
-                delay_after: 8,
-            }]
-        );
+        let rise = HeldOutChange {
+            file: "val.csv".into(),
+            before: 0.00963,
+            after: 0.0110,
+            delay_before: 6,
+            delay_after: 8,
+        };
+        assert_eq!(f.error_rises(), [rise]);
+        assert_eq!(f.held_out_changes().len(), 2);
+        assert!(!f.held_out_changes()[1].rose());
         // A rise within the refit's own spread is not one.
         f.history.push(row(8, 0.0110 * 1.005, 0.003));
         assert!(f.error_rises().is_empty());

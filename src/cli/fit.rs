@@ -9,7 +9,7 @@ use serde_json::json;
 use super::invert::{print_inverse, warn_unplanned, InverseArgs};
 use super::{as_tests, console, json_err, name, number, pct, read_test, report, ColumnArgs};
 use crate::error::{Error, Result};
-use crate::file::{ErrorRise, HistoryRow, ModelFile};
+use crate::file::{HeldOutChange, HistoryRow, ModelFile};
 use crate::fit::{Method, Options, Order};
 use crate::pipeline::{self, FitDesignRequest, FitDesigned, FitStage};
 use crate::trace::Trace;
@@ -288,6 +288,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         return Ok(());
     }
     print_fit(&file, est);
+    print_held_out_changes(&file);
     if let Some(d) = &file.inverse {
         print_inverse(d, file.model.fs);
     }
@@ -305,17 +306,9 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
 /// Warns of each held-out test whose error this fit raised over the fit the model file had
 /// ([`ModelFile::error_rises`]): the loop's change made the model worse there, which must not
 /// pass silently. Where the delay, searched again, moved, `--delay` keeps the one before.
-fn warn_error_rises(rises: &[ErrorRise], file: &ModelFile) {
+fn warn_error_rises(rises: &[HeldOutChange], file: &ModelFile) {
     let [.., before, after] = file.history.as_slice() else {
         return;
-    };
-    let described = |row: &HistoryRow| {
-        format!(
-            "order {}, delay {}, effects [{}]",
-            row.order,
-            row.delay,
-            row.effect_names(", ")
-        )
     };
     for r in rises {
         let delay = if r.delay_after == r.delay_before {
@@ -337,6 +330,53 @@ fn warn_error_rises(rises: &[ErrorRise], file: &ModelFile) {
             described(before),
         );
     }
+}
+
+/// A history row as the loop's messages name a fit: `order 2, delay 6, effects [leak]`.
+fn described(row: &HistoryRow) -> String {
+    format!(
+        "order {}, delay {}, effects [{}]",
+        row.order,
+        row.delay,
+        row.effect_names(", ")
+    )
+}
+
+/// Where the fit continues a model file, each held-out test's error against the fit before
+/// ([`ModelFile::held_out_changes`]): the loop's "watch the error fall", in the fit's own
+/// output.
+fn print_held_out_changes(file: &ModelFile) {
+    let changes = file.held_out_changes();
+    let [.., before, _] = file.history.as_slice() else {
+        return;
+    };
+    if changes.is_empty() {
+        return;
+    }
+    let each: Vec<String> = changes
+        .iter()
+        .map(|c| {
+            let ratio = c.before / c.after;
+            let verdict = if c.rose() {
+                "rose".to_string()
+            } else if ratio > 1.0 + crate::file::ERROR_RISE_NOTED {
+                format!("{ratio:.2}x lower")
+            } else {
+                "about the same".to_string()
+            };
+            format!(
+                "{} {} -> {} ({verdict})",
+                c.file,
+                pct(c.before),
+                pct(c.after)
+            )
+        })
+        .collect();
+    crate::outln!(
+        "held-out errors against the fit before ({}): {}",
+        described(before),
+        each.join(", ")
+    );
 }
 
 /// The fit as `unlag fit` prints it: the step, the delay and order searches, the model, its

@@ -2341,7 +2341,7 @@ fn a_loss_near_critical_damping_is_not_read_as_a_temperature_from_its_trial_alon
 /// plain model's delay (6 samples), takes the traverse from 0.963 % to 0.711 %. `fit --add
 /// leak` searches the delay again, finds 8 (lower on the estimation test) and the traverse
 /// rises to 1.100 %: the loop's change made the model worse where it is judged. The fit that
-/// continues the model file says so, names the delay that moved, and `--delay 6`, as it
+/// continues the model file says so, names the delay that moved, and `--add delay=6`, as it
 /// says, gives the fall.
 #[test]
 fn a_change_that_raises_the_held_out_error_is_said_with_the_delay_that_moved() {
@@ -2376,8 +2376,8 @@ fn a_change_that_raises_the_held_out_error_is_said_with_the_delay_that_moved() {
         "2",
         "--add",
         "leak",
-        "--delay",
-        "6",
+        "--add",
+        "delay=6",
         "-o",
         text_model.to_str().unwrap(),
     ]);
@@ -2407,11 +2407,11 @@ fn a_change_that_raises_the_held_out_error_is_said_with_the_delay_that_moved() {
     assert!(
         warned.contains("warning: the held-out error of")
             && warned.contains("rose from")
-            && warned.contains("`--delay 6` keeps the one before"),
+            && warned.contains("`--add delay=6` keeps the one before"),
         "{warned}"
     );
     // As the warning says: the delay before, and the leak's fall.
-    let (kept, with_delay, quiet) = fit(&["--add", "leak", "--delay", "6"]);
+    let (kept, with_delay, quiet) = fit(&["--add", "leak", "--add", "delay=6"]);
     assert_eq!(kept["error_rises"], serde_json::json!([]), "{kept}");
     assert!(!quiet.contains("rose from"), "{quiet}");
     assert!(with_delay < before / 1.3, "{before} -> {with_delay}");

@@ -305,7 +305,8 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
 
 /// Warns of each held-out test whose error this fit raised over the fit the model file had
 /// ([`ModelFile::error_rises`]): the loop's change made the model worse there, which must not
-/// pass silently. Where the delay, searched again, moved, `--delay` keeps the one before.
+/// pass silently. Where the delay, searched again, moved, `--add delay=N` keeps the one
+/// before.
 fn warn_error_rises(rises: &[HeldOutChange], file: &ModelFile) {
     let [.., before, after] = file.history.as_slice() else {
         return;
@@ -315,8 +316,8 @@ fn warn_error_rises(rises: &[HeldOutChange], file: &ModelFile) {
             String::new()
         } else {
             format!(
-                "; the delay, searched again, moved from {} to {} samples: `--delay {}` keeps \
-                 the one before",
+                "; the delay, searched again, moved from {} to {} samples: `--add delay={}` \
+                 keeps the one before, in the model file for the fits after too",
                 r.delay_before, r.delay_after, r.delay_before
             )
         };

@@ -259,7 +259,8 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     warn_unplanned(&unplanned);
     progress.step("writing the model");
     file.save(&args.output)?;
-    let rises = file.error_rises();
+    let changes = file.held_out_changes();
+    let rises: Vec<&HeldOutChange> = changes.iter().filter(|c| c.rose()).collect();
     warn_error_rises(&rises, &file);
     let report_bytes = match &args.report {
         Some(path) => {
@@ -288,7 +289,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         return Ok(());
     }
     print_fit(&file, est);
-    print_held_out_changes(&file);
+    print_held_out_changes(&changes, &file);
     if let Some(d) = &file.inverse {
         print_inverse(d, file.model.fs);
     }
@@ -304,10 +305,10 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
 }
 
 /// Warns of each held-out test whose error this fit raised over the fit the model file had
-/// ([`ModelFile::error_rises`]): the loop's change made the model worse there, which must not
+/// ([`HeldOutChange::rose`]): the loop's change made the model worse there, which must not
 /// pass silently. Where the delay, searched again, moved, `--add delay=N` keeps the one
 /// before.
-fn warn_error_rises(rises: &[HeldOutChange], file: &ModelFile) {
+fn warn_error_rises(rises: &[&HeldOutChange], file: &ModelFile) {
     let [.., before, after] = file.history.as_slice() else {
         return;
     };
@@ -346,8 +347,7 @@ fn described(row: &HistoryRow) -> String {
 /// Where the fit continues a model file, each held-out test's error against the fit before
 /// ([`ModelFile::held_out_changes`]): the loop's "watch the error fall", in the fit's own
 /// output.
-fn print_held_out_changes(file: &ModelFile) {
-    let changes = file.held_out_changes();
+fn print_held_out_changes(changes: &[HeldOutChange], file: &ModelFile) {
     let [.., before, _] = file.history.as_slice() else {
         return;
     };

@@ -24,11 +24,7 @@ pub const CALIBRATION_MAX_STD: f64 = 0.02;
 /// (the model untouched) when the gain is exactly 1, clearly not 1, or not known.
 pub fn calibrate(model: &mut Model, dc_gain_std: f64) -> Option<String> {
     let dc = model.dc_gain();
-    let off = (dc - 1.0).abs();
-    if !(dc.is_finite() && dc_gain_std.is_finite() && off > 0.0)
-        || off > CALIBRATED_SIGMAS * dc_gain_std
-        || dc_gain_std > CALIBRATION_MAX_STD
-    {
+    if !taken_as_one(dc, dc_gain_std) {
         return None;
     }
     model.b.iter_mut().for_each(|b| *b /= dc);
@@ -38,6 +34,17 @@ pub fn calibrate(model: &mut Model, dc_gain_std: f64) -> Option<String> {
     ))
 }
 
+/// Whether a DC gain `dc` known to `dc_gain_std` is taken as 1 ([`calibrate`]): not exactly 1,
+/// within [`CALIBRATED_SIGMAS`] of it, and known to [`CALIBRATION_MAX_STD`] or better.
+fn taken_as_one(dc: f64, dc_gain_std: f64) -> bool {
+    let off = (dc - 1.0).abs();
+    dc.is_finite()
+        && dc_gain_std.is_finite()
+        && off > 0.0
+        && off <= CALIBRATED_SIGMAS * dc_gain_std
+        && dc_gain_std <= CALIBRATION_MAX_STD
+}
+
 /// Whether [`calibrate`] would take the gain of `fitted`'s model as 1: the fit cannot tell it
 /// from 1 and knows it well enough to say so.
 pub(crate) fn would_calibrate(fitted: &Fitted) -> bool {
@@ -45,7 +52,7 @@ pub(crate) fn would_calibrate(fitted: &Fitted) -> bool {
         .report
         .uncertainty
         .as_ref()
-        .is_some_and(|u| calibrate(&mut fitted.model.clone(), u.dc_gain_std).is_some())
+        .is_some_and(|u| taken_as_one(fitted.model.dc_gain(), u.dc_gain_std))
 }
 
 /// Applies [`calibrate`] to a fit with its own uncertainty: where the gain is taken as 1, the

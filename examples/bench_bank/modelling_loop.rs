@@ -441,12 +441,8 @@ pub fn run(bin: &Path, dir: &Path, case: &Case) -> LoopOutcome {
     let first = o.first().to_string();
     // What the user copies: the first candidate's `--add` argument (a sensor resonance with
     // the frequency the diagnosis read).
-    let add = candidates
-        .first()
-        .and_then(|c| c.get("change")?.as_str())
-        .and_then(|c| c.split("--add ").nth(1))
-        .and_then(|rest| rest.split_whitespace().next())
-        .map_or_else(|| first.clone(), str::to_string);
+    let add = add_arguments(candidates.first(), &first);
+    let add: Vec<&str> = add.iter().map(String::as_str).collect();
     // A change fitted on both tests together (`--also val.csv`) is judged on another run
     // held out: the plain fit's error there, and its floors.
     o.joint = candidates
@@ -516,7 +512,7 @@ pub fn run(bin: &Path, dir: &Path, case: &Case) -> LoopOutcome {
     // Nothing to add for `none`, and nothing named for `unexplained`.
     if !matches!(first.as_str(), "none" | "unexplained" | "-") {
         match run(
-            &[&base[..], &["--add", &add, "-o", "added.toml"]].concat(),
+            &[&base[..], &add, &["-o", "added.toml"]].concat(),
             "loop-added.log",
         )
         .and_then(|j| Ok((validation_error(&j)?.0, prediction_floor(&j))))
@@ -529,7 +525,7 @@ pub fn run(bin: &Path, dir: &Path, case: &Case) -> LoopOutcome {
         }
         if o.joint {
             match run(
-                &[&joint_fit[..], &["--add", &add, "-o", "added-run.toml"]].concat(),
+                &[&joint_fit[..], &add, &["-o", "added-run.toml"]].concat(),
                 "loop-added-run.log",
             )
             .and_then(|j| validation_error(&j))
@@ -551,15 +547,11 @@ pub fn run(bin: &Path, dir: &Path, case: &Case) -> LoopOutcome {
                 .and_then(|_| {
                     run(
                         &[
-                            "fit",
-                            "--order",
-                            "2",
-                            "est.csv",
-                            "--add",
+                            &["fit", "--order", "2", "est.csv"][..],
                             &add,
-                            "-o",
-                            "loop2.toml",
-                        ],
+                            &["-o", "loop2.toml"],
+                        ]
+                        .concat(),
                         "loop2-fit.log",
                     )
                 })
@@ -611,11 +603,8 @@ fn round_two(bin: &Path, dir: &Path, o: &mut LoopOutcome) {
         .and_then(|c| c.get("kind")?.as_str())
         .unwrap_or("-")
         .to_string();
-    let add = first
-        .and_then(|c| c.get("change")?.as_str())
-        .and_then(|c| c.split("--add ").nth(1))
-        .and_then(|rest| rest.split_whitespace().next())
-        .map_or_else(|| name.clone(), str::to_string);
+    let add = add_arguments(first, &name);
+    let add: Vec<&str> = add.iter().map(String::as_str).collect();
     o.round_two = Some(name.clone());
     if matches!(name.as_str(), "none" | "unexplained" | "-")
         || std::fs::copy(dir.join("added.toml"), dir.join("added2.toml")).is_err()
@@ -624,17 +613,11 @@ fn round_two(bin: &Path, dir: &Path, o: &mut LoopOutcome) {
     }
     if let Ok((e, p)) = run(
         &[
-            "fit",
-            "--order",
-            "2",
-            "est.csv",
-            "val.csv",
-            "--json",
-            "--add",
+            &["fit", "--order", "2", "est.csv", "val.csv", "--json"][..],
             &add,
-            "-o",
-            "added2.toml",
-        ],
+            &["-o", "added2.toml"],
+        ]
+        .concat(),
         "loop-round2-added.log",
     )
     .and_then(|j| Ok((validation_error(&j)?.0, prediction_floor(&j))))
@@ -642,4 +625,27 @@ fn round_two(bin: &Path, dir: &Path, o: &mut LoopOutcome) {
         o.after_two = Some(e);
         o.floor_prediction_two = p;
     }
+}
+
+/// What the user copies from a candidate's change: every `--add` and its argument (a sensor
+/// resonance with the frequency the diagnosis read; `--add delay=N` where the change keeps the
+/// delay), or `--add KIND` when the change names none.
+fn add_arguments(candidate: Option<&serde_json::Value>, kind: &str) -> Vec<String> {
+    let change = candidate
+        .and_then(|c| c.get("change")?.as_str())
+        .and_then(|c| c.split("   (").next())
+        .unwrap_or("");
+    let mut words = change.split_whitespace();
+    let mut args = Vec::new();
+    while let Some(w) = words.next() {
+        if w == "--add" {
+            if let Some(a) = words.next() {
+                args.extend(["--add".to_string(), a.to_string()]);
+            }
+        }
+    }
+    if args.is_empty() {
+        args.extend(["--add".to_string(), kind.to_string()]);
+    }
+    args
 }

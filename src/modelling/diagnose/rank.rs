@@ -2,7 +2,7 @@
 //! scored, and the verdict when none is offered (`none` or `unexplained`); their order is
 //! [`super::order`]'s.
 
-use super::trial::{held_out, trial_window, Tried};
+use super::trial::{held_out, keep_delay_if_search_raises, trial_window, Tried};
 use super::{
     amplitude_signature, creep_in_standard_errors, drift_before_step, joint_loss_evidence, mean,
     per_test, pre_step_slope, ramp_kept, ramp_returns, separating_test, slope_kept,
@@ -29,15 +29,21 @@ pub const PARAMETER_PENALTY: f64 = 0.03;
 /// Two peaks within this relative distance are at the same frequency.
 pub const SAME_FREQUENCY: f64 = 0.15;
 
-/// Ranks the candidates, best first; `none` alone when nothing is missing.
+/// Ranks the candidates, best first, with every trial at `delay` (searched in each trial
+/// when `None`); `none` alone when nothing is missing, `unexplained` when the residual is
+/// above the floor and no trial lowers it. A temperature read from its trial alone needs a
+/// model resonance short of critical damping unless `any_damping`
+/// ([`super::TRIAL_ALONE_DAMPING_BELOW`]).
 ///
 /// # Errors
 /// Only when the current model cannot be evaluated; a trial that fails is simply not
 /// offered.
-pub fn diagnose(
+pub(super) fn rank_at(
     current: &Current<'_>,
     tests: &[Test<'_>],
     evidence: &[TestEvidence],
+    delay: Option<usize>,
+    any_damping: bool,
 ) -> Result<Vec<Candidate>> {
     let fs = current.model.fs;
     let before = held_out(current.model, current.effects, tests);
@@ -50,7 +56,7 @@ pub fn diagnose(
     let base = Options {
         method: current.method,
         order: Order::Fixed(base_order),
-        delay: Some(current.model.delay),
+        delay,
     };
     let Some((estimation, validation)) = tests.split_first() else {
         return Ok(Vec::new());
@@ -359,9 +365,15 @@ pub fn diagnose(
     // temperature: every natural frequency of the per-test fits moves by one common factor
     // against the model's (the speed of sound, and the kinematic viscosity, changed), or,
     // where no test fitted alone can show it, the trial alone held to the floor.
-    if let Some(t) =
-        super::temperature::candidate(current, tests, evidence, &trial, &base, before, at_floor)
-    {
+    if let Some(t) = super::temperature::candidate(
+        current,
+        tests,
+        evidence,
+        &trial,
+        (&base, any_damping),
+        before,
+        at_floor,
+    ) {
         offer(t.kind, t.after, t.evidence, t.reading, t.change);
     }
 
@@ -575,6 +587,25 @@ pub fn diagnose(
         }
     }
     super::order::order(&mut out, current.model.dc_gain());
+    // The first change as the user will make it: `unlag fit --add KIND` searches the delay
+    // again; where that would raise the held-out error, the change keeps the delay.
+    if have.delay.is_none() && delay.is_some() {
+        if let Some(first) = out.first_mut() {
+            keep_delay_if_search_raises(first, current.model.delay, |added, searched| {
+                trial(
+                    added.clone(),
+                    &if searched {
+                        Options {
+                            delay: None,
+                            ..base
+                        }
+                    } else {
+                        base
+                    },
+                )
+            });
+        }
+    }
     // Nothing is missing when the residual is what both channels' noise leaves (at the floor,
     // correlated only as that noise is), or at the floor with no effect's trial lowering it.
     // A residual above the floor that no effect's trial lowers is not "none": something

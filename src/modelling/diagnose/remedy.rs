@@ -43,6 +43,16 @@ pub enum Remedy {
         /// The tests fitted together with the estimation test.
         also: Vec<String>,
     },
+    /// Add this effect and keep the model's delay at this many samples (a `delay` effect
+    /// beside it in the model file): the fit that adds it searches the delay again, and the
+    /// delay it would find there raises the held-out error over the effect's trial at the
+    /// delay kept.
+    AddKeepingDelay {
+        /// The effect.
+        effect: Effect,
+        /// The delay kept (samples).
+        samples: usize,
+    },
     /// Fix the model's delay at this many samples (a `delay` effect in the model file).
     SetDelay {
         /// The delay (samples).
@@ -62,6 +72,7 @@ impl Remedy {
     #[must_use]
     pub fn kind(&self) -> Option<EffectKind> {
         match self {
+            Self::AddKeepingDelay { effect, .. } => Self::Add(effect.clone()).kind(),
             Self::Add(Effect::Temperature { damping, .. }) => Some(damping.spelling()),
             Self::Add(Effect::SensorResonance {
                 remedy: SensorRemedy::Prefilter,
@@ -88,51 +99,19 @@ impl Remedy {
     /// hertz.
     #[must_use]
     pub fn model_file(&self) -> Option<String> {
-        let entry = match self {
-            Self::SetDelay { samples } | Self::Add(Effect::Delay { samples }) => {
-                format!("{{ kind = \"delay\", samples = {samples} }}")
-            }
-            Self::Add(Effect::Mode { near_hz: Some(f) }) => {
-                format!("{{ kind = \"mode\", near_hz = {f:.0} }}")
-            }
-            Self::Add(Effect::SensorResonance {
-                natural_frequency_hz,
-                remedy,
-                ..
-            }) => {
-                let remedy = match remedy {
-                    SensorRemedy::Modes => "modes",
-                    SensorRemedy::Prefilter => "prefilter",
-                };
-                if *natural_frequency_hz > 0.0 {
-                    format!(
-                        "{{ kind = \"sensor-resonance\", natural_frequency_hz = \
-                         {natural_frequency_hz:.0}, remedy = \"{remedy}\" }}"
-                    )
-                } else {
-                    format!("{{ kind = \"sensor-resonance\", remedy = \"{remedy}\" }}")
-                }
-            }
-            Self::Add(Effect::Temperature {
-                reference_k,
-                damping,
-            }) => {
-                let law = match damping {
-                    TemperatureDamping::Constant => "",
-                    TemperatureDamping::Viscous => ", damping = \"viscous\"",
-                    TemperatureDamping::Diffusive => ", damping = \"diffusive\"",
-                };
-                return Some(format!(
-                    "effects = [{{ kind = \"temperature\", reference_k = {reference_k}{law} }}]; \
-                     the estimation test's temperature"
-                ));
-            }
+        match self {
+            Self::SetDelay { samples } => Some(format!("effects = [{}]", delay_entry(*samples))),
             Self::Add(e) | Self::AddJointly { effect: e, .. } => {
-                format!("{{ kind = \"{}\" }}", e.kind())
+                Some(format!("effects = [{}]{}", entry(e), entry_note(e)))
             }
-            Self::RaiseOrder | Self::Nothing => return None,
-        };
-        Some(format!("effects = [{entry}]"))
+            Self::AddKeepingDelay { effect, samples } => Some(format!(
+                "effects = [{}, {}]{}",
+                entry(effect),
+                delay_entry(*samples),
+                entry_note(effect)
+            )),
+            Self::RaiseOrder | Self::Nothing => None,
+        }
     }
 
     /// The change as the `unlag` command that makes it: `unlag fit ... --add leak   (model
@@ -151,23 +130,87 @@ impl Remedy {
                 format!("unlag fit ...{also} --add {kind}   (model file: {file})")
             }
             (Self::Add(e), Some(kind)) => {
-                // What `--add` takes: the kind, with the value the diagnosis gives.
-                let add = match e {
-                    Effect::SensorResonance {
-                        natural_frequency_hz: f,
-                        ..
-                    } if *f > 0.0 => format!("{kind}={f:.0}"),
-                    Effect::Temperature { reference_k, .. }
-                        if reference_k.to_bits() != DEFAULT_REFERENCE_K.to_bits() =>
-                    {
-                        format!("{kind}={reference_k}")
-                    }
-                    _ => kind.to_string(),
-                };
-                format!("unlag fit ... --add {add}   (model file: {file})")
+                format!(
+                    "unlag fit ... --add {}   (model file: {file})",
+                    add_argument(e, kind)
+                )
             }
+            (Self::AddKeepingDelay { effect, samples }, Some(kind)) => format!(
+                "unlag fit ... --add {} --add delay={samples}   (model file: {file})",
+                add_argument(effect, kind)
+            ),
             _ => "none".into(),
         }
+    }
+}
+
+/// What `--add` takes for `effect`: its kind, with the value the diagnosis gives (a sensor
+/// resonance's frequency, a temperature's reference other than the default).
+fn add_argument(effect: &Effect, kind: EffectKind) -> String {
+    match effect {
+        Effect::SensorResonance {
+            natural_frequency_hz: f,
+            ..
+        } if *f > 0.0 => format!("{kind}={f:.0}"),
+        Effect::Temperature { reference_k, .. }
+            if reference_k.to_bits() != DEFAULT_REFERENCE_K.to_bits() =>
+        {
+            format!("{kind}={reference_k}")
+        }
+        _ => kind.to_string(),
+    }
+}
+
+/// A `delay` entry of the model file's `effects`.
+fn delay_entry(samples: usize) -> String {
+    format!("{{ kind = \"delay\", samples = {samples} }}")
+}
+
+/// The model file's `effects` entry that adds `effect`, with the values a diagnosis gives
+/// (frequencies to the hertz).
+fn entry(effect: &Effect) -> String {
+    match effect {
+        Effect::Delay { samples } => delay_entry(*samples),
+        Effect::Mode { near_hz: Some(f) } => format!("{{ kind = \"mode\", near_hz = {f:.0} }}"),
+        Effect::SensorResonance {
+            natural_frequency_hz,
+            remedy,
+            ..
+        } => {
+            let remedy = match remedy {
+                SensorRemedy::Modes => "modes",
+                SensorRemedy::Prefilter => "prefilter",
+            };
+            if *natural_frequency_hz > 0.0 {
+                format!(
+                    "{{ kind = \"sensor-resonance\", natural_frequency_hz = \
+                     {natural_frequency_hz:.0}, remedy = \"{remedy}\" }}"
+                )
+            } else {
+                format!("{{ kind = \"sensor-resonance\", remedy = \"{remedy}\" }}")
+            }
+        }
+        Effect::Temperature {
+            reference_k,
+            damping,
+        } => {
+            let law = match damping {
+                TemperatureDamping::Constant => "",
+                TemperatureDamping::Viscous => ", damping = \"viscous\"",
+                TemperatureDamping::Diffusive => ", damping = \"diffusive\"",
+            };
+            format!("{{ kind = \"temperature\", reference_k = {reference_k}{law} }}")
+        }
+        e => format!("{{ kind = \"{}\" }}", e.kind()),
+    }
+}
+
+/// What an entry's value means when the entry does not say it: a temperature's is the
+/// estimation test's.
+fn entry_note(effect: &Effect) -> &'static str {
+    match effect {
+        Effect::Temperature { .. } => "; the estimation test's temperature",
+        _ => "",
     }
 }
 
@@ -185,6 +228,11 @@ impl core::fmt::Display for Remedy {
                     "add the {k} effect, fitted on the estimation test and {} together   \
                      (model file: {file})",
                     also.join(", ")
+                ),
+                Self::AddKeepingDelay { samples, .. } => write!(
+                    f,
+                    "add the {k} effect, keeping the delay at {samples} samples   (model file: \
+                     {file})"
                 ),
                 _ => write!(f, "add the {k} effect   (model file: {file})"),
             },
@@ -232,6 +280,13 @@ mod tests {
                     damping: TemperatureDamping::Viscous,
                 }),
                 r#"add the temperature-viscous effect   (model file: effects = [{ kind = "temperature", reference_k = 293.15, damping = "viscous" }]; the estimation test's temperature)"#,
+            ),
+            (
+                Remedy::AddKeepingDelay {
+                    effect: Effect::Leak,
+                    samples: 6,
+                },
+                r#"add the leak effect, keeping the delay at 6 samples   (model file: effects = [{ kind = "leak" }, { kind = "delay", samples = 6 }])"#,
             ),
             (
                 Remedy::SetDelay { samples: 27 },
@@ -322,6 +377,16 @@ mod tests {
                     damping: TemperatureDamping::Viscous,
                 }),
                 r#"unlag fit ... --add temperature-viscous   (model file: effects = [{ kind = "temperature", reference_k = 293.15, damping = "viscous" }]; the estimation test's temperature)"#.into(),
+            ),
+            (
+                Remedy::AddKeepingDelay {
+                    effect: Effect::Temperature {
+                        reference_k: 300.0,
+                        damping: TemperatureDamping::Viscous,
+                    },
+                    samples: 6,
+                },
+                r#"unlag fit ... --add temperature-viscous=300 --add delay=6   (model file: effects = [{ kind = "temperature", reference_k = 300, damping = "viscous" }, { kind = "delay", samples = 6 }]; the estimation test's temperature)"#.into(),
             ),
             (
                 Remedy::SetDelay { samples: 27 },

@@ -154,40 +154,26 @@ pub fn diagnose(
     evidence: &[TestEvidence],
 ) -> Result<Vec<Candidate>> {
     let kept = rank::rank_at(current, tests, evidence, Some(current.model.delay), false)?;
-    let unexplained = |out: &[Candidate]| {
-        out.first()
-            .is_some_and(|c| matches!(c.kind, Finding::Unexplained))
-    };
-    if !unexplained(&kept) {
+    if !kept
+        .first()
+        .is_some_and(|c| matches!(c.kind, Finding::Unexplained))
+    {
         return Ok(kept);
     }
     let delay = current.model.delay;
-    let resorts = [
-        (
-            FitChanges::of(current.effects).delay.is_none(),
-            None,
-            false,
-            format!(
-                "found with the delay searched again in the trial (at the model's {delay} samples \
-                 no effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x)"
-            ),
-        ),
-        (
-            true,
-            Some(delay),
-            true,
-            "found as a last resort: no other effect's trial lowers the held-out error".into(),
-        ),
-    ];
-    for (allowed, at, any_damping, how) in resorts {
-        if !allowed {
-            continue;
-        }
+    let delay_fixed = FitChanges::of(current.effects).delay.is_some();
+    for resort in [LastResort::DelaySearched, LastResort::TemperatureOnAnyModel] {
+        let (at, any_damping) = match resort {
+            LastResort::DelaySearched if delay_fixed => continue,
+            LastResort::DelaySearched => (None, false),
+            LastResort::TemperatureOnAnyModel => (Some(delay), true),
+        };
         let mut found = rank::rank_at(current, tests, evidence, at, any_damping)?;
         if found
             .first()
             .is_some_and(|c| matches!(c.kind, Finding::Missing(_)))
         {
+            let how = resort.reading(delay);
             for c in &mut found {
                 c.reading.push_str("; ");
                 c.reading.push_str(&how);
@@ -196,4 +182,29 @@ pub fn diagnose(
         }
     }
     Ok(kept)
+}
+
+/// A last resort [`diagnose`] tries before it says `unexplained`.
+#[derive(Debug, Clone, Copy)]
+enum LastResort {
+    /// The trials again, with the delay searched in each.
+    DelaySearched,
+    /// A temperature read from its trial alone on any model, where no loss could have moved
+    /// the time scale that way.
+    TemperatureOnAnyModel,
+}
+
+impl LastResort {
+    /// What a candidate it found adds to its reading, for a model at `delay` samples.
+    fn reading(self, delay: usize) -> String {
+        match self {
+            Self::DelaySearched => format!(
+                "found with the delay searched again in the trial (at the model's {delay} samples \
+                 no effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x)"
+            ),
+            Self::TemperatureOnAnyModel => {
+                "found as a last resort: no other effect's trial lowers the held-out error".into()
+            }
+        }
+    }
 }

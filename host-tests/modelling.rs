@@ -785,6 +785,17 @@ impl Diagnosed {
         )
     }
 
+    /// The first candidate, asserted to be of `kind` with `how` in its reading.
+    fn first_named(&self, kind: &str, how: &str) -> &serde_json::Value {
+        let first = &self.json["candidates"][0];
+        assert_eq!(first["kind"], kind, "{}", self.json);
+        assert!(
+            first["reading"].as_str().is_some_and(|r| r.contains(how)),
+            "{first}"
+        );
+        first
+    }
+
     /// Whether any candidate is a temperature, under any damping law.
     fn names_temperature(&self) -> bool {
         self.json["candidates"]
@@ -2103,15 +2114,7 @@ fn a_capillary_at_another_temperature_on_a_traverse_is_named_as_a_last_resort() 
         "capillary-warm-traverse-est.csv",
         "capillary-warm-traverse-val.csv",
     );
-    let d = &case.json;
-    let first = &d["candidates"][0];
-    assert_eq!(first["kind"], "temperature-diffusive", "{d}");
-    assert!(
-        first["reading"]
-            .as_str()
-            .is_some_and(|r| r.contains("found as a last resort")),
-        "{first}"
-    );
+    case.first_named("temperature-diffusive", "found as a last resort");
     // Its change, as printed, brings the traverse to the floor.
     let (before, floor) = case.validation_before();
     assert!(before > 2.0 * floor, "{before}, floor {floor}");
@@ -2126,15 +2129,7 @@ fn a_capillary_at_another_temperature_on_a_traverse_is_named_as_a_last_resort() 
 #[test]
 fn a_mode_whose_poles_trade_with_the_delay_is_found_with_the_delay_searched() {
     let case = diagnose_bank("mode-delay", "mode-delay-est.csv", "mode-delay-val.csv");
-    let d = &case.json;
-    let first = &d["candidates"][0];
-    assert_eq!(first["kind"], "mode", "{d}");
-    assert!(
-        first["reading"]
-            .as_str()
-            .is_some_and(|r| r.contains("found with the delay searched again")),
-        "{first}"
-    );
+    case.first_named("mode", "found with the delay searched again");
     // The change as printed (`--add mode`, the delay searched) gives the trial's fall.
     let (before, _) = case.validation_before();
     let after = case.validation_after("mode");

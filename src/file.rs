@@ -174,8 +174,15 @@ impl HeldOutChange {
     /// worse on data it was not fitted to.
     #[must_use]
     pub fn rose(&self) -> bool {
-        self.after > self.before * (1.0 + ERROR_RISE_NOTED)
+        error_rose(self.before, self.after)
     }
+}
+
+/// Whether a held-out error went from `before` to `after` by a rise of more than
+/// [`ERROR_RISE_NOTED`].
+#[must_use]
+pub fn error_rose(before: f64, after: f64) -> bool {
+    after > before * (1.0 + ERROR_RISE_NOTED)
 }
 
 /// A held-out error that rises by more than this share has risen ([`HeldOutChange::rose`]): a

@@ -163,7 +163,7 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         .iter()
         .filter_map(|(c, o)| {
             let (before, after) = judged(o)?;
-            (after > before * (1.0 + unlag::file::ERROR_RISE_NOTED)).then(|| {
+            unlag::file::error_rose(before, after).then(|| {
                 format!(
                     "case-{:03} ({} named {}, {:.3} % -> {:.3} %)",
                     c.id,

@@ -72,13 +72,8 @@ impl Remedy {
     #[must_use]
     pub fn kind(&self) -> Option<EffectKind> {
         match self {
-            Self::AddKeepingDelay { effect, .. } => Self::Add(effect.clone()).kind(),
-            Self::Add(Effect::Temperature { damping, .. }) => Some(damping.spelling()),
-            Self::Add(Effect::SensorResonance {
-                remedy: SensorRemedy::Prefilter,
-                ..
-            }) => Some(EffectKind::SensorResonancePrefilter),
-            Self::Add(e) | Self::AddJointly { effect: e, .. } => Some(e.kind()),
+            Self::Add(e) | Self::AddKeepingDelay { effect: e, .. } => Some(spelled(e)),
+            Self::AddJointly { effect: e, .. } => Some(e.kind()),
             Self::SetDelay { .. } => Some(EffectKind::Delay),
             Self::RaiseOrder | Self::Nothing => None,
         }
@@ -141,6 +136,19 @@ impl Remedy {
             ),
             _ => "none".into(),
         }
+    }
+}
+
+/// The kind an added `effect` is spelled as, with the variant chosen (`temperature-viscous`,
+/// `sensor-resonance-prefilter`).
+fn spelled(effect: &Effect) -> EffectKind {
+    match effect {
+        Effect::Temperature { damping, .. } => damping.spelling(),
+        Effect::SensorResonance {
+            remedy: SensorRemedy::Prefilter,
+            ..
+        } => EffectKind::SensorResonancePrefilter,
+        e => e.kind(),
     }
 }
 

@@ -2,7 +2,7 @@
 //! with effects is judged by, and the first change made as the user's fit will make it.
 
 use super::{mean, Candidate, Remedy};
-use crate::file::ERROR_RISE_NOTED;
+use crate::file::error_rose;
 use crate::fit::model::Model;
 use crate::fit::Test;
 use crate::modelling::effects::{self, Effect};
@@ -88,10 +88,10 @@ fn judged<T>(tests: &[T]) -> &[T] {
 /// the delay moves to 8 and the traverse rises to 1.100 %.
 ///
 /// Where the first candidate adds an effect whose refit with the delay searched again moves
-/// the delay and raises the held-out error by more than [`ERROR_RISE_NOTED`] over what the
-/// candidate says, and the trial at `delay` does better than that refit, makes its change keep
-/// `delay` ([`Remedy::AddKeepingDelay`]) and says why in its reading. `trial(effect,
-/// searched)` is the effect's trial with the delay searched or kept.
+/// the delay and raises the held-out error over what the candidate says ([`error_rose`]), and
+/// the trial at `delay` does better than that refit, makes its change keep `delay`
+/// ([`Remedy::AddKeepingDelay`]) and says why in its reading. `trial(effect, searched)` is the
+/// effect's trial with the delay searched or kept.
 pub(super) fn keep_delay_if_search_raises(
     first: &mut Candidate,
     delay: usize,
@@ -106,7 +106,7 @@ pub(super) fn keep_delay_if_search_raises(
     let Some(searched) = trial(added, true) else {
         return;
     };
-    if searched.delay == delay || searched.after <= first.nrmse_after * (1.0 + ERROR_RISE_NOTED) {
+    if searched.delay == delay || !error_rose(first.nrmse_after, searched.after) {
         return;
     }
     let Some(kept) = trial(added, false) else {

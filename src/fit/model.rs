@@ -174,6 +174,21 @@ impl Model {
         let _ = self.fit_free_response(ym, y, &[]);
     }
 
+    /// The poles whose free response ends within `n` samples (below [`FREE_RESPONSE_ENDS`] of
+    /// its start), one of each complex pair: what starts a record that is not at rest. `None`
+    /// for a model with a pole on or outside the unit circle.
+    #[must_use]
+    pub fn ending_poles(&self, n: usize) -> Option<Vec<Complex>> {
+        let poles = self.poles().ok()?;
+        let ends = |p: &Complex| (n as f64) * p.norm().ln() < FREE_RESPONSE_ENDS.ln();
+        (!poles.iter().any(|p| p.norm().is_nan() || p.norm() >= 1.0)).then(|| {
+            poles
+                .into_iter()
+                .filter(|p| p.im >= 0.0 && ends(p))
+                .collect()
+        })
+    }
+
     /// Fits to what the simulation `ym` leaves of the probe's `y` the model's free response
     /// and the `extra` columns (each a function of the sample index: a level, a ramp) together,
     /// by least squares (column-pivoted QR); adds the free response to `ym` and returns the
@@ -194,17 +209,7 @@ impl Model {
         extra: &[&dyn Fn(usize) -> f64],
     ) -> Option<Vec<f64>> {
         let n = ym.len().min(y.len());
-        let poles = self.poles().ok()?;
-        if poles.iter().any(|p| p.norm().is_nan() || p.norm() >= 1.0) {
-            return None;
-        }
-        // One pole of each pair; a real pole once.
-        let ending: Vec<Complex> = poles
-            .iter()
-            .filter(|p| p.im >= 0.0)
-            .filter(|p| (n as f64) * p.norm().ln() < FREE_RESPONSE_ENDS.ln())
-            .copied()
-            .collect();
+        let ending = self.ending_poles(n)?;
         let columns = ending
             .iter()
             .map(|p| if p.im > 1e-12 { 2 } else { 1 })

@@ -135,8 +135,8 @@ pub const NONLINEAR_REFINE: usize = 10;
 /// linear part is fitted (by the user's method, delay fixed by a plain fit first) to the input
 /// less the loss times the quadratic rate of the (lightly smoothed, centred) measurement, and
 /// the loss is chosen where the whole model's simulation error is lowest: a grid from zero to
-/// the loss that would take twice the step off the input at the peak rate, refined by golden
-/// section. Returns the fit and the loss.
+/// the loss that would take twice the step off the input at the plain model's peak rate,
+/// refined by golden section. Returns the fit and the loss.
 pub(super) fn fit_nonlinear(
     estimation: &Test<'_>,
     validation: &[Test<'_>],
@@ -169,7 +169,11 @@ pub(super) fn fit_nonlinear(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
             (l.min(*v), h.max(*v))
         });
-    let q_max = q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    // The peak rate is the plain model's, as the joint fit's: the measurement's carries its
+    // noise ([`super::joint::joint_loss`]).
+    let q_max = quadratic_rate(&plain.model.simulate(estimation.u), fs)
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
     if !(q_max > 0.0 && hi > lo) {
         return Ok((plain, 0.0));
     }

@@ -1025,6 +1025,31 @@ fn nonlinear_damping_is_named_by_the_tests_fitted_together_and_judged_on_another
     assert!((loss - 3.64e-9).abs() < 3.0 * std, "{loss} +/- {std}");
 }
 
+/// Bank seed 72, case 020: a capillary with a drift, its second round (`unlag fit --add drift`
+/// on both steps, then `diagnose` again). A loss fitted on the two steps together ended at
+/// zero loss, and its linear part left 1.34x less than the joint linear fit, which had
+/// stopped short: the diagnosis named `nonlinear-damping` with a loss of 0 s^2 per unit.
+/// The loss is now judged against the best linear model either fit found, and a loss of
+/// zero is no loss.
+#[test]
+fn a_loss_fitted_to_zero_is_not_named_a_loss() {
+    let dir = std::env::temp_dir().join(format!("unlag-zero-loss-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let est = bank_trace("capillary-drift-second-round-est.csv");
+    let val = bank_trace("capillary-drift-second-round-val.csv");
+    let model = dir.join("drift.toml").to_str().unwrap().to_string();
+    unlag_json(&[
+        "fit", &est, &val, "--order", "2", "--add", "drift", "-o", &model, "--json",
+    ]);
+    let d = unlag_json(&["diagnose", &model, &est, &val, "--json"]);
+    let c = d["candidates"].as_array().unwrap();
+    assert!(!c.is_empty(), "{d}");
+    for candidate in c {
+        assert_ne!(candidate["kind"], "nonlinear-damping", "{candidate}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// Bank case 047: a capillary with a drift of 5 % of the step per second, two steps. A
 /// quadratic loss refitted on one step takes the drift's shape too and scores as well (within
 /// 0.03), but it is read from its trial alone, while the drift's ramp is seen: the drift goes

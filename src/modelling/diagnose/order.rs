@@ -87,17 +87,20 @@ pub const CREEP_SEEN_STANDARD_ERRORS: f64 = 3.0;
 /// level exponentially, and not a sensor's drift, which runs on at its rate ([`slope_kept`]).
 pub const CREEP_SETTLED_BELOW: f64 = 0.5;
 
-/// How much of the slope of a straight line through a test's whole residual its slope over
-/// the last 30 % of the record keeps (`None` where the line is flat or either slope is not
-/// finite). A leak's creep settles: on the estimation tests of banks 36 to 49, -0.10 to 0.17
+/// How much of the slope of a straight line through a test's whole residual, `seconds` long,
+/// its slope over the last 30 % of the record keeps (`None` where either slope is not finite
+/// or the line is flat: its rise over the record within the standard error of the late
+/// segment's mean, where a ratio to it is noise over noise; seed 72's case 020 read
+/// -5.5e13 once a drift was fitted). A leak's creep settles: on the estimation tests of banks 36 to 49, -0.10 to 0.17
 /// for the leaks a mode tied with, whose volume had filled before the record ended. A
 /// sensor's drift runs on to the end: 1.38 to 6.84 for every drift whose DC gain and creep
 /// read as a leak's on the same banks (above 1 where the fit took part of the ramp into its
 /// dynamics).
 #[must_use]
-pub fn slope_kept(trend: &Trend) -> Option<f64> {
+pub fn slope_kept(trend: &Trend, seconds: f64) -> Option<f64> {
     let kept = trend.late_slope_per_s / trend.slope_per_s;
-    (trend.slope_per_s != 0.0 && kept.is_finite()).then_some(kept)
+    let rise = (trend.slope_per_s * seconds).abs();
+    (rise > trend.late_mean_se && kept.is_finite()).then_some(kept)
 }
 
 /// The rule of the order that put a candidate where its score alone would not
@@ -583,10 +586,14 @@ mod tests {
             pre_mean_se: 0.1,
             late_mean_se: 0.1,
         };
-        assert_eq!(slope_kept(&trend(-2.0, -40.0)), Some(0.05));
-        assert_eq!(slope_kept(&trend(-80.0, -40.0)), Some(2.0));
-        assert_eq!(slope_kept(&trend(1.0, 0.0)), None);
-        assert_eq!(slope_kept(&trend(f64::NAN, 1.0)), None);
+        assert_eq!(slope_kept(&trend(-2.0, -40.0), 1.0), Some(0.05));
+        assert_eq!(slope_kept(&trend(-80.0, -40.0), 1.0), Some(2.0));
+        assert_eq!(slope_kept(&trend(1.0, 0.0), 1.0), None);
+        assert_eq!(slope_kept(&trend(f64::NAN, 1.0), 1.0), None);
+        // A line that rises 0.04 over the record, less than the late mean's standard error
+        // (0.1): flat, whatever the ratio.
+        assert_eq!(slope_kept(&trend(-2.0, -40.0), 1e-3), None);
+        assert_eq!(slope_kept(&trend(-2.0, -40.0), 0.01), Some(0.05));
     }
 
     #[test]

@@ -291,7 +291,7 @@ pub(super) fn rank_at(
     let creep_slope_kept = evidence
         .iter()
         .find(|e| e.role == TestRole::Estimation)
-        .and_then(|e| slope_kept(&e.trend));
+        .and_then(|e| slope_kept(&e.trend, e.samples as f64 / fs));
     if let Some(Tried { after, .. }) = trial(Effect::Leak, &base) {
         offer(
             EffectKind::Leak,

@@ -12,7 +12,7 @@
 
 use faer::Mat;
 
-use super::nonlinear::{quadratic_rate, Stepper};
+use super::nonlinear::{peak_rate, Stepper};
 use crate::fit::arx::{self, Data};
 use crate::fit::covariance::{covariance_weighted, Weighted};
 use crate::fit::model::{NoiseOrigin, Uncertainty};
@@ -125,9 +125,7 @@ pub fn joint_linear(start: &Model, tests: &[Test<'_>]) -> Option<JointFit> {
 /// the signal's own peak rate (bank seed 70, case 007: a 19 Hz probe of damping 0.87 at
 /// 8836 Hz, 11 Pa of noise on a 2748 Pa step), so that the search ended below the loss.
 fn loss_scale(start: &Model, test: &Test<'_>) -> Option<f64> {
-    let q_max = quadratic_rate(&start.simulate(test.u), start.fs)
-        .iter()
-        .fold(0.0f64, |m, v| m.max(v.abs()));
+    let q_max = peak_rate(start, test.u);
     let s = crate::fit::range(test.u) / q_max;
     (s.is_finite() && s > 0.0).then_some(s)
 }
@@ -648,13 +646,12 @@ mod tests {
                 .collect()
         };
         let (u_big, u_small) = (step(2748.0), step(520.0));
-        let q = quadratic_rate(&truth.simulate(&u_big), truth.fs);
-        let rate = q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let rate = peak_rate(&truth, &u_big);
         let gain = 0.5 * 2748.0 / rate;
         let y_big = crate::testing::with_noise(&simulate_nonlinear(&truth, gain, &u_big), 11.2, 41);
         let y_small =
             crate::testing::with_noise(&simulate_nonlinear(&truth, gain, &u_small), 11.2, 42);
-        let measured = quadratic_rate(&y_big, truth.fs)
+        let measured = crate::modelling::effects::quadratic_rate(&y_big, truth.fs)
             .iter()
             .fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(measured > 4.0 * rate, "{measured} against {rate}");
@@ -691,8 +688,7 @@ mod tests {
             .iter()
             .map(|v| 600.0 * v)
             .collect();
-        let q = quadratic_rate(&truth.simulate(&step), fs);
-        let gain = 0.5 * 1000.0 / q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let gain = 0.5 * 1000.0 / peak_rate(&truth, &step);
         let y_step = crate::testing::with_noise(&simulate_nonlinear(&truth, gain, &step), 0.5, 51);
         let y_whole = simulate_nonlinear(&truth, gain, &whole);
         let u = &whole[before..];
@@ -905,8 +901,7 @@ mod tests {
                 .collect()
         };
         let (u_big, u_small) = (step(1051.0), step(160.0));
-        let q = crate::modelling::effects::quadratic_rate(&truth.simulate(&u_big), truth.fs);
-        let gain = 0.5 * 1000.0 / q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let gain = 0.5 * 1000.0 / peak_rate(&truth, &u_big);
         let clean_big = simulate_nonlinear(&truth, gain, &u_big);
         let clean_small = simulate_nonlinear(&truth, gain, &u_small);
         for su in [0.0, 3.8] {

@@ -32,6 +32,16 @@ pub fn quadratic_rate(y: &[f64], fs: f64) -> Vec<f64> {
         .collect()
 }
 
+/// The peak of the quadratic rate ([`quadratic_rate`]) of `model`'s simulation of `u`: the
+/// probe's own peak rate, which a measurement's sample-to-sample differences overstate by its
+/// noise times the sample rate on a slow probe sampled fast. What a loss's search is scaled by.
+#[must_use]
+pub(crate) fn peak_rate(model: &Model, u: &[f64]) -> f64 {
+    quadratic_rate(&model.simulate(u), model.fs)
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+}
+
 /// The model's output with quadratic damping `gain` (see the module docs), started in
 /// equilibrium with its resting level ([`crate::fit::model::resting_level`]): `A y = B (q^-d u - gain N(y))`. The term of `b0`, which needs
 /// `N[k]` of the sample being computed, is solved exactly (a quadratic in the step
@@ -171,9 +181,7 @@ pub(super) fn fit_nonlinear(
         });
     // The peak rate is the plain model's, as the joint fit's: the measurement's carries its
     // noise ([`super::joint::joint_loss`]).
-    let q_max = quadratic_rate(&plain.model.simulate(estimation.u), fs)
-        .iter()
-        .fold(0.0f64, |m, v| m.max(v.abs()));
+    let q_max = peak_rate(&plain.model, estimation.u);
     if !(q_max > 0.0 && hi > lo) {
         return Ok((plain, 0.0));
     }

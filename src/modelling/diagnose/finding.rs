@@ -115,8 +115,9 @@ pub struct Candidate {
     /// (which holds none out), the error before over the fall of the tests' RMS error that
     /// fit shows ([`Candidate::error_change`] says so).
     pub nrmse_after: f64,
-    /// How far ahead of the next candidate it is (score difference; the last one's score).
-    /// Negative where a rule of the order put it ahead of one that scores more, or put the
+    /// How far ahead of the next candidate it is (score difference; the last one's score;
+    /// for a temperature and a quadratic loss both fitted on all the tests, the log of the
+    /// ratio of what each leaves over them, the footing they are ordered on). Negative where a rule of the order put it ahead of one that scores more, or put the
     /// next one behind it ([`Candidate::ordered_by`] of the one or the other).
     pub margin: f64,
     /// When the next candidate is within [`CLOSE_MARGIN`], or ahead of it in score: the test

@@ -3,7 +3,9 @@
 
 use serde::Serialize;
 
-use super::{Candidate, Evidence, ModeEvidence, NonlinearDamping, CLOSE_MARGIN};
+use super::{
+    separating_test, Candidate, Evidence, Finding, ModeEvidence, NonlinearDamping, CLOSE_MARGIN,
+};
 use crate::modelling::effects::EffectKind;
 use crate::modelling::evidence::{Trend, NARROW_PEAK_Q};
 
@@ -362,10 +364,8 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64) {
 fn temperature_or_loss(out: &mut Vec<Candidate>) {
     // The first temperature (`true`) or loss with its RMS over all the tests, and where it is.
     let find = |temperature: bool| {
-        out.iter().enumerate().find_map(|(i, c)| match &c.evidence {
-            Evidence::Temperature(t) if temperature => t.joint_rms().map(|r| (i, r)),
-            Evidence::NonlinearDamping(n) if !temperature => n.joint.as_ref().map(|j| (i, j.rms())),
-            _ => None,
+        out.iter().enumerate().find_map(|(i, c)| {
+            over_all_tests(c).and_then(|(t, r)| (t == temperature).then_some((i, r)))
         })
     };
     let (Some((t, tr)), Some((l, lr))) = (find(true), find(false)) else {
@@ -376,6 +376,49 @@ fn temperature_or_loss(out: &mut Vec<Candidate>) {
         let mut c = out.remove(better);
         c.ordered_by = Some(OrderRule::LessOverAllTests);
         out.insert(worse, c);
+    }
+}
+
+/// A temperature's or a quadratic loss's RMS error over all the tests, each fitted on them
+/// all (the footing the order sets the two on, [`OrderRule::LessOverAllTests`]), and whether
+/// it is the temperature; `None` for any other candidate, or one not fitted so.
+#[must_use]
+pub fn over_all_tests(c: &Candidate) -> Option<(bool, f64)> {
+    match &c.evidence {
+        Evidence::Temperature(t) => t.joint_rms().map(|r| (true, r)),
+        Evidence::NonlinearDamping(n) => n.joint.as_ref().map(|j| (false, j.rms())),
+        _ => None,
+    }
+}
+
+/// The margin of `c` over `next`: their score difference, or, for a temperature and a loss
+/// both fitted on all the tests, the log of the ratio of what each leaves over them, the
+/// footing they are ordered on (their scores are not on one: the loss's is in-sample, the
+/// temperature's held out with each test's own time scale).
+#[must_use]
+pub fn margin(c: &Candidate, next: Option<&Candidate>) -> f64 {
+    let Some(n) = next else { return c.score };
+    match (over_all_tests(c), over_all_tests(n)) {
+        (Some((a, ra)), Some((b, rb))) if a != b => (rb / ra).ln(),
+        _ => c.score - n.score,
+    }
+}
+
+/// Sets each candidate's margin over the next ([`margin`]) and, where the next is within
+/// [`CLOSE_MARGIN`] or scores more (a rule of the order put this one first), the test that
+/// would tell the two apart.
+pub fn set_margins(out: &mut [Candidate]) {
+    let margins: Vec<f64> = (0..out.len())
+        .map(|i| margin(&out[i], out.get(i + 1)))
+        .collect();
+    let next: Vec<Option<(f64, Finding)>> = (0..out.len())
+        .map(|i| out.get(i + 1).map(|n| (n.score, n.kind)))
+        .collect();
+    for ((c, m), next) in out.iter_mut().zip(margins).zip(next) {
+        c.margin = m;
+        c.separated_by = next
+            .filter(|n| m < CLOSE_MARGIN || n.0 > c.score)
+            .map(|n| separating_test(c.kind, n.1));
     }
 }
 
@@ -881,6 +924,28 @@ mod tests {
             first((0.82, temperature(false, trial, None)), (0.28, loss(lossy))),
             l_first
         );
+        // On that footing the margin is the log of the ratio of what each leaves over the
+        // tests (0.35 % against 0.28 %), not the scores' difference (0.54).
+        let t = candidate(
+            EffectKind::TemperatureViscous,
+            0.82,
+            temperature(false, trial, Some(joint)),
+        );
+        let l = candidate(EffectKind::NonlinearDamping, 0.28, loss(lossy));
+        let ratio = crate::modelling::effects::rms(&lossy) / crate::modelling::effects::rms(&trial);
+        assert!((margin(&t, Some(&l)) - ratio.ln()).abs() < 1e-12);
+        assert!((margin(&l, Some(&t)) + ratio.ln()).abs() < 1e-12);
+        // Until both are fitted so, and for any other pair, the scores' difference; the last
+        // candidate's margin is its score.
+        let alone = candidate(
+            EffectKind::TemperatureViscous,
+            0.82,
+            temperature(false, trial, None),
+        );
+        assert!((margin(&alone, Some(&l)) - 0.54).abs() < 1e-12);
+        let mode = candidate(EffectKind::Mode, 0.5, peak(10.0));
+        assert!((margin(&l, Some(&mode)) + 0.22).abs() < 1e-12);
+        assert!((margin(&l, None) - 0.28).abs() < 1e-12);
     }
 
     #[test]

@@ -2,12 +2,13 @@
 //! scored, and the verdict when none is offered (`none` or `unexplained`); their order is
 //! [`super::order`]'s.
 
+use super::temperature::{candidate, TrialAlone};
 use super::trial::{held_out, keep_delay_if_search_raises, trial_window, Tried};
 use super::{
     amplitude_signature, creep_in_standard_errors, drift_before_step, joint_loss_evidence, mean,
-    per_test, pre_step_slope, ramp_kept, ramp_returns, separating_test, slope_kept,
-    AmplitudeSignature, Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping,
-    Remedy, Spectrum, CLOSE_MARGIN, COLOURED_NOISE_FIT, CREEP_SETTLED_BELOW, LEAK_DC_GAIN_BELOW,
+    per_test, pre_step_slope, ramp_kept, ramp_returns, slope_kept, AmplitudeSignature, Candidate,
+    Current, Evidence, Finding, ModeEvidence, NonlinearDamping, Remedy, Spectrum,
+    COLOURED_NOISE_FIT, CREEP_SETTLED_BELOW, LEAK_DC_GAIN_BELOW,
 };
 use crate::error::Result;
 use crate::fit::model::Uncertainty;
@@ -362,21 +363,6 @@ pub(super) fn rank_at(
         }
     }
 
-    // temperature: every natural frequency of the per-test fits moves by one common factor
-    // against the model's (the speed of sound, and the kinematic viscosity, changed), or,
-    // where no test fitted alone can show it, the trial alone held to the floor.
-    if let Some(t) = super::temperature::candidate(
-        current,
-        tests,
-        evidence,
-        &trial,
-        (&base, any_damping),
-        before,
-        at_floor,
-    ) {
-        offer(t.kind, t.after, t.evidence, t.reading, t.change);
-    }
-
     // delay: a refit that searches the delay.
     let xc = evidence.first().map_or(0, |e| e.cross_correlation.peak_lag);
     let search = Options {
@@ -439,6 +425,7 @@ pub(super) fn rank_at(
     // explains tests of different sizes where no single linear model does. One step cannot
     // identify the loss (bank case 052: a capillary's step explained to 0.370 % with it or
     // without, a traverse missed by 2.9 %), so its remedy fits on the tests together.
+    let joint_from = offered.get();
     if !at_floor && !have.nonlinear && !nonlinear_tried {
         let trials: Vec<Test<'_>> = std::iter::once(*estimation)
             .chain(validation.iter().copied())
@@ -465,6 +452,28 @@ pub(super) fn rank_at(
                 },
             );
         }
+    }
+
+    // temperature: every natural frequency of the per-test fits moves by one common factor
+    // against the model's (the speed of sound, and the kinematic viscosity, changed), or,
+    // where no test fitted alone can show it, the trial alone held to the floor; on any model
+    // beside a loss fitted on the tests together, which it is then set against.
+    let alone = match (any_damping, offered.get() > joint_from) {
+        (true, _) => TrialAlone::AnyModel,
+        (false, true) => TrialAlone::BesideJointLoss,
+        (false, false) => TrialAlone::Resonant,
+    };
+    let t = candidate(
+        current,
+        tests,
+        evidence,
+        &trial,
+        (&base, alone),
+        before,
+        at_floor,
+    );
+    if let Some(t) = t {
+        offer(t.kind, t.after, t.evidence, t.reading, t.change);
     }
 
     // coloured noise: the probe's own noise coloured before a step, or correlated residuals
@@ -683,13 +692,6 @@ pub(super) fn rank_at(
         };
         out.insert(0, none);
     }
-    let scores: Vec<(f64, Finding)> = out.iter().map(|c| (c.score, c.kind)).collect();
-    for (i, c) in out.iter_mut().enumerate() {
-        let next = scores.get(i + 1);
-        c.margin = c.score - next.map_or(0.0, |n| n.0);
-        c.separated_by = next
-            .filter(|_| c.margin < CLOSE_MARGIN)
-            .map(|n| separating_test(c.kind, n.1));
-    }
+    super::order::set_margins(&mut out);
     Ok(out)
 }

@@ -71,6 +71,29 @@ fn swing(x: &[f64]) -> f64 {
     hi - at(&mut v, 0.005)
 }
 
+/// The models a temperature may be read from by its trial alone, where no test fitted alone
+/// shows the signature.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum TrialAlone {
+    /// A model with a resonance damped below [`TRIAL_ALONE_DAMPING_BELOW`].
+    Resonant,
+    /// Any model, where no loss could have moved the time scale that way
+    /// ([`loss_could_move`]): the last resort before `unexplained`.
+    AnyModel,
+    /// Any model, beside a loss fitted on the tests together; each is then fitted on all the
+    /// tests and the one that leaves less goes first (`LessOverAllTests` in
+    /// [`super::order`]). Where the test that moved is a traverse (no quiet segment), the
+    /// direction a loss could have moved it is not asked: a traverse has no step to fit
+    /// alone, so no test can show a temperature's signature, and its rates, not its swing,
+    /// set what a loss damps. On overdamped capillaries validated by a traverse in a colder
+    /// gas (bank seed 71, cases 026 and 053; seed 72, case 053; seed 70, case 107), the loss
+    /// was offered alone and named, where the temperature fitted on both tests leaves less.
+    /// A test with a step keeps the direction's test: a capillary's loss validated by a
+    /// valve (seed 70, case 025) ran slower, as a loss moves a larger test, and was named a
+    /// temperature without it.
+    BesideJointLoss,
+}
+
 /// What the temperature candidate offers: its kind (the damping law is part of it), the
 /// held-out error after its trial, the evidence, the reading and the change.
 pub(super) struct Offer {
@@ -90,8 +113,7 @@ pub(super) type Trial<'t> = dyn Fn(Effect, &Options) -> Option<Tried> + 't;
 /// every candidate's; without it (a valve's slow rise or a traverse cannot pin a light
 /// resonance, and a traverse has no step to fit alone), with the residual above the floor
 /// (`at_floor` false) and a model resonance damped below [`TRIAL_ALONE_DAMPING_BELOW`] (or
-/// any model, with `any_damping`: the last resort before `unexplained`, where no loss could
-/// have moved the time scale that way, [`loss_could_move`]), it must move some
+/// any model, as `alone` says: [`TrialAlone`]), it must move some
 /// held-out test's time scale by a factor a gas temperature explains, inside the searched
 /// range, and lower the held-out error by [`TRIAL_ALONE_FALL`] counted to the floor.
 pub(super) fn candidate(
@@ -99,7 +121,7 @@ pub(super) fn candidate(
     tests: &[Test<'_>],
     evidence: &[TestEvidence],
     trial: &Trial<'_>,
-    (base, any_damping): (&Options, bool),
+    (base, alone): (&Options, TrialAlone),
     before: f64,
     at_floor: bool,
 ) -> Option<Offer> {
@@ -121,7 +143,7 @@ pub(super) fn candidate(
         .iter()
         .flatten()
         .any(|&(_, z)| z < TRIAL_ALONE_DAMPING_BELOW);
-    if signature.is_none() && (at_floor || !(resonant || any_damping)) {
+    if signature.is_none() && (at_floor || !(resonant || alone != TrialAlone::Resonant)) {
         return None;
     }
     // A model with a pole on the negative real axis cannot be scaled: its trial searches
@@ -193,8 +215,15 @@ pub(super) fn candidate(
                 .skip(1)
                 .max_by(|a, b| a.1.scale.ln().abs().total_cmp(&b.1.scale.ln().abs()))?;
             let k = strongest.scale;
-            // The last resort: only where no loss could have moved the time scale this way.
+            // Only where no loss could have moved the time scale this way; beside a joint
+            // loss, a traverse's direction is not asked ([`TrialAlone::BesideJointLoss`]).
             let loss = || {
+                let traverse = tests
+                    .get(i)
+                    .is_some_and(|t| crate::fit::step::quiet_until(t.u) == 0);
+                if alone == TrialAlone::BesideJointLoss && traverse {
+                    return false;
+                }
                 let swing_ratio = match (tests.first(), tests.get(i)) {
                     (Some(e), Some(t)) => swing(t.u) / swing(e.u),
                     _ => f64::NAN,

@@ -430,11 +430,9 @@ pub(super) fn rank_at(
         let trials: Vec<Test<'_>> = std::iter::once(*estimation)
             .chain(validation.iter().copied())
             .collect();
-        // It must also beat the current model over the tests: a joint linear fit that broke
-        // down lends any loss a fall (seed 82, case 047: 88.9 % on a traverse at 10.4 %).
         let now = effects::rms(&Tried::of(current.model, current.effects.to_vec(), &trials).nrmse);
-        if let Some(joint) = joint_loss_evidence(current, &trials)
-            .filter(|j| j.fall >= MIN_IMPROVEMENT && j.rms() < now)
+        if let Some(joint) =
+            joint_loss_evidence(current, &trials).filter(|j| j.offered_against(now))
         {
             nonlinear_tried = true;
             let sig = amplitude_signature(&per_test(current, tests, evidence));

@@ -399,11 +399,10 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
                 .ordered_by
                 .or_else(|| candidates.get(i + 1).and_then(|n| n.ordered_by));
             // A temperature and a loss both fitted on all the tests: the margin is on that
-            // footing ([`diagnose::margin`]).
-            let footing = candidates.get(i + 1).and_then(diagnose::over_all_tests);
-            let one_footing = diagnose::over_all_tests(c)
-                .zip(footing)
-                .is_some_and(|(a, b)| a.0 != b.0);
+            // footing.
+            let one_footing = candidates
+                .get(i + 1)
+                .is_some_and(|n| diagnose::on_one_footing(c, n).is_some());
             match rule {
                 _ if one_footing => crate::outln!(
                     "    close to the next (fitted on all the tests, it leaves {:.2}x less over \

@@ -3,9 +3,7 @@
 
 use serde::Serialize;
 
-use super::{
-    separating_test, Candidate, Evidence, Finding, ModeEvidence, NonlinearDamping, CLOSE_MARGIN,
-};
+use super::{separating_test, Candidate, Evidence, ModeEvidence, NonlinearDamping, CLOSE_MARGIN};
 use crate::modelling::effects::EffectKind;
 use crate::modelling::evidence::{Trend, NARROW_PEAK_Q};
 
@@ -391,34 +389,42 @@ pub fn over_all_tests(c: &Candidate) -> Option<(bool, f64)> {
     }
 }
 
-/// The margin of `c` over `next`: their score difference, or, for a temperature and a loss
-/// both fitted on all the tests, the log of the ratio of what each leaves over them, the
-/// footing they are ordered on (their scores are not on one: the loss's is in-sample, the
-/// temperature's held out with each test's own time scale).
+/// For a temperature and a loss both fitted on all the tests, `c` first: the log of the ratio
+/// of what `next` leaves over them to what `c` leaves, the footing they are ordered on (their
+/// scores are not on one: the loss's is in-sample, the temperature's held out with each
+/// test's own time scale); `None` for any other pair.
+#[must_use]
+pub fn on_one_footing(c: &Candidate, next: &Candidate) -> Option<f64> {
+    match (over_all_tests(c), over_all_tests(next)) {
+        (Some((a, ra)), Some((b, rb))) if a != b => Some((rb / ra).ln()),
+        _ => None,
+    }
+}
+
+/// The margin of `c` over `next`: [`on_one_footing`] where that applies, else their score
+/// difference; `c`'s score when it is the last.
 #[must_use]
 pub fn margin(c: &Candidate, next: Option<&Candidate>) -> f64 {
-    let Some(n) = next else { return c.score };
-    match (over_all_tests(c), over_all_tests(n)) {
-        (Some((a, ra)), Some((b, rb))) if a != b => (rb / ra).ln(),
-        _ => c.score - n.score,
-    }
+    next.map_or(c.score, |n| {
+        on_one_footing(c, n).unwrap_or(c.score - n.score)
+    })
 }
 
 /// Sets each candidate's margin over the next ([`margin`]) and, where the next is within
 /// [`CLOSE_MARGIN`] or scores more (a rule of the order put this one first), the test that
 /// would tell the two apart.
 pub fn set_margins(out: &mut [Candidate]) {
-    let margins: Vec<f64> = (0..out.len())
-        .map(|i| margin(&out[i], out.get(i + 1)))
-        .collect();
-    let next: Vec<Option<(f64, Finding)>> = (0..out.len())
-        .map(|i| out.get(i + 1).map(|n| (n.score, n.kind)))
-        .collect();
-    for ((c, m), next) in out.iter_mut().zip(margins).zip(next) {
-        c.margin = m;
-        c.separated_by = next
-            .filter(|n| m < CLOSE_MARGIN || n.0 > c.score)
-            .map(|n| separating_test(c.kind, n.1));
+    for i in 0..out.len() {
+        let next = out.get(i + 1);
+        let Some(c) = out.get(i) else { continue };
+        let m = margin(c, next);
+        let separated_by = next
+            .filter(|n| m < CLOSE_MARGIN || n.score > c.score)
+            .map(|n| separating_test(c.kind, n.kind));
+        if let Some(c) = out.get_mut(i) {
+            c.margin = m;
+            c.separated_by = separated_by;
+        }
     }
 }
 

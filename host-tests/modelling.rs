@@ -752,24 +752,36 @@ fn diagnose_bank(tag: &str, est: &str, val: &str) -> Diagnosed {
 impl Diagnosed {
     /// `unlag fit --order 2` on both traces with `--add kind`, as its change says: the JSON.
     fn fit_adding(&self, kind: &str) -> serde_json::Value {
+        self.fit_adding_all(&[kind])
+    }
+
+    /// `unlag fit --order 2` on both traces with `--add` for each of `kinds`: the JSON.
+    fn fit_adding_all(&self, kinds: &[&str]) -> serde_json::Value {
         let added = self.dir.join("added.toml");
-        unlag_json(&[
+        let mut args = vec![
             "fit",
             &self.est,
             &self.val,
             "--order",
             "2",
-            "--add",
-            kind,
             "-o",
             added.to_str().unwrap(),
             "--json",
-        ])
+        ];
+        for kind in kinds {
+            args.extend(["--add", kind]);
+        }
+        unlag_json(&args)
     }
 
     /// The validation test's error after `--add kind` ([`Diagnosed::fit_adding`]).
     fn validation_after(&self, kind: &str) -> f64 {
-        let fitted = self.fit_adding(kind);
+        self.validation_after_all(&[kind])
+    }
+
+    /// The validation test's error after `--add` for each of `kinds`.
+    fn validation_after_all(&self, kinds: &[&str]) -> f64 {
+        let fitted = self.fit_adding_all(kinds);
         let val = &fitted["sources"][1];
         assert_eq!(val["role"], "validation", "{fitted}");
         val["nrmse"].as_f64().unwrap()
@@ -2477,15 +2489,18 @@ fn a_change_that_raises_the_held_out_error_is_said_with_the_delay_that_moved() {
     let (plain, before, _) = fit(&[]);
     assert_eq!(plain["error_rises"], serde_json::json!([]), "{plain}");
     // The diagnosis makes its change as the fit will: searched again, the delay would raise
-    // the traverse's error, so the change keeps it.
+    // the traverse's error, so the change keeps it. The model is short of its own step test
+    // too (the probe's dynamics beyond second order), so the change carries a mode beside the
+    // leak.
     let (ok, out, err) = unlag(&["diagnose", &model, &est, &val, "--json"]);
     assert!(ok, "{out}{err}");
     let v: serde_json::Value = serde_json::from_str(out.trim()).expect(&out);
     let first = &v["candidates"][0];
     assert_eq!(first["kind"], "leak", "{v}");
+    assert_eq!(first["beside"]["kind"], "mode", "{first}");
     let change = first["change"].as_str().unwrap();
     assert!(
-        change.starts_with("unlag fit ... --add leak --add delay=6 ")
+        change.starts_with("unlag fit ... --add leak --add mode --add delay=6 ")
             && change.contains(r#"{ kind = "delay", samples = 6 }"#),
         "{change}"
     );
@@ -2539,4 +2554,51 @@ fn a_change_that_raises_the_held_out_error_is_said_with_the_delay_that_moved() {
     assert_eq!(kept["error_rises"], serde_json::json!([]), "{kept}");
     assert!(!quiet.contains("rose from"), "{quiet}");
     assert!(with_delay < before / 1.3, "{before} -> {with_delay}");
+    // The change as the diagnosis prints it, with the mode beside the leak, does better still.
+    let (_, with_mode, _) = fit(&["--add", "leak", "--add", "mode", "--add", "delay=6"]);
+    let said = first["beside"]["nrmse_after"].as_f64().unwrap();
+    assert!(
+        (with_mode / said - 1.0).abs() < 0.01,
+        "{with_mode} against {said}"
+    );
+    assert!(with_mode < with_delay / 1.15, "{with_delay} -> {with_mode}");
+}
+
+/// Bank seed 79, case 089: a pneumatic probe (a line and a cavity, modes above the first)
+/// stepped at 293 K and validated by a wake traverse in a colder gas. The plain second-order
+/// model is short of its own step test (0.93 % against a floor of 0.25 %) as well as of the
+/// temperature. The temperature is named first; its effect alone takes the traverse from
+/// 6.64 % to 4.17 %, where the floor is 0.28 %, and the next round of the loop named the mode.
+/// The first change now carries the mode beside the temperature, and says why; made as
+/// printed, it takes the traverse below 1.3 %.
+#[test]
+fn a_model_short_of_its_own_test_gets_a_mode_beside_the_first_change() {
+    let case = diagnose_bank(
+        "pneumatic-cold-short",
+        "pneumatic-cold-short-est.csv",
+        "pneumatic-cold-short-val.csv",
+    );
+    let first = case.first_named("temperature-viscous", "short of its own estimation test");
+    let beside = &first["beside"];
+    assert_eq!(beside["kind"], "mode", "{first}");
+    let change = first["change"].as_str().unwrap();
+    let command = change.split("   (").next().unwrap();
+    let adds: Vec<&str> = command
+        .split(" --add ")
+        .skip(1)
+        .map(|a| a.split_whitespace().next().unwrap())
+        .collect();
+    assert_eq!(adds[..2], ["temperature-viscous", "mode"], "{change}");
+    let (before, floor) = case.validation_before();
+    // The temperature alone falls short: the traverse stays at many times its floor.
+    let alone = case.validation_after("temperature-viscous");
+    assert!(
+        before / alone < 2.0 && alone > 10.0 * floor,
+        "{before} -> {alone}"
+    );
+    // The change as printed gives what the diagnosis says, and a 3x fall.
+    let after = case.validation_after_all(&adds);
+    let said = beside["nrmse_after"].as_f64().unwrap();
+    assert!((after / said - 1.0).abs() < 0.01, "{after} against {said}");
+    assert!(before / after >= 3.0, "{before} -> {after}, floor {floor}");
 }

@@ -416,6 +416,7 @@ mod tests {
             ordered_by: None,
             uncertainty_before: None,
             uncertainty_after: None,
+            beside: None,
         };
         let html = render(&Inputs {
             model_name: "m.toml",

@@ -5,7 +5,7 @@ use serde::Serialize;
 
 #[cfg(doc)]
 use super::PARAMETER_PENALTY;
-use super::{Evidence, OrderRule, Remedy};
+use super::{Beside, Evidence, OrderRule, Remedy};
 use crate::fit::model::Uncertainty;
 use crate::modelling::effects::{self, EffectKind};
 
@@ -134,9 +134,40 @@ pub struct Candidate {
     /// as independent samples.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub uncertainty_after: Option<Uncertainty>,
+    /// A mode added beside its effect, in its change, where the model is short of its own
+    /// estimation test as well and the mode's trial lowers the held-out error further.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub beside: Option<Beside>,
 }
 
 impl Candidate {
+    /// A candidate as its trial leaves it: no margin, separating test, order rule, stated
+    /// uncertainty or mode beside it yet (the order and the diagnosis set those).
+    #[must_use]
+    pub(crate) fn new(
+        kind: Finding,
+        score: f64,
+        (evidence, reading): (Evidence, String),
+        change: Remedy,
+        (nrmse_before, nrmse_after): (f64, f64),
+    ) -> Self {
+        Self {
+            kind,
+            score,
+            evidence,
+            reading,
+            change,
+            nrmse_before,
+            nrmse_after,
+            margin: 0.0,
+            separated_by: None,
+            ordered_by: None,
+            uncertainty_before: None,
+            uncertainty_after: None,
+            beside: None,
+        }
+    }
+
     /// How the error changes in its trial, in words: `held-out error 1.000 % -> 0.500 %`, or
     /// for the tests fitted together, their RMS error with one linear model and with the loss.
     #[must_use]
@@ -149,9 +180,14 @@ impl Candidate {
                 pct(j.rms())
             ),
             _ => format!(
-                "held-out error {} -> {}",
+                "held-out error {} -> {}{}",
                 pct(self.nrmse_before),
-                pct(self.nrmse_after)
+                pct(self.nrmse_after),
+                self.beside.as_ref().map_or(String::new(), |b| format!(
+                    "; with a {} beside it {}",
+                    b.kind,
+                    pct(b.nrmse_after)
+                ))
             ),
         }
     }

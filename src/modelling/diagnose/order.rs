@@ -480,6 +480,7 @@ mod tests {
             ordered_by: None,
             uncertainty_before: None,
             uncertainty_after: None,
+            beside: None,
         }
     }
 

@@ -95,16 +95,6 @@ pub(super) fn rank_at(
             if after.is_finite() && ratio >= MIN_IMPROVEMENT {
                 offered.set(offered.get() + 1);
                 out.push(Candidate {
-                    kind: Finding::Missing(kind),
-                    score: ratio.ln() - PARAMETER_PENALTY * kind.parameters() as f64,
-                    evidence,
-                    reading,
-                    change,
-                    nrmse_before: before,
-                    nrmse_after: after,
-                    margin: 0.0,
-                    separated_by: None,
-                    ordered_by: None,
                     uncertainty_before: current.uncertainty.cloned(),
                     uncertainty_after: stated
                         .borrow()
@@ -112,6 +102,13 @@ pub(super) fn rank_at(
                         .rev()
                         .find(|(e, _)| e.to_bits() == after.to_bits())
                         .and_then(|(_, u)| u.clone()),
+                    ..Candidate::new(
+                        Finding::Missing(kind),
+                        ratio.ln() - PARAMETER_PENALTY * kind.parameters() as f64,
+                        (evidence, reading),
+                        change,
+                        (before, after),
+                    )
                 });
             }
         };
@@ -626,15 +623,18 @@ pub(super) fn rank_at(
             .map(|e| e.judged_nrmse() / e.judged_floor().max(f64::MIN_POSITIVE))
             .fold(0.0f64, f64::max);
         out.push(Candidate {
-            kind: Finding::Unexplained,
-            score: 0.0,
-            evidence: Evidence::Unexplained {
-                noise_floor: floor,
-                nrmse: before,
-                white,
-                worst_over_floor: worst,
-            },
-            reading: format!(
+            uncertainty_before: current.uncertainty.cloned(),
+            ..Candidate::new(
+                Finding::Unexplained,
+                0.0,
+                (
+                    Evidence::Unexplained {
+                        noise_floor: floor,
+                        nrmse: before,
+                        white,
+                        worst_over_floor: worst,
+                    },
+                    format!(
                 "the residual is up to {worst:.1}x what both channels' noise leaves{}, but no \
                  effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x: something \
                  outside the catalogue is missing (a higher order, or physics the effects do not \
@@ -644,15 +644,11 @@ pub(super) fn rank_at(
                 } else {
                     " and correlated beyond that noise"
                 }
-            ),
-            change: Remedy::RaiseOrder,
-            nrmse_before: before,
-            nrmse_after: before,
-            margin: 0.0,
-            separated_by: None,
-            ordered_by: None,
-            uncertainty_before: current.uncertainty.cloned(),
-            uncertainty_after: None,
+                    ),
+                ),
+                Remedy::RaiseOrder,
+                (before, before),
+            )
         });
     }
     // A trial that cuts the error by FLOOR_OVERRULED or more shows the floor was measured too
@@ -663,14 +659,17 @@ pub(super) fn rank_at(
         .fold(0.0f64, f64::max);
     if at_floor && ((white && best_fall < FLOOR_OVERRULED) || out.is_empty()) {
         let none = Candidate {
-            kind: Finding::Nothing,
-            score: 0.0,
-            evidence: Evidence::Nothing {
-                noise_floor: floor,
-                nrmse: before,
-                white,
-            },
-            reading: format!(
+            uncertainty_before: current.uncertainty.cloned(),
+            ..Candidate::new(
+                Finding::Nothing,
+                0.0,
+                (
+                    Evidence::Nothing {
+                        noise_floor: floor,
+                        nrmse: before,
+                        white,
+                    },
+                    format!(
                 "the residuals are consistent with noise ({}error {:.3} % against a floor of {:.3} %{}); \
                  no effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x",
                 if evidence.iter().any(|e| e.prediction.is_some()) {
@@ -681,15 +680,11 @@ pub(super) fn rank_at(
                 100.0 * before,
                 100.0 * floor,
                 if white { ", white" } else { "" }
-            ),
-            change: Remedy::Nothing,
-            nrmse_before: before,
-            nrmse_after: before,
-            margin: 0.0,
-            separated_by: None,
-            ordered_by: None,
-            uncertainty_before: current.uncertainty.cloned(),
-            uncertainty_after: None,
+                    ),
+                ),
+                Remedy::Nothing,
+                (before, before),
+            )
         };
         out.insert(0, none);
     }

@@ -53,6 +53,15 @@ pub enum Remedy {
         /// The delay kept (samples).
         samples: usize,
     },
+    /// The change `change` (an [`Remedy::Add`] or [`Remedy::AddKeepingDelay`]) with the effect
+    /// `beside` (a mode) added in the same fit: the model is short of its own estimation test
+    /// as well as of what `change` adds ([`super::Beside`]).
+    AddBeside {
+        /// The candidate's own change.
+        change: Box<Remedy>,
+        /// The effect added beside it.
+        beside: Effect,
+    },
     /// Fix the model's delay at this many samples (a `delay` effect in the model file).
     SetDelay {
         /// The delay (samples).
@@ -74,6 +83,7 @@ impl Remedy {
         match self {
             Self::Add(e) | Self::AddKeepingDelay { effect: e, .. } => Some(spelled(e)),
             Self::AddJointly { effect: e, .. } => Some(e.kind()),
+            Self::AddBeside { change, .. } => change.kind(),
             Self::SetDelay { .. } => Some(EffectKind::Delay),
             Self::RaiseOrder | Self::Nothing => None,
         }
@@ -94,18 +104,46 @@ impl Remedy {
     /// hertz.
     #[must_use]
     pub fn model_file(&self) -> Option<String> {
+        self.entries()
+            .map(|(entries, note)| format!("effects = [{}]{note}", entries.join(", ")))
+    }
+
+    /// The model file's `effects` entries it adds, and what a value means when an entry does
+    /// not say it ([`entry_note`]); `None` when it adds no effect.
+    fn entries(&self) -> Option<(Vec<String>, &'static str)> {
         match self {
-            Self::SetDelay { samples } => Some(format!("effects = [{}]", delay_entry(*samples))),
+            Self::SetDelay { samples } => Some((vec![delay_entry(*samples)], "")),
             Self::Add(e) | Self::AddJointly { effect: e, .. } => {
-                Some(format!("effects = [{}]{}", entry(e), entry_note(e)))
+                Some((vec![entry(e)], entry_note(e)))
             }
-            Self::AddKeepingDelay { effect, samples } => Some(format!(
-                "effects = [{}, {}]{}",
-                entry(effect),
-                delay_entry(*samples),
-                entry_note(effect)
+            Self::AddKeepingDelay { effect, samples } => Some((
+                vec![entry(effect), delay_entry(*samples)],
+                entry_note(effect),
             )),
+            Self::AddBeside { change, beside } => {
+                let (mut entries, note) = change.entries()?;
+                entries.insert(1.min(entries.len()), entry(beside));
+                Some((entries, note))
+            }
             Self::RaiseOrder | Self::Nothing => None,
+        }
+    }
+
+    /// What `--add` takes, once for each effect, of a change that adds effects without
+    /// `--also`: `leak`; `temperature-viscous`, `mode`, `delay=20`.
+    fn added(&self) -> Option<Vec<String>> {
+        match self {
+            Self::Add(e) => Some(vec![add_argument(e, spelled(e))]),
+            Self::AddKeepingDelay { effect, samples } => Some(vec![
+                add_argument(effect, spelled(effect)),
+                format!("delay={samples}"),
+            ]),
+            Self::AddBeside { change, beside } => {
+                let mut added = change.added()?;
+                added.insert(1.min(added.len()), add_argument(beside, spelled(beside)));
+                Some(added)
+            }
+            _ => None,
         }
     }
 
@@ -124,17 +162,16 @@ impl Remedy {
                 let also: String = also.iter().map(|t| format!(" --also {t}")).collect();
                 format!("unlag fit ...{also} --add {kind}   (model file: {file})")
             }
-            (Self::Add(e), Some(kind)) => {
-                format!(
-                    "unlag fit ... --add {}   (model file: {file})",
-                    add_argument(e, kind)
-                )
-            }
-            (Self::AddKeepingDelay { effect, samples }, Some(kind)) => format!(
-                "unlag fit ... --add {} --add delay={samples}   (model file: {file})",
-                add_argument(effect, kind)
-            ),
-            _ => "none".into(),
+            _ => match self.added() {
+                Some(added) => format!(
+                    "unlag fit ...{}   (model file: {file})",
+                    added
+                        .iter()
+                        .map(|a| format!(" --add {a}"))
+                        .collect::<String>()
+                ),
+                None => "none".into(),
+            },
         }
     }
 }
@@ -242,6 +279,17 @@ impl core::fmt::Display for Remedy {
                     "add the {k} effect, keeping the delay at {samples} samples   (model file: \
                      {file})"
                 ),
+                Self::AddBeside { change, beside } => write!(
+                    f,
+                    "add the {k} effect and the {} effect beside it{}   (model file: {file})",
+                    spelled(beside),
+                    match **change {
+                        Self::AddKeepingDelay { samples, .. } => {
+                            format!(", keeping the delay at {samples} samples")
+                        }
+                        _ => String::new(),
+                    }
+                ),
                 _ => write!(f, "add the {k} effect   (model file: {file})"),
             },
             (None, None) => match self {
@@ -295,6 +343,23 @@ mod tests {
                     samples: 6,
                 },
                 r#"add the leak effect, keeping the delay at 6 samples   (model file: effects = [{ kind = "leak" }, { kind = "delay", samples = 6 }])"#,
+            ),
+            (
+                Remedy::AddBeside {
+                    change: Box::new(Remedy::Add(Effect::Leak)),
+                    beside: Effect::Mode { near_hz: None },
+                },
+                r#"add the leak effect and the mode effect beside it   (model file: effects = [{ kind = "leak" }, { kind = "mode" }])"#,
+            ),
+            (
+                Remedy::AddBeside {
+                    change: Box::new(Remedy::AddKeepingDelay {
+                        effect: Effect::Leak,
+                        samples: 6,
+                    }),
+                    beside: Effect::Mode { near_hz: None },
+                },
+                r#"add the leak effect and the mode effect beside it, keeping the delay at 6 samples   (model file: effects = [{ kind = "leak" }, { kind = "mode" }, { kind = "delay", samples = 6 }])"#,
             ),
             (
                 Remedy::SetDelay { samples: 27 },
@@ -395,6 +460,29 @@ mod tests {
                     samples: 6,
                 },
                 r#"unlag fit ... --add temperature-viscous=300 --add delay=6   (model file: effects = [{ kind = "temperature", reference_k = 300, damping = "viscous" }, { kind = "delay", samples = 6 }]; the estimation test's temperature)"#.into(),
+            ),
+            (
+                Remedy::AddBeside {
+                    change: Box::new(Remedy::Add(Effect::Temperature {
+                        reference_k: DEFAULT_REFERENCE_K,
+                        damping: TemperatureDamping::Viscous,
+                    })),
+                    beside: Effect::Mode { near_hz: None },
+                },
+                r#"unlag fit ... --add temperature-viscous --add mode   (model file: effects = [{ kind = "temperature", reference_k = 293.15, damping = "viscous" }, { kind = "mode" }]; the estimation test's temperature)"#.into(),
+            ),
+            (
+                Remedy::AddBeside {
+                    change: Box::new(Remedy::AddKeepingDelay {
+                        effect: Effect::Drift {
+                            value: 0.0,
+                            rate_per_s: 0.0,
+                        },
+                        samples: 20,
+                    }),
+                    beside: Effect::Mode { near_hz: None },
+                },
+                r#"unlag fit ... --add drift --add mode --add delay=20   (model file: effects = [{ kind = "drift" }, { kind = "mode" }, { kind = "delay", samples = 20 }])"#.into(),
             ),
             (
                 Remedy::SetDelay { samples: 27 },

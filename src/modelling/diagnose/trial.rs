@@ -153,6 +153,7 @@ mod tests {
             ordered_by: None,
             uncertainty_before: None,
             uncertainty_after: None,
+            beside: None,
         }
     }
 

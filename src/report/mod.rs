@@ -397,26 +397,24 @@ mod tests {
             &ym,
         )];
         let c = Candidate {
-            kind: crate::modelling::diagnose::Finding::Missing(
-                crate::modelling::effects::EffectKind::Leak,
-            ),
-            score: 0.5,
-            evidence: crate::modelling::diagnose::Evidence::Leak {
-                dc_gain: 0.5,
-                late_residual_over_step: 1.0,
-                creep_in_standard_errors: 40.0,
-                creep_slope_kept: Some(0.02),
-            },
-            reading: "a slow creep & more".into(),
-            change: Remedy::Add(crate::modelling::effects::Effect::Leak),
-            nrmse_before: 0.0123,
-            nrmse_after: 0.00456,
             margin: 0.5,
-            separated_by: None,
-            ordered_by: None,
-            uncertainty_before: None,
-            uncertainty_after: None,
-            beside: None,
+            ..Candidate::new(
+                crate::modelling::diagnose::Finding::Missing(
+                    crate::modelling::effects::EffectKind::Leak,
+                ),
+                0.5,
+                (
+                    crate::modelling::diagnose::Evidence::Leak {
+                        dc_gain: 0.5,
+                        late_residual_over_step: 1.0,
+                        creep_in_standard_errors: 40.0,
+                        creep_slope_kept: Some(0.02),
+                    },
+                    "a slow creep & more".into(),
+                ),
+                Remedy::Add(crate::modelling::effects::Effect::Leak),
+                (0.0123, 0.00456),
+            )
         };
         let html = render(&Inputs {
             model_name: "m.toml",

@@ -111,7 +111,8 @@ pub struct Candidate {
     pub change: Remedy,
     /// Held-out error before the trial.
     pub nrmse_before: f64,
-    /// Held-out error after the trial; for a quadratic loss fitted on the tests together
+    /// Held-out error after the trial of its effect alone (what its change leaves, with a
+    /// mode beside it, is [`Beside::nrmse_after`]); for a quadratic loss fitted on the tests together
     /// (which holds none out), the error before over the fall of the tests' RMS error that
     /// fit shows ([`Candidate::error_change`] says so).
     pub nrmse_after: f64,

@@ -467,21 +467,13 @@ mod tests {
     use crate::modelling::diagnose::{Finding, Remedy, Spectrum};
 
     fn candidate(kind: EffectKind, score: f64, evidence: Evidence) -> Candidate {
-        Candidate {
-            kind: Finding::Missing(kind),
+        Candidate::new(
+            Finding::Missing(kind),
             score,
-            evidence,
-            reading: String::new(),
-            change: Remedy::Nothing,
-            nrmse_before: 1.0,
-            nrmse_after: 1.0,
-            margin: 0.0,
-            separated_by: None,
-            ordered_by: None,
-            uncertainty_before: None,
-            uncertainty_after: None,
-            beside: None,
-        }
+            (evidence, String::new()),
+            Remedy::Nothing,
+            (1.0, 1.0),
+        )
     }
 
     fn peak(above_floor_db: f64) -> Evidence {

@@ -136,25 +136,20 @@ mod tests {
 
     /// A leak's candidate whose trial (at the model's delay) leaves 0.711 %.
     fn leak() -> Candidate {
-        Candidate {
-            kind: Finding::Missing(EffectKind::Leak),
-            score: 0.3,
-            evidence: Evidence::Nothing {
-                noise_floor: 0.005,
-                nrmse: 0.00963,
-                white: true,
-            },
-            reading: "a leak".into(),
-            change: Remedy::Add(Effect::Leak),
-            nrmse_before: 0.00963,
-            nrmse_after: 0.00711,
-            margin: 0.0,
-            separated_by: None,
-            ordered_by: None,
-            uncertainty_before: None,
-            uncertainty_after: None,
-            beside: None,
-        }
+        Candidate::new(
+            Finding::Missing(EffectKind::Leak),
+            0.3,
+            (
+                Evidence::Nothing {
+                    noise_floor: 0.005,
+                    nrmse: 0.00963,
+                    white: true,
+                },
+                "a leak".into(),
+            ),
+            Remedy::Add(Effect::Leak),
+            (0.00963, 0.00711),
+        )
     }
 
     /// A trial that leaves `searched` at `delay` samples with the delay searched, and `kept`

@@ -114,7 +114,8 @@ pub enum OrderRule {
     ResonanceInTheReference,
     /// A clear resonance before a leak that ties with it, the DC gain not below 1.
     ResonanceBeforeLeakAtUnitGain,
-    /// A resonance whose peak was seen before a leak with neither of its signatures.
+    /// A resonance whose peak, or rise towards the band's edge, was seen before a leak with
+    /// neither of its signatures.
     ResonanceBeforeUnseenLeak,
     /// A leak with both its signatures, its creep settled, before a mode that ties with it.
     SettledLeakBeforeMode,
@@ -145,8 +146,8 @@ impl OrderRule {
                  below 1"
             }
             Self::ResonanceBeforeUnseenLeak => {
-                "a resonance whose peak was seen goes before a leak with neither of its \
-                 signatures"
+                "a resonance whose peak, or rise towards the band's edge, was seen goes before a \
+                 leak with neither of its signatures"
             }
             Self::SettledLeakBeforeMode => {
                 "a leak whose DC gain is below 1 and whose creep settles goes before a mode \
@@ -181,7 +182,8 @@ impl core::fmt::Display for OrderRule {
 /// that would only model it (at any margin where the probe peaks beside it, else when they
 /// tie); a clear resonance (a mode's or the transducers')
 /// before a leak that ties with it when the model's DC gain (`dc_gain`) is not below
-/// [`LEAK_DC_GAIN_BELOW`], and a resonance whose peak was seen before a leak with neither of its
+/// [`LEAK_DC_GAIN_BELOW`], and a resonance whose peak (or rise towards the band's edge) was seen
+/// before a leak with neither of its
 /// signatures, whatever their scores, and a leak with both its signatures and a creep that
 /// settles before a mode that ties with it; an effect whose signature was seen before
 /// nonlinear damping read from its trial alone; a temperature and a loss both fitted on all the tests
@@ -247,7 +249,10 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64) {
     // thermal creep). With neither, its trial only lends a pole and a zero to something else:
     // it goes after a resonance whose peak was seen, at any margin (bank case 032: a line's
     // second mode 7 dB out at 584 Hz, the leak's trial 0.34 ahead with the DC gain at 1 and the
-    // creep 1 standard error out).
+    // creep 1 standard error out), or whose rise towards the band's edge was (seed 83, case 081:
+    // a pneumatic probe with no hidden effect, its own modes beyond second order leaving the
+    // step test at 5.5x its floor, the response 4.4 dB above the model's towards 179 Hz, the
+    // leak's trial 0.06 ahead with the DC gain at 1 and no creep at all).
     let unseen_leak = |c: &Candidate| {
         matches!(
             c.evidence,
@@ -261,8 +266,10 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64) {
             OrderRule::ResonanceBeforeUnseenLeak,
             unseen_leak,
             |c| {
-                matches!(c.evidence, Evidence::Mode(ModeEvidence::Peak { .. }))
-                    && c.kind == EffectKind::Mode
+                matches!(
+                    c.evidence,
+                    Evidence::Mode(ModeEvidence::Peak { .. } | ModeEvidence::BandEdge { .. })
+                ) && c.kind == EffectKind::Mode
                     || matches!(c.evidence, Evidence::SensorResonance(_))
                         && c.kind == EffectKind::SensorResonance
             },
@@ -578,6 +585,18 @@ mod tests {
             first(1.0, 1.0, Evidence::Mode(ModeEvidence::TrialOnly)),
             leak
         );
+        // The response rising above the model's towards the band's edge is (seed 83, case 081:
+        // 4.4 dB towards 179 Hz, no creep, the gain at 1).
+        let edge = || {
+            Evidence::Mode(ModeEvidence::BandEdge {
+                rise_db: 4.4,
+                up_to_hz: 179.0,
+                test: "val.csv".into(),
+            })
+        };
+        assert_eq!(first(0.0, 1.0, edge()), mode);
+        assert_eq!(first(-4.0, 1.0, edge()), leak);
+        assert_eq!(first(0.0, 0.95, edge()), leak);
     }
 
     #[test]

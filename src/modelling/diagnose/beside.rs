@@ -14,10 +14,10 @@
 
 use serde::Serialize;
 
-use super::trial::{trial_window, Tried};
-use super::{Candidate, Current, Finding, Remedy, MIN_IMPROVEMENT};
+use super::trial::{adding, options, trial_window, Tried};
+use super::{Candidate, Current, Remedy, MIN_IMPROVEMENT};
 use crate::file::error_rose;
-use crate::fit::{Options, Order, Test};
+use crate::fit::Test;
 use crate::modelling::effects::{self, Effect, EffectKind, FitChanges};
 use crate::modelling::evidence::TestEvidence;
 
@@ -82,18 +82,13 @@ pub(super) fn mode_beside(
     let Some(first) = candidates.first_mut() else {
         return;
     };
-    let Finding::Missing(kind) = first.kind else {
-        return;
-    };
     let (added, kept_delay) = match &first.change {
         Remedy::Add(e) => (e, None),
         Remedy::AddKeepingDelay { effect, samples } => (effect, Some(*samples)),
         _ => return,
     };
-    let has_mode = |fx: &[Effect]| fx.iter().any(|e| e.kind() == EffectKind::Mode);
-    if matches!(kind, EffectKind::Mode | EffectKind::Delay)
-        || matches!(added, Effect::Delay { .. } | Effect::Mode { .. })
-        || has_mode(current.effects)
+    if matches!(added, Effect::Delay { .. } | Effect::Mode { .. })
+        || current.effects.iter().any(|e| e.kind() == EffectKind::Mode)
     {
         return;
     }
@@ -107,30 +102,12 @@ pub(super) fn mode_beside(
     // unless the model file or the change fixes it.
     let estimation = trial_window(estimation);
     let validation: Vec<Test<'_>> = validation.iter().map(trial_window).collect();
-    let have = FitChanges::of(current.effects);
-    let options = Options {
-        method: current.method,
-        order: Order::Fixed(
-            current
-                .model
-                .order()
-                .saturating_sub(have.extra_order)
-                .max(1),
-        ),
-        delay: None,
-    };
+    let options = options(current, None);
     let trial = |beside: Option<Effect>, kept_delay: Option<usize>| -> Option<Tried> {
-        let mut with: Vec<Effect> = current
-            .effects
-            .iter()
-            .filter(|e| e.kind() != added.kind())
-            .cloned()
-            .collect();
-        with.push(added.clone());
+        let mut with = adding(current.effects, added);
         with.extend(beside);
         if let Some(samples) = kept_delay {
-            with.retain(|e| !matches!(e, Effect::Delay { .. }));
-            with.push(Effect::Delay { samples });
+            with = adding(&with, &Effect::Delay { samples });
         }
         let (fitted, fx) =
             effects::fit_with(&estimation, &validation, current.model.fs, &options, &with).ok()?;
@@ -148,7 +125,8 @@ pub(super) fn mode_beside(
     // delay searched again moves and raises the held-out error, the change keeps the model's.
     let delay = current.model.delay;
     let mut change = first.change.clone();
-    if kept_delay.is_none() && have.delay.is_none() && both.delay != delay {
+    let delay_fixed = FitChanges::of(current.effects).delay.is_some();
+    if kept_delay.is_none() && !delay_fixed && both.delay != delay {
         if let Some(kept) = trial(Some(mode.clone()), Some(delay)) {
             if error_rose(kept.after, both.after) {
                 both = kept;

@@ -3,7 +3,7 @@
 //! [`super::order`]'s.
 
 use super::temperature::{candidate, TrialAlone};
-use super::trial::{held_out, keep_delay_if_search_raises, trial_window, Tried};
+use super::trial::{adding, held_out, keep_delay_if_search_raises, options, trial_window, Tried};
 use super::{
     amplitude_signature, creep_in_standard_errors, drift_before_step, joint_loss_evidence, mean,
     per_test, pre_step_slope, ramp_kept, ramp_returns, slope_kept, AmplitudeSignature, Candidate,
@@ -12,7 +12,7 @@ use super::{
 };
 use crate::error::Result;
 use crate::fit::model::Uncertainty;
-use crate::fit::{Method, Options, Order, Test, TestRole};
+use crate::fit::{Method, Options, Test, TestRole};
 use crate::modelling::effects::{self, Effect, EffectKind, FitChanges};
 use crate::modelling::evidence::TestEvidence;
 
@@ -49,16 +49,7 @@ pub(super) fn rank_at(
     let fs = current.model.fs;
     let before = held_out(current.model, current.effects, tests);
     let have = FitChanges::of(current.effects);
-    let base_order = current
-        .model
-        .order()
-        .saturating_sub(have.extra_order)
-        .max(1);
-    let base = Options {
-        method: current.method,
-        order: Order::Fixed(base_order),
-        delay,
-    };
+    let base = options(current, delay);
     let Some((estimation, validation)) = tests.split_first() else {
         return Ok(Vec::new());
     };
@@ -67,12 +58,7 @@ pub(super) fn rank_at(
     // Each trial's held-out error and stated uncertainty, for the candidate it becomes.
     let stated: std::cell::RefCell<Vec<(f64, Option<Uncertainty>)>> = Default::default();
     // The current effects with `added` in place of any of its kind.
-    let adding = |added: &Effect| -> Vec<Effect> {
-        let mut with = current.effects.to_vec();
-        with.retain(|e| e.kind() != added.kind());
-        with.push(added.clone());
-        with
-    };
+    let adding = |added: &Effect| adding(current.effects, added);
     let trial = |added: Effect, options: &Options| -> Option<Tried> {
         let with = adding(&added);
         let (fitted, fx) = effects::fit_with(estimation, validation, fs, options, &with).ok()?;
@@ -622,30 +608,29 @@ pub(super) fn rank_at(
             .iter()
             .map(|e| e.judged_nrmse() / e.judged_floor().max(f64::MIN_POSITIVE))
             .fold(0.0f64, f64::max);
+        let reading = format!(
+            "the residual is up to {worst:.1}x what both channels' noise leaves{}, but no \
+             effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x: something outside \
+             the catalogue is missing (a higher order, or physics the effects do not describe); \
+             the model is not at its noise floor",
+            if white {
+                ""
+            } else {
+                " and correlated beyond that noise"
+            }
+        );
+        let unexplained = Evidence::Unexplained {
+            noise_floor: floor,
+            nrmse: before,
+            white,
+            worst_over_floor: worst,
+        };
         out.push(Candidate {
             uncertainty_before: current.uncertainty.cloned(),
             ..Candidate::new(
                 Finding::Unexplained,
                 0.0,
-                (
-                    Evidence::Unexplained {
-                        noise_floor: floor,
-                        nrmse: before,
-                        white,
-                        worst_over_floor: worst,
-                    },
-                    format!(
-                "the residual is up to {worst:.1}x what both channels' noise leaves{}, but no \
-                 effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x: something \
-                 outside the catalogue is missing (a higher order, or physics the effects do not \
-                 describe); the model is not at its noise floor",
-                if white {
-                    ""
-                } else {
-                    " and correlated beyond that noise"
-                }
-                    ),
-                ),
+                (unexplained, reading),
                 Remedy::RaiseOrder,
                 (before, before),
             )
@@ -658,30 +643,29 @@ pub(super) fn rank_at(
         .map(|c| c.nrmse_before / c.nrmse_after)
         .fold(0.0f64, f64::max);
     if at_floor && ((white && best_fall < FLOOR_OVERRULED) || out.is_empty()) {
+        let reading = format!(
+            "the residuals are consistent with noise ({}error {:.3} % against a floor of {:.3} \
+             %{}); no effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x",
+            if evidence.iter().any(|e| e.prediction.is_some()) {
+                "one-step-ahead prediction "
+            } else {
+                ""
+            },
+            100.0 * before,
+            100.0 * floor,
+            if white { ", white" } else { "" }
+        );
+        let nothing = Evidence::Nothing {
+            noise_floor: floor,
+            nrmse: before,
+            white,
+        };
         let none = Candidate {
             uncertainty_before: current.uncertainty.cloned(),
             ..Candidate::new(
                 Finding::Nothing,
                 0.0,
-                (
-                    Evidence::Nothing {
-                        noise_floor: floor,
-                        nrmse: before,
-                        white,
-                    },
-                    format!(
-                "the residuals are consistent with noise ({}error {:.3} % against a floor of {:.3} %{}); \
-                 no effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x",
-                if evidence.iter().any(|e| e.prediction.is_some()) {
-                    "one-step-ahead prediction "
-                } else {
-                    ""
-                },
-                100.0 * before,
-                100.0 * floor,
-                if white { ", white" } else { "" }
-                    ),
-                ),
+                (nothing, reading),
                 Remedy::Nothing,
                 (before, before),
             )

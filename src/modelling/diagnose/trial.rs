@@ -1,11 +1,11 @@
 //! The trials: the stretch of a long record a trial refits on, the held-out error a model
 //! with effects is judged by, and the first change made as the user's fit will make it.
 
-use super::{mean, Candidate, Remedy};
+use super::{mean, Candidate, Current, Remedy};
 use crate::file::error_rose;
 use crate::fit::model::Model;
-use crate::fit::Test;
-use crate::modelling::effects::{self, Effect};
+use crate::fit::{Options, Order, Test};
+use crate::modelling::effects::{self, Effect, FitChanges};
 use crate::modelling::evidence::TestEvidence;
 
 /// A trial on a record longer than this refits on this many samples from just before the step
@@ -33,6 +33,26 @@ pub(super) fn trial_window<'a>(test: &Test<'a>) -> Test<'a> {
         u: test.u.get(range.clone()).unwrap_or(test.u),
         y: test.y.get(range).unwrap_or(test.y),
     }
+}
+
+/// The options a trial refits with: the model's method, the order the user asked for (the
+/// model's, less the poles its effects add) and `delay` (searched when `None`, unless an effect
+/// fixes it), as `unlag fit --add` refits.
+pub(super) fn options(current: &Current<'_>, delay: Option<usize>) -> Options {
+    let extra = FitChanges::of(current.effects).extra_order;
+    Options {
+        method: current.method,
+        order: Order::Fixed(current.model.order().saturating_sub(extra).max(1)),
+        delay,
+    }
+}
+
+/// `effects` with `added` in place of any of its kind.
+pub(super) fn adding(effects: &[Effect], added: &Effect) -> Vec<Effect> {
+    let mut with = effects.to_vec();
+    with.retain(|e| e.kind() != added.kind());
+    with.push(added.clone());
+    with
 }
 
 /// What a trial leaves: the held-out error ([`held_out`]), the effects it fitted, every

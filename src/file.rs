@@ -224,6 +224,10 @@ impl ModelFile {
             effects: &self.effects,
             method: self.fit.as_ref().map_or(Method::Oe, |f| f.method),
             uncertainty: self.uncertainty(),
+            order_given: self
+                .fit
+                .as_ref()
+                .is_none_or(|f| f.order_selection == crate::fit::OrderSelection::Fixed),
         }
     }
 
@@ -531,6 +535,8 @@ mod tests {
         // A file with no fit is diagnosed as an output-error fit.
         assert_eq!(f.current().method, crate::fit::Method::Oe);
         assert!(f.current().uncertainty.is_none());
+        // ... and as one whose order was given (the trials refit at a fixed order).
+        assert!(f.current().order_given);
     }
 
     #[test]
@@ -604,6 +610,8 @@ mod tests {
         let path = Path::new("board_model.toml");
         let f = ModelFile::parse(path, shipped).unwrap();
         assert_eq!(f.fit.as_ref().unwrap().method, crate::fit::Method::Oe);
+        // Its order was chosen (`order_selection = "auto ..."`), not given.
+        assert!(!f.current().order_given);
         for method in crate::fit::Method::ALL {
             let text = shipped.replacen(
                 "method = \"oe\"",

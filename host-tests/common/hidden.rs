@@ -897,6 +897,7 @@ pub fn run(case: &Case, seed: u64) -> Outcome {
         effects: &fx,
         method: options.method,
         uncertainty: plain.report.uncertainty.as_ref(),
+        order_given: true,
     };
     let evidence = diagnose::evidence(&current, &tests);
     let candidates = diagnose::diagnose(&current, &tests, &evidence).expect("diagnosis");

@@ -34,7 +34,7 @@
 use crate::error::Result;
 use crate::fit::model::{Model, Uncertainty};
 use crate::fit::{Method, Test, TestRole};
-use crate::modelling::effects::{self, Effect, FitChanges};
+use crate::modelling::effects::{self, Effect, EffectKind, FitChanges};
 use crate::modelling::evidence::TestEvidence;
 
 mod across;
@@ -87,6 +87,10 @@ pub struct Current<'a> {
     pub method: Method,
     /// Its stated uncertainty (the fit report's), if any.
     pub uncertainty: Option<&'a Uncertainty>,
+    /// Whether its order was given (`--order N`) rather than chosen. A refit with an order
+    /// given drops the modes the model carries, so a change names them again
+    /// ([`Remedy::KeepingModes`]).
+    pub order_given: bool,
 }
 
 fn mean(x: impl Iterator<Item = f64>) -> f64 {
@@ -152,6 +156,11 @@ pub fn evidence(current: &Current<'_>, tests: &[Test<'_>]) -> Vec<TestEvidence> 
 /// test, and a mode beside it lowers that test's error and the held-out error further, its
 /// change adds both ([`Beside`]).
 ///
+/// The trials add each effect as `unlag fit --add` does ([`effects::add`]): a mode beside the
+/// model's modes. Where the model's order was given and it carries modes, which a refit with an
+/// order given drops, every change names them again ([`Remedy::KeepingModes`]), so that it
+/// fits what its trial fitted.
+///
 /// # Errors
 /// Only when the current model cannot be evaluated; a trial that fails is simply not
 /// offered.
@@ -162,6 +171,19 @@ pub fn diagnose(
 ) -> Result<Vec<Candidate>> {
     let mut found = ranked(current, tests, evidence)?;
     beside::mode_beside(current, tests, evidence, &mut found);
+    let modes = current
+        .effects
+        .iter()
+        .filter(|e| e.kind() == EffectKind::Mode)
+        .count();
+    if current.order_given && modes > 0 {
+        for c in &mut found {
+            if !matches!(c.change, Remedy::Nothing | Remedy::RaiseOrder) {
+                let change = Box::new(std::mem::replace(&mut c.change, Remedy::Nothing));
+                c.change = Remedy::KeepingModes { change, modes };
+            }
+        }
+    }
     Ok(found)
 }
 

@@ -171,6 +171,14 @@ pub enum SensorRemedy {
     Modes,
 }
 
+/// Adds `effect` to `effects` as `unlag fit --add` does: it replaces one of its kind, but modes
+/// add up (each is two more poles). The diagnosis' trials add their effect the same way, so a
+/// change fits what its trial fitted.
+pub fn add(effects: &mut Vec<Effect>, effect: Effect) {
+    effects.retain(|x| x.kind() != effect.kind() || effect.kind() == EffectKind::Mode);
+    effects.push(effect);
+}
+
 impl Effect {
     /// Its kind as the model file names it ([`EffectKind::family`]: a prefiltered sensor
     /// resonance is a `sensor-resonance`, a viscous temperature a `temperature`).

@@ -262,8 +262,7 @@ pub fn add_effects(effects: &mut Vec<Effect>, kinds: &[String]) -> Result<bool> 
                     .join(", ")
             ),
         })?;
-        effects.retain(|x| x.kind() != e.kind() || e.kind() == EffectKind::Mode);
-        effects.push(e);
+        effects::add(effects, e);
     }
     Ok(search_delay)
 }

@@ -62,6 +62,16 @@ pub enum Remedy {
         /// The effect added beside it.
         beside: Effect,
     },
+    /// The change `change` with the model's own `modes` mode effects named again. The model's
+    /// order was given (`--order N`), and a refit with an order given drops the modes the
+    /// model carries ([`crate::pipeline::carried_effects`]: the order asked for wins), so the
+    /// change names them as its trial kept them.
+    KeepingModes {
+        /// The candidate's own change.
+        change: Box<Remedy>,
+        /// How many mode effects the model carries.
+        modes: usize,
+    },
     /// Fix the model's delay at this many samples (a `delay` effect in the model file).
     SetDelay {
         /// The delay (samples).
@@ -83,7 +93,7 @@ impl Remedy {
         match self {
             Self::Add(e) | Self::AddKeepingDelay { effect: e, .. } => Some(spelled(e)),
             Self::AddJointly { effect: e, .. } => Some(e.kind()),
-            Self::AddBeside { change, .. } => change.kind(),
+            Self::AddBeside { change, .. } | Self::KeepingModes { change, .. } => change.kind(),
             Self::SetDelay { .. } => Some(EffectKind::Delay),
             Self::RaiseOrder | Self::Nothing => None,
         }
@@ -94,6 +104,7 @@ impl Remedy {
     pub fn delay(&self) -> Option<usize> {
         match self {
             Self::SetDelay { samples } | Self::Add(Effect::Delay { samples }) => Some(*samples),
+            Self::KeepingModes { change, .. } => change.delay(),
             _ => None,
         }
     }
@@ -125,6 +136,7 @@ impl Remedy {
                 entries.insert(1.min(entries.len()), entry(beside));
                 Some((entries, note))
             }
+            Self::KeepingModes { change, .. } => change.entries(),
             Self::RaiseOrder | Self::Nothing => None,
         }
     }
@@ -152,6 +164,17 @@ impl Remedy {
     /// `unlag fit ... --order auto   (or a higher --order N)`, `none`.
     #[must_use]
     pub fn command(&self) -> String {
+        if let Self::KeepingModes { change, modes } = self {
+            let own = change.command();
+            return match own.strip_prefix(FIT) {
+                Some(rest) => format!(
+                    "{FIT}{}{rest}; {}",
+                    " --add mode".repeat(*modes),
+                    modes_named_again(*modes)
+                ),
+                None => own,
+            };
+        }
         let file = self.model_file().unwrap_or_default();
         if let Some(d) = self.delay() {
             return format!("unlag fit ... --delay {d}   (model file: {file})");
@@ -174,6 +197,21 @@ impl Remedy {
             },
         }
     }
+}
+
+/// How a change's command starts: the user's fit, its arguments elided.
+const FIT: &str = "unlag fit ...";
+
+/// Why a change names the model's own modes again ([`Remedy::KeepingModes`]).
+fn modes_named_again(modes: usize) -> String {
+    format!(
+        "the model's {} named again: a refit with an order given drops the modes a model carries",
+        if modes == 1 {
+            "mode".to_string()
+        } else {
+            format!("{modes} modes")
+        }
+    )
 }
 
 /// The kind an added `effect` is spelled as, with the variant chosen (`temperature-viscous`,
@@ -264,24 +302,30 @@ impl core::fmt::Display for Remedy {
     /// file: effects = [{ kind = "leak" }])`, `set the delay to 27 samples   (model file:
     /// ...)`, `raise the model order, or let the fit choose it`, `none`.
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        if let Self::KeepingModes { change, modes } = self {
+            return write!(f, "{change}; {}", modes_named_again(*modes));
+        }
         let file = self.model_file().unwrap_or_default();
         match (self.delay(), self.kind()) {
             (Some(d), _) => write!(f, "set the delay to {d} samples   (model file: {file})"),
-            (None, Some(k)) => match self {
-                Self::AddJointly { also, .. } => write!(
-                    f,
-                    "add the {k} effect, fitted on the estimation test and {} together   \
+            (None, Some(k)) => {
+                match self {
+                    Self::AddJointly { also, .. } => write!(
+                        f,
+                        "add the {k} effect, fitted on the estimation test and {} together   \
                      (model file: {file})",
-                    also.join(", ")
-                ),
-                Self::AddKeepingDelay { samples, .. } => write!(
+                        also.join(", ")
+                    ),
+                    Self::AddKeepingDelay { samples, .. } => write!(
                     f,
                     "add the {k} effect, keeping the delay at {samples} samples   (model file: \
                      {file})"
                 ),
-                Self::AddBeside { change, beside } => write!(
+                    Self::AddBeside { change, beside } => {
+                        write!(
                     f,
-                    "add the {k} effect and the {} effect beside it{}   (model file: {file})",
+                    "add the {k} effect and {} {} effect beside it{}   (model file: {file})",
+                    if spelled(beside) == k { "a second" } else { "the" },
                     spelled(beside),
                     match **change {
                         Self::AddKeepingDelay { samples, .. } => {
@@ -289,9 +333,11 @@ impl core::fmt::Display for Remedy {
                         }
                         _ => String::new(),
                     }
-                ),
-                _ => write!(f, "add the {k} effect   (model file: {file})"),
-            },
+                )
+                    }
+                    _ => write!(f, "add the {k} effect   (model file: {file})"),
+                }
+            }
             (None, None) => match self {
                 Self::RaiseOrder => f.write_str("raise the model order, or let the fit choose it"),
                 _ => f.write_str("none"),
@@ -360,6 +406,22 @@ mod tests {
                     beside: Effect::Mode { near_hz: None },
                 },
                 r#"add the leak effect and the mode effect beside it, keeping the delay at 6 samples   (model file: effects = [{ kind = "leak" }, { kind = "mode" }, { kind = "delay", samples = 6 }])"#,
+            ),
+            (
+                Remedy::AddBeside {
+                    change: Box::new(Remedy::Add(Effect::Mode {
+                        near_hz: Some(240.3),
+                    })),
+                    beside: Effect::Mode { near_hz: None },
+                },
+                r#"add the mode effect and a second mode effect beside it   (model file: effects = [{ kind = "mode", near_hz = 240 }, { kind = "mode" }])"#,
+            ),
+            (
+                Remedy::KeepingModes {
+                    change: Box::new(Remedy::Add(Effect::Leak)),
+                    modes: 1,
+                },
+                r#"add the leak effect   (model file: effects = [{ kind = "leak" }]); the model's mode named again: a refit with an order given drops the modes a model carries"#,
             ),
             (
                 Remedy::SetDelay { samples: 27 },
@@ -494,6 +556,34 @@ mod tests {
                     also: vec!["wake.csv".into()],
                 },
                 r#"unlag fit ... --also wake.csv --add nonlinear-damping   (model file: effects = [{ kind = "nonlinear-damping" }])"#.into(),
+            ),
+            // A model whose order was given and which carries modes: the change names them
+            // again before its own, whatever it is.
+            (
+                Remedy::KeepingModes {
+                    change: Box::new(Remedy::Add(Effect::Mode {
+                        near_hz: Some(433.0),
+                    })),
+                    modes: 1,
+                },
+                r#"unlag fit ... --add mode --add mode   (model file: effects = [{ kind = "mode", near_hz = 433 }]); the model's mode named again: a refit with an order given drops the modes a model carries"#.into(),
+            ),
+            (
+                Remedy::KeepingModes {
+                    change: Box::new(Remedy::SetDelay { samples: 27 }),
+                    modes: 2,
+                },
+                r#"unlag fit ... --add mode --add mode --delay 27   (model file: effects = [{ kind = "delay", samples = 27 }]); the model's 2 modes named again: a refit with an order given drops the modes a model carries"#.into(),
+            ),
+            (
+                Remedy::KeepingModes {
+                    change: Box::new(Remedy::AddJointly {
+                        effect: Effect::NonlinearDamping { gain: 0.0 },
+                        also: vec!["wake.csv".into()],
+                    }),
+                    modes: 1,
+                },
+                r#"unlag fit ... --add mode --also wake.csv --add nonlinear-damping   (model file: effects = [{ kind = "nonlinear-damping" }]); the model's mode named again: a refit with an order given drops the modes a model carries"#.into(),
             ),
             (
                 Remedy::RaiseOrder,

@@ -356,6 +356,7 @@ mod tests {
             effects: &[],
             method: Method::Oe,
             uncertainty: None,
+            order_given: true,
         };
         let evidence = diagnose::evidence(&current, &tests);
         diagnose::diagnose(&current, &tests, &evidence).unwrap()

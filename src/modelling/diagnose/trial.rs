@@ -47,11 +47,11 @@ pub(super) fn options(current: &Current<'_>, delay: Option<usize>) -> Options {
     }
 }
 
-/// `effects` with `added` in place of any of its kind.
+/// `effects` with `added` added as `unlag fit --add` adds it ([`effects::add`]): in place of
+/// any of its kind, but a mode beside the modes there.
 pub(super) fn adding(effects: &[Effect], added: &Effect) -> Vec<Effect> {
     let mut with = effects.to_vec();
-    with.retain(|e| e.kind() != added.kind());
-    with.push(added.clone());
+    effects::add(&mut with, added.clone());
     with
 }
 
@@ -186,6 +186,25 @@ mod tests {
                 delay: if search { delay } else { 6 },
             })
         }
+    }
+
+    #[test]
+    fn a_trial_adds_its_effect_as_the_fit_does_a_mode_beside_the_models_own() {
+        let mode = Effect::Mode { near_hz: None };
+        let model = [mode.clone(), Effect::Offset { value: 0.1 }];
+        let kinds = |fx: Vec<Effect>| fx.iter().map(Effect::kind).collect::<Vec<_>>();
+        assert_eq!(
+            kinds(adding(&model, &mode)),
+            [EffectKind::Mode, EffectKind::Offset, EffectKind::Mode]
+        );
+        assert_eq!(
+            adding(&model, &Effect::Offset { value: 0.0 }),
+            [mode, Effect::Offset { value: 0.0 }]
+        );
+        // As `unlag fit --add` adds them (the same rule, one function).
+        let mut fitted = model.to_vec();
+        crate::pipeline::add_effects(&mut fitted, &["mode".to_string()]).unwrap();
+        assert_eq!(fitted, adding(&model, &Effect::Mode { near_hz: None }));
     }
 
     #[test]

@@ -33,7 +33,7 @@ pub struct LoopOutcome {
     pub floor_both: Option<f64>,
     /// The first name's change fits a noise model, so its error is a one-step-ahead
     /// prediction error: the floor of that error on the validation test as `fit` states it
-    /// (the probe noise's innovation, read before a step), which it is judged against in
+    /// (the innovation of both channels' noise through the model, read before a step), which it is judged against in
     /// place of the two floors above (a simulation error's).
     pub floor_prediction: Option<f64>,
     /// The true model's validation error (`unlag compare truth.toml val.csv`): with no hidden

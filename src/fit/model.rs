@@ -325,15 +325,16 @@ pub struct Source {
     /// Noise floor of the probe channel on this trace: RMS noise / range(y).
     pub noise_floor: f64,
     /// With a noise model, the floor of the error [`Self::nrmse`] then is (the one-step-ahead
-    /// prediction error): the probe noise's innovation over range(y).
+    /// prediction error): both channels' noise's innovation over range(y).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub prediction_floor: Option<PredictionFloor>,
 }
 
-/// The floor of a one-step-ahead prediction error on a test: the part of the probe's noise no
-/// predictor removes ([`crate::fit::noise::innovation_floor`]), over the test's range, read
-/// from the quiet segment before a step; a test without one (a traverse) takes it from
-/// another test of the same probe that has one.
+/// The floor of a one-step-ahead prediction error on a test: the part of both channels' noise
+/// (the probe's, and the reference's through the model) that no predictor removes
+/// ([`crate::fit::noise::both_channels_innovation`]), over the test's range, read from the quiet
+/// segment before a step; a test without one (a traverse) takes it from another test of the
+/// same sensors that has one.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PredictionFloor {
@@ -344,12 +345,12 @@ pub struct PredictionFloor {
 }
 
 impl PredictionFloor {
-    /// Where it comes from, in words: `the probe noise's innovation, from est.csv's quiet
-    /// segment`.
+    /// Where it comes from, in words: `the innovation of both channels' noise through the
+    /// model, from est.csv's quiet segment`.
     #[must_use]
     pub fn origin(&self) -> String {
         format!(
-            "the probe noise's innovation, from {}'s quiet segment",
+            "the innovation of both channels' noise through the model, from {}'s quiet segment",
             self.from
         )
     }

@@ -156,14 +156,74 @@ pub fn probe_predictability(tests: &[crate::fit::Test<'_>]) -> Option<f64> {
         .find_map(|t| predictability(t.y, crate::fit::step::quiet_until(t.u)))
 }
 
-/// Each test's [`PredictionFloor`]: the probe noise's innovation ([`innovation_floor`]) in
-/// its own quiet segment, else in the first test's that has one (the same probe), over the
+impl ArNoise {
+    /// Its power spectral density at `w` radians per sample, in units where white noise of
+    /// variance `v` has `v` at every frequency: `innovation_std^2 / |D(e^jw)|^2`.
+    #[must_use]
+    pub fn spectrum(&self, w: f64) -> f64 {
+        let z = crate::poly::Complex::new(w.cos(), w.sin());
+        let d: Vec<f64> = std::iter::once(1.0)
+            .chain(self.ar.iter().copied())
+            .collect();
+        let den = crate::poly::eval(&d, z).norm_sqr();
+        self.innovation_std * self.innovation_std / den.max(1e-300)
+    }
+}
+
+/// Frequencies a floor's spectrum is averaged over (midpoints on `(0, pi)`).
+const FLOOR_GRID: usize = 2048;
+
+/// The part of what a correct model leaves, `y - G u = n_y - G n_u`, that no predictor
+/// removes, where both channels are noisy: the probe's noise `probe` and the reference's
+/// `reference` through the model (errors in variables). By Kolmogorov and Szego, the
+/// innovation variance of a noise of spectrum `S` is `exp` of the mean of `ln S` over the
+/// frequencies, here `S = S_probe + |G|^2 S_reference`. Without the reference's noise it is
+/// the probe's innovation ([`innovation_floor`]); a flush probe (`|G|` near 1 over the band)
+/// with white noise of equal level on both channels has `sqrt(2)` times it.
+#[must_use]
+pub fn both_channels_innovation(
+    probe: &ArNoise,
+    reference: Option<&ArNoise>,
+    model: &crate::fit::Model,
+) -> f64 {
+    let Some(reference) = reference.filter(|r| r.innovation_std > 0.0) else {
+        return probe.innovation_std;
+    };
+    let mean_log = (0..FLOOR_GRID)
+        .map(|i| {
+            let w = std::f64::consts::PI * (i as f64 + 0.5) / FLOOR_GRID as f64;
+            let g = crate::fit::analysis::response(model, w * model.fs / std::f64::consts::TAU);
+            (probe.spectrum(w) + g.norm_sqr() * reference.spectrum(w))
+                .max(1e-300)
+                .ln()
+        })
+        .sum::<f64>()
+        / FLOOR_GRID as f64;
+    let floor = (0.5 * mean_log).exp();
+    if floor.is_finite() {
+        floor.max(probe.innovation_std)
+    } else {
+        probe.innovation_std
+    }
+}
+
+/// Each test's [`PredictionFloor`] under `model`: the part of both channels' noise no
+/// predictor removes ([`both_channels_innovation`]), each channel's noise read in the test's
+/// own quiet segment, else in the first test's that has one (the same sensors), over the
 /// test's range; `None` where no test has a quiet segment or the probe does not move.
 #[must_use]
-pub fn prediction_floors(tests: &[crate::fit::Test<'_>]) -> Vec<Option<PredictionFloor>> {
+pub fn prediction_floors(
+    tests: &[crate::fit::Test<'_>],
+    model: &crate::fit::Model,
+) -> Vec<Option<PredictionFloor>> {
     let own: Vec<Option<f64>> = tests
         .iter()
-        .map(|t| innovation_floor(t.y, crate::fit::step::quiet_until(t.u)))
+        .map(|t| {
+            let quiet = crate::fit::step::quiet_until(t.u);
+            let probe = of_quiet_segment(t.y, quiet)?;
+            let reference = of_quiet_segment(t.u, quiet);
+            Some(both_channels_innovation(&probe, reference.as_ref(), model))
+        })
         .collect();
     let borrowed = tests
         .iter()
@@ -298,6 +358,92 @@ mod tests {
 
     fn white(n: usize, seed: u64) -> Vec<f64> {
         crate::testing::gaussian(n, seed)
+    }
+
+    /// A model of order 1 at 10 kHz: `G = b0 / (1 - p q^-1)`, unit DC gain.
+    fn lowpass(p: f64) -> crate::fit::Model {
+        crate::fit::Model {
+            fs: 10_000.0,
+            delay: 3,
+            a: vec![-p],
+            b: vec![1.0 - p, 0.0],
+        }
+    }
+
+    #[test]
+    fn both_channels_noise_raises_the_prediction_floor_as_the_spectra_say() {
+        let white_noise = |std: f64| ArNoise {
+            ar: Vec::new(),
+            innovation_std: std,
+            std,
+        };
+        let probe = white_noise(1.0);
+        // No reference noise: the probe's innovation.
+        assert_eq!(both_channels_innovation(&probe, None, &lowpass(0.5)), 1.0);
+        // A flush probe (G = 1, its delay aside) with equal white noise on both channels: the
+        // sum is white of twice the variance.
+        let flush = lowpass(0.0);
+        let f = both_channels_innovation(&probe, Some(&white_noise(1.0)), &flush);
+        assert!((f - 2f64.sqrt()).abs() < 1e-9, "{f}");
+        // A slow probe passes the reference's noise at low frequencies only: the floor is
+        // exp of the mean log of 1 + |G|^2, integrated here on a fine grid.
+        let p = 0.9;
+        let grid = 200_000;
+        let mean_log = (0..grid)
+            .map(|i| {
+                let w = std::f64::consts::PI * (i as f64 + 0.5) / grid as f64;
+                let g2 = (1.0 - p) * (1.0 - p) / (1.0 - 2.0 * p * w.cos() + p * p);
+                (1.0 + g2).ln()
+            })
+            .sum::<f64>()
+            / grid as f64;
+        let truth = (0.5 * mean_log).exp();
+        let f = both_channels_innovation(&probe, Some(&white_noise(1.0)), &lowpass(p));
+        assert!((f / truth - 1.0).abs() < 1e-4, "{f} against {truth}");
+        assert!(f > 1.0 && f < 2f64.sqrt(), "{f}");
+        // A predictable (coloured) probe noise: its innovation, raised by the reference's.
+        let coloured = ArNoise {
+            ar: vec![-0.9],
+            innovation_std: 0.5,
+            std: 0.5 / (1.0f64 - 0.81).sqrt(),
+        };
+        let alone = both_channels_innovation(&coloured, None, &flush);
+        let with = both_channels_innovation(&coloured, Some(&white_noise(0.5)), &flush);
+        assert_eq!(alone, 0.5);
+        assert!(with > alone && with < coloured.std, "{with}");
+    }
+
+    #[test]
+    fn the_prediction_floor_reads_both_channels_before_the_step() {
+        // A flush probe, white noise of 1 on the probe and 1 on the reference before a step of
+        // 1000 at sample 3000: the floor is about sqrt(2) over the range.
+        let n = 3_000;
+        let (ny, nu) = (white(n, 31), white(n, 32));
+        let mut u: Vec<f64> = nu.clone();
+        u.extend(std::iter::repeat_n(1000.0, 2_000));
+        let mut y: Vec<f64> = ny.clone();
+        y.extend(std::iter::repeat_n(1000.0, 2_000));
+        let test = crate::fit::Test {
+            name: "step.csv",
+            u: &u,
+            y: &y,
+        };
+        let range = crate::fit::range(&y);
+        let both = prediction_floors(&[test], &lowpass(0.0));
+        let Some(Some(floor)) = both.first() else {
+            panic!("{both:?}")
+        };
+        assert_eq!(floor.from, "step.csv");
+        let ratio = floor.value * range / 2f64.sqrt();
+        assert!((ratio - 1.0).abs() < 0.06, "{ratio}");
+        // The reference's quiet: the probe's alone.
+        let still: Vec<f64> = std::iter::repeat_n(0.0, n)
+            .chain(std::iter::repeat_n(1000.0, 2_000))
+            .collect();
+        let test = crate::fit::Test { u: &still, ..test };
+        let alone = prediction_floors(&[test], &lowpass(0.0));
+        let value = alone.first().cloned().flatten().map_or(0.0, |f| f.value);
+        assert!((value * range - 1.0).abs() < 0.06, "{value}");
     }
 
     #[test]

@@ -108,7 +108,7 @@ pub fn evidence(current: &Current<'_>, tests: &[Test<'_>]) -> Vec<TestEvidence> 
     // With a noise model the model is judged by its prediction error, against that error's
     // floor.
     let floors = if effects::noise_model(current.effects).is_some() {
-        crate::fit::noise::prediction_floors(tests)
+        crate::fit::noise::prediction_floors(tests, current.model)
     } else {
         Vec::new()
     };

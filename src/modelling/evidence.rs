@@ -362,7 +362,7 @@ pub struct Trend {
 pub struct PredictionError {
     /// RMS of `D(q) (y - G u)` / range(y).
     pub nrmse: f64,
-    /// The probe noise's innovation over range(y).
+    /// The innovation of both channels' noise through the model over range(y).
     pub floor: PredictionFloor,
 }
 

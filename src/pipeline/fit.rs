@@ -107,7 +107,7 @@ pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
     }
     // Errors with the effects included (an offset or a drift is estimated on each test).
     let floors = if effects::noise_model(&effects).is_some() {
-        fit::noise::prediction_floors(request.tests)
+        fit::noise::prediction_floors(request.tests, &fitted.model)
     } else {
         Vec::new()
     };

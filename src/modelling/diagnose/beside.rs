@@ -144,7 +144,7 @@ pub(super) fn mode_beside(
     // The estimation test's floor on the footing its error is judged: with a noise model
     // fitted, the one-step-ahead prediction error's.
     let floor = if effects::noise_model(&alone.effects).is_some() {
-        crate::fit::noise::prediction_floors(tests.get(..1).unwrap_or_default())
+        crate::fit::noise::prediction_floors(tests.get(..1).unwrap_or_default(), current.model)
             .into_iter()
             .flatten()
             .next()

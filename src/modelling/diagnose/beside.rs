@@ -76,7 +76,7 @@ impl Beside {
 /// and only with a held-out test: on the estimation test alone, more poles always fit better.
 /// A mode gets a second mode beside it the same way: a probe whose line and cavity have two
 /// modes above the model's (bank seed 83, case 113: one mode leaves the estimation test at
-/// 3.1x its floor, a second takes the valve test from 0.957 % to 0.703 %).
+/// 3.0x its floor, a second takes the valve test from 0.957 % to 0.703 %).
 pub(super) fn mode_beside(
     current: &Current<'_>,
     tests: &[Test<'_>],

@@ -308,36 +308,35 @@ impl core::fmt::Display for Remedy {
         let file = self.model_file().unwrap_or_default();
         match (self.delay(), self.kind()) {
             (Some(d), _) => write!(f, "set the delay to {d} samples   (model file: {file})"),
-            (None, Some(k)) => {
-                match self {
-                    Self::AddJointly { also, .. } => write!(
-                        f,
-                        "add the {k} effect, fitted on the estimation test and {} together   \
+            (None, Some(k)) => match self {
+                Self::AddJointly { also, .. } => write!(
+                    f,
+                    "add the {k} effect, fitted on the estimation test and {} together   \
                      (model file: {file})",
-                        also.join(", ")
-                    ),
-                    Self::AddKeepingDelay { samples, .. } => write!(
+                    also.join(", ")
+                ),
+                Self::AddKeepingDelay { samples, .. } => write!(
                     f,
                     "add the {k} effect, keeping the delay at {samples} samples   (model file: \
                      {file})"
                 ),
-                    Self::AddBeside { change, beside } => {
-                        write!(
-                    f,
-                    "add the {k} effect and {} {} effect beside it{}   (model file: {file})",
-                    if spelled(beside) == k { "a second" } else { "the" },
-                    spelled(beside),
-                    match **change {
+                Self::AddBeside { change, beside } => {
+                    let beside = spelled(beside);
+                    let which = if beside == k { "a second" } else { "the" };
+                    let kept = match **change {
                         Self::AddKeepingDelay { samples, .. } => {
                             format!(", keeping the delay at {samples} samples")
                         }
                         _ => String::new(),
-                    }
-                )
-                    }
-                    _ => write!(f, "add the {k} effect   (model file: {file})"),
+                    };
+                    write!(
+                        f,
+                        "add the {k} effect and {which} {beside} effect beside it{kept}   (model \
+                         file: {file})"
+                    )
                 }
-            }
+                _ => write!(f, "add the {k} effect   (model file: {file})"),
+            },
             (None, None) => match self {
                 Self::RaiseOrder => f.write_str("raise the model order, or let the fit choose it"),
                 _ => f.write_str("none"),

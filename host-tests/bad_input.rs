@@ -467,7 +467,9 @@ fn refitting_into_a_model_says_what_it_keeps_and_the_order_given_wins() {
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(
-        stdout.contains("continuing") && stdout.contains("dropped because --order is given"),
+        stdout.contains("continuing")
+            && stdout.contains("dropped because --order is given")
+            && stdout.contains("each `--add mode` names one again"),
         "{stdout}"
     );
     let text = std::fs::read_to_string(&model).unwrap();
@@ -476,6 +478,24 @@ fn refitting_into_a_model_says_what_it_keeps_and_the_order_given_wins() {
         a_line.matches(',').count() + 1,
         2,
         "order 2 asked: {a_line}"
+    );
+    // A mode named again in the refit keeps the model's order, and needs no hint.
+    let o = unlag(&["fit", &est, "--order", "2", "--add", "mode", "-o", &model]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = unlag(&["fit", &est, "--order", "2", "--add", "mode", "-o", &model]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        stdout.contains("1 mode effect(s) dropped because --order is given")
+            && !stdout.contains("names one again"),
+        "{stdout}"
+    );
+    let text = std::fs::read_to_string(&model).unwrap();
+    let a_line = text.lines().find(|l| l.starts_with("a = ")).unwrap();
+    assert_eq!(
+        a_line.matches(',').count() + 1,
+        4,
+        "order 2 and a mode: {a_line}"
     );
 }
 

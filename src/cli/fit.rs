@@ -212,6 +212,12 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     // The modelling loop: the output file's effects and history carry over.
     let previous = args.previous()?;
     let digests: Vec<String> = traces.iter().map(|t| t.sha256.clone()).collect();
+    // Modes named in this fit: a dropped mode named again needs no hint.
+    let named_again = args
+        .add
+        .iter()
+        .filter(|a| a.parse() == Ok(crate::modelling::effects::EffectKind::Mode))
+        .count();
     let on_stage = |stage: FitStage| match stage {
         FitStage::Continuing {
             kept,
@@ -224,10 +230,15 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
                  (--fresh starts over)",
                 args.output.display(),
                 kept.join(", "),
-                if dropped_modes > 0 {
-                    format!("; {dropped_modes} mode effect(s) dropped because --order is given")
-                } else {
-                    String::new()
+                match (dropped_modes, named_again) {
+                    (0, _) => String::new(),
+                    (d, again) if again >= d => {
+                        format!("; {d} mode effect(s) dropped because --order is given")
+                    }
+                    (d, _) => format!(
+                        "; {d} mode effect(s) dropped because --order is given (each \
+                         `--add mode` names one again)"
+                    ),
                 }
             );
             console::note(args.json, &msg);

@@ -161,11 +161,10 @@ impl ArNoise {
     /// variance `v` has `v` at every frequency: `innovation_std^2 / |D(e^jw)|^2`.
     #[must_use]
     pub fn spectrum(&self, w: f64) -> f64 {
+        // D(z) = 1 + z^-1 (d1 + d2 z^-1 + ...), without building [1, d1, ...] at each w.
         let z = crate::poly::Complex::new(w.cos(), w.sin());
-        let d: Vec<f64> = std::iter::once(1.0)
-            .chain(self.ar.iter().copied())
-            .collect();
-        let den = crate::poly::eval(&d, z).norm_sqr();
+        let one = crate::poly::Complex::new(1.0, 0.0);
+        let den = (one + crate::poly::eval(&self.ar, z) / z).norm_sqr();
         self.innovation_std * self.innovation_std / den.max(1e-300)
     }
 }

@@ -57,7 +57,7 @@ pub(super) fn rank_at(
     let validation: &[Test<'_>] = &validation.iter().map(trial_window).collect::<Vec<_>>();
     // Each trial's held-out error and stated uncertainty, for the candidate it becomes.
     let stated: std::cell::RefCell<Vec<(f64, Option<Uncertainty>)>> = Default::default();
-    // The current effects with `added` in place of any of its kind.
+    // The current effects with `added` added as `unlag fit --add` adds it.
     let adding = |added: &Effect| adding(current.effects, added);
     let trial = |added: Effect, options: &Options| -> Option<Tried> {
         let with = adding(&added);

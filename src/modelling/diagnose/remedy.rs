@@ -164,37 +164,35 @@ impl Remedy {
     /// `unlag fit ... --order auto   (or a higher --order N)`, `none`.
     #[must_use]
     pub fn command(&self) -> String {
+        self.arguments()
+            .map_or_else(|| "none".into(), |a| format!("{FIT}{a}"))
+    }
+
+    /// What the command adds after the user's fit ([`Remedy::command`]), its note included;
+    /// `None` for [`Remedy::Nothing`].
+    fn arguments(&self) -> Option<String> {
         if let Self::KeepingModes { change, modes } = self {
-            let own = change.command();
-            return match own.strip_prefix(FIT) {
-                Some(rest) => format!(
-                    "{FIT}{}{rest}; {}",
-                    " --add mode".repeat(*modes),
-                    modes_named_again(*modes)
-                ),
-                None => own,
-            };
+            let own = change.arguments()?;
+            return Some(format!(
+                "{}{own}; {}",
+                " --add mode".repeat(*modes),
+                modes_named_again(*modes)
+            ));
         }
         let file = self.model_file().unwrap_or_default();
         if let Some(d) = self.delay() {
-            return format!("unlag fit ... --delay {d}   (model file: {file})");
+            return Some(format!(" --delay {d}   (model file: {file})"));
         }
         match (self, self.kind()) {
-            (Self::RaiseOrder, _) => "unlag fit ... --order auto   (or a higher --order N)".into(),
+            (Self::RaiseOrder, _) => Some(" --order auto   (or a higher --order N)".into()),
             (Self::AddJointly { also, .. }, Some(kind)) => {
                 let also: String = also.iter().map(|t| format!(" --also {t}")).collect();
-                format!("unlag fit ...{also} --add {kind}   (model file: {file})")
+                Some(format!("{also} --add {kind}   (model file: {file})"))
             }
-            _ => match self.added() {
-                Some(added) => format!(
-                    "unlag fit ...{}   (model file: {file})",
-                    added
-                        .iter()
-                        .map(|a| format!(" --add {a}"))
-                        .collect::<String>()
-                ),
-                None => "none".into(),
-            },
+            _ => self.added().map(|added| {
+                let added: String = added.iter().map(|a| format!(" --add {a}")).collect();
+                format!("{added}   (model file: {file})")
+            }),
         }
     }
 }

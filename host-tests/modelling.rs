@@ -954,6 +954,58 @@ fn a_noise_model_is_judged_against_the_floor_of_a_prediction_error() {
     );
 }
 
+/// Seed 80's case 040: a flush probe of three sharp modes (damping near 0.016) whose probe
+/// noise is coloured, behind a reference as noisy as the probe's white part. What the model
+/// leaves carries the reference's noise ringing through each mode, a narrow peak in the
+/// residual's spectrum at each: an AR noise model of order up to 4 left the change's
+/// one-step-ahead prediction error 1.53x its floor (the error fell 2.35x). The noise model of
+/// `--add coloured-noise` goes up to order 32, and the change as printed reaches 1.21x.
+#[test]
+fn a_noise_model_whitens_the_reference_noise_ringing_through_a_resonant_probe() {
+    let case = diagnose_bank(
+        "coloured-resonant",
+        "coloured-resonant-est.csv",
+        "coloured-resonant-val.csv",
+    );
+    let first = &case.json["candidates"][0];
+    assert_eq!(first["kind"], "coloured-noise", "{}", case.json);
+    let change = first["change"].as_str().unwrap();
+    let command = change.split("   (").next().unwrap();
+    let kinds: Vec<&str> = command
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .windows(2)
+        .filter(|w| w[0] == "--add")
+        .map(|w| w[1])
+        .collect();
+    assert_eq!(kinds.first(), Some(&"coloured-noise"), "{change}");
+    let fit = case.fit_adding_all(&kinds);
+    let val = &fit["sources"][1];
+    assert_eq!(val["role"], "validation", "{fit}");
+    let (after, floor) = (
+        val["nrmse"].as_f64().unwrap(),
+        val["prediction_floor"]["value"].as_f64().unwrap(),
+    );
+    let before = first["nrmse_before"].as_f64().unwrap();
+    assert!(after <= 1.35 * floor, "{after} against its floor {floor}");
+    assert!(before >= 2.5 * after, "{before} -> {after}");
+    // The diagnosis said what the change gives (with the mode beside it, if one is).
+    let said = first["beside"]["nrmse_after"]
+        .as_f64()
+        .or(first["nrmse_after"].as_f64())
+        .unwrap();
+    assert!((after / said - 1.0).abs() < 0.02, "{after} against {said}");
+    // It took a noise model longer than a channel's own (order 4).
+    let order = fit["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["kind"] == "coloured-noise")
+        .and_then(|e| e["ar"].as_array())
+        .map_or(0, Vec::len);
+    assert!(order > 4, "{fit}");
+}
+
 /// Bank case 088: a pneumatic line (50 Hz) with quadratic losses, one step to fit on and a
 /// wake traverse to validate on. No pair of steps shows how the damping grows with the step, so
 /// the signature that names nonlinear damping cannot be read; the residual on the traverse

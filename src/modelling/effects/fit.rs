@@ -560,7 +560,7 @@ fn with_noise_model(model: &Model, effects: Vec<Effect>, estimation: &Test<'_>) 
         return effects;
     }
     let v = residual(model, &effects, estimation.u, estimation.y);
-    let noise = crate::fit::noise::fit(&v, crate::fit::noise::MAX_NOISE_ORDER);
+    let noise = crate::fit::noise::fit(&v, crate::fit::noise::MAX_RESIDUAL_ORDER);
     effects
         .into_iter()
         .map(|e| match e {

@@ -2162,6 +2162,30 @@ fn a_time_scale_that_beats_the_noise_floor_is_not_a_temperature() {
     );
 }
 
+/// Bank seed 91, case 043: a flush probe with a quadratic loss, fitted on a step and validated
+/// on a wake traverse. The traverse fitted alone shows every natural frequency 0.79x the
+/// model's, a temperature's signature (a colder gas) with the damping kept; but the
+/// temperature's own trial moves the traverse's time scale the other way (1.06x, a hotter
+/// gas), where a temperature moves both by the one factor. A signature its own trial
+/// contradicts is not a temperature's: the trial still lowers the traverse's error 1.39x, but
+/// the residual is said to be unexplained (the loss itself lowers it less than 1.15x, which no
+/// name can show).
+#[test]
+fn a_signature_its_own_trial_contradicts_is_not_a_temperature() {
+    let case = diagnose_bank(
+        "flush-loss-wake",
+        "flush-loss-wake-est.csv",
+        "flush-loss-wake-val.csv",
+    );
+    let d = &case.json;
+    assert!(!case.names_temperature(), "{d}");
+    assert_eq!(d["candidates"][0]["kind"], "unexplained", "{d}");
+    // The trap: adding a temperature lowers the traverse's error past the diagnosis' threshold.
+    let (before, _) = case.validation_before();
+    let after = case.validation_after("temperature");
+    assert!(before / after >= 1.3, "{before} -> {after}");
+}
+
 /// Bank seed 39, case 079: a capillary with a quadratic loss, fitted on a large step and
 /// validated on a wake traverse of a fifteenth of its size. Its second-order fit is a
 /// resonance damped at 0.996, which has no peak. The traverse's one time scale, fitted to it
@@ -2293,9 +2317,11 @@ fn candidate_of<'a>(d: &'a serde_json::Value, kind: &str) -> &'a serde_json::Val
 /// Bank seed 37, case 097: a flush probe (45 kHz, damping 0.22) with a quadratic loss,
 /// fitted on a step of 3600 and validated on a wake traverse whose rates are some seven
 /// times smaller. Fitted alone, the traverse shows every natural frequency moved by 0.91,
-/// which reads as a gas 0.83 times as warm, and the temperature's trial scores ahead of the
-/// loss. Fitted on both tests, as the loss is, the temperature still leaves more than the
-/// loss over the two, and the loss goes first.
+/// which reads as a gas 0.83 times as warm, and the temperature's trial lowers the traverse's
+/// error more than the loss's. But that trial runs the traverse faster (1.14, a warmer gas),
+/// where a temperature moves both by one factor: a signature its own trial contradicts is not
+/// a temperature's, and the loss is named. (Until stop 51 the temperature was offered and
+/// scored ahead; the loss went first as it leaves less over the two tests fitted on both.)
 #[test]
 fn a_loss_that_explains_both_tests_better_goes_before_the_temperature_they_seem_to_show() {
     let case = diagnose_bank(
@@ -2305,33 +2331,20 @@ fn a_loss_that_explains_both_tests_better_goes_before_the_temperature_they_seem_
     );
     let d = &case.json;
     assert_eq!(d["candidates"][0]["kind"], "nonlinear-damping", "{d}");
-    let (loss, temperature) = (
-        candidate_of(d, "nonlinear-damping"),
-        candidate_of(d, "temperature"),
-    );
-    // The trap: the tests' signature of a temperature, and a score ahead of the loss's.
-    assert_eq!(temperature["evidence"]["signature"], true, "{temperature}");
+    assert!(!case.names_temperature(), "{d}");
+    // The trap: a temperature lowers the traverse's error more than the loss's trial does.
+    let loss = candidate_of(d, "nonlinear-damping");
+    let (before, floor) = case.validation_before();
+    let temperature = case.validation_after("temperature");
+    let loss_after = loss["nrmse_after"].as_f64().unwrap();
     assert!(
-        temperature["score"].as_f64().unwrap() > loss["score"].as_f64().unwrap(),
-        "{d}"
+        temperature < loss_after && before / temperature >= 1.15,
+        "{before} -> temperature {temperature}, loss {loss_after}"
     );
+    // The loss explains the traverse to the noise both channels leave on it, fitted on both.
     let joint = &loss["evidence"]["joint"];
-    let (l, t) = (rms_of(&joint["nrmse"]), temperature_rms(temperature));
-    assert!(1.2 * l < t, "loss {l} against temperature {t}");
-    // The loss explains the traverse to the noise both channels leave on it.
-    let (_, floor) = case.validation_before();
     let on_traverse = joint["nrmse"][1].as_f64().unwrap();
     assert!(on_traverse < 1.5 * floor, "{on_traverse} against {floor}");
-    // The diagnosis says why the loss stands first though it scores less, by how much on
-    // that footing, and which test would tell the two apart.
-    let first = &d["candidates"][0];
-    assert_eq!(first["ordered_by"], "less-over-all-tests", "{first}");
-    let margin = first["margin"].as_f64().unwrap();
-    assert!((margin - (t / l).ln()).abs() < 1e-9, "{first}");
-    assert_eq!(
-        first["separated_by"]["test"], "steps-of-other-sizes",
-        "{first}"
-    );
 }
 
 /// Bank seed 46, case 008: a pneumatic probe fitted on a step and validated on another step

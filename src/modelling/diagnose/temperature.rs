@@ -326,6 +326,26 @@ mod tests {
     }
 
     #[test]
+    fn a_trial_contradicts_a_signature_on_the_other_side_of_one() {
+        use super::trial_contradicts;
+        let at = |scale: f64| crate::modelling::diagnose::ScaleEstimate {
+            damping_factor: 1.0,
+            scale,
+            temperature_k: 293.15 * scale * scale,
+            test: "val.csv".to_string(),
+        };
+        // Seed 91's case 043: frequencies fitted alone 0.79x, the trial 1.06x.
+        assert!(trial_contradicts(&[at(1.055)], "val.csv", 0.788));
+        assert!(trial_contradicts(&[at(0.9)], "val.csv", 1.1));
+        // A temperature: both the same way.
+        assert!(!trial_contradicts(&[at(0.92)], "val.csv", 0.9));
+        assert!(!trial_contradicts(&[at(1.08)], "val.csv", 1.1));
+        // Only the test that shows the signature is asked, and an unmoved trial says nothing.
+        assert!(!trial_contradicts(&[at(1.055)], "est.csv", 0.788));
+        assert!(!trial_contradicts(&[at(1.0)], "val.csv", 0.788));
+    }
+
+    #[test]
     fn a_swing_is_a_steps_size_not_moved_by_a_wild_sample() {
         use super::swing;
         let mut step: Vec<f64> = (0..2000).map(|k| f64::from(u8::from(k >= 500))).collect();

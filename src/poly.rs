@@ -86,6 +86,20 @@ pub fn eval(p: &[f64], z: Complex) -> Complex {
     })
 }
 
+/// The product of two polynomials in `z^-1` (their coefficients' convolution).
+#[must_use]
+pub fn times(p: &[f64], q: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; (p.len() + q.len()).saturating_sub(1)];
+    for (i, a) in p.iter().enumerate() {
+        for (j, b) in q.iter().enumerate() {
+            if let Some(o) = out.get_mut(i + j) {
+                *o += a * b;
+            }
+        }
+    }
+    out
+}
+
 /// Formats a complex root for messages: `0.95+0.12j`.
 #[must_use]
 pub fn format_root(z: Complex) -> String {
@@ -102,6 +116,18 @@ crate::error::stage_error!(PolyError);
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_product_is_the_convolution_and_its_roots_are_both_factors() {
+        // (1 - 0.5 z^-1)(1 - 2.1 z^-1) = 1 - 2.6 z^-1 + 1.05 z^-2
+        let p = times(&[1.0, -0.5], &[1.0, -2.1]);
+        assert_eq!(p.len(), 3);
+        assert!(
+            (p[1] + 2.6).abs() < 1e-12 && (p[2] - 1.05).abs() < 1e-12,
+            "{p:?}"
+        );
+        assert!(times(&[], &[1.0]).is_empty());
+    }
 
     #[test]
     fn roots_of_known_polynomials() {

@@ -460,21 +460,13 @@ mod tests {
     /// order of a channel's own noise cannot (1.56x).
     #[test]
     fn the_residual_noise_model_whitens_a_noisy_reference_through_a_resonant_probe() {
-        let conv = |x: &[f64], y: &[f64]| -> Vec<f64> {
-            let mut z = vec![0.0; x.len() + y.len() - 1];
-            for (i, a) in x.iter().enumerate() {
-                for (j, b) in y.iter().enumerate() {
-                    z[i + j] += a * b;
-                }
-            }
-            z
-        };
+        use crate::poly::times;
         let mut g = crate::testing::second_order(500.0, 0.01, 10_000.0, 2).0;
         for f in [1_400.0, 2_300.0] {
             let m = crate::testing::second_order(f, 0.01, 10_000.0, 0).0;
-            let a = conv(&[&[1.0][..], &g.a].concat(), &[1.0, m.a[0], m.a[1]]);
+            let a = times(&[&[1.0][..], &g.a].concat(), &[1.0, m.a[0], m.a[1]]);
             g.a = a[1..].to_vec();
-            g.b = conv(&g.b, &m.b);
+            g.b = times(&g.b, &m.b);
         }
         let n = 40_000;
         let reference_noise = white(n, 41);

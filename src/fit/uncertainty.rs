@@ -53,19 +53,6 @@ impl Levels {
     }
 }
 
-/// The product of two polynomials in `q^-1`.
-fn times(p: &[f64], q: &[f64]) -> Vec<f64> {
-    let mut out = vec![0.0; (p.len() + q.len()).saturating_sub(1)];
-    for (i, a) in p.iter().enumerate() {
-        for (j, b) in q.iter().enumerate() {
-            if let Some(o) = out.get_mut(i + j) {
-                *o += a * b;
-            }
-        }
-    }
-    out
-}
-
 /// The resonances of a model, lowest natural frequency first, and its DC gain.
 pub(crate) fn features(model: &Model) -> Option<(f64, Vec<(f64, f64)>)> {
     let mut r = crate::fit::analysis::Analysis::new(model)
@@ -134,8 +121,8 @@ pub(crate) fn parts(
             .collect();
         let p1: Vec<f64> = std::iter::once(1.0).chain(pu.iter().copied()).collect();
         Colour {
-            num: times(&dpoly, &g),
-            den: times(&a1, &p1).into_iter().skip(1).collect(),
+            num: crate::poly::times(&dpoly, &g),
+            den: crate::poly::times(&a1, &p1).into_iter().skip(1).collect(),
             var,
         }
     };

@@ -194,10 +194,18 @@ pub(super) fn candidate(
     .min_by(|a, b| a.0.after.total_cmp(&b.0.after))?;
     let (after, fx) = (tried.after, &tried.effects);
     let reference_k = effects::reference_k(fx).unwrap_or(effects::DEFAULT_REFERENCE_K);
+    // Each test's time scale, read on the model the temperature scales: the current one, or
+    // the trial's where the current one cannot be scaled (the trial stepped back to a delay or
+    // an order that can be; read on the current model, every scale would be 1).
+    let scaled_model = if scalable {
+        current.model
+    } else {
+        &tried.model
+    };
     let estimated: Vec<ScaleEstimate> = tests
         .iter()
         .map(|t| {
-            let k = effects::estimate_scale_with(current.model, damping, reference_k, t.u, t.y);
+            let k = effects::estimate_scale_with(scaled_model, damping, reference_k, t.u, t.y);
             ScaleEstimate {
                 damping_factor: damping.factor(k, reference_k),
                 scale: k,

@@ -62,6 +62,9 @@ pub(super) struct Tried {
     pub effects: Vec<Effect>,
     pub nrmse: Vec<f64>,
     pub delay: usize,
+    /// The model the trial fitted (its order can be lower than the one it started from:
+    /// [`crate::modelling::effects::fit_with`] steps down where a temperature cannot scale it).
+    pub model: Model,
 }
 
 impl Tried {
@@ -76,6 +79,7 @@ impl Tried {
             effects,
             nrmse,
             delay: model.delay,
+            model: model.clone(),
         }
     }
 }
@@ -184,6 +188,12 @@ mod tests {
                 effects: vec![e.clone()],
                 nrmse: Vec::new(),
                 delay: if search { delay } else { 6 },
+                model: Model {
+                    fs: 1000.0,
+                    delay: if search { delay } else { 6 },
+                    a: vec![-0.5],
+                    b: vec![0.5, 0.0],
+                },
             })
         }
     }

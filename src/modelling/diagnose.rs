@@ -195,13 +195,34 @@ fn ranked(
     evidence: &[TestEvidence],
 ) -> Result<Vec<Candidate>> {
     let kept = rank::rank_at(current, tests, evidence, Some(current.model.delay), false)?;
+    let delay = current.model.delay;
+    if let Some(first) = kept.first() {
+        if weak_additive(first) {
+            let mut found = rank::rank_at(current, tests, evidence, Some(delay), true)?;
+            if found.first().is_some_and(|c| {
+                matches!(c.kind, Finding::Missing(k) if k.family() == EffectKind::Temperature)
+                    && c.score > first.score
+            }) {
+                let how = format!(
+                    "tried beside a {} whose trial lowers the held-out error only {:.2}x, less \
+                     than a temperature read from its trial alone must",
+                    first.kind,
+                    first.score.exp()
+                );
+                if let Some(c) = found.first_mut() {
+                    c.reading.push_str("; ");
+                    c.reading.push_str(&how);
+                }
+                return Ok(found);
+            }
+        }
+    }
     if !kept
         .first()
         .is_some_and(|c| matches!(c.kind, Finding::Unexplained))
     {
         return Ok(kept);
     }
-    let delay = current.model.delay;
     let delay_fixed = FitChanges::of(current.effects).delay.is_some();
     for resort in [LastResort::DelaySearched, LastResort::TemperatureOnAnyModel] {
         let (at, any_damping) = match resort {
@@ -223,6 +244,16 @@ fn ranked(
         }
     }
     Ok(kept)
+}
+
+/// Whether `first` is an additive effect (a drift or an offset, which leave the dynamics as
+/// they are) whose trial lowers the held-out error less than a temperature read from its
+/// trial alone must ([`temperature::TRIAL_ALONE_FALL`]).
+fn weak_additive(first: &Candidate) -> bool {
+    matches!(
+        first.kind,
+        Finding::Missing(EffectKind::Drift | EffectKind::Offset)
+    ) && first.score < temperature::TRIAL_ALONE_FALL.ln()
 }
 
 /// A last resort [`diagnose`] tries before it says `unexplained`.
@@ -247,5 +278,43 @@ impl LastResort {
                 "found as a last resort: no other effect's trial lowers the held-out error".into()
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn named(kind: EffectKind, fall: f64) -> Candidate {
+        Candidate::new(
+            Finding::Missing(kind),
+            fall.ln(),
+            (
+                Evidence::Nothing {
+                    noise_floor: 0.01,
+                    nrmse: 0.02,
+                    white: false,
+                },
+                String::new(),
+            ),
+            Remedy::Nothing,
+            (0.02, 0.02 / fall),
+        )
+    }
+
+    #[test]
+    fn only_a_drift_or_an_offset_weaker_than_a_temperature_read_alone_is_set_against_one() {
+        // The temperature read from its trial alone must lower the error 1.32x.
+        assert!(weak_additive(&named(EffectKind::Drift, 1.16)));
+        assert!(weak_additive(&named(EffectKind::Offset, 1.30)));
+        assert!(!weak_additive(&named(EffectKind::Drift, 1.4)));
+        // An effect that changes the dynamics is not: its trial refits them.
+        assert!(!weak_additive(&named(EffectKind::Leak, 1.16)));
+        assert!(!weak_additive(&named(EffectKind::Mode, 1.16)));
+        let unexplained = Candidate {
+            kind: Finding::Unexplained,
+            ..named(EffectKind::Drift, 1.0)
+        };
+        assert!(!weak_additive(&unexplained));
     }
 }

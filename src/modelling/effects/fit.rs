@@ -607,6 +607,16 @@ fn with_noise_model(model: &Model, effects: Vec<Effect>, estimation: &Test<'_>) 
 mod tests {
     use super::*;
 
+    /// A step of 100 at sample 300 of 3000 and `truth`'s response to it with white noise of
+    /// standard deviation `sd` (seed `seed`).
+    fn noisy_step(truth: &Model, sd: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
+        let u: Vec<f64> = (0..3000)
+            .map(|k| if k < 300 { 0.0 } else { 100.0 })
+            .collect();
+        let y = crate::testing::with_noise(&truth.simulate(&u), sd, seed);
+        (u, y)
+    }
+
     #[test]
     fn a_leak_keeps_the_dc_gain_the_fit_found_where_calibration_takes_it_as_one() {
         // A probe whose leak leaves 0.997 of the step, in noise (3 % of the step) through which
@@ -614,10 +624,7 @@ mod tests {
         // the gain found.
         let (mut truth, _) = crate::testing::second_order(200.0, 0.3, 10_000.0, 1);
         truth.b.iter_mut().for_each(|b| *b *= 0.997);
-        let u: Vec<f64> = (0..3000)
-            .map(|k| if k < 300 { 0.0 } else { 100.0 })
-            .collect();
-        let y = crate::testing::with_noise(&truth.simulate(&u), 3.0, 7);
+        let (u, y) = noisy_step(&truth, 3.0, 7);
         let est = Test {
             name: "step.csv",
             u: &u,
@@ -817,10 +824,7 @@ mod tests {
             a: vec![-0.99 + 0.3, -0.99 * 0.3],
             b: vec![0.01 * 1.3, 0.0, 0.0],
         };
-        let u: Vec<f64> = (0..3000)
-            .map(|k| if k < 300 { 0.0 } else { 100.0 })
-            .collect();
-        let y = crate::testing::with_noise(&truth.simulate(&u), 0.3, 11);
+        let (u, y) = noisy_step(&truth, 0.3, 11);
         let est = Test {
             name: "step.csv",
             u: &u,

@@ -195,27 +195,8 @@ fn ranked(
     evidence: &[TestEvidence],
 ) -> Result<Vec<Candidate>> {
     let kept = rank::rank_at(current, tests, evidence, Some(current.model.delay), false)?;
-    let delay = current.model.delay;
-    if let Some(first) = kept.first() {
-        if weak_additive(first) {
-            let mut found = rank::rank_at(current, tests, evidence, Some(delay), true)?;
-            if found.first().is_some_and(|c| {
-                matches!(c.kind, Finding::Missing(k) if k.family() == EffectKind::Temperature)
-                    && c.score > first.score
-            }) {
-                let how = format!(
-                    "tried beside a {} whose trial lowers the held-out error only {:.2}x, less \
-                     than a temperature read from its trial alone must",
-                    first.kind,
-                    first.score.exp()
-                );
-                if let Some(c) = found.first_mut() {
-                    c.reading.push_str("; ");
-                    c.reading.push_str(&how);
-                }
-                return Ok(found);
-            }
-        }
+    if let Some(found) = temperature_beside_weak_additive(current, tests, evidence, &kept)? {
+        return Ok(found);
     }
     if !kept
         .first()
@@ -223,6 +204,7 @@ fn ranked(
     {
         return Ok(kept);
     }
+    let delay = current.model.delay;
     let delay_fixed = FitChanges::of(current.effects).delay.is_some();
     for resort in [LastResort::DelaySearched, LastResort::TemperatureOnAnyModel] {
         let (at, any_damping) = match resort {
@@ -244,6 +226,34 @@ fn ranked(
         }
     }
     Ok(kept)
+}
+
+/// Where `kept`'s first name is [`weak_additive`], the ranking with the temperature on any
+/// model (the last resort's) when a temperature goes first there and lowers the error more,
+/// its reading saying why it was tried.
+fn temperature_beside_weak_additive(
+    current: &Current<'_>,
+    tests: &[Test<'_>],
+    evidence: &[TestEvidence],
+    kept: &[Candidate],
+) -> Result<Option<Vec<Candidate>>> {
+    let Some(first) = kept.first().filter(|c| weak_additive(c)) else {
+        return Ok(None);
+    };
+    let mut found = rank::rank_at(current, tests, evidence, Some(current.model.delay), true)?;
+    let Some(top) = found.first_mut().filter(|c| {
+        matches!(c.kind, Finding::Missing(k) if k.family() == EffectKind::Temperature)
+            && c.score > first.score
+    }) else {
+        return Ok(None);
+    };
+    top.reading.push_str(&format!(
+        "; tried beside a {} whose trial lowers the held-out error only {:.2}x, less than a \
+         temperature read from its trial alone must",
+        first.kind,
+        first.score.exp()
+    ));
+    Ok(Some(found))
 }
 
 /// Whether `first` is an additive effect (a drift or an offset, which leave the dynamics as

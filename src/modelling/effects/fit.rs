@@ -266,35 +266,27 @@ pub fn fit_with_also(
     // the negative real axis does not have: it rings at Nyquist, a sampling artefact where a
     // searched delay took one sample too many from a fast corner (bank case 053, a capillary:
     // delays 5 to 7 within 0.3 % of each other, the largest taken). The next smaller delays
-    // are tried and the first whose model has one is kept when it explains the estimation
-    // test as well (within 10 %); otherwise the fit says that the temperature cannot scale it.
+    // are tried, then lower orders (below), and the first whose model has one is kept when it
+    // explains the estimation test as well (within 10 %); otherwise the fit says that the
+    // temperature cannot scale it.
     let mut fitted = fitted;
     if temperature_law(&out).is_some()
         && opts.delay.is_none()
         && Continuous::from_model(&fitted.model).is_err()
     {
         let d = fitted.model.delay;
-        for fewer in (d.saturating_sub(MAX_DELAY_BACKOFF)..d).rev() {
+        let lowest = d.saturating_sub(MAX_DELAY_BACKOFF);
+        let delays = (lowest..d).rev().map(|fewer| {
             let o = Options {
                 delay: Some(fewer),
                 ..*options
             };
-            if let Ok((mut f, fx)) = refit(&o, &effects) {
-                if Continuous::from_model(&f.model).is_ok()
-                    && f.nrmse_estimation <= 1.1 * fitted.nrmse_estimation
-                {
-                    f.report.notes.push(format!(
-                        "the delay {d} the search found left a pole on the negative real axis, \
-                         which a temperature cannot scale (no continuous-time equivalent); \
-                         delay {fewer} explains the estimation test as well ({:.3} % against \
-                         {:.3} %) and was kept",
-                        100.0 * f.nrmse_estimation,
-                        100.0 * fitted.nrmse_estimation
-                    ));
-                    return Ok((f, fx));
-                }
-            }
-        }
+            let kept = format!(
+                "the delay {d} the search found left a pole on the negative real axis, which a \
+                 temperature cannot scale (no continuous-time equivalent); delay {fewer}"
+            );
+            (o, kept)
+        });
         // The pole on the negative real axis can be a spare one: an overdamped probe whose
         // record shows one corner (a capillary, bank case 080 of seed 83: poles 0.9994 and
         // -0.33 at order 2, both orders 0.182 % on the estimation test) spends the second
@@ -302,22 +294,27 @@ pub fn fit_with_also(
         // test as well and can be scaled (that case's held-out error fell from 1.62 % to its
         // floor, 0.30 %).
         let asked = fitted.model.order().saturating_sub(changes.extra_order);
-        for fewer in (1..asked).rev() {
+        let orders = (1..asked).rev().map(|fewer| {
             let o = Options {
                 order: Order::Fixed(fewer),
                 delay: None,
                 ..*options
             };
+            let kept = format!(
+                "order {asked} left a pole on the negative real axis, which a temperature \
+                 cannot scale (no continuous-time equivalent), at every delay from {d} down to \
+                 {lowest}; order {fewer}"
+            );
+            (o, kept)
+        });
+        for (o, kept) in delays.chain(orders) {
             if let Ok((mut f, fx)) = refit(&o, &effects) {
                 if Continuous::from_model(&f.model).is_ok()
                     && f.nrmse_estimation <= 1.1 * fitted.nrmse_estimation
                 {
                     f.report.notes.push(format!(
-                        "order {asked} left a pole on the negative real axis, which a \
-                         temperature cannot scale (no continuous-time equivalent), at every \
-                         delay from {d} down to {}; order {fewer} explains the estimation test \
-                         as well ({:.3} % against {:.3} %) and was kept",
-                        d.saturating_sub(MAX_DELAY_BACKOFF),
+                        "{kept} explains the estimation test as well ({:.3} % against {:.3} %) \
+                         and was kept",
                         100.0 * f.nrmse_estimation,
                         100.0 * fitted.nrmse_estimation
                     ));
@@ -330,7 +327,7 @@ pub fn fit_with_also(
              has no continuous-time equivalent, and no smaller delay (down to {}) nor lower \
              order explains the estimation test as well without one; its predictions at other \
              temperatures are the reference's (refit with another --order or --delay)",
-            d.saturating_sub(MAX_DELAY_BACKOFF)
+            lowest
         ));
     }
     // A real pole slower than the record is not resolved by it: a drift makes the same

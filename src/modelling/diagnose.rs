@@ -67,7 +67,7 @@ pub use finding::{
 };
 pub use order::{
     drift_contradicted, margin, on_one_footing, over_all_tests, ramp_kept, ramp_returns,
-    slope_kept, OrderRule, CREEP_SEEN_STANDARD_ERRORS, CREEP_SETTLED_BELOW,
+    slope_kept, unseen_leak, OrderRule, CREEP_SEEN_STANDARD_ERRORS, CREEP_SETTLED_BELOW,
     DRIFT_CONTRADICTED_STANDARD_ERRORS, LEAK_DC_GAIN_BELOW, MODE_PEAK_OVER_CREEP_DB,
     RAMP_KEPT_BELOW,
 };

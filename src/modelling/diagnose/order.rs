@@ -24,6 +24,17 @@ pub const MODE_PEAK_OVER_CREEP_DB: f64 = 20.0;
 /// not of its sign, contradicts the drift.
 pub const DRIFT_CONTRADICTED_STANDARD_ERRORS: f64 = 4.0;
 
+/// Whether `c` is a leak with neither of its signatures: the creep after the step within
+/// [`CREEP_SEEN_STANDARD_ERRORS`] of the noise, and (the caller's part) the current model's DC
+/// gain at [`LEAK_DC_GAIN_BELOW`] or above.
+#[must_use]
+pub fn unseen_leak(c: &Candidate) -> bool {
+    matches!(
+        c.evidence,
+        Evidence::Leak { creep_in_standard_errors: z, .. } if z.abs() < CREEP_SEEN_STANDARD_ERRORS
+    )
+}
+
 /// Whether the residual's slope before the step (`pre`, standard error `pre_se`, per second)
 /// contradicts a drift at `rate` per second: a sensor's drift runs in time, before the step as
 /// after it, so its slope there is the rate; one [`DRIFT_CONTRADICTED_STANDARD_ERRORS`] away
@@ -114,8 +125,7 @@ pub enum OrderRule {
     ResonanceInTheReference,
     /// A clear resonance before a leak that ties with it, the DC gain not below 1.
     ResonanceBeforeLeakAtUnitGain,
-    /// A resonance whose peak, or rise towards the band's edge, was seen before a leak with
-    /// neither of its signatures.
+    /// A mode or the transducers' resonance before a leak with neither of its signatures.
     ResonanceBeforeUnseenLeak,
     /// A leak with both its signatures, its creep settled, before a mode that ties with it.
     SettledLeakBeforeMode,
@@ -146,8 +156,8 @@ impl OrderRule {
                  below 1"
             }
             Self::ResonanceBeforeUnseenLeak => {
-                "a resonance whose peak, or rise towards the band's edge, was seen goes before a \
-                 leak with neither of its signatures"
+                "a mode or the transducers' resonance goes before a leak with neither of its \
+                 signatures (the DC gain below 1, a creep after the step)"
             }
             Self::SettledLeakBeforeMode => {
                 "a leak whose DC gain is below 1 and whose creep settles goes before a mode \
@@ -247,29 +257,23 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64) {
     }
     // A leak shows as a DC gain below 1 (a leaking volume) or as a creep after the step (a
     // thermal creep). With neither, its trial only lends a pole and a zero to something else:
-    // it goes after a resonance whose peak was seen, at any margin (bank case 032: a line's
-    // second mode 7 dB out at 584 Hz, the leak's trial 0.34 ahead with the DC gain at 1 and the
-    // creep 1 standard error out), or whose rise towards the band's edge was (seed 83, case 081:
-    // a pneumatic probe with no hidden effect, its own modes beyond second order leaving the
-    // step test at 5.5x its floor, the response 4.4 dB above the model's towards 179 Hz, the
-    // leak's trial 0.06 ahead with the DC gain at 1 and no creep at all).
-    let unseen_leak = |c: &Candidate| {
-        matches!(
-            c.evidence,
-            Evidence::Leak { creep_in_standard_errors: z, .. }
-                if z.abs() < CREEP_SEEN_STANDARD_ERRORS
-        )
-    };
+    // it goes after a mode or the transducers' resonance, at any margin. Whose peak was seen
+    // (bank case 032: a line's second mode 7 dB out at 584 Hz, the leak's trial 0.34 ahead with
+    // the DC gain at 1 and the creep 1 standard error out), whose rise towards the band's edge
+    // was (seed 83, case 081: a pneumatic probe with no hidden effect, its own modes beyond
+    // second order leaving the step test at 5.5x its floor, the response 4.4 dB above the
+    // model's towards 179 Hz, the leak's trial 0.06 ahead with the DC gain at 1 and no creep at
+    // all), or that only its trial shows (seed 112, case 032: a pneumatic probe's hidden mode
+    // validated by a wake, the leak's trial 0.06 ahead, the gain at 1 and the creep 0.8
+    // standard errors out). Of the 33 leak candidates with neither signature on seeds 107 to
+    // 114, none was a hidden leak (the bank's leaks lower the gain 2 % to 10 %).
     if dc_gain >= LEAK_DC_GAIN_BELOW {
         yield_first_within(
             out,
             OrderRule::ResonanceBeforeUnseenLeak,
             unseen_leak,
             |c| {
-                matches!(
-                    c.evidence,
-                    Evidence::Mode(ModeEvidence::Peak { .. } | ModeEvidence::BandEdge { .. })
-                ) && c.kind == EffectKind::Mode
+                matches!(c.evidence, Evidence::Mode(_)) && c.kind == EffectKind::Mode
                     || matches!(c.evidence, Evidence::SensorResonance(_))
                         && c.kind == EffectKind::SensorResonance
             },
@@ -563,7 +567,7 @@ mod tests {
     }
 
     #[test]
-    fn a_leak_with_neither_signature_goes_after_a_seen_resonance_at_any_margin() {
+    fn a_leak_with_neither_signature_goes_after_a_mode_at_any_margin() {
         // Bank case 032: the leak's trial 0.34 ahead of a mode whose peak stands 7 dB out, the
         // DC gain at 1 and no creep beyond the noise.
         let first = |z: f64, dc_gain: f64, mode: Evidence| {
@@ -580,9 +584,14 @@ mod tests {
         // A creep seen (a thermal creep), or a leaking volume's gain: the leak keeps its place.
         assert_eq!(first(-4.0, 1.0, peak(7.4)), leak);
         assert_eq!(first(1.0, 0.95, peak(7.4)), leak);
-        // A mode without a peak is no seen signature either.
+        // A mode its trial alone shows goes first too (seed 112, case 032: the leak 0.06
+        // ahead), but not before a leak with a signature.
         assert_eq!(
             first(1.0, 1.0, Evidence::Mode(ModeEvidence::TrialOnly)),
+            mode
+        );
+        assert_eq!(
+            first(-4.0, 1.0, Evidence::Mode(ModeEvidence::TrialOnly)),
             leak
         );
         // The response rising above the model's towards the band's edge is (seed 83, case 081:

@@ -7,8 +7,8 @@ use super::trial::{adding, held_out, keep_delay_if_search_raises, options, trial
 use super::{
     amplitude_signature, creep_in_standard_errors, drift_before_step, joint_loss_evidence, mean,
     per_test, pre_step_slope, ramp_kept, ramp_returns, slope_kept, unseen_leak, AmplitudeSignature,
-    Candidate, Current, Evidence, Finding, JointLoss, ModeEvidence, NonlinearDamping, Remedy,
-    Spectrum, COLOURED_NOISE_FIT, CREEP_SETTLED_BELOW, LEAK_DC_GAIN_BELOW,
+    Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping, Remedy, Spectrum,
+    COLOURED_NOISE_FIT, CREEP_SETTLED_BELOW, LEAK_DC_GAIN_BELOW,
 };
 use crate::error::Result;
 use crate::fit::model::Uncertainty;
@@ -409,18 +409,14 @@ pub(super) fn rank_at(
     // identify the loss (bank case 052: a capillary's step explained to 0.370 % with it or
     // without, a traverse missed by 2.9 %), so its remedy fits on the tests together.
     let joint_from = offered.get();
-    let mut loss_not_offered = None;
     if !at_floor && !have.nonlinear && !nonlinear_tried {
         let trials: Vec<Test<'_>> = std::iter::once(*estimation)
             .chain(validation.iter().copied())
             .collect();
         let now = effects::rms(&Tried::of(current.model, current.effects.to_vec(), &trials).nrmse);
-        let joint = joint_loss_evidence(current, &trials);
-        loss_not_offered = joint
-            .as_ref()
-            .filter(|j| !j.offered_against(now))
-            .map(JointLoss::rms);
-        if let Some(joint) = joint.filter(|j| j.offered_against(now)) {
+        if let Some(joint) =
+            joint_loss_evidence(current, &trials).filter(|j| j.offered_against(now))
+        {
             nonlinear_tried = true;
             let sig = amplitude_signature(&per_test(current, tests, evidence));
             let also = joint.tests.iter().skip(1).cloned().collect();
@@ -447,9 +443,7 @@ pub(super) fn rank_at(
     // where no test fitted alone can show it, the trial alone held to the floor; on any model
     // beside a loss fitted on the tests together, which it is then set against.
     let alone = match (any_damping, offered.get() > joint_from) {
-        (true, _) => TrialAlone::AnyModel {
-            loss_leaves: loss_not_offered,
-        },
+        (true, _) => TrialAlone::AnyModel,
         (false, true) => TrialAlone::BesideJointLoss,
         (false, false) => TrialAlone::Resonant,
     };

@@ -54,23 +54,6 @@ pub fn loss_could_move(k: f64, swing_ratio: f64) -> bool {
     (k > 1.0) == (swing_ratio < 1.0)
 }
 
-/// A quadratic loss fitted on all the tests together that leaves this many times what a
-/// temperature's trial leaves over them (the RMS of the tests' errors, one footing: every
-/// test's own time scale against one model whose loss damps each test by its rates) cannot
-/// explain what moved the time scale, whichever way it ran: the direction a loss could have
-/// moved it ([`loss_could_move`]) is then not asked.
-///
-/// Bank seed 107, case 089: a pneumatic probe near critical damping, validated by a balloon
-/// 1.40 times the step in a colder gas. The balloon ran slower (0.90), as a loss would move a
-/// larger test, so the direction kept the temperature from its trial and the case was named
-/// `unexplained`; but one model with a loss fitted on both tests found no loss at all and left
-/// 0.956 % over them, 2.69 times the temperature trial's 0.356 % (the balloon to 0.301 %, its
-/// floor 0.283 %). Of the 103 cases named `unexplained` on seeds 107 to 114, one other moved
-/// at the threshold a trial alone is held to ([`TRIAL_ALONE_FALL`]): seed 111's case 079, a
-/// capillary's quadratic loss its tests cannot show, where the loss fitted on both tests
-/// leaves 1.64 times the trial's. The threshold is set at 2, between the two.
-pub const LOSS_LEAVES_MORE: f64 = 2.0;
-
 /// Whether the trial's time scale on the test that shows the signature, `file`, lies on the
 /// other side of 1 from the signature's `ratio` (that test's natural frequencies fitted alone
 /// over the model's). With the damping kept (the law of a lightly damped probe), a gas
@@ -107,20 +90,13 @@ fn swing(x: &[f64]) -> f64 {
 
 /// The models a temperature may be read from by its trial alone, where no test fitted alone
 /// shows the signature.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum TrialAlone {
     /// A model with a resonance damped below [`TRIAL_ALONE_DAMPING_BELOW`].
     Resonant,
     /// Any model, where no loss could have moved the time scale that way
-    /// ([`loss_could_move`]): the last resort before `unexplained`. `loss_leaves` is what a
-    /// loss fitted on the tests together leaves over them (the RMS of their errors) where it
-    /// was tried and not offered: a loss that leaves [`LOSS_LEAVES_MORE`] times what the
-    /// trial leaves over the same tests does not explain the shift, whichever way it runs.
-    AnyModel {
-        /// The RMS error over the tests of one model with a quadratic loss fitted on them
-        /// all, where that fit was tried and not offered.
-        loss_leaves: Option<f64>,
-    },
+    /// ([`loss_could_move`]): the last resort before `unexplained`.
+    AnyModel,
     /// Any model, beside a loss fitted on the tests together; each is then fitted on all the
     /// tests and the one that leaves less goes first (`LessOverAllTests` in
     /// [`super::order`]). Where the test that moved is a traverse (no quiet segment), the
@@ -271,23 +247,11 @@ pub(super) fn candidate(
             let k = strongest.scale;
             // Only where no loss could have moved the time scale this way; beside a joint
             // loss, a traverse's direction is not asked ([`TrialAlone::BesideJointLoss`]).
-            // A loss fitted on the tests together that leaves LOSS_LEAVES_MORE times what the
-            // trial leaves: its RMS over the tests, and the trial's.
-            let trial_leaves = effects::rms(&tried.nrmse);
-            let loss_ruled_out = match alone {
-                TrialAlone::AnyModel {
-                    loss_leaves: Some(l),
-                } if l >= LOSS_LEAVES_MORE * trial_leaves => Some(l),
-                _ => None,
-            };
             let loss = || {
                 let traverse = tests
                     .get(i)
                     .is_some_and(|t| crate::fit::step::quiet_until(t.u) == 0);
                 if alone == TrialAlone::BesideJointLoss && traverse {
-                    return false;
-                }
-                if loss_ruled_out.is_some() {
                     return false;
                 }
                 let swing_ratio = match (tests.first(), tests.get(i)) {
@@ -313,19 +277,12 @@ pub(super) fn candidate(
                  moves by {k:.3} on {} and lowers the held-out error {:.2}x counted to the \
                  noise floor ({:.3} % -> {:.3} %, floor {:.3} %): the same probe at another gas \
                  temperature, T/T_ref = {temperature_ratio:.3}, read from the trial alone; a \
-                 step at that temperature would confirm it{}",
+                 step at that temperature would confirm it",
                 strongest.test,
                 fall,
                 100.0 * before,
                 100.0 * after,
                 100.0 * floor,
-                loss_ruled_out.map_or(String::new(), |l| format!(
-                    "; a quadratic loss, fitted on the tests together, leaves {:.3} % over \
-                     them where this trial leaves {:.3} %, so it does not explain the shift \
-                     whichever way the time scale moved",
-                    100.0 * l,
-                    100.0 * trial_leaves
-                )),
             );
             (
                 strongest.test.clone(),

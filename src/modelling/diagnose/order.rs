@@ -24,15 +24,17 @@ pub const MODE_PEAK_OVER_CREEP_DB: f64 = 20.0;
 /// not of its sign, contradicts the drift.
 pub const DRIFT_CONTRADICTED_STANDARD_ERRORS: f64 = 4.0;
 
-/// Whether `c` is a leak with neither of its signatures: the creep after the step within
-/// [`CREEP_SEEN_STANDARD_ERRORS`] of the noise, and (the caller's part) the current model's DC
-/// gain at [`LEAK_DC_GAIN_BELOW`] or above.
+/// Whether `c` is a leak with neither of its signatures: the current model's DC gain
+/// (`dc_gain`) at [`LEAK_DC_GAIN_BELOW`] or above, so no leaking volume, and the creep after the
+/// step within [`CREEP_SEEN_STANDARD_ERRORS`] of the noise.
 #[must_use]
-pub fn unseen_leak(c: &Candidate) -> bool {
-    matches!(
-        c.evidence,
-        Evidence::Leak { creep_in_standard_errors: z, .. } if z.abs() < CREEP_SEEN_STANDARD_ERRORS
-    )
+pub fn unseen_leak(c: &Candidate, dc_gain: f64) -> bool {
+    dc_gain >= LEAK_DC_GAIN_BELOW
+        && matches!(
+            c.evidence,
+            Evidence::Leak { creep_in_standard_errors: z, .. }
+                if z.abs() < CREEP_SEEN_STANDARD_ERRORS
+        )
 }
 
 /// Whether the residual's slope before the step (`pre`, standard error `pre_se`, per second)
@@ -267,19 +269,17 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64) {
     // validated by a wake, the leak's trial 0.06 ahead, the gain at 1 and the creep 0.8
     // standard errors out). Of the 33 leak candidates with neither signature on seeds 107 to
     // 114, none was a hidden leak (the bank's leaks lower the gain 2 % to 10 %).
-    if dc_gain >= LEAK_DC_GAIN_BELOW {
-        yield_first_within(
-            out,
-            OrderRule::ResonanceBeforeUnseenLeak,
-            unseen_leak,
-            |c| {
-                matches!(c.evidence, Evidence::Mode(_)) && c.kind == EffectKind::Mode
-                    || matches!(c.evidence, Evidence::SensorResonance(_))
-                        && c.kind == EffectKind::SensorResonance
-            },
-            f64::INFINITY,
-        );
-    }
+    yield_first_within(
+        out,
+        OrderRule::ResonanceBeforeUnseenLeak,
+        |c| unseen_leak(c, dc_gain),
+        |c| {
+            matches!(c.evidence, Evidence::Mode(_)) && c.kind == EffectKind::Mode
+                || matches!(c.evidence, Evidence::SensorResonance(_))
+                    && c.kind == EffectKind::SensorResonance
+        },
+        f64::INFINITY,
+    );
     // A leak with both its signatures, a leaking volume's DC gain below LEAK_DC_GAIN_BELOW and
     // a creep after the step, goes before a mode that ties with it when the creep has settled
     // by the end of the estimation test: the mode's two poles and zeros can take a slow pole's

@@ -611,8 +611,8 @@ pub(super) fn rank_at(
     // tests at 1.27x and 4.87x what their true models leave, named `leak` alone).
     let lone_leak = out
         .first()
-        .filter(|c| current.model.dc_gain() >= LEAK_DC_GAIN_BELOW && unseen_leak(c))
-        .map(|c| c.nrmse_before / c.nrmse_after);
+        .filter(|c| unseen_leak(c, current.model.dc_gain()))
+        .map(|c| (c.nrmse_before / c.nrmse_after, out.len() == 1));
     if !at_floor && (out.is_empty() || lone_leak.is_some()) {
         let worst = evidence
             .iter()
@@ -629,11 +629,12 @@ pub(super) fn rank_at(
             },
             lone_leak.map_or_else(
                 || format!("no effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x"),
-                |fall| format!(
-                    "the only effect whose trial lowers the held-out error ({fall:.2}x) is a \
+                |(fall, alone)| format!(
+                    "the {} effect whose trial lowers the held-out error ({fall:.2}x) is a \
                      leak with neither of its signatures: the DC gain is 1 and no creep stands \
                      out of the noise after the step, so its pole and zero stand for dynamics \
-                     the model lacks"
+                     the model lacks",
+                    if alone { "only" } else { "first" }
                 )
             ),
         );

@@ -2877,3 +2877,35 @@ fn a_leak_with_neither_of_its_signatures_is_not_named_alone() {
         "{leak}"
     );
 }
+
+/// Seed 122's case 077: a capillary with a hidden mode, validated by a wake. The leak's and
+/// the mode's trials tie (0.669 % and 0.666 % held out), the model's DC gain is 1 (no leaking
+/// volume) and the mode's residual peak, at 28 Hz and 42 dB out, is broad (Q about 2), so the
+/// rule for a clear resonance did not put it before the leak, and `leak` was named. A creep's
+/// broad hump lies below the probe's own slowest pole (here 2.9 Hz); a peak ten times above
+/// it is a mode, and the diagnosis now names it first.
+#[test]
+fn a_broad_peak_above_the_probes_slowest_pole_goes_before_a_leak_at_unit_gain() {
+    let case = diagnose_bank(
+        "capillary-mode-at-unit-gain",
+        "capillary-mode-at-unit-gain-est.csv",
+        "capillary-mode-at-unit-gain-val.csv",
+    );
+    let first = case.first_named("mode", "residual peak");
+    assert_eq!(
+        first["ordered_by"], "resonance-before-leak-at-unit-gain",
+        "{first}"
+    );
+    let peak = &first["evidence"];
+    assert!(peak["q"].as_f64().unwrap() < 2.0, "{peak}");
+    let c = case.json["candidates"].as_array().unwrap();
+    let leak = c.iter().find(|c| c["kind"] == "leak").expect("the leak");
+    assert!(
+        leak["evidence"]["dc_gain"].as_f64().unwrap() >= 0.998,
+        "{leak}"
+    );
+    // The change lowers the held-out error as its trial said.
+    let (before, _) = case.validation_before();
+    let after = case.validation_after("mode");
+    assert!(after < before / 3.0, "{before} -> {after}");
+}

@@ -14,10 +14,14 @@ use crate::modelling::evidence::{Trend, NARROW_PEAK_Q};
 /// [`MODE_PEAK_OVER_CREEP_DB`] out of the floor goes after it.
 pub const LEAK_DC_GAIN_BELOW: f64 = 0.998;
 
-/// A residual peak this far above the floor (dB), and narrow ([`NARROW_PEAK_Q`]), is a
-/// resonance, which a slow creep does not leave: a creep's broad low-frequency hump can stand
-/// as far out (bank seed 14, case 019: a leak's creep read as a peak at 2 Hz, 31 dB out, Q
-/// about 1).
+/// A residual peak this far above the floor (dB), and narrow ([`NARROW_PEAK_Q`]) or above the
+/// natural frequency of the model's slowest pole, is a resonance, which a slow creep does not
+/// leave: a creep's broad low-frequency hump can stand as far out (bank seed 14, case 019: a
+/// leak's creep read as a peak at 2 Hz, 31 dB out, Q about 1), but not above the probe's own
+/// time scales. A creep adds a time scale slower than the probe's, and what it leaves of a
+/// step falls off above its corner; a mode of the line lies above the probe's slowest pole
+/// (seed 122, case 077: a capillary's hidden mode read as a peak at 28 Hz, 42 dB out, Q about
+/// 2, the model's slowest pole at 2.9 Hz).
 pub const MODE_PEAK_OVER_CREEP_DB: f64 = 20.0;
 
 /// A residual slope before the step this many standard errors from a drift's fitted rate, and
@@ -192,15 +196,15 @@ impl core::fmt::Display for OrderRule {
 /// Sorts the candidates by score, best first, then applies the rules for close ones, in order:
 /// the physics before a noise model; a sensor resonance the reference shows before a mode
 /// that would only model it (at any margin where the probe peaks beside it, else when they
-/// tie); a clear resonance (a mode's or the transducers')
-/// before a leak that ties with it when the model's DC gain (`dc_gain`) is not below
-/// [`LEAK_DC_GAIN_BELOW`], and a resonance whose peak (or rise towards the band's edge) was seen
+/// tie); a clear resonance (a mode's or the transducers': a residual peak narrow, or above
+/// the natural frequency of the model's slowest pole, `slowest_pole_hz`) before a leak that
+/// ties with it when the model's DC gain (`dc_gain`) is not below [`LEAK_DC_GAIN_BELOW`], and a resonance whose peak (or rise towards the band's edge) was seen
 /// before a leak with neither of its
 /// signatures, whatever their scores, and a leak with both its signatures and a creep that
 /// settles before a mode that ties with it; an effect whose signature was seen before
 /// nonlinear damping read from its trial alone; a temperature and a loss both fitted on all the tests
 /// in the order of what each leaves ([`temperature_or_loss`]).
-pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64) {
+pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64, slowest_pole_hz: f64) {
     out.sort_by(|a, b| b.score.total_cmp(&a.score));
     // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
     // too: when an effect in the dynamics scores within CLOSE_MARGIN of it, the physics goes
@@ -241,11 +245,14 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64) {
             |c| c.kind == EffectKind::Leak,
             |c| match &c.evidence {
                 Evidence::Mode(ModeEvidence::Peak {
-                    above_floor_db, q, ..
+                    above_floor_db,
+                    q,
+                    frequency_hz,
+                    ..
                 }) => {
                     c.kind == EffectKind::Mode
                         && *above_floor_db >= MODE_PEAK_OVER_CREEP_DB
-                        && *q >= NARROW_PEAK_Q
+                        && (*q >= NARROW_PEAK_Q || *frequency_hz > slowest_pole_hz)
                 }
                 Evidence::SensorResonance(s) => {
                     c.kind == EffectKind::SensorResonance
@@ -472,6 +479,21 @@ fn yield_first_within(
     }
 }
 
+/// The natural frequency (Hz) of `model`'s slowest pole, the largest in the `z` plane
+/// (infinite where its poles cannot be had: no peak is then above it).
+pub(super) fn slowest_pole_hz(model: &crate::fit::Model) -> f64 {
+    model
+        .poles()
+        .ok()
+        .and_then(|p| p.first().copied())
+        .map(|z| {
+            let s = crate::poly::Complex::new(z.norm().ln(), z.im.atan2(z.re)) * model.fs;
+            s.norm() / (2.0 * core::f64::consts::PI)
+        })
+        .filter(|f| f.is_finite())
+        .unwrap_or(f64::INFINITY)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -532,15 +554,15 @@ mod tests {
             Finding::Missing(EffectKind::Mode),
         ];
         let mut out = make(39.0, 1.48);
-        order(&mut out, 1.004);
+        order(&mut out, 1.004, f64::INFINITY);
         assert_eq!(kinds(&out), mode_first);
         // A leaking volume: the gain is below 1, the leak keeps its place.
         let mut out = make(39.0, 1.48);
-        order(&mut out, 0.95);
+        order(&mut out, 0.95, f64::INFINITY);
         assert_eq!(kinds(&out), leak_first);
         // A weak peak is no resonance a creep could not leave.
         let mut out = make(7.0, 1.48);
-        order(&mut out, 1.004);
+        order(&mut out, 1.004, f64::INFINITY);
         assert_eq!(kinds(&out), leak_first);
         // Nor is a broad hump, however far out (seed 14's case 019: a creep read as a peak at
         // 2 Hz, 31 dB out, Q about 1).
@@ -558,12 +580,67 @@ mod tests {
             ),
             candidate(EffectKind::Leak, 1.54, leak()),
         ];
-        order(&mut out, 1.004);
+        order(&mut out, 1.004, f64::INFINITY);
+        assert_eq!(kinds(&out), leak_first);
+        // Unless it lies well above the model's slowest pole, where no creep's hump is (seed
+        // 122's case 077: a capillary's hidden mode read as a peak at 28 Hz, 42 dB out, Q about
+        // 2, the model's slowest pole at 2.9 Hz) ...
+        let broad = |frequency_hz: f64| {
+            vec![
+                candidate(
+                    EffectKind::Mode,
+                    1.48,
+                    Evidence::Mode(ModeEvidence::Peak {
+                        spectrum: Spectrum::Residual,
+                        frequency_hz,
+                        above_floor_db: 42.0,
+                        q: 1.9,
+                        test: "t.csv".into(),
+                    }),
+                ),
+                candidate(EffectKind::Leak, 1.54, leak()),
+            ]
+        };
+        let mut out = broad(28.0);
+        order(&mut out, 1.0, 2.9);
+        assert_eq!(kinds(&out), mode_first);
+        // ... and not below it, nor with a leaking volume.
+        let mut out = broad(2.0);
+        order(&mut out, 1.0, 2.9);
+        assert_eq!(kinds(&out), leak_first);
+        let mut out = broad(28.0);
+        order(&mut out, 0.95, 2.9);
         assert_eq!(kinds(&out), leak_first);
         // Not close.
         let mut out = make(39.0, 1.0);
-        order(&mut out, 1.004);
+        order(&mut out, 1.004, f64::INFINITY);
         assert_eq!(kinds(&out), leak_first);
+    }
+
+    #[test]
+    fn the_slowest_pole_is_read_in_hz_from_the_model() {
+        use core::f64::consts::PI;
+        let fs = 1000.0;
+        // Real poles at 3 Hz and 100 Hz (s = -2 pi f).
+        let (p1, p2) = ((-2.0 * PI * 3.0 / fs).exp(), (-2.0 * PI * 100.0 / fs).exp());
+        let model = crate::fit::Model {
+            fs,
+            delay: 0,
+            a: vec![-(p1 + p2), p1 * p2],
+            b: vec![1.0 - p1 - p2 + p1 * p2],
+        };
+        let f = slowest_pole_hz(&model);
+        assert!((f - 3.0).abs() < 1e-9, "{f}");
+        // A resonance at 50 Hz, damping 0.2: the pair's natural frequency.
+        let (w, zeta) = (2.0 * PI * 50.0, 0.2);
+        let r = (-zeta * w / fs).exp();
+        let theta = w * (1.0 - zeta * zeta).sqrt() / fs;
+        let model = crate::fit::Model {
+            a: vec![-2.0 * r * theta.cos(), r * r],
+            ..model
+        };
+        let f = slowest_pole_hz(&model);
+        assert!((f - 50.0).abs() < 1e-9, "{f}");
     }
 
     #[test]
@@ -575,7 +652,7 @@ mod tests {
                 candidate(EffectKind::Leak, 0.82, creep(z)),
                 candidate(EffectKind::Mode, 0.48, mode),
             ];
-            order(&mut out, dc_gain);
+            order(&mut out, dc_gain, f64::INFINITY);
             out[0].kind
         };
         let mode = Finding::Missing(EffectKind::Mode);
@@ -626,7 +703,7 @@ mod tests {
                     },
                 ),
             ];
-            order(&mut out, dc_gain);
+            order(&mut out, dc_gain, f64::INFINITY);
             out[0].kind
         };
         let mode = Finding::Missing(EffectKind::Mode);
@@ -684,7 +761,7 @@ mod tests {
             ),
             candidate(EffectKind::Mode, 1.48, peak(39.0)),
         ];
-        order(&mut out, 1.004);
+        order(&mut out, 1.004, f64::INFINITY);
         assert_eq!(
             kinds(&out),
             vec![
@@ -719,7 +796,7 @@ mod tests {
                 candidate(EffectKind::Mode, mode, peak(16.0)),
                 candidate(EffectKind::SensorResonance, 0.11, sensor(probe)),
             ];
-            order(&mut out, 1.0);
+            order(&mut out, 1.0, f64::INFINITY);
             out[0].kind
         };
         let (sensor_first, mode_first) = (
@@ -756,7 +833,7 @@ mod tests {
                 candidate(EffectKind::Leak, 0.69, leak()),
                 candidate(EffectKind::SensorResonance, 0.62, sensor(probe_db)),
             ];
-            order(&mut out, dc_gain);
+            order(&mut out, dc_gain, f64::INFINITY);
             out[0].kind
         };
         assert_eq!(
@@ -799,7 +876,7 @@ mod tests {
                 candidate(EffectKind::Drift, 1.67, drift.clone()),
                 candidate(EffectKind::NonlinearDamping, 1.70, loss(signature, joint)),
             ];
-            order(&mut out, 1.0);
+            order(&mut out, 1.0, f64::INFINITY);
             assert_eq!(
                 out[0].kind,
                 Finding::Missing(first),
@@ -849,7 +926,7 @@ mod tests {
                 candidate(EffectKind::Temperature, 1.08, temperature(signature)),
                 candidate(EffectKind::NonlinearDamping, 0.76, loss(joint.clone())),
             ];
-            order(&mut out, 1.0);
+            order(&mut out, 1.0, f64::INFINITY);
             assert_eq!(
                 out[0].kind,
                 Finding::Missing(first),
@@ -897,7 +974,7 @@ mod tests {
                 candidate(EffectKind::TemperatureViscous, t.0, t.1),
                 candidate(EffectKind::NonlinearDamping, l.0, l.1),
             ];
-            order(&mut out, 1.0);
+            order(&mut out, 1.0, f64::INFINITY);
             if out[0].score < out[1].score {
                 // Put ahead by the rule, and marked so.
                 assert!(matches!(
@@ -997,7 +1074,7 @@ mod tests {
                 candidate(EffectKind::Drift, 0.9, drift(pre)),
                 candidate(EffectKind::Mode, 0.3, peak(10.0)),
             ];
-            order(&mut out, 1.0);
+            order(&mut out, 1.0, f64::INFINITY);
             assert_eq!(out[0].kind, Finding::Missing(first), "{pre}");
         }
     }

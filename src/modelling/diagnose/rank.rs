@@ -579,7 +579,11 @@ pub(super) fn rank_at(
             }
         }
     }
-    super::order::order(&mut out, current.model.dc_gain());
+    super::order::order(
+        &mut out,
+        current.model.dc_gain(),
+        super::order::slowest_pole_hz(current.model),
+    );
     // The first change as the user will make it: `unlag fit --add KIND` searches the delay
     // again; where that would raise the held-out error, the change keeps the delay.
     if have.delay.is_none() && delay.is_some() {

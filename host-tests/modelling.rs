@@ -810,6 +810,22 @@ impl Diagnosed {
         first
     }
 
+    /// The leak candidate, asserted to be offered with the model's DC gain at 1 (0.998 or
+    /// above: no leaking volume).
+    fn leak_at_unit_gain(&self) -> &serde_json::Value {
+        let leak = self.json["candidates"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["kind"] == "leak")
+            .expect("the leak still offered");
+        assert!(
+            leak["evidence"]["dc_gain"].as_f64().unwrap() >= 0.998,
+            "{leak}"
+        );
+        leak
+    }
+
     /// Whether any candidate is a temperature, under any damping law.
     fn names_temperature(&self) -> bool {
         self.json["candidates"]
@@ -836,14 +852,7 @@ fn a_mode_goes_before_a_leak_that_ties_with_it_when_the_static_gain_is_not_below
     let d = &case.json;
     let c = d["candidates"].as_array().unwrap();
     assert_eq!(c[0]["kind"], "mode", "{d}");
-    let leak = c
-        .iter()
-        .find(|c| c["kind"] == "leak")
-        .expect("the leak still offered");
-    assert!(
-        leak["evidence"]["dc_gain"].as_f64().unwrap() >= 0.998,
-        "{leak}"
-    );
+    let leak = case.leak_at_unit_gain();
     assert!(
         leak["reading"].as_str().unwrap().contains("not below 1"),
         "{leak}"
@@ -2862,12 +2871,7 @@ fn a_leak_with_neither_of_its_signatures_is_not_named_alone() {
         first["ordered_by"], "resonance-before-unseen-leak",
         "{first}"
     );
-    let c = case.json["candidates"].as_array().unwrap();
-    let leak = c.iter().find(|c| c["kind"] == "leak").expect("the leak");
-    assert!(
-        leak["evidence"]["dc_gain"].as_f64().unwrap() >= 0.998,
-        "{leak}"
-    );
+    let leak = case.leak_at_unit_gain();
     assert!(
         leak["evidence"]["creep_in_standard_errors"]
             .as_f64()
@@ -2898,12 +2902,7 @@ fn a_broad_peak_above_the_probes_slowest_pole_goes_before_a_leak_at_unit_gain() 
     );
     let peak = &first["evidence"];
     assert!(peak["q"].as_f64().unwrap() < 2.0, "{peak}");
-    let c = case.json["candidates"].as_array().unwrap();
-    let leak = c.iter().find(|c| c["kind"] == "leak").expect("the leak");
-    assert!(
-        leak["evidence"]["dc_gain"].as_f64().unwrap() >= 0.998,
-        "{leak}"
-    );
+    case.leak_at_unit_gain();
     // The change lowers the held-out error as its trial said.
     let (before, _) = case.validation_before();
     let after = case.validation_after("mode");

@@ -198,12 +198,12 @@ impl core::fmt::Display for OrderRule {
 /// that would only model it (at any margin where the probe peaks beside it, else when they
 /// tie); a clear resonance (a mode's or the transducers': a residual peak narrow, or above
 /// the natural frequency of the model's slowest pole, `slowest_pole_hz`) before a leak that
-/// ties with it when the model's DC gain (`dc_gain`) is not below [`LEAK_DC_GAIN_BELOW`], and a resonance whose peak (or rise towards the band's edge) was seen
-/// before a leak with neither of its
-/// signatures, whatever their scores, and a leak with both its signatures and a creep that
+/// ties with it when the model's DC gain (`dc_gain`) is not below [`LEAK_DC_GAIN_BELOW`], and
+/// a mode or the transducers' resonance before a leak with neither of its signatures
+/// ([`unseen_leak`]), whatever their scores; a leak with both its signatures and a creep that
 /// settles before a mode that ties with it; an effect whose signature was seen before
-/// nonlinear damping read from its trial alone; a temperature and a loss both fitted on all the tests
-/// in the order of what each leaves ([`temperature_or_loss`]).
+/// nonlinear damping read from its trial alone; a temperature and a loss both fitted on all
+/// the tests in the order of what each leaves ([`temperature_or_loss`]).
 pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64, slowest_pole_hz: f64) {
     out.sort_by(|a, b| b.score.total_cmp(&a.score));
     // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's

@@ -810,15 +810,18 @@ impl Diagnosed {
         first
     }
 
+    /// The first candidate, asserted as by [`Diagnosed::first_named`] and to have been put
+    /// first by the ordering rule `rule`.
+    fn first_ordered_by(&self, kind: &str, how: &str, rule: &str) -> &serde_json::Value {
+        let first = self.first_named(kind, how);
+        assert_eq!(first["ordered_by"], rule, "{first}");
+        first
+    }
+
     /// The leak candidate, asserted to be offered with the model's DC gain at 1 (0.998 or
     /// above: no leaking volume).
     fn leak_at_unit_gain(&self) -> &serde_json::Value {
-        let leak = self.json["candidates"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|c| c["kind"] == "leak")
-            .expect("the leak still offered");
+        let leak = candidate_of(&self.json, "leak");
         assert!(
             leak["evidence"]["dc_gain"].as_f64().unwrap() >= 0.998,
             "{leak}"
@@ -2693,8 +2696,11 @@ fn a_leak_with_neither_signature_goes_after_a_rise_towards_the_band_edge() {
         "pneumatic-own-modes-val.csv",
     );
     let d = &case.json;
-    let first = case.first_named("mode", "where the noise takes over");
-    assert_eq!(first["ordered_by"], "resonance-before-unseen-leak", "{d}");
+    let first = case.first_ordered_by(
+        "mode",
+        "where the noise takes over",
+        "resonance-before-unseen-leak",
+    );
     assert!(first["evidence"]["rise_db"].as_f64().is_some(), "{first}");
     let leak = candidate_of(d, "leak");
     assert!(leak["score"].as_f64() > first["score"].as_f64(), "{d}");
@@ -2866,10 +2872,10 @@ fn a_leak_with_neither_of_its_signatures_is_not_named_alone() {
         "pneumatic-lone-leak-est.csv",
         "pneumatic-lone-leak-val.csv",
     );
-    let first = case.first_named("mode", "delay searched again");
-    assert_eq!(
-        first["ordered_by"], "resonance-before-unseen-leak",
-        "{first}"
+    case.first_ordered_by(
+        "mode",
+        "delay searched again",
+        "resonance-before-unseen-leak",
     );
     let leak = case.leak_at_unit_gain();
     assert!(
@@ -2895,10 +2901,10 @@ fn a_broad_peak_above_the_probes_slowest_pole_goes_before_a_leak_at_unit_gain() 
         "capillary-mode-at-unit-gain-est.csv",
         "capillary-mode-at-unit-gain-val.csv",
     );
-    let first = case.first_named("mode", "residual peak");
-    assert_eq!(
-        first["ordered_by"], "resonance-before-leak-at-unit-gain",
-        "{first}"
+    let first = case.first_ordered_by(
+        "mode",
+        "residual peak",
+        "resonance-before-leak-at-unit-gain",
     );
     let peak = &first["evidence"];
     assert!(peak["q"].as_f64().unwrap() < 2.0, "{peak}");

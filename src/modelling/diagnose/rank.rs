@@ -623,7 +623,7 @@ pub(super) fn rank_at(
             .map(|e| e.judged_nrmse() / e.judged_floor().max(f64::MIN_POSITIVE))
             .fold(0.0f64, f64::max);
         let reading = format!(
-            "the residual is up to {worst:.1}x what both channels' noise leaves{}, but {}: \
+            "the residual is up to {worst:.2}x what both channels' noise leaves{}, but {}: \
              something outside the catalogue is missing (a higher order, or physics the effects \
              do not describe); the model is not at its noise floor",
             if white {

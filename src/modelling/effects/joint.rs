@@ -1,5 +1,6 @@
 //! The fit of one model to several tests at once, with or without a quadratic loss:
-//! Levenberg-Marquardt on their simulation errors, each test weighted by its range.
+//! Levenberg-Marquardt on their simulation errors, each test weighted by its range, in the
+//! coefficients and in the same polynomials in `w = z - 1` ([`space`]), the better kept.
 //!
 //! One step cannot identify quadratic losses: a linear model with more damping (or, for an
 //! overdamped probe, other corners) explains a single step to the noise, and then misses a

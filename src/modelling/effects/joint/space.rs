@@ -18,7 +18,7 @@ use crate::fit::Model;
 /// ([`Coordinates::BOTH`]) and the one that leaves less is kept.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Coordinates {
-    /// The coefficients `a` and `b` themselves.
+    /// The coefficients `a` and `b` themselves: the polynomials in the shift operator `z`.
     Shift,
     /// The coefficients of `A` and `B` as polynomials in `w = z - 1`.
     Delta,

@@ -130,10 +130,7 @@ pub fn joint_linear(start: &Model, tests: &[Test<'_>]) -> Option<JointFit> {
 fn least(fits: impl IntoIterator<Item = Option<JointFit>>) -> Option<JointFit> {
     fits.into_iter()
         .flatten()
-        .fold(None, |best: Option<JointFit>, f| match best {
-            Some(b) if b.rms() <= f.rms() => Some(b),
-            _ => Some(f),
-        })
+        .min_by(|a, b| a.rms().total_cmp(&b.rms()))
 }
 
 /// The loss that takes `test`'s reference range off the input at the peak rate of the probe

@@ -338,25 +338,15 @@ pub fn fit_with_also(
         .iter()
         .any(|e| matches!(e, Effect::Leak | Effect::Drift { .. }));
     let after_step = estimation.y.len().saturating_sub(onset) as f64;
-    let slow = fitted.model.poles().ok().and_then(|poles| {
-        poles
-            .iter()
-            .filter(|p| p.im.abs() < 1e-9 && p.re > 0.0 && p.re < 1.0)
-            .map(|p| -1.0 / p.re.ln())
-            .find(|tau| *tau > after_step)
-    });
-    if let (false, Some(tau)) = (asked, slow) {
+    let slow = slower_than(&fitted.model, after_step).filter(|_| !asked);
+    if let Some(tau) = slow {
         let mut with_drift = out.clone();
         with_drift.push(Effect::Drift {
             value: 0.0,
             rate_per_s: 0.0,
         });
         if let Ok((mut f, fx)) = refit(options, &with_drift) {
-            let still_slow = f.model.poles().map_or(true, |poles| {
-                poles.iter().any(|p| {
-                    p.im.abs() < 1e-9 && p.re > 0.0 && p.re < 1.0 && -1.0 / p.re.ln() > after_step
-                })
-            });
+            let still_slow = slower_than(&f.model, after_step).is_some();
             if !still_slow && f.nrmse_estimation <= 1.1 * fitted.nrmse_estimation {
                 f.report.notes.push(format!(
                     "a real pole with time constant {:.4} s, longer than the {:.4} s after the step, was read as a drift of {:.4e} per second (a drift is removed before compensation, never inverted): adding the `leak` effect keeps it as dynamics",
@@ -391,7 +381,52 @@ pub fn fit_with_also(
             }
         }
     }
+    if let Some(tau) = slow {
+        // The slow pole can be a spare one, all but cancelled by a zero beside it: a probe
+        // whose record shows one corner after its delay spends its second pole on the creep
+        // or the coloured noise, and the pair's DC gain is then theirs, not the probe's (bank
+        // seed 131, case 047: a pole 7e-11 and a zero 1e-6 from z = 1, a DC gain of -53616,
+        // which a held-out test's level turned into an error of 1.4e7 %). One order fewer
+        // (the delay searched again unless the user gave it), with the offset the fit reads
+        // itself, is kept when it explains the estimation test as well, within 10 %, as the
+        // order asked for with its own offset (which comes back here through the refit above).
+        let fitted_order = fitted.model.order().saturating_sub(changes.extra_order);
+        if fitted_order > 1 {
+            let o = Options {
+                order: Order::Fixed(fitted_order - 1),
+                ..*options
+            };
+            if let Ok((mut f, fx)) = refit(&o, &effects) {
+                if slower_than(&f.model, after_step).is_none()
+                    && f.nrmse_estimation <= 1.1 * fitted.nrmse_estimation
+                {
+                    f.report.notes.push(format!(
+                        "order {fitted_order} left a real pole with time constant {:.4} s, longer than the {:.4} s after the step, which the record cannot resolve (its DC gain was {:.4}); order {} explains the estimation test as well ({:.3} % against {:.3} %) and was kept",
+                        tau / fs,
+                        after_step / fs,
+                        fitted.model.dc_gain(),
+                        fitted_order - 1,
+                        100.0 * f.nrmse_estimation,
+                        100.0 * fitted.nrmse_estimation
+                    ));
+                    return Ok((f, fx));
+                }
+            }
+        }
+    }
     Ok((fitted, out))
+}
+
+/// The time constant, in samples, of `model`'s real pole slower than `samples` (a record
+/// `samples` long cannot resolve it), if it has one.
+fn slower_than(model: &Model, samples: f64) -> Option<f64> {
+    model.poles().ok().and_then(|poles| {
+        poles
+            .iter()
+            .filter(|p| p.im.abs() < 1e-9 && p.re > 0.0 && p.re < 1.0)
+            .map(|p| -1.0 / p.re.ln())
+            .find(|tau| *tau > samples)
+    })
 }
 
 /// The tests' names, `a.csv and b.csv`, for a note.
@@ -855,5 +890,24 @@ mod tests {
             "{:?}",
             fitted.report.notes
         );
+    }
+
+    #[test]
+    fn a_real_pole_is_slower_than_a_record_it_outlasts() {
+        // Poles 0.999 (a time constant of 999.5 samples) and 0.5; a complex pair of radius
+        // 0.9999 rings, it does not creep, and is never read as slow.
+        let model = |a: Vec<f64>| Model {
+            fs: 1000.0,
+            delay: 0,
+            b: vec![1.0 + a.iter().sum::<f64>()],
+            a,
+        };
+        let real = model(vec![-1.499, 0.4995]);
+        let tau = slower_than(&real, 500.0).expect("the slow pole");
+        assert!((tau - 999.5).abs() < 0.5, "{tau}");
+        assert_eq!(slower_than(&real, 2000.0), None);
+        let r: f64 = 0.9999;
+        let ringing = model(vec![-2.0 * r * 0.3f64.cos(), r * r]);
+        assert_eq!(slower_than(&ringing, 500.0), None);
     }
 }

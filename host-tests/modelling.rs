@@ -2870,6 +2870,39 @@ fn a_pole_slower_than_the_record_does_not_set_the_dc_gain() {
     );
 }
 
+/// Bank seed 142, case 074 (its validation step cut to its first 8000 samples): a capillary
+/// whose probe drifts 200 units per second. Its second-order fit put a pole at 1.000000 at
+/// every delay, and `fit` refused the model as unstable, so the loop could not start. The fit
+/// now reads the creep as the drift it is, and the plain model carries it: both tests are at
+/// their floor, and the diagnosis says so, listing the drift as carried.
+#[test]
+fn a_pole_on_the_unit_circle_is_read_as_a_drift() {
+    let case = diagnose_bank(
+        "capillary-unit-pole",
+        "capillary-unit-pole-est.csv",
+        "capillary-unit-pole-val.csv",
+    );
+    assert_eq!(
+        case.json["carried"],
+        serde_json::json!(["drift"]),
+        "{}",
+        case.json
+    );
+    assert_eq!(case.json["candidates"][0]["kind"], "none", "{}", case.json);
+    let fitted = case.fit_plain();
+    let notes = fitted["fit"]["notes"].to_string();
+    assert!(notes.contains("a pole on the unit circle"), "{notes}");
+    let rate = fitted["effects"][0]["rate_per_s"].as_f64().unwrap();
+    assert!((150.0..250.0).contains(&rate), "drift {rate} per second");
+    for source in fitted["sources"].as_array().unwrap() {
+        let (error, floor) = (
+            source["nrmse"].as_f64().unwrap(),
+            source["noise_floor"].as_f64().unwrap(),
+        );
+        assert!(error < 1.1 * floor, "{source}");
+    }
+}
+
 /// Bank seed 99, case 107 (its wake traverse cut to its first 7000 samples, both traces
 /// rounded to 0.01, a fiftieth of the ADC's step): a capillary validated on a wake traverse in
 /// a warmer gas. A drift's trial lowers the traverse's error 1.30x (its score), and it was named, alone:

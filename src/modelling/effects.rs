@@ -52,7 +52,7 @@ mod prefilter;
 mod temperature;
 
 pub use additive::{estimate_additive, Additive};
-pub use fit::{fit_with, fit_with_also, resolve};
+pub use fit::{fit_with, fit_with_also, fit_with_also_reading_creep, resolve};
 pub use joint::{joint_linear, joint_loss, rms, JointFit, MAX_LOSS_SCALES};
 pub use kind::{EffectKind, UnknownKind, KINDS};
 pub use nonlinear::{

@@ -18,7 +18,7 @@ pub struct FitRequest<'a> {
     pub tests: &'a [Test<'a>],
     /// How many of [`Self::tests`], from the first, are estimation tests: 1, or more fitted
     /// together for a quadratic loss that one test cannot identify (`nonlinear-damping`,
-    /// [`effects::fit_with_also`]); the rest are held out.
+    /// [`effects::fit_with_also_reading_creep`]); the rest are held out.
     pub estimation_tests: usize,
     /// The SHA-256 of each test's file, in the same order.
     pub digests: &'a [String],
@@ -92,7 +92,7 @@ pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
             .effects
             .iter()
             .any(|e| e.kind() == EffectKind::Delay);
-    let (fitted, mut effects) = effects::fit_with_also(
+    let (fitted, mut effects) = effects::fit_with_also_reading_creep(
         estimation,
         also,
         validation,

@@ -7,7 +7,8 @@
 //!    is the largest `d` whose loss is the lowest (within the loss's statistical spread). A
 //!    threshold on the raw probe signal reads the delay late, because a second-order line
 //!    starts as `t^2`; the loss over delays does not. The table of losses is the evidence and
-//!    is stored in the model file.
+//!    is stored in the model file. A long range of delays (a slow probe sampled fast) is
+//!    searched coarse to fine.
 //! 3. Coefficients, by [`Method`]: output error (default), Steiglitz-McBride, or the paper's
 //!    direct least squares ([`arx`]).
 //! 4. Order: fixed, or chosen automatically from held-out tests (the other files given), or,
@@ -21,6 +22,7 @@ pub mod arx;
 pub mod calibration;
 pub mod continuous;
 pub mod covariance;
+mod delay;
 mod error;
 pub mod model;
 pub mod noise;
@@ -35,7 +37,7 @@ pub use model::{Method, Model, NoiseOrigin, TestRole};
 pub use selection::{OrderRule, OrderSelection, UnknownOrderSelection};
 
 use crate::error::{Error, Result};
-use crate::fit::model::{DelayRow, FitReport, OrderRow};
+use crate::fit::model::{FitReport, OrderRow};
 use arx::Data;
 
 /// How to choose the order.
@@ -176,9 +178,6 @@ fn prepare(test: &Test<'_>) -> Result<Prepared> {
         onset: s.onset,
     })
 }
-
-/// Longest stretch of samples the delay search looks at.
-const DELAY_WINDOW: usize = 20_000;
 
 /// Samples the order choice looks at in a long record (from just before the step).
 pub const SELECTION_WINDOW: usize = 50_000;
@@ -361,52 +360,6 @@ fn fit_at(sets: &[Data<'_>], m: usize, d: usize, method: Method) -> Result<(Vec<
     }
 }
 
-/// Candidate delays and their losses, and the chosen delay, for order `m`.
-fn search_delay(p: &Prepared, m: usize) -> Result<(usize, Vec<DelayRow>)> {
-    // The probe cannot answer later than where it has made half its step.
-    let yfinal = step::mean_std(&p.y[p.y.len() - p.y.len() / 10..]).0;
-    let half = p.y[p.onset..]
-        .iter()
-        .position(|v| (v / yfinal) > 0.5)
-        .unwrap_or(p.y.len() - p.onset);
-    let hi = (half + 2).min(p.y.len() / 4);
-    let start = p.onset.saturating_sub(200);
-    let end = (p.onset + DELAY_WINDOW).min(p.y.len());
-    let sets = [Data {
-        u: &p.u[start..end],
-        y: &p.y[start..end],
-    }];
-    let energy: f64 = sets[0].y.iter().map(|v| v * v).sum();
-    let mut rows = Vec::new();
-    for d in 0..=hi {
-        if let Ok((a, b)) = oe::steiglitz_mcbride_nb(&sets, m, m, d, 8) {
-            let l = oe::loss(&sets, (&a, &b), d);
-            if l.is_finite() {
-                rows.push(DelayRow {
-                    delay: d,
-                    nrmse: (l / energy.max(1e-300)).sqrt(),
-                });
-            }
-        }
-    }
-    let best = rows.iter().map(|r| r.nrmse).fold(f64::INFINITY, f64::min);
-    if !best.is_finite() {
-        return Err(FitError::NoUsableDelay.into());
-    }
-    // Candidates whose residual sum of squares is within 2 noise variances of the best are
-    // statistically indistinguishable from it (a likelihood-ratio margin); among those the
-    // largest delay is the one for which the probe has not yet answered.
-    let n = (end - start) as f64;
-    let tol = best * best * (1.0 + 2.0 / n);
-    let d = rows
-        .iter()
-        .filter(|r| r.nrmse * r.nrmse <= tol)
-        .map(|r| r.delay)
-        .max()
-        .unwrap_or(0);
-    Ok((d, rows))
-}
-
 /// `f` of each item, in the items' order, on up to as many threads as the machine has cores
 /// (each item on one thread; the results do not depend on which).
 fn in_parallel<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
@@ -507,7 +460,7 @@ pub fn fit_as_found(
         }
         let (d, rows) = match options.delay {
             Some(d) => (d, Vec::new()),
-            None => search_delay(&p, m).map_err(|e| (e, true))?,
+            None => delay::search(&p.u, &p.y, p.onset, m).map_err(|e| (e, true))?,
         };
         let needed = 2 * (2 * m + 1) + m + d + 1;
         if p.y.len() < needed {
@@ -633,10 +586,7 @@ pub fn fit_as_found(
         delay_selection: if options.delay.is_some() {
             "given".into()
         } else {
-            format!(
-                "largest delay with the lowest simulation loss (order {m}, {} candidates)",
-                rows.len()
-            )
+            delay::selection(m, &rows)
         },
         delay_candidates: rows,
         step_onset: p.onset,

@@ -6,6 +6,7 @@
 //!
 //! ```sh
 //! cargo run --release --example bench_delay
+//! taskset -c 0 target/release/examples/bench_delay   # unlag's search on one core too
 //! ```
 //!
 //! Data: an overdamped two-lag probe (a capillary's shape; time constants `tau1` and `tau2`
@@ -170,8 +171,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     }
     println!();
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
     println!(
-        "The search's time is the whole fit with the delay searched less the same fit given the delay found; the baseline's is its loop alone. One thread each."
+        "The search's time is the whole fit with the delay searched less the same fit given the delay found; the baseline's is its loop alone, on one thread. unlag's search used the {cores} core(s) this process may run on (`taskset -c 0` gives it one)."
     );
     Ok(())
 }

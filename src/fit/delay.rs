@@ -24,7 +24,9 @@ const DENSE: usize = 64;
 const NEAR_BEST: f64 = 0.02;
 
 /// The delay for order `m` on a test (`u` and `y` as deviations from their levels before the
-/// step, which starts at `onset`), and the candidates tried with their errors, by delay.
+/// step, which starts at `onset`), and the candidates tried with their errors, by delay. With
+/// `spread`, the candidates of each pass are fitted on the cores there are (the fit of one
+/// order: with several, the orders already are); the result is the same.
 ///
 /// # Errors
 /// [`FitError::NoUsableDelay`] when no candidate delay gives a model.
@@ -33,6 +35,7 @@ pub(super) fn search(
     y: &[f64],
     onset: usize,
     m: usize,
+    spread: bool,
 ) -> Result<(usize, Vec<DelayRow>)> {
     // The probe cannot answer later than where it has made half its step.
     let n = y.len().min(u.len());
@@ -51,13 +54,20 @@ pub(super) fn search(
     };
     let sets = [Data { u, y }];
     let energy: f64 = y.iter().map(|v| v * v).sum();
-    let rows = candidates(hi, |d| {
+    let loss = |&d: &usize| {
         let (a, b) = oe::steiglitz_mcbride_nb(&sets, m, m, d, 8).ok()?;
         let l = oe::loss(&sets, (&a, &b), d);
         l.is_finite().then(|| DelayRow {
             delay: d,
             nrmse: (l / energy.max(1e-300)).sqrt(),
         })
+    };
+    let rows = candidates(hi, |delays: &[usize]| {
+        if spread {
+            super::in_parallel(delays, loss)
+        } else {
+            delays.iter().map(loss).collect()
+        }
     });
     let best = rows.iter().map(|r| r.nrmse).fold(f64::INFINITY, f64::min);
     if !best.is_finite() {
@@ -89,20 +99,21 @@ pub(super) fn selection(m: usize, rows: &[DelayRow]) -> String {
     format!("largest delay with the lowest simulation loss (order {m}, {tried})")
 }
 
-/// The rows `loss` gives for the delays `0..=hi` (those it can fit), by delay: every delay up
+/// The rows `losses` gives for the delays `0..=hi` (those it can fit), by delay: every delay up
 /// to [`DENSE`] of them; otherwise a grid `hi / DENSE` apart (rounded up, `hi` included), and
 /// then every delay between the grid points next to one within [`NEAR_BEST`] of the grid's
-/// best.
-fn candidates(hi: usize, loss: impl Fn(usize) -> Option<DelayRow>) -> Vec<DelayRow> {
+/// best. `losses` takes the delays of one pass and gives each one's row, in their order.
+fn candidates(hi: usize, losses: impl Fn(&[usize]) -> Vec<Option<DelayRow>>) -> Vec<DelayRow> {
+    let tried = |delays: &[usize]| losses(delays).into_iter().flatten().collect::<Vec<_>>();
     if hi <= DENSE {
-        return (0..=hi).filter_map(&loss).collect();
+        return tried(&(0..=hi).collect::<Vec<_>>());
     }
     let stride = hi.div_ceil(DENSE);
     let mut grid: Vec<usize> = (0..=hi).step_by(stride).collect();
     if grid.last() != Some(&hi) {
         grid.push(hi);
     }
-    let mut rows: Vec<DelayRow> = grid.iter().filter_map(|&d| loss(d)).collect();
+    let mut rows = tried(&grid);
     let best = rows.iter().map(|r| r.nrmse).fold(f64::INFINITY, f64::min);
     let near: BTreeSet<usize> = rows
         .iter()
@@ -120,11 +131,11 @@ fn candidates(hi: usize, loss: impl Fn(usize) -> Option<DelayRow>) -> Vec<DelayR
             fine.extend(from..=to);
         }
     }
-    rows.extend(
-        fine.into_iter()
-            .filter(|d| grid.binary_search(d).is_err())
-            .filter_map(&loss),
-    );
+    let fine: Vec<usize> = fine
+        .into_iter()
+        .filter(|d| grid.binary_search(d).is_err())
+        .collect();
+    rows.extend(tried(&fine));
     rows.sort_by_key(|r| r.delay);
     rows
 }
@@ -136,12 +147,17 @@ mod tests {
     /// The rows of an error curve `f` over delays, and the delays tried.
     fn tried(hi: usize, f: impl Fn(usize) -> f64) -> (Vec<DelayRow>, usize) {
         let count = std::cell::Cell::new(0);
-        let rows = candidates(hi, |d| {
-            count.set(count.get() + 1);
-            Some(DelayRow {
-                delay: d,
-                nrmse: f(d),
-            })
+        let rows = candidates(hi, |delays| {
+            count.set(count.get() + delays.len());
+            delays
+                .iter()
+                .map(|&d| {
+                    Some(DelayRow {
+                        delay: d,
+                        nrmse: f(d),
+                    })
+                })
+                .collect()
         });
         (rows, count.get())
     }
@@ -193,12 +209,17 @@ mod tests {
         // Best at the top of the range; the odd delays give no model.
         let hi = 301;
         let count = std::cell::Cell::new(0);
-        let rows = candidates(hi, |d| {
-            count.set(count.get() + 1);
-            (d % 2 == 0 || d == hi).then(|| DelayRow {
-                delay: d,
-                nrmse: 1.0 + (hi - d) as f64,
-            })
+        let rows = candidates(hi, |delays| {
+            count.set(count.get() + delays.len());
+            delays
+                .iter()
+                .map(|&d| {
+                    (d % 2 == 0 || d == hi).then(|| DelayRow {
+                        delay: d,
+                        nrmse: 1.0 + (hi - d) as f64,
+                    })
+                })
+                .collect()
         });
         assert_eq!(rows.last().map(|r| r.delay), Some(hi));
         assert!(rows.iter().all(|r| r.delay % 2 == 0 || r.delay == hi));

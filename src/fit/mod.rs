@@ -460,7 +460,9 @@ pub fn fit_as_found(
         }
         let (d, rows) = match options.delay {
             Some(d) => (d, Vec::new()),
-            None => delay::search(&p.u, &p.y, p.onset, m).map_err(|e| (e, true))?,
+            None => {
+                delay::search(&p.u, &p.y, p.onset, m, orders.len() == 1).map_err(|e| (e, true))?
+            }
         };
         let needed = 2 * (2 * m + 1) + m + d + 1;
         if p.y.len() < needed {

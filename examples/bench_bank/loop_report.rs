@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 
 use super::case::{Case, Kind, KINDS};
-use super::modelling_loop::{LoopOutcome, VISIBLE_FALL};
+use super::modelling_loop::{LoopOutcome, Shown, VISIBLE_FALL};
 
 /// Names a diagnosis can give, in the confusion matrix's column order.
 const NAMES: [&str; 12] = [
@@ -427,6 +427,7 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
             k.name()
         );
     }
+    by_tests_matrix(&mut r, rows);
     let _ = writeln!(r, "\n### Misnamed cases\n");
     let _ = writeln!(r, "| case | family | hidden | validation | named (best first) | margin | error before | after | floor (both channels) | probe's floor | after adding the hidden kind | second round |");
     let _ = writeln!(r, "|---|---|---|---|---|---|---|---|---|---|---|---|");
@@ -502,4 +503,60 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         );
     }
     r
+}
+
+/// The confusion matrix count (d) judges: rows are what the tests show is missing
+/// ([`LoopOutcome::shown`]), columns the first name, and the cases right by (d) per row.
+fn by_tests_matrix(r: &mut String, rows: &[(Case, LoopOutcome)]) {
+    let _ = writeln!(
+        r,
+        "\n### By what the tests show is missing (count (d))\n\nRows: the hidden kind where its tests show it; else the probe's own dynamics beyond second order where they show (`mode`, or `unexplained` and a higher order, is right); else nothing (`none`, or `unexplained` where an effect is hidden). Columns: the first name; a hidden effect the plain fit found by itself and the diagnosis lists as carried counts in `none`, and is right. The hidden kind named where its tests do not show it is right too. Where both the hidden kind and the probe's own dynamics show, `mode` first is right when its change lowers the error more.\n"
+    );
+    let _ = write!(r, "| tests show \\ named first |");
+    for n in NAMES {
+        let _ = write!(r, " {n} |");
+    }
+    let _ = writeln!(r, " right by (d) |");
+    let _ = writeln!(r, "|---|{}---|", "---|".repeat(NAMES.len()));
+    let groups = KINDS
+        .iter()
+        .filter(|k| **k != Kind::None)
+        .map(|k| {
+            (
+                k.name().to_string(),
+                rows.iter()
+                    .filter(|(c, o)| c.kind == *k && o.shown(c.kind) == Shown::Hidden)
+                    .collect::<Vec<_>>(),
+            )
+        })
+        .chain([Shown::OwnDynamics, Shown::Nothing].map(|s| {
+            (
+                match s {
+                    Shown::OwnDynamics => "the probe's own dynamics".to_string(),
+                    _ => "nothing".to_string(),
+                },
+                rows.iter()
+                    .filter(|(c, o)| o.shown(c.kind) == s)
+                    .collect::<Vec<_>>(),
+            )
+        }));
+    for (label, group) in groups {
+        let mut counts = [0usize; NAMES.len()];
+        for (_, o) in group.iter().filter(|(_, o)| !o.named.is_empty()) {
+            counts[column(o.first())] += 1;
+        }
+        let right = group
+            .iter()
+            .filter(|(c, o)| o.right_by_tests(c.kind))
+            .count();
+        let _ = write!(r, "| {label} |");
+        for c in counts {
+            let _ = write!(
+                r,
+                " {} |",
+                if c == 0 { String::new() } else { c.to_string() }
+            );
+        }
+        let _ = writeln!(r, " {right}/{} |", group.len());
+    }
 }

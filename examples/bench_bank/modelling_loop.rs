@@ -150,6 +150,19 @@ impl LoopOutcome {
         (gap >= VISIBLE_FALL).then_some(gap)
     }
 
+    /// What the tests show is missing, as count (d) judges the first name: the hidden kind
+    /// where it is visible (or its visibility is unknown), else the probe's own dynamics
+    /// beyond second order where they show, else nothing.
+    pub fn shown(&self, kind: Kind) -> Shown {
+        if kind != Kind::None && self.visible_to(kind, self.truth_floor) != Some(false) {
+            Shown::Hidden
+        } else if self.own_dynamics_visible(kind).is_some() {
+            Shown::OwnDynamics
+        } else {
+            Shown::Nothing
+        }
+    }
+
     /// Named right for what the tests show: the hidden kind where it is visible (or carried);
     /// where it is not, `mode` or `unexplained` (whose change is a higher order) if the
     /// probe's own dynamics beyond second order show on the bare twin, else `none` or
@@ -334,6 +347,18 @@ impl LoopOutcome {
         let after = self.true_after?.max(floor.unwrap_or(0.0));
         Some(self.before? >= VISIBLE_FALL * after || jointly)
     }
+}
+
+/// What a case's tests show is missing ([`LoopOutcome::shown`]).
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub enum Shown {
+    /// The hidden effect.
+    Hidden,
+    /// Not the hidden effect (or nothing is hidden), but the probe's own dynamics beyond the
+    /// second-order start.
+    OwnDynamics,
+    /// Neither.
+    Nothing,
 }
 
 /// Runs the loop in the case's folder (its `est.csv` and `val.csv` made), `case.kind` hidden.

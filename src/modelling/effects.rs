@@ -53,7 +53,7 @@ mod temperature;
 
 pub use additive::{estimate_additive, Additive};
 pub use fit::{fit_with, fit_with_also, fit_with_also_reading_creep, resolve};
-pub use joint::{joint_linear, joint_loss, rms, JointFit, MAX_LOSS_SCALES};
+pub use joint::{joint_linear, joint_loss, rises_with_loss, rms, JointFit, MAX_LOSS_SCALES};
 pub use kind::{EffectKind, UnknownKind, KINDS};
 pub use nonlinear::{
     nonlinear_gain, quadratic_rate, simulate_nonlinear, NONLINEAR_GRID, NONLINEAR_REFINE,

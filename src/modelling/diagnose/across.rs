@@ -483,12 +483,18 @@ impl JointLoss {
              unit, where the best single linear model leaves {} ({:.2}x in all): \
              amplitude-dependent losses, orifice or turbulent flow at large rates, which one \
              step cannot tell from a linear damping. The remedy fits the loss on these tests \
-             together; hold out a further test to judge it",
+             together; hold out a further test to judge it{}",
             self.tests.join(" and "),
             pct(&self.nrmse),
             self.gain_s2_per_unit,
             pct(&self.linear_nrmse),
-            self.fall
+            self.fall,
+            crate::modelling::effects::rises_with_loss(
+                &self.tests.iter().map(String::as_str).collect::<Vec<_>>(),
+                &self.linear_nrmse,
+                &self.nrmse
+            )
+            .map_or_else(String::new, |r| format!(" ({r})"))
         )
     }
 }

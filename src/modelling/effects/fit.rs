@@ -312,7 +312,7 @@ fn fit_loss_jointly(fitted: &mut Fitted, gain: f64, tests: &[Test<'_>]) -> f64 {
     fitted.report.notes.push(format!(
         "the linear part and the quadratic loss were fitted on {} together (one step cannot \
          tell a quadratic loss from a linear damping): errors {} with a loss of {:.3e}{} s^2 \
-         per unit, where the best single linear model leaves {}",
+         per unit, where the best single linear model leaves {}{}",
         names,
         percents(&joint.nrmse),
         joint.gain,
@@ -320,7 +320,15 @@ fn fit_loss_jointly(fitted: &mut Fitted, gain: f64, tests: &[Test<'_>]) -> f64 {
             .uncertainty
             .as_ref()
             .map_or_else(String::new, |(_, s)| format!(" +/- {s:.1e}")),
-        percents(&linear.nrmse)
+        percents(&linear.nrmse),
+        super::rises_with_loss(
+            &tests.iter().map(|t| t.name).collect::<Vec<_>>(),
+            &linear.nrmse,
+            &joint.nrmse
+        )
+        .map_or_else(String::new, |r| format!(
+            "; {r}, so judge it on a further test before using it"
+        ))
     ));
     fitted.nrmse_estimation = joint.nrmse.first().copied().unwrap_or(f64::NAN);
     fitted.model = joint.model;

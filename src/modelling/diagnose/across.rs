@@ -366,9 +366,9 @@ pub fn pre_step_slope(evidence: &[TestEvidence]) -> (f64, f64) {
 pub fn drift_before_step(pre: f64, pre_se: f64, rate: f64) -> String {
     if super::drift_contradicted(pre, pre_se, rate) {
         format!(
-            "but not before the step, where the residual moves at {pre:.3e} +/- {pre_se:.1e} \
-             per second, where a sensor's drift runs too: the ramp may be one the dynamics \
-             leave (a longer quiet record before the step would tell)"
+            "but not before the step, where a sensor's drift runs too and the residual moves \
+             at {pre:.3e} +/- {pre_se:.1e} per second: the ramp may be one the dynamics leave \
+             (a longer quiet record before the step would tell)"
         )
     } else {
         "already before the step: the sensor drifts in time (thermal drift)".to_string()

@@ -626,6 +626,7 @@ fn fold_test(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::modelling::effects::simulate_nonlinear;
 
     #[test]
     fn a_loss_that_raises_one_tests_error_over_the_linear_models_is_said() {
@@ -648,7 +649,6 @@ mod tests {
             None
         );
     }
-    use crate::modelling::effects::simulate_nonlinear;
 
     /// `x` with white noise of standard deviation 0.5 (draw `seed`).
     fn noisy(x: &[f64], seed: u64) -> Vec<f64> {

@@ -720,8 +720,6 @@ fn the_diagnosis_lists_what_the_plain_fit_already_carries() {
     assert_eq!(d["carried"], serde_json::json!([]), "{d}");
 }
 
-/// The path of a trace kept from the drawn bank (`examples/bench_bank.rs`, seed 13 unless its
-/// test says another) under `host-tests/data/bank/`.
 /// The held-out test's error in the JSON of `unlag fit ... --json`.
 fn validation_nrmse(v: &serde_json::Value) -> f64 {
     v["sources"]
@@ -734,6 +732,8 @@ fn validation_nrmse(v: &serde_json::Value) -> f64 {
         .unwrap()
 }
 
+/// The path of a trace kept from the drawn bank (`examples/bench_bank.rs`, seed 13 unless its
+/// test says another) under `host-tests/data/bank/`.
 fn bank_trace(name: &str) -> String {
     format!("{}/host-tests/data/bank/{name}", env!("CARGO_MANIFEST_DIR"))
 }
@@ -1149,14 +1149,13 @@ fn a_loss_that_raises_one_of_the_tests_fitted_together_says_so() {
         args.push(&run);
         unlag_json(&args)
     };
-    let held_out = validation_nrmse;
     let linear = fit(&["--fresh"]);
     let with_loss = fit(&["--fresh", "--also", &case.val, "--add", "nonlinear-damping"]);
     assert!(
-        held_out(&with_loss) > held_out(&linear),
+        validation_nrmse(&with_loss) > validation_nrmse(&linear),
         "the run held out: {} -> {}",
-        held_out(&linear),
-        held_out(&with_loss)
+        validation_nrmse(&linear),
+        validation_nrmse(&with_loss)
     );
     let notes = with_loss["fit"]["notes"].to_string();
     assert!(
@@ -1921,7 +1920,6 @@ fn runs_fitted_together_give_one_model_judged_on_the_test_held_out() {
             r["natural_frequency_std_hz"].as_f64().unwrap(),
         )
     };
-    let held_out = validation_nrmse;
     let alone = fit(&["--fresh"]);
     let together = fit(&["--fresh", "--also", &run]);
     let roles: Vec<&str> = together["sources"]
@@ -1938,10 +1936,10 @@ fn runs_fitted_together_give_one_model_judged_on_the_test_held_out() {
     let ((f1, s1), (fj, sj)) = (frequency(&alone), frequency(&together));
     assert!(s1 > 1.2 * sj, "alone {f1} +/- {s1}, together {fj} +/- {sj}");
     assert!(
-        held_out(&together) <= 1.02 * held_out(&alone),
+        validation_nrmse(&together) <= 1.02 * validation_nrmse(&alone),
         "{} against {}",
-        held_out(&together),
-        held_out(&alone)
+        validation_nrmse(&together),
+        validation_nrmse(&alone)
     );
     let notes = together["fit"]["notes"].to_string();
     assert!(notes.contains("plain-run.csv together"), "{notes}");

@@ -529,17 +529,20 @@ fn by_tests_matrix(r: &mut String, rows: &[(Case, LoopOutcome)]) {
                     .collect::<Vec<_>>(),
             )
         })
-        .chain([Shown::OwnDynamics, Shown::Nothing].map(|s| {
-            (
-                match s {
-                    Shown::OwnDynamics => "the probe's own dynamics".to_string(),
-                    _ => "nothing".to_string(),
-                },
-                rows.iter()
-                    .filter(|(c, o)| o.shown(c.kind) == s)
-                    .collect::<Vec<_>>(),
-            )
-        }));
+        .chain(
+            [
+                (Shown::OwnDynamics, "the probe's own dynamics"),
+                (Shown::Nothing, "nothing"),
+            ]
+            .map(|(s, label)| {
+                (
+                    label.to_string(),
+                    rows.iter()
+                        .filter(|(c, o)| o.shown(c.kind) == s)
+                        .collect::<Vec<_>>(),
+                )
+            }),
+        );
     for (label, group) in groups {
         let mut counts = [0usize; NAMES.len()];
         for (_, o) in group.iter().filter(|(_, o)| !o.named.is_empty()) {

@@ -1,5 +1,23 @@
-//! Puts `memory.x` where cortex-m-rt's `link.x` finds it, for Cortex-M builds only; host
-//! builds are untouched. Also tells the library which Cortex-M kernels the target can run.
+//! Puts the repository's `memory.x` (the QEMU mps2 map) where cortex-m-rt's `link.x` finds it
+//! when this package's own examples are linked for a Cortex-M target, and nowhere else. Also
+//! tells the library which Cortex-M kernels the target can run.
+//!
+//! Who gets the map: only `examples/` of this package, through
+//! `cargo:rustc-link-arg-examples=-L<OUT_DIR>`. Never `cargo:rustc-link-search`: that puts the
+//! directory on the link path of every crate that depends on this one, and a firmware whose
+//! own map comes from a board-support crate's build script (embassy-stm32's `memory-x`
+//! feature, say) would then link with whichever `memory.x` the linker finds first. With a
+//! dependency whose name sorts after `unlag` that was this one: the vector table at 0x00000000
+//! instead of the part's flash, a firmware that does not boot, and no error.
+//! `host-tests/firmware.rs` builds `host-tests/link-check/` with both orders to keep it so.
+//!
+//! How the examples' linker finds it: rust-lld (the thumb targets' default) searches every
+//! `-L` directory for `link.x`'s `INCLUDE memory.x`, wherever the `-L` stands. GNU ld
+//! (`-C linker=arm-none-eabi-ld`) searches only the `-L` directories given before
+//! `-Tlink.x`, and cargo passes this one after the `RUSTFLAGS` that hold `-Tlink.x`; GNU ld
+//! finds the file all the same because both linkers also look in the current directory, and
+//! cargo links this package's examples from its root, beside `memory.x`. Host builds are
+//! untouched.
 //!
 //! `cfg(unlag_armv7m)`: a bare-metal ARMv7-M or ARMv7E-M target (`thumbv7m-none-eabi`, Cortex-M3;
 //! `thumbv7em-none-eabi` and `thumbv7em-none-eabihf`, Cortex-M4 and M7). These have the
@@ -29,8 +47,10 @@ fn main() {
     let Some(out) = env::var_os("OUT_DIR").map(PathBuf::from) else {
         return;
     };
+    // The examples' link only (see the module doc): not `rustc-link-search`, which would hand
+    // this map to every dependent firmware.
     if fs::copy("memory.x", out.join("memory.x")).is_ok() {
-        println!("cargo:rustc-link-search={}", out.display());
+        println!("cargo:rustc-link-arg-examples=-L{}", out.display());
     }
     // defmt's linker script for the board examples when they log through defmt.
     if env::var_os("CARGO_FEATURE_DEFMT").is_some() {

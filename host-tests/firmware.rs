@@ -10,12 +10,21 @@
 //! * `thumbv7em-none-eabi` on `mps2-an386` (Cortex-M4, soft-float calling convention): the
 //!   same as the M3.
 //!
-//! Skips with a message when `qemu-system-arm` or the Rust target is missing, unless
-//! `UNLAG_REQUIRE_QEMU=1` (CI sets it), which turns a missing tool into a failure.
+//! And the link of a firmware that depends on unlag: `host-tests/link-check/`, built for
+//! `thumbv7em-none-eabihf` with its memory map from a board-support crate whose name sorts
+//! before `unlag` (`aardvark-bsp`) or after it (`zebra-bsp`), must put its vector table where
+//! that map's flash starts, never where unlag's own `memory.x` (the QEMU map, for unlag's
+//! examples only) puts it. These read the ELF and need no QEMU.
+//!
+//! Skips with a message when `qemu-system-arm` (for the QEMU runs) or the Rust target is
+//! missing, unless `UNLAG_REQUIRE_QEMU=1` (CI sets it), which turns a missing tool into a
+//! failure.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use unlag::blob::{self, CoefficientSet};
@@ -49,6 +58,11 @@ fn missing_tools(target: &str) -> Option<String> {
             "qemu-system-arm is not installed (apt-get install qemu-system-arm)".to_string(),
         );
     }
+    missing_target(target)
+}
+
+/// `Some(reason)` when the Rust standard library for `target` is not installed.
+fn missing_target(target: &str) -> Option<String> {
     let rustup = Command::new("rustup")
         .args(["target", "list", "--installed"])
         .output();
@@ -478,4 +492,201 @@ fn check_board_replay(board: &Board) {
     let first = f32::from_bits(host[0]);
     let last = f32::from_bits(host[host.len() - 1]);
     assert!(first > 700.0 && last < 200.0, "{first} -> {last}");
+}
+
+/// The map `host-tests/link-check/*-bsp/build.rs` give: flash, and the top of RAM (128 KiB
+/// from 0x2000_0000), where cortex-m-rt starts the stack. unlag's own `memory.x` has flash at
+/// 0x0000_0000 and RAM up to 0x2040_0000.
+const BSP_FLASH: Range<u32> = 0x0800_0000..0x0810_0000;
+const BSP_STACK_START: u32 = 0x2002_0000;
+
+/// The link-check builds share a target directory and write the same ELF path: one at a time.
+static LINK_CHECK: Mutex<()> = Mutex::new(());
+
+#[test]
+fn a_firmware_links_with_the_memory_map_of_a_bsp_named_before_unlag() {
+    check_link("aardvark");
+}
+
+#[test]
+fn a_firmware_links_with_the_memory_map_of_a_bsp_named_after_unlag() {
+    check_link("zebra");
+}
+
+/// Builds `host-tests/link-check/` with the board-support crate `<bsp>-bsp` and checks from
+/// the ELF that the vector table and the reset handler are in that crate's flash and the
+/// initial stack pointer at the top of its RAM.
+fn check_link(bsp: &str) {
+    let target = "thumbv7em-none-eabihf";
+    let test = format!("the link-check firmware with {bsp}-bsp");
+    if let Some(reason) = missing_target(target) {
+        assert!(!required(), "UNLAG_REQUIRE_QEMU=1 but {reason}");
+        println!("SKIPPED {test}: {reason}");
+        eprintln!("SKIPPED {test}: {reason}");
+        return;
+    }
+    let elf = {
+        let _one_at_a_time = LINK_CHECK.lock().unwrap_or_else(|e| e.into_inner());
+        let path = build_link_check(bsp, target);
+        std::fs::read(&path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()))
+    };
+    let sections = elf32_sections(&elf).unwrap_or_else(|e| panic!("{test}: {e}"));
+    let vectors = sections
+        .iter()
+        .find(|s| s.name == ".vector_table")
+        .unwrap_or_else(|| panic!("{test}: the ELF has no .vector_table section"));
+    assert_eq!(
+        vectors.addr, BSP_FLASH.start,
+        "{test}: the vector table is at {:#010x}, not at the start of {bsp}-bsp's flash \
+         ({:#010x}): another memory.x than {bsp}-bsp's reached the linker (unlag's own has \
+         flash at 0x00000000), and this firmware would not boot",
+        vectors.addr, BSP_FLASH.start
+    );
+    // Its first two words: the initial stack pointer and the reset vector.
+    const SHT_PROGBITS: u32 = 1;
+    let data = (vectors.kind == SHT_PROGBITS)
+        .then(|| {
+            elf.get(vectors.offset as usize..)?
+                .get(..vectors.size as usize)
+        })
+        .flatten()
+        .unwrap_or_else(|| panic!("{test}: .vector_table has no contents in the file"));
+    let word = |k: usize| {
+        let bytes = data.get(4 * k..4 * k + 4);
+        u32::from_le_bytes(
+            bytes
+                .unwrap_or_else(|| panic!("{test}: .vector_table has no word {k}"))
+                .try_into()
+                .unwrap(),
+        )
+    };
+    let (stack, reset) = (word(0), word(1));
+    assert_eq!(
+        stack, BSP_STACK_START,
+        "{test}: the initial stack pointer is not the top of {bsp}-bsp's RAM"
+    );
+    assert!(
+        reset & 1 == 1 && BSP_FLASH.contains(&(reset & !1)),
+        "{test}: the reset vector {reset:#010x} is not a Thumb address in {bsp}-bsp's flash \
+         {BSP_FLASH:#010x?}"
+    );
+    const SHF_EXECINSTR: u32 = 0x4;
+    assert!(
+        sections.iter().any(|s| s.flags & SHF_EXECINSTR != 0
+            && (reset & !1).checked_sub(s.addr).is_some_and(|d| d < s.size)),
+        "{test}: the reset vector {reset:#010x} points into no code section"
+    );
+}
+
+/// Builds `host-tests/link-check/` for `target` with the feature `bsp` (release: no debug
+/// information, the dependencies built once for both features) and returns its ELF.
+fn build_link_check(bsp: &str, target: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("host-tests/link-check");
+    let target_dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("link-check");
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    // From the crate's own directory, so that cargo reads its .cargo/config.toml (and the
+    // repository's above it) as it would for someone building it there; flags from the
+    // environment would replace those files' rustflags. `--locked`: the committed lock file,
+    // never a rewrite of it in the source tree.
+    let out = Command::new(cargo)
+        .current_dir(&dir)
+        .args(["build", "--release", "--locked", "--target", target])
+        .args(["--features", bsp, "--target-dir"])
+        .arg(&target_dir)
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_RUSTFLAGS")
+        .output()
+        .expect("cargo runs");
+    assert!(
+        out.status.success(),
+        "building {} with --features {bsp} for {target} failed (if its Cargo.lock is out of \
+         date with unlag's dependencies, run `cargo build --features {bsp}` there once and \
+         commit the lock file):\n{}",
+        dir.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    target_dir
+        .join(target)
+        .join("release")
+        .join("unlag-link-check")
+}
+
+/// What the checks need of one section header of an ELF file.
+struct Section {
+    name: String,
+    /// `sh_type`.
+    kind: u32,
+    flags: u32,
+    addr: u32,
+    offset: u32,
+    size: u32,
+}
+
+/// The section headers of a little-endian 32-bit Arm ELF file (the layout of the System V ABI,
+/// `Elf32_Ehdr` and `Elf32_Shdr`), with their names from the section-name string table. Every
+/// read is bounds-checked: a short or malformed file is an error, never a panic.
+fn elf32_sections(elf: &[u8]) -> Result<Vec<Section>, String> {
+    let u16_at = |at: usize| -> Result<u32, String> {
+        elf.get(at..at + 2)
+            .map(|b| u32::from(u16::from_le_bytes([b[0], b[1]])))
+            .ok_or(format!("ELF truncated at byte {at}"))
+    };
+    let u32_at = |at: usize| -> Result<u32, String> {
+        elf.get(at..at + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .ok_or(format!("ELF truncated at byte {at}"))
+    };
+    // e_ident: magic, ELFCLASS32, ELFDATA2LSB; e_machine EM_ARM.
+    if elf.get(..6) != Some(&[0x7f, b'E', b'L', b'F', 1, 1][..]) {
+        return Err("not a little-endian 32-bit ELF file".into());
+    }
+    if u16_at(18)? != 40 {
+        return Err(format!("e_machine {} is not EM_ARM (40)", u16_at(18)?));
+    }
+    let shoff = u32_at(32)? as usize;
+    let shentsize = u16_at(46)? as usize;
+    let shnum = u16_at(48)? as usize;
+    let shstrndx = u16_at(50)? as usize;
+    // 0 sections and SHN_XINDEX (0xffff) mean the real counts are elsewhere: not in a small
+    // firmware.
+    if shentsize != 40 || shnum == 0 || shstrndx >= shnum {
+        return Err(format!(
+            "unexpected section headers: e_shentsize {shentsize}, e_shnum {shnum}, \
+             e_shstrndx {shstrndx}"
+        ));
+    }
+    let header = |k: usize| -> Result<[u32; 6], String> {
+        let at = shoff + k * shentsize;
+        // sh_name, sh_type, sh_flags, sh_addr, sh_offset, sh_size
+        Ok([
+            u32_at(at)?,
+            u32_at(at + 4)?,
+            u32_at(at + 8)?,
+            u32_at(at + 12)?,
+            u32_at(at + 16)?,
+            u32_at(at + 20)?,
+        ])
+    };
+    let [_, _, _, _, strtab, strtab_size] = header(shstrndx)?;
+    let strtab = elf
+        .get(strtab as usize..(strtab as usize).saturating_add(strtab_size as usize))
+        .ok_or("the section-name string table lies outside the file")?;
+    (0..shnum)
+        .map(|k| {
+            let [name, kind, flags, addr, offset, size] = header(k)?;
+            let name = strtab
+                .get(name as usize..)
+                .and_then(|rest| rest.split(|&b| b == 0).next())
+                .ok_or(format!("section {k}'s name lies outside the string table"))?;
+            Ok(Section {
+                name: String::from_utf8_lossy(name).into_owned(),
+                kind,
+                flags,
+                addr,
+                offset,
+                size,
+            })
+        })
+        .collect()
 }

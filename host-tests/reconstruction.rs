@@ -339,7 +339,7 @@ fn the_optimum_without_a_test_reuses_the_stored_noise_or_says_what_it_needs() {
 }
 
 #[test]
-fn a_slow_run_the_step_design_would_make_worse_gets_a_narrower_one_and_says_so() {
+fn a_slow_run_the_board_compensator_makes_worse_is_said_and_the_host_can_adapt_to_it() {
     // A fast line (1.5 kHz, damping 0.3) calibrated on a step; then a slow run (a 3 Hz swing
     // of the same size), which has nothing where the step's compensator boosts.
     let d = dir("slow-run");
@@ -361,19 +361,75 @@ fn a_slow_run_the_step_design_would_make_worse_gets_a_narrower_one_and_says_so()
     let m = model.to_str().unwrap();
     json(&["fit", est.to_str().unwrap(), "-o", m, "--json"]);
     let out = d.join("out.csv");
-    let args = [
+    let compensate = |extra: &[&str]| {
+        let mut args = vec![
+            "compensate",
+            m,
+            run.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let o = unlag(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        (c, String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    // By default the board's compensator runs, and one line says it is worse, with the
+    // numbers and the remedy.
+    let (board, stderr) = compensate(&[]);
+    assert_eq!(
+        board["compensator"], "the model file's compensator",
+        "{board}"
+    );
+    assert_eq!(board["host_only"], false, "{board}");
+    assert!(board["run_fall_back"].is_null(), "{board}");
+    assert_eq!(board["verdict"], "worse", "{board}");
+    let warned: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.starts_with("warning:"))
+        .collect();
+    assert_eq!(warned.len(), 1, "{stderr}");
+    assert!(
+        warned[0].contains("further from the recorded reference") && warned[0].contains("--signal"),
+        "{stderr}"
+    );
+    // Without a reference, the prediction alone says it, in one line.
+    let probe_only = d.join("probe-only.csv");
+    let text: String = std::fs::read_to_string(&run)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let mut cells: Vec<&str> = l.split(',').collect();
+            cells.remove(1);
+            cells.join(",") + "\n"
+        })
+        .collect();
+    std::fs::write(&probe_only, text).unwrap();
+    let o = unlag(&[
         "compensate",
         m,
-        run.to_str().unwrap(),
+        probe_only.to_str().unwrap(),
         "-o",
         out.to_str().unwrap(),
-        "--json",
-    ];
-    let o = unlag(&args);
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let stderr = String::from_utf8_lossy(&o.stderr);
-    // Told in one line, with the predictions, from the probe signal alone.
+    let warned: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.starts_with("warning:"))
+        .collect();
+    assert_eq!(warned.len(), 1, "{stderr}");
+    assert!(
+        warned[0].contains("predicted not to beat the raw probe") && warned[0].contains("--signal"),
+        "{stderr}"
+    );
+    let first_line = std::fs::read_to_string(&out).unwrap();
+    assert!(first_line.starts_with("t,"), "{first_line:.80}");
+    // Asked to adapt to the run, the host runs another, and says it is host only, on stderr
+    // and in the file.
+    let (c, stderr) = compensate(&["--adapt-to-run"]);
     assert!(
         stderr.contains("is predicted to leave") && stderr.contains("ran instead"),
         "{stderr}"
@@ -384,10 +440,25 @@ fn a_slow_run_the_step_design_would_make_worse_gets_a_narrower_one_and_says_so()
         "{c}"
     );
     assert!(c["run_fall_back"]["what"].is_string(), "{c}");
+    assert_eq!(c["host_only"], true, "{c}");
     assert_eq!(
         c["compensator"],
-        "a compensator chosen for this run (host only)"
+        "a compensator chosen for this run (host only: a board runs the model file's)"
     );
+    let written = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        written.starts_with("# unlag compensate: u_hat is from a compensator chosen for this run"),
+        "{written:.200}"
+    );
+    // The file still reads as a trace.
+    let o = unlag(&[
+        "compensate",
+        m,
+        out.to_str().unwrap(),
+        "-o",
+        d.join("again-out.csv").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // And the reference, which the choice never saw, bears it out.
     assert!(
         c["nrmse_u_hat"].as_f64().unwrap() < c["nrmse_raw"].as_f64().unwrap(),

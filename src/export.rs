@@ -91,6 +91,8 @@ pub struct Summary {
     pub sections: usize,
     /// Bytes written.
     pub bytes: usize,
+    /// The fixed-point set's full scale in the probe's units (the input code `2^31`).
+    pub full_scale: Option<f64>,
 }
 
 /// Loads `model`, exports its `f32` compensator in `format` and writes `output` atomically.
@@ -152,6 +154,11 @@ fn render(
         latency_samples: timing.latency_samples,
         sections: image.section_count(),
         bytes: bytes.len(),
+        full_scale: match &image {
+            BoardImage::Fixed(c) => Some(c.full_scale),
+            BoardImage::Direct(c) => Some(c.full_scale),
+            BoardImage::F32(_) | BoardImage::Bank(_) => None,
+        },
     };
     Ok((bytes, summary))
 }

@@ -51,6 +51,66 @@ pub struct ModelFile {
     /// report then draws the physical prediction beside the fitted model.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub probe: Option<ProbeGeometry>,
+    /// The acquisition board the compensator is for (`[board]`): the arithmetic it runs and
+    /// the ADC's range. `unlag compensate` and `unlag export` default to them.
+    #[serde(default, skip_serializing_if = "Board::is_default")]
+    pub board: Board,
+}
+
+/// The acquisition board a model file's compensator is for: what `unlag compensate` computes
+/// and `unlag export` writes unless told otherwise.
+///
+/// ```toml
+/// [board]
+/// arithmetic = "fixed"   # "f32" (a board with an FPU) or "fixed" (32-bit fixed point)
+/// full_scale = 20000.0   # the ADC's range in the probe's units: readings within +-full_scale
+/// ```
+///
+/// The full scale is a property of the acquisition chain, not of a test: the fixed-point
+/// compensator is planned for it (`unlag fit` and `unlag invert --full-scale`, or this field
+/// written by hand: `unlag compensate` and `unlag export` plan anew for it when the stored
+/// plan was made for another).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Board {
+    /// The arithmetic the board runs the compensator in.
+    #[serde(default)]
+    pub arithmetic: BoardArithmetic,
+    /// The ADC's range in the probe's units, as stated by the user; `None`: the default the
+    /// design chose ([`crate::pipeline::default_full_scale`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub full_scale: Option<f64>,
+}
+
+impl Board {
+    /// `true` for an f32 board with no stated range: nothing to write.
+    #[must_use]
+    pub fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+/// The arithmetic a board runs the compensator in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BoardArithmetic {
+    /// IEEE single precision (a Cortex-M4F or M7: [`crate::compensator`]).
+    #[default]
+    F32,
+    /// 32-bit fixed point (a board without an FPU: [`crate::fixed`]), the plan stored with the
+    /// design.
+    Fixed,
+}
+
+impl BoardArithmetic {
+    /// Its name in the file and on the command line.
+    #[must_use]
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::F32 => "f32",
+            Self::Fixed => "fixed",
+        }
+    }
 }
 
 /// [`ModelFile`] as the file spells it, the model's fields at the top: read field by field
@@ -75,6 +135,8 @@ struct RawModelFile {
     history: Vec<HistoryRow>,
     #[serde(default)]
     probe: Option<ProbeGeometry>,
+    #[serde(default)]
+    board: Board,
 }
 
 impl From<RawModelFile> for ModelFile {
@@ -93,6 +155,7 @@ impl From<RawModelFile> for ModelFile {
             effects: r.effects,
             history: r.history,
             probe: r.probe,
+            board: r.board,
         }
     }
 }
@@ -428,6 +491,16 @@ impl ModelFile {
                 ));
             }
         }
+        if let Some(fs) = file.board.full_scale {
+            if !(fs.is_finite() && fs > 0.0) {
+                return Err(field(
+                    &["board", "full_scale"],
+                    format!(
+                        "board.full_scale = {fs} must be the ADC's range in the probe's units, a positive number"
+                    ),
+                ));
+            }
+        }
         if let Some(g) = &file.probe {
             let lines_ok =
                 !g.lines.is_empty() && g.lines.iter().flatten().all(|x| x.is_finite() && *x > 0.0);
@@ -527,6 +600,7 @@ mod tests {
             effects: Vec::new(),
             history: Vec::new(),
             probe: None,
+            board: Default::default(),
         };
         let text = f.to_toml().unwrap();
         assert!(text.contains("delay = 3"), "{text}");
@@ -578,6 +652,8 @@ mod tests {
             history: vec![row(6, 0.00963, 0.004)],
 
             probe: None,
+
+            board: Default::default(),
         };
         assert!(
             f.held_out_changes().is_empty(),

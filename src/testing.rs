@@ -116,6 +116,7 @@ pub(crate) fn model_file(model: crate::fit::model::Model) -> crate::file::ModelF
         effects: Vec::new(),
         history: Vec::new(),
         probe: None,
+        board: Default::default(),
     }
 }
 

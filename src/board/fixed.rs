@@ -495,6 +495,7 @@ pub const fn uses_kernel() -> bool {
 }
 
 pub mod direct;
+pub mod input;
 
 /// A scaled rotation `[[s, -w], [w, s]]` with `s^2 + w^2 < 1`, or lower triangular
 /// `[[p1, 0], [g, p2]]` with `|p1|, |p2| < 1`: the forms for which magnitude truncation

@@ -9,14 +9,14 @@ use serde_json::json;
 
 use super::{check_rate, console, name, pct, ColumnArgs};
 use crate::error::Result;
-use crate::file::ModelFile;
+use crate::file::{BoardArithmetic, ModelFile};
 use crate::pipeline::{self, CompensateRequest, Compensation, ReferenceError};
 use crate::trace::Trace;
 
 /// Arithmetic of the compensator run on the host.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Arithmetic {
-    /// 32-bit float, as on a Cortex-M4F board (default).
+    /// 32-bit float, as on a Cortex-M4F board.
     F32,
     /// 64-bit float.
     F64,
@@ -37,17 +37,25 @@ pub struct CompensateArgs {
     /// Output CSV: the input columns plus `u_hat`.
     #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
     pub output: PathBuf,
-    /// Arithmetic of the compensator.
-    #[arg(long, value_enum, default_value_t = Arithmetic::F32)]
-    pub arithmetic: Arithmetic,
+    /// Arithmetic of the compensator. Default: the board's, from the model file's `[board]`
+    /// (`unlag fit --board`): f32, or fixed point bit for bit as the board computes it.
+    #[arg(long, value_enum)]
+    pub arithmetic: Option<Arithmetic>,
     /// Use the paper's direct inverse (eq. 7) even when the model file has a compensator.
     #[arg(long)]
     pub direct: bool,
     /// Host only: the non-causal optimum on the whole recorded run (no latency, the least
     /// error a linear filter can reach), from the model and the noise and prior stored with
     /// its optimal compensator. A board cannot run it.
-    #[arg(long, conflicts_with_all = ["direct", "arithmetic"])]
+    #[arg(long, conflicts_with_all = ["direct", "arithmetic", "adapt_to_run"])]
     pub offline: bool,
+    /// Host only: when the run's own probe spectrum predicts the model file's compensator not
+    /// to beat the raw probe, run in f64 the design predicted best for this run instead (the
+    /// delay alone, the probe passed through, or the optimum under a quieter prior). A board
+    /// given the model file runs the stored one; for a board, design with such runs: `unlag
+    /// invert MODEL TEST.csv --signal RUN.csv`.
+    #[arg(long, conflicts_with_all = ["direct", "arithmetic"])]
+    pub adapt_to_run: bool,
     /// Gas temperature of the recording (K): the model (with a `temperature` effect) is scaled
     /// to it and its compensator designed anew, as a board given that temperature runs it.
     #[arg(long, value_name = "K")]
@@ -78,12 +86,19 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     let file = ModelFile::load(&args.model)?;
     let trace = Trace::read(&args.file, &args.columns.columns(false))?;
     check_rate(&file, &trace)?;
+    // The board's arithmetic unless another is asked for.
+    let arithmetic = args.arithmetic.unwrap_or(match file.board.arithmetic {
+        BoardArithmetic::F32 => Arithmetic::F32,
+        BoardArithmetic::Fixed => Arithmetic::Fixed,
+    });
     let compensation = if args.offline {
         Compensation::Offline
+    } else if args.adapt_to_run {
+        Compensation::AdaptedToRun
     } else if args.direct {
-        Compensation::Direct(args.arithmetic.into())
+        Compensation::Direct(arithmetic.into())
     } else {
-        Compensation::Designed(args.arithmetic.into())
+        Compensation::Designed(arithmetic.into())
     };
     let c = pipeline::compensate(&CompensateRequest {
         file: &file,
@@ -117,24 +132,56 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     if let (Some(f), Some(stored)) = (&c.fall_back, &c.predicted) {
         let msg = format!(
             "note: on {} the model file's compensator is predicted to leave {:.2}x the raw probe's error \
-             (from the run's own probe spectrum and the stored noise), so {} ran instead ({:.2}x, host only); \
-             for a board running runs like this one: `unlag invert {} TEST.csv --signal {} -o ...`",
+             (from the run's own probe spectrum and the stored noise), so {} ran instead ({:.2}x, host only: \
+             a board given {} runs the stored one); for a board running runs like this one: \
+             `unlag invert {} TEST.csv --signal {} -o ...`",
             name(&args.file),
             stored.ratio(),
             f.what,
             f.chosen.ratio(),
+            name(&args.model),
             args.model.display(),
             args.file.display()
         );
         console::note(args.json, &msg);
     }
+    // The board's compensator predicted not to beat the raw probe: one line, unless the run's
+    // reference measures it (then `warn_if_worse` says what was measured).
+    let predicted_worse = c.predicted.filter(|p| {
+        c.fall_back.is_none()
+            && !c.host_only
+            && c.error.is_none()
+            && p.ratio() >= crate::design::inverse::check::RUN_MARGIN
+    });
+    if let Some(p) = predicted_worse {
+        crate::errln!(
+            "warning: on {} the model file's compensator is predicted not to beat the raw probe: it \
+             leaves {:.2}x its error (from the run's own probe spectrum and the stored noise): its design assumed signals \
+             like its tests'. For a board running runs like this one, design with them: `unlag invert {} \
+             TEST.csv --signal {} -o ...` (`--adapt-to-run` shows what the host can do on it)",
+            name(&args.file),
+            p.ratio(),
+            args.model.display(),
+            args.file.display()
+        );
+    }
     let (latency, what, error) = (c.latency_samples, c.compensator, c.error);
     let not_better = c.stored_not_better.as_ref().map(|m| m.short());
+    // A host-only u_hat says so in the file itself, where it cannot be separated from it.
+    let metadata = c.host_only.then(|| {
+        format!(
+            "# unlag compensate: u_hat is from {what} and is not what a board given {} computes\n",
+            name(&args.model)
+        )
+    });
     crate::file::write_atomically_with(&args.output, |out| {
+        if let Some(line) = &metadata {
+            out.write_all(line.as_bytes())?;
+        }
         Ok(trace.write_csv_with(out, &[("u_hat", &c.u_hat)])?)
     })?;
-    let arith = match args.arithmetic {
-        _ if args.offline => "f64",
+    let arith = match arithmetic {
+        _ if args.offline || c.host_only => "f64",
         Arithmetic::F32 => "f32",
         Arithmetic::F64 => "f64",
         Arithmetic::Fixed => "32-bit fixed point",
@@ -148,6 +195,9 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
             "latency_samples": latency,
             "latency_s": latency / fs,
             "arithmetic": arith,
+            "host_only": c.host_only,
+            "clamped_inputs": c.fixed.map(|f| f.clamped_inputs),
+            "full_scale": c.fixed.map(|f| f.full_scale),
             "nrmse_u_hat": error.map(|e| e.u_hat),
             "nrmse_raw": error.map(|e| e.raw),
             "alignment_samples": error.map(|e| e.lag),
@@ -206,7 +256,8 @@ fn warn_if_worse(args: &CompensateArgs, not_better: Option<&str>, error: Option<
     crate::errln!(
         "warning: on {} u_hat is further from the recorded reference than the raw probe ({} against {}): \
          the compensator makes this run worse. Its design assumed signals like its tests'; \
-         for runs like this one, learn the signal from them: `unlag invert {} TEST.csv --signal {} -o ...`",
+         for runs like this one, learn the signal from them: `unlag invert {} TEST.csv --signal {} -o ...` \
+         (`--adapt-to-run` shows what the host can do on it)",
         args.file.display(),
         pct(e),
         pct(raw),

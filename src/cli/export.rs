@@ -12,6 +12,7 @@ use serde_json::json;
 
 use crate::error::{Error, Result};
 use crate::export::{self, ExportRequest, ExportSummary, Format, NumberFormat, Sets};
+use crate::file::BoardArithmetic;
 
 /// Arguments of `unlag export`.
 #[derive(Debug, Args)]
@@ -24,11 +25,12 @@ pub struct ExportArgs {
     #[arg(long, value_enum)]
     pub format: FormatArg,
     /// The board's arithmetic: `f32`, or `fixed` (the fixed-point compensator: the model
-    /// file's plan, or one planned for --full-scale).
-    #[arg(long, value_enum, default_value_t = NumberFormatArg::F32)]
-    pub number_format: NumberFormatArg,
-    /// ADC full scale in the probe's units for `--number-format fixed` (plans anew; without it
-    /// the plan stored by `unlag invert` is used).
+    /// file's plan, or one planned for the full scale). Default: the model file's `[board]`
+    /// arithmetic (`unlag fit --board`), else f32.
+    #[arg(long, value_enum)]
+    pub number_format: Option<NumberFormatArg>,
+    /// ADC full scale in the probe's units for the fixed-point format (plans anew). Default:
+    /// the range stated in the model file's `[board]`, else the full scale of the stored plan.
     #[arg(long, value_name = "VALUE")]
     pub full_scale: Option<f64>,
     /// The fixed-point form for `--number-format fixed`: `normal` or `direct` (see `unlag
@@ -89,7 +91,20 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
         FormatArg::C => (Format::C, "c"),
         FormatArg::Bin => (Format::Bin, "bin"),
     };
-    let number_format = match (args.number_format, args.full_scale) {
+    let file = crate::file::ModelFile::load(&args.model)?;
+    // The board's arithmetic and range unless others are asked for.
+    let asked = args.number_format.unwrap_or(match file.board.arithmetic {
+        BoardArithmetic::F32 => NumberFormatArg::F32,
+        BoardArithmetic::Fixed => NumberFormatArg::Fixed,
+    });
+    let planned = file.inverse.as_ref().and_then(|d| {
+        d.fixed
+            .as_ref()
+            .map(|p| p.full_scale)
+            .or(d.fixed_direct.as_ref().map(|p| p.full_scale))
+    });
+    let stated = file.board.full_scale.filter(|&fs| Some(fs) != planned);
+    let number_format = match (asked, args.full_scale) {
         (NumberFormatArg::F32, None) => NumberFormat::F32,
         (NumberFormatArg::F32, Some(_)) => {
             return Err(Error::InvalidArgument {
@@ -97,15 +112,16 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
                 message: "only applies to --number-format fixed".into(),
             })
         }
-        (NumberFormatArg::Fixed, full_scale) => NumberFormat::Fixed { full_scale },
+        (NumberFormatArg::Fixed, full_scale) => NumberFormat::Fixed {
+            full_scale: full_scale.or(stated),
+        },
     };
-    if args.fixed_form.is_some() && args.number_format != NumberFormatArg::Fixed {
+    if args.fixed_form.is_some() && asked != NumberFormatArg::Fixed {
         return Err(Error::InvalidArgument {
             what: "--fixed-form",
             message: "only applies to --number-format fixed".into(),
         });
     }
-    let file = crate::file::ModelFile::load(&args.model)?;
     let exported = export::prepare(&ExportRequest {
         file: &file,
         model: &args.model,
@@ -142,11 +158,18 @@ fn print_one(args: &ExportArgs, name: &str, c: &export::Summary) {
                 "latency_samples": c.latency_samples,
                 "sections": c.sections,
                 "number_format": c.number_format,
+                "full_scale": c.full_scale,
             })
         );
     } else {
+        let full_scale = c.full_scale.map_or_else(String::new, |fs| {
+            format!(
+                ", full scale +-{} (inputs are Q1.31 of it: readings beyond it clamp)",
+                super::invert::number(fs)
+            )
+        });
         crate::outln!(
-            "wrote {} ({name}, {} bytes): {} sections, {}, fs {} Hz, delay {} samples, latency {:.2} samples",
+            "wrote {} ({name}, {} bytes): {} sections, {}{full_scale}, fs {} Hz, delay {} samples, latency {:.2} samples",
             args.output.display(),
             c.bytes,
             c.sections,

@@ -6,10 +6,10 @@ use std::path::{Path, PathBuf};
 use clap::{Args, ValueEnum};
 use serde_json::json;
 
-use super::invert::{print_inverse, warn_unplanned, InverseArgs};
+use super::invert::{full_scale_json, print_board, print_inverse, warn_unplanned, InverseArgs};
 use super::{as_tests, console, json_err, name, number, pct, read_test, report, ColumnArgs};
 use crate::error::{Error, Result};
-use crate::file::{HeldOutChange, HistoryRow, ModelFile};
+use crate::file::{Board, HeldOutChange, HistoryRow, ModelFile};
 use crate::fit::{Method, Options, Order};
 use crate::pipeline::{self, FitDesignRequest, FitDesigned, FitStage};
 use crate::trace::Trace;
@@ -211,6 +211,10 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     let tests = as_tests(&traces, &names)?;
     // The modelling loop: the output file's effects and history carry over.
     let previous = args.previous()?;
+    // The board carries over from the model the fit replaces, as its probe geometry does.
+    let board = args
+        .inverse
+        .board(previous.as_ref().map_or_else(Board::default, |p| p.board));
     let digests: Vec<String> = traces.iter().map(|t| t.sha256.clone()).collect();
     // Modes named in this fit: a dropped mode named again needs no hint.
     let named_again = args
@@ -247,9 +251,10 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         FitStage::Designing => progress.step("designing the compensator"),
     };
     let FitDesigned {
-        file,
+        mut file,
         no_compensator,
         unplanned,
+        full_scale,
     } = pipeline::fit_and_design(&FitDesignRequest {
         tests: &tests,
         estimation_tests: 1 + args.also.len(),
@@ -260,7 +265,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         fresh: args.fresh,
         add: &args.add,
         reference_column: (est.u_column.unwrap_or(0), &columns.input),
-        spec: &|fs| args.inverse.spec(&args.columns, fs),
+        spec: &|fs| args.inverse.spec(&args.columns, fs, &board),
         on_stage: &on_stage,
     })?;
     // The fit stands on its own: if no compensator can be designed, say why and keep the model.
@@ -268,6 +273,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         crate::errln!("warning: no compensator designed: {e}");
     }
     warn_unplanned(&unplanned);
+    file.board = board;
     progress.step("writing the model");
     file.save(&args.output)?;
     let changes = file.held_out_changes();
@@ -292,6 +298,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         let mut v = serde_json::to_value(&file).map_err(json_err)?;
         v["output"] = json!(name(&args.output));
         v["dc_gain"] = json!(file.model.dc_gain());
+        v["full_scale"] = full_scale_json(&full_scale);
         v["error_rises"] = json!(rises);
         if let Some(path) = &args.report {
             v["report"] = json!(name(path));
@@ -303,6 +310,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     print_held_out_changes(&changes, &file);
     if let Some(d) = &file.inverse {
         print_inverse(d, file.model.fs);
+        print_board(&file.board, &full_scale);
     }
     crate::outln!("wrote {}", args.output.display());
     if let (Some(path), Some(bytes)) = (&args.report, report_bytes) {

@@ -9,8 +9,8 @@ use serde_json::json;
 use super::{as_tests, check_rate, json_err, name, pct, read_test, ColumnArgs};
 use crate::design::inverse;
 use crate::error::{Error, Result};
-use crate::file::ModelFile;
-use crate::pipeline::{self, CompensatorRequest, CompensatorSpec, Roles, Shape};
+use crate::file::{Board, BoardArithmetic, ModelFile};
+use crate::pipeline::{self, CompensatorRequest, CompensatorSpec, FullScale, Roles, Shape};
 use crate::trace::Trace;
 
 /// How to design the compensator (shared by `fit` and `invert`).
@@ -43,16 +43,43 @@ pub struct InverseArgs {
     /// for a non-minimum-phase model.
     #[arg(long)]
     pub direct: bool,
-    /// The ADC's full scale in the probe's units (inputs within +-FS never overflow the
-    /// fixed-point compensator). Default: the largest |y| of the tests, plus 25 %.
+    /// The ADC's range in the probe's units: the fixed-point compensator is planned for
+    /// readings within +-FS, and never clamps or overflows there. Stored in the model file's
+    /// `[board]`. Default: the range stated there, else the tests' largest |y| plus 3 times
+    /// their swing, rounded up to 1, 2 or 5 x 10^k (room for a reflected shock of 2.6 times
+    /// the step, with the probe's overshoot).
     #[arg(long, value_name = "FS")]
     pub full_scale: Option<f64>,
+    /// The board's arithmetic: `f32` (a board with an FPU: Cortex-M4F, M7) or `fixed` (32-bit
+    /// fixed point, a board without one). Stored in the model file's `[board]`: `unlag
+    /// compensate` computes in it and `unlag export` writes it unless told otherwise. Default:
+    /// the model file's, else f32.
+    #[arg(long, value_enum, value_name = "ARITHMETIC")]
+    pub board: Option<BoardArg>,
     /// The fixed-point form: `normal` (coupled sections: no limit cycles, 100 dB at
     /// fs/fn = 1000, about 115 instructions a sample for m = 4 on a Cortex-M4) or `direct`
     /// (direct form I with error feedback: about 33, limit cycles of a few codes possible,
     /// about 90 dB at fs/fn = 1000). See BENCHMARKS.md, "Fixed point: the two forms".
     #[arg(long, value_enum, default_value_t = FixedFormArg::Normal)]
     pub fixed_form: FixedFormArg,
+}
+
+/// The board's arithmetic on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum BoardArg {
+    /// IEEE single precision (`unlag::compensator`).
+    F32,
+    /// 32-bit fixed point (`unlag::fixed`).
+    Fixed,
+}
+
+impl From<BoardArg> for BoardArithmetic {
+    fn from(v: BoardArg) -> Self {
+        match v {
+            BoardArg::F32 => Self::F32,
+            BoardArg::Fixed => Self::Fixed,
+        }
+    }
 }
 
 /// Fixed-point form on the command line.
@@ -83,14 +110,29 @@ pub enum LowpassArg {
 }
 
 impl InverseArgs {
+    /// The board the output model file is for: the arithmetic and the range given here, else
+    /// those `stated` in the model file it replaces.
+    #[must_use]
+    pub(crate) fn board(&self, stated: Board) -> Board {
+        Board {
+            arithmetic: self.board.map_or(stated.arithmetic, Into::into),
+            full_scale: self.full_scale.or(stated.full_scale),
+        }
+    }
+
     /// The compensator asked for: the noise-aware optimum unless `--bandwidth` or `--direct`
     /// asks for the band-limited inverse; the optimum's `--signal` runs read, its caps checked
-    /// and its latency in samples at `fs`.
+    /// and its latency in samples at `fs`; the fixed-point plan for the full scale of `board`.
     ///
     /// # Errors
     /// The runs' read errors; [`Error::InvalidArgument`] for a `--bandwidth`, `--max-band` or
     /// `--max-latency` that is not what it should be.
-    pub(crate) fn spec(&self, columns: &ColumnArgs, fs: f64) -> Result<CompensatorSpec> {
+    pub(crate) fn spec(
+        &self,
+        columns: &ColumnArgs,
+        fs: f64,
+        board: &Board,
+    ) -> Result<CompensatorSpec> {
         let band_limited = |bandwidth_hz| Shape::BandLimited {
             bandwidth_hz,
             stabilise: !self.direct,
@@ -142,9 +184,63 @@ impl InverseArgs {
             lowpass_order: self.lowpass_order,
             signal,
             fixed_form: self.fixed_form.into(),
-            full_scale: self.full_scale,
+            full_scale: board.full_scale,
         })
     }
+}
+
+/// `v` to six significant digits, without the binary fraction's tail (`6561.85`, not
+/// `6561.849999999999`).
+pub(super) fn number(v: f64) -> String {
+    format!("{v:.5e}")
+        .parse::<f64>()
+        .map_or_else(|_| v.to_string(), |r| r.to_string())
+}
+
+/// The board the model file is for, in one line; with a default full scale, its rule and the
+/// resolution it costs, and how to state the ADC's range instead.
+pub(super) fn print_board(board: &Board, full_scale: &FullScale) {
+    let arithmetic = match board.arithmetic {
+        BoardArithmetic::F32 => "f32 (`unlag compensate` and `unlag export` default to it; --board fixed for a board without an FPU)",
+        BoardArithmetic::Fixed => "32-bit fixed point (`unlag compensate` and `unlag export` default to it)",
+    };
+    crate::outln!("  board: {arithmetic}");
+    if full_scale.stated {
+        crate::outln!(
+            "  full scale +-{} (the ADC's range, as stated): the tests reach {} of it",
+            number(full_scale.value),
+            pct(full_scale.tests_peak / full_scale.value)
+        );
+        if full_scale.tests_peak > full_scale.value {
+            crate::errln!(
+                "warning: the tests reach {} but the full scale is +-{}: a fixed-point board clamps \
+                 their readings beyond it; give the ADC's range with --full-scale",
+                number(full_scale.tests_peak),
+                number(full_scale.value)
+            );
+        }
+    } else {
+        crate::outln!(
+            "  full scale +-{} (default: the tests' largest |y|, {}, plus {} times their swing, \
+             rounded up: room for a reflected shock of 2 to 2.6 times the step and the probe's \
+             overshoot); it costs {:.1} bits of fixed-point resolution against the tests' own \
+             range. Give the ADC's range with --full-scale",
+            number(full_scale.value),
+            number(full_scale.tests_peak),
+            pipeline::DEFAULT_FULL_SCALE_SWINGS,
+            full_scale.unused_bits()
+        );
+    }
+}
+
+/// The full scale as `--json` gives it.
+pub(super) fn full_scale_json(full_scale: &FullScale) -> serde_json::Value {
+    json!({
+        "value": full_scale.value,
+        "stated": full_scale.stated,
+        "tests_peak": full_scale.tests_peak,
+        "unused_bits": full_scale.unused_bits(),
+    })
 }
 
 /// Tells each fixed-point plan that could not be made: the f32 compensator does not depend on
@@ -277,8 +373,8 @@ pub(super) fn print_inverse(d: &inverse::Design, fs: f64) {
         let forms: Vec<&str> = p.sections.iter().map(|s| s.form.as_str()).collect();
         crate::outln!(
             "  fixed point: inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {:.3}; headroom {:.2} bits by the L1 bound (no overflow possible); sections {}",
-            p.full_scale,
-            p.full_scale,
+            number(p.full_scale),
+            number(p.full_scale),
             p.output_exponent,
             p.l1_gain,
             p.headroom_bits,
@@ -288,8 +384,8 @@ pub(super) fn print_inverse(d: &inverse::Design, fs: f64) {
     if let Some(p) = &d.fixed_direct {
         crate::outln!(
             "  fixed point (direct form with error feedback): inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {:.3}; headroom {:.2} bits by the L1 bound (no overflow possible); {} sections",
-            p.full_scale,
-            p.full_scale,
+            number(p.full_scale),
+            number(p.full_scale),
             p.output_exponent,
             p.l1_gain,
             p.headroom_bits,
@@ -396,7 +492,8 @@ pub fn run_invert(args: &InvertArgs) -> Result<()> {
     }
     let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
     let tests = as_tests(&traces, &names)?;
-    let spec = args.inverse.spec(&args.columns, file.model.fs)?;
+    let board = args.inverse.board(file.board);
+    let spec = args.inverse.spec(&args.columns, file.model.fs, &board)?;
     let compensator = pipeline::design_compensator(&CompensatorRequest {
         model: &file.model,
         effects: &file.effects,
@@ -410,18 +507,22 @@ pub fn run_invert(args: &InvertArgs) -> Result<()> {
     warn_unplanned(&compensator.unplanned);
     let out = ModelFile {
         inverse: Some(design),
+        board,
         ..file
     };
     out.save(&args.output)?;
     if args.json {
         let mut v = serde_json::to_value(&out.inverse).map_err(json_err)?;
         v["output"] = json!(name(&args.output));
+        v["board"] = json!(out.board.arithmetic.as_str());
+        v["full_scale"] = full_scale_json(&compensator.full_scale);
         crate::outln!("{v}");
         return Ok(());
     }
     if let Some(d) = &out.inverse {
         print_inverse(d, out.model.fs);
     }
+    print_board(&out.board, &compensator.full_scale);
     crate::outln!("wrote {}", args.output.display());
     Ok(())
 }

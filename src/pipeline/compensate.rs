@@ -5,6 +5,7 @@
 use std::path::Path;
 
 use crate::design::inverse::{self, Design};
+use crate::design::quantise::{DirectPlan, FixedPlan};
 use crate::error::{Advice, Error, Result};
 use crate::file::ModelFile;
 use crate::fit;
@@ -26,8 +27,13 @@ pub enum Arithmetic {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Compensation {
     /// The model file's compensator as the board runs it (the paper's direct inverse when the
-    /// file has none).
+    /// file has none), whatever the run: what a board given the file computes.
     Designed(Arithmetic),
+    /// The model file's compensator, unless the run's own probe spectrum predicts it not to
+    /// beat the raw probe and another design (the delay alone, the probe passed through, the
+    /// optimum under a quieter prior) to do better: then that one, in f64 on the host only. A
+    /// board given the file computes the stored one.
+    AdaptedToRun,
     /// The paper's direct inverse (eq. 7), even when the model file has a compensator.
     Direct(Arithmetic),
     /// The non-causal optimum on the whole record (no latency, the least error a linear
@@ -116,6 +122,9 @@ pub struct Compensated {
     /// The model file's design (at the request's temperature) was asked for and its stored
     /// check found no design better than the raw probe on the fit's tests: its method.
     pub stored_not_better: Option<inverse::DesignMethod>,
+    /// `u_hat` is not what a board given the model file computes: the offline optimum, or a
+    /// compensator chosen for the run ([`Compensation::AdaptedToRun`]).
+    pub host_only: bool,
 }
 
 /// Compensates the recording: the model's offset and drift removed from the probe signal
@@ -151,9 +160,11 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
     let y_probe = additive.removed_from(probe, m.fs);
     let (design, arithmetic, offline) = match compensation {
         Compensation::Designed(a) => (file.inverse.as_ref(), a, false),
+        Compensation::AdaptedToRun => (file.inverse.as_ref(), Arithmetic::F64, false),
         Compensation::Direct(a) => (None, a, false),
         Compensation::Offline => (file.inverse.as_ref(), Arithmetic::F64, true),
     };
+    let adapt = compensation == Compensation::AdaptedToRun;
     // Quadratic losses: the board adds gain * lowpass(|dy| dy) to the linear inverse.
     let nonlinear = effects::nonlinear_gain(&file.effects);
     if offline && design.is_none() {
@@ -166,15 +177,15 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
         }
         .advised(Advice::DesignCompensator));
     }
-    // The guarantee on a run that has no reference to judge on: a stored design that the run's
-    // own probe spectrum predicts not to beat the raw probe gives way to the one of least
-    // predicted error (host only; fixed point keeps to the delay alone or the raw probe).
+    // The stored design judged on the run's own probe spectrum (said when it is predicted not
+    // to beat the raw probe); only when asked, the one of least predicted error runs instead,
+    // on the host.
     let judgement = design.filter(|_| !offline).and_then(|d| {
-        let candidates = match arithmetic {
-            // The board adds the correction to the stored design's output.
-            _ if nonlinear != 0.0 => inverse::check::RunCandidates::JudgeOnly,
-            Arithmetic::Fixed => inverse::check::RunCandidates::Calibration,
-            _ => inverse::check::RunCandidates::Redesigns,
+        let candidates = if adapt && nonlinear == 0.0 {
+            inverse::check::RunCandidates::Redesigns
+        } else {
+            // The board adds a nonlinear correction to the stored design's output.
+            inverse::check::RunCandidates::JudgeOnly
         };
         inverse::check::on_run(d, m, &y_probe, candidates)
     });
@@ -185,10 +196,6 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
         .filter(|(_, c)| c.verdict == inverse::check::Verdict::NotBetter)
         .map(|(d, _)| d.method.clone());
     let design = fall_back.as_ref().map(|f| &f.design).or(design);
-    let arithmetic = match arithmetic {
-        Arithmetic::Fixed if fall_back.is_some() => Arithmetic::F64,
-        a => a,
-    };
     let mut fixed = None;
     let (mut u_hat, latency, compensator) = match design {
         Some(d) if offline => {
@@ -220,7 +227,8 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
                     .advised(Advice::UseF32))
                 }
                 Arithmetic::Fixed => {
-                    let (u_hat, summary) = run_fixed(d, model_path, &y_probe)?;
+                    let (u_hat, summary) =
+                        run_fixed(d, file.board.full_scale, model_path, &y_probe)?;
                     fixed = Some(summary);
                     u_hat
                 }
@@ -237,7 +245,7 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
                 }
             }
             let what = if fall_back.is_some() {
-                "a compensator chosen for this run (host only)"
+                "a compensator chosen for this run (host only: a board runs the model file's)"
             } else {
                 "the model file's compensator"
             };
@@ -304,6 +312,7 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
         ReferenceError { u_hat: e, raw, lag }
     });
     Ok(Compensated {
+        host_only: offline || fall_back.is_some(),
         predicted,
         fall_back: fall_back.clone(),
         stored_not_better,
@@ -318,10 +327,20 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
 }
 
 /// The fixed-point compensator (the direct form's plan if the design has one, else the normal
-/// form's) on the probe signal `y`.
-fn run_fixed(d: &Design, model: &Path, y: &[f64]) -> Result<(Vec<f64>, FixedRunSummary)> {
+/// form's) on the probe signal `y`; planned anew for the board's `stated` full scale when the
+/// stored plan was made for another (a `[board]` range written by hand).
+fn run_fixed(
+    d: &Design,
+    stated: Option<f64>,
+    model: &Path,
+    y: &[f64],
+) -> Result<(Vec<f64>, FixedRunSummary)> {
+    let other = |planned: f64| stated.filter(|&s| s != planned);
     let (run, full_scale) = if let Some(plan) = &d.fixed_direct {
-        (plan.run(y)?, plan.full_scale)
+        match other(plan.full_scale) {
+            Some(fs) => (DirectPlan::new(d, fs)?.run(y)?, fs),
+            None => (plan.run(y)?, plan.full_scale),
+        }
     } else {
         let plan = d.fixed.as_ref().ok_or_else(|| {
             Error::InvalidParameter {
@@ -332,7 +351,10 @@ fn run_fixed(d: &Design, model: &Path, y: &[f64]) -> Result<(Vec<f64>, FixedRunS
                 model: model.to_path_buf(),
             })
         })?;
-        (plan.run(y)?, plan.full_scale)
+        match other(plan.full_scale) {
+            Some(fs) => (FixedPlan::new(d, fs)?.run(y)?, fs),
+            None => (plan.run(y)?, plan.full_scale),
+        }
     };
     let summary = FixedRunSummary {
         clamped_inputs: run.clipped_inputs,
@@ -346,7 +368,6 @@ fn run_fixed(d: &Design, model: &Path, y: &[f64]) -> Result<(Vec<f64>, FixedRunS
 mod tests {
     use super::super::testing::{probe, step_test};
     use super::*;
-    use crate::design::quantise::FixedPlan;
     use crate::file::FORMAT_VERSION;
     use crate::modelling::effects::Effect;
     use crate::trace::{Columns, Trace};
@@ -386,6 +407,7 @@ mod tests {
             effects: Vec::new(),
             history: Vec::new(),
             probe: None,
+            board: Default::default(),
         }
     }
 
@@ -524,8 +546,14 @@ mod tests {
         let (stored_error, _) = inverse::aligned_error(&slow, &stored, latency - 2..=latency + 2);
         let (raw_error, _) = inverse::aligned_error(&slow, &y_slow, 0..=60);
         assert!(stored_error > raw_error, "{stored_error} {raw_error}");
-        // compensate sees it from the probe signal alone, and runs one that is not.
-        let c = run(&f, &t, Compensation::Designed(Arithmetic::F64)).unwrap();
+        // compensate sees it from the probe signal alone, and runs the board's all the same.
+        let board = run(&f, &t, Compensation::Designed(Arithmetic::F64)).unwrap();
+        assert!(board.fall_back.is_none() && !board.host_only);
+        assert!(board.predicted.unwrap().ratio() >= inverse::check::RUN_MARGIN);
+        assert!(board.error.unwrap().worse(), "{:?}", board.error);
+        // Asked to, it runs one that is not worse, on the host only.
+        let c = run(&f, &t, Compensation::AdaptedToRun).unwrap();
+        assert!(c.host_only);
         let fell = c.fall_back.as_ref().expect("a fall-back");
         assert!(
             c.predicted.unwrap().ratio() >= inverse::check::RUN_MARGIN,
@@ -537,17 +565,16 @@ mod tests {
         assert!(e.u_hat < e.raw, "{e:?}");
         assert_eq!(
             c.compensator,
-            "a compensator chosen for this run (host only)"
+            "a compensator chosen for this run (host only: a board runs the model file's)"
         );
-        // On a step like its own the stored design stays.
+        // On a step like its own the stored design stays, asked to adapt or not.
         let again = noisy(&step, 23);
-        let kept = run(
-            &f,
-            &trace(&step, &again),
-            Compensation::Designed(Arithmetic::F64),
-        )
-        .unwrap();
-        assert!(kept.fall_back.is_none(), "{:?}", kept.fall_back);
+        let kept = run(&f, &trace(&step, &again), Compensation::AdaptedToRun).unwrap();
+        assert!(
+            kept.fall_back.is_none() && !kept.host_only,
+            "{:?}",
+            kept.fall_back
+        );
         assert!(kept.predicted.unwrap().ratio() < inverse::check::RUN_MARGIN);
         assert!(!kept.error.unwrap().worse());
     }

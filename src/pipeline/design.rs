@@ -50,8 +50,8 @@ pub struct CompensatorSpec {
     pub signal: Vec<Trace>,
     /// The fixed-point form to plan.
     pub fixed_form: FixedForm,
-    /// The ADC's full scale in the probe's units; `None` takes the largest `|y|` of the tests
-    /// the design is judged on, plus 25 %.
+    /// The ADC's full scale in the probe's units; `None` takes [`default_full_scale`] of the
+    /// tests the design is judged on.
     pub full_scale: Option<f64>,
 }
 
@@ -104,6 +104,76 @@ pub struct Compensator {
     /// The fixed-point plans that could not be made, and why: the f32 compensator does not
     /// depend on them.
     pub unplanned: Vec<Error>,
+    /// The full scale the fixed-point plan was made for, and where it came from.
+    pub full_scale: FullScale,
+}
+
+/// Swings of the tests' probe signal, beyond their largest `|y|`, that the default full scale
+/// leaves room for ([`default_full_scale`]).
+pub const DEFAULT_FULL_SCALE_SWINGS: f64 = 3.0;
+
+/// The full scale a fixed-point plan was made for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FullScale {
+    /// In the probe's units: readings within `+-value` are never clamped.
+    pub value: f64,
+    /// Stated by the user (the ADC's range), rather than [`default_full_scale`].
+    pub stated: bool,
+    /// The largest `|y|` of the tests it was chosen on (0 without tests).
+    pub tests_peak: f64,
+}
+
+impl FullScale {
+    /// The bits of the fixed-point input range the tests leave unused: `log2(value /
+    /// tests_peak)`, the resolution the room above them costs (0 when no test moved).
+    #[must_use]
+    pub fn unused_bits(&self) -> f64 {
+        if self.tests_peak > 0.0 {
+            (self.value / self.tests_peak).log2().max(0.0)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The full scale a design takes when the ADC's range is not stated: the tests' largest `|y|`
+/// plus [`DEFAULT_FULL_SCALE_SWINGS`] times their swing (largest minus smallest `y`), rounded
+/// up to 1, 2 or 5 times a power of ten; 1 when the tests do not move.
+///
+/// The room is for the runs made after a step-test calibration, which a step test does not
+/// show: a shock tube's reflected shock brings the pressure to 2 to 2.6 times the incident
+/// step, a burst balloon overshoots, a turbulent run wanders above its mean, and a ringing
+/// probe overshoots each of them by as much as it overshot the step. Three swings above the
+/// tests' peak hold a reflected shock of 2.6 times the step with 15 % more overshoot than the
+/// step showed, and a step of twice the size and the opposite sign. What it costs is
+/// resolution, [`FullScale::unused_bits`] of the 31 (2 to 3 bits for a step from zero): the
+/// fixed-point compensator's rounding is a fixed fraction of the full scale.
+#[must_use]
+pub fn default_full_scale<'a>(tests_y: impl IntoIterator<Item = &'a [f64]>) -> f64 {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in tests_y.into_iter().flatten().filter(|v| v.is_finite()) {
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+    }
+    if lo > hi {
+        return 1.0;
+    }
+    let peak = lo.abs().max(hi.abs());
+    let wanted = peak + DEFAULT_FULL_SCALE_SWINGS * (hi - lo);
+    if !(wanted > 0.0 && wanted.is_finite()) {
+        return 1.0;
+    }
+    round_up_125(wanted)
+}
+
+/// The smallest of 1, 2, 5 times a power of ten at or above `v > 0`.
+fn round_up_125(v: f64) -> f64 {
+    let decade = 10f64.powf(v.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * decade)
+        .find(|&c| c >= v * (1.0 - 1e-12))
+        .unwrap_or(10.0 * decade)
 }
 
 /// Designs the compensator asked for on the tests and checks it against the raw probe
@@ -165,18 +235,19 @@ pub fn design_compensator(request: &CompensatorRequest<'_>) -> Result<Compensato
         Roles::Alike => (filtered.as_slice(), tests.to_vec(), filtered.clone()),
     };
     let asked = asked_request(model, effects, spec, &raw, &learnt, stored)?;
-    let full_scale = spec.full_scale.unwrap_or_else(|| {
-        let peak = judge
-            .iter()
-            .flat_map(|t| t.y.iter())
-            .fold(0.0f64, |m, v| m.max(v.abs()));
-        if peak > 0.0 {
-            1.25 * peak
-        } else {
-            1.0
-        }
-    });
-    compensator(
+    let tests_peak = judge
+        .iter()
+        .flat_map(|t| t.y.iter())
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    let full_scale = FullScale {
+        value: spec
+            .full_scale
+            .unwrap_or_else(|| default_full_scale(judge.iter().map(|t| t.y))),
+        stated: spec.full_scale.is_some(),
+        tests_peak,
+    };
+    let mut made = compensator(
         model,
         effects,
         Step::Checked {
@@ -185,9 +256,11 @@ pub fn design_compensator(request: &CompensatorRequest<'_>) -> Result<Compensato
             nonlinear_gain: effects::nonlinear_gain(effects),
         },
         exportable,
-        &[(spec.fixed_form, full_scale)],
+        &[(spec.fixed_form, full_scale.value)],
         false,
-    )
+    )?;
+    made.full_scale = full_scale;
+    Ok(made)
 }
 
 /// The tests whose `keep` flag is set.
@@ -398,12 +471,19 @@ fn compensator(
         }
         Ok(d)
     });
+    // The plans' full scale as given (the callers that choose it say where it came from).
+    let full_scale = FullScale {
+        value: plans.first().map_or(1.0, |p| p.1),
+        stated: true,
+        tests_peak: 0.0,
+    };
     let mut design = match designed {
         Ok(d) => d,
         Err(e) => {
             return Ok(Compensator {
                 design: Err(e),
                 unplanned: Vec::new(),
+                full_scale,
             })
         }
     };
@@ -428,6 +508,7 @@ fn compensator(
     Ok(Compensator {
         design: Ok(design),
         unplanned,
+        full_scale,
     })
 }
 
@@ -488,6 +569,48 @@ mod tests {
     use crate::testing::second_order;
 
     #[test]
+    fn the_default_full_scale_holds_a_reflected_shock_and_a_reversed_step() {
+        // A step from 0 to 1000 Pa, read by a probe that overshoots by 30 %.
+        let step: Vec<f64> = (0..400)
+            .map(|k| match k {
+                0..=99 => 0.0,
+                100..=119 => 1300.0,
+                _ => 1000.0,
+            })
+            .collect();
+        let fs = default_full_scale([step.as_slice()]);
+        // 1300 + 3 * 1300 = 5200, rounded up on the 1-2-5 series.
+        assert_eq!(fs, 10_000.0);
+        // A reflected shock of 2.6 times the step with the same overshoot, and a step of twice
+        // the size and the other sign, stay inside.
+        assert!(2.6 * 1300.0 < fs);
+        // Above a baseline (absolute pressure), the room is for the swing, not the baseline.
+        let absolute: Vec<f64> = step.iter().map(|v| 100_000.0 + v).collect();
+        assert_eq!(default_full_scale([absolute.as_slice()]), 200_000.0);
+        // Nothing moves, or nothing finite: 1.
+        assert_eq!(default_full_scale([[0.0; 8].as_slice()]), 1.0);
+        assert_eq!(default_full_scale([[f64::NAN; 3].as_slice()]), 1.0);
+        assert_eq!(default_full_scale(std::iter::empty::<&[f64]>()), 1.0);
+        // The rounding: the smallest 1, 2 or 5 times a power of ten at or above.
+        for (v, up) in [
+            (1.0, 1.0),
+            (1.01, 2.0),
+            (2.0, 2.0),
+            (4.9, 5.0),
+            (5.2, 10.0),
+            (0.03, 0.05),
+        ] {
+            assert_eq!(round_up_125(v), up, "{v}");
+        }
+        let chosen = FullScale {
+            value: 4000.0,
+            stated: false,
+            tests_peak: 1000.0,
+        };
+        assert!((chosen.unused_bits() - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
     fn a_coefficient_set_for_a_temperature_follows_the_damping_law() {
         let fs = 10_000.0;
         let (m, s) = second_order(95.0, 0.3, fs, 17);
@@ -503,6 +626,7 @@ mod tests {
             effects: vec![Effect::parse(spelling).unwrap()],
             history: Vec::new(),
             probe: None,
+            board: Default::default(),
         };
         let (k, f) = (
             (343.15f64 / 293.15).sqrt(),
@@ -615,7 +739,15 @@ mod tests {
         assert_eq!(d.lowpass_hz, 200.0);
         let judged: Vec<&str> = d.reconstruction.iter().map(|r| r.file.as_str()).collect();
         assert_eq!(judged, ["val"]);
-        assert_eq!(d.fixed.unwrap().full_scale, 1.25 * peak(&yv));
+        // Unstated, the full scale leaves room above the judged test for the runs after it.
+        let full_scale = d.fixed.unwrap().full_scale;
+        let swing = yv.iter().fold(f64::NEG_INFINITY, |m, v| m.max(*v))
+            - yv.iter().fold(f64::INFINITY, |m, v| m.min(*v));
+        assert!(full_scale >= peak(&yv) + 3.0 * swing, "{full_scale}");
+        assert!(
+            full_scale <= 2.5 * (peak(&yv) + 3.0 * swing),
+            "{full_scale}"
+        );
         assert!(d.fixed_direct.is_none());
 
         // `invert`: every test judged on; the direct form planned for the full scale given.

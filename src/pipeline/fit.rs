@@ -153,6 +153,7 @@ pub fn fit_probe(request: &FitRequest<'_>) -> Result<ModelFile> {
         effects,
         history,
         probe: request.probe.clone(),
+        board: Default::default(),
     })
 }
 

@@ -92,6 +92,8 @@ pub struct FitDesigned {
     /// The fixed-point plans that could not be made, and why: the f32 compensator does not
     /// depend on them.
     pub unplanned: Vec<Error>,
+    /// The full scale the fixed-point plan was made for, and where it came from.
+    pub full_scale: super::FullScale,
 }
 
 /// Carries the effects of the model file the fit continues and adds those asked for, fits the
@@ -166,6 +168,7 @@ pub fn fit_and_design(request: &FitDesignRequest<'_>) -> Result<FitDesigned> {
         file,
         no_compensator,
         unplanned: compensator.unplanned,
+        full_scale: compensator.full_scale,
     })
 }
 

@@ -26,8 +26,8 @@ pub use compensate::{
     ReferenceError,
 };
 pub use design::{
-    at_temperature, design_compensator, retarget, Compensator, CompensatorRequest, CompensatorSpec,
-    Roles, Shape,
+    at_temperature, default_full_scale, design_compensator, retarget, Compensator,
+    CompensatorRequest, CompensatorSpec, FullScale, Roles, Shape, DEFAULT_FULL_SCALE_SWINGS,
 };
 pub use diagnose::{diagnose, DiagnoseRequest, DiagnoseStage, Diagnosis};
 pub use fit::{

@@ -18,9 +18,9 @@ use crate::pipeline::{
 /// The test compensated as `unlag compensate MODEL TEST -o ...` compensates it: the model
 /// file's offset and drift removed from the probe signal, the model file's compensator (the
 /// paper's direct inverse when it has none) run in f32 with the nonlinear damping's
-/// correction, after the run check on the test's own probe spectrum, which may choose another
-/// compensator for it ([`Compensated::fall_back`]); its error against the reference at the
-/// best alignment beside the raw probe's ([`Compensated::error`]).
+/// correction, as a board given the file computes it, judged beforehand on the test's own
+/// probe spectrum ([`Compensated::predicted`]); its error against the reference at the best
+/// alignment beside the raw probe's ([`Compensated::error`]).
 ///
 /// # Errors
 /// What [`pipeline::compensate`] refuses: a model without a stable inverse and a file without
@@ -58,14 +58,16 @@ fn how(inputs: &Inputs<'_>, c: &Compensated) -> String {
     } else if file.inverse.is_none() {
         how.push_str(" (the model file has no designed compensator)");
     }
-    if let (Some(f), Some(stored)) = (&c.fall_back, &c.predicted) {
+    if let Some(stored) = c
+        .predicted
+        .filter(|p| p.ratio() >= crate::design::inverse::check::RUN_MARGIN)
+    {
         let _ = write!(
             how,
-            ", {}: the run check predicts the model file's compensator to leave {:.2}x the raw \
-             probe's error on this test (from its own probe spectrum), this one {:.2}x",
-            f.what,
-            stored.ratio(),
-            f.chosen.ratio()
+            "; the run check predicts it to leave {:.2}x the raw probe's error on this test \
+             (from its own probe spectrum): for runs like this one, design with them \
+             (`unlag invert MODEL TEST.csv --signal RUN.csv`)",
+            stored.ratio()
         );
     }
     if effects::Additive::of(&file.effects) != effects::Additive::default() {
@@ -225,6 +227,7 @@ mod tests {
             effects,
             history: Vec::new(),
             probe: None,
+            board: Default::default(),
         }
     }
 
@@ -296,10 +299,10 @@ mod tests {
         assert!(h.contains("less the model's offset and drift"));
     }
 
-    /// A run the model file's compensator is predicted to make worse gets the compensator
-    /// `unlag compensate` chooses for it, and the caption says which.
+    /// A run the model file's compensator is predicted to make worse still shows what the
+    /// board computes, and the caption says what the run check predicts and the remedy.
     #[test]
-    fn the_caption_names_the_compensator_chosen_for_the_run() {
+    fn the_caption_says_when_the_board_compensator_is_predicted_worse() {
         let (m, _) = crate::testing::second_order(1500.0, 0.3, 10_000.0, 1);
         let f = file(&m, Vec::new());
         // A slow run (a 3 Hz swing), where the step design's boost above 1.5 kHz only adds
@@ -315,17 +318,21 @@ mod tests {
         }];
         let inputs = inputs(&f, &tests);
         let expected = as_the_command_line(&f, &u, &y);
-        let fell = expected.fall_back.as_ref().expect("a fall-back");
+        assert!(expected.fall_back.is_none(), "{:?}", expected.fall_back);
         let mut h = String::new();
         let shown = compensated(&mut h, &inputs, 1, &tests[0], 0..4000).unwrap();
         assert_eq!(shown, expected.error);
         let caption = &h[h.find("<figcaption>").unwrap()..];
         assert!(
-            caption.contains("a compensator chosen for this run (host only) in f32")
-                && caption.contains(&escape(&fell.what)),
+            caption.contains("the model file's compensator in f32")
+                && caption.contains("--signal RUN.csv"),
             "{caption}"
         );
         let ratio = expected.predicted.unwrap().ratio();
+        assert!(
+            ratio >= crate::design::inverse::check::RUN_MARGIN,
+            "{ratio}"
+        );
         assert!(
             caption.contains(&format!("{ratio:.2}x the raw probe")),
             "{caption}"

@@ -1,6 +1,14 @@
 //! The C writer of a [`BoardImage`]: a header for C firmware, the same frame for every kind
 //! (the generated-by comment, the include guard, the `#define`s of the set, the arrays) and the
 //! kind's own declarations between.
+//!
+//! A single set's header ends with a reference implementation of the board's kernel for its
+//! number format, in C99 with `stdint.h` only: a state struct `unlag_state`, `unlag_reset()`,
+//! `unlag_init()` (the equilibrium start) and the per-sample `unlag_process()`, bit for bit
+//! what [`crate::compensator::CascadeCoefficients::process`],
+//! [`crate::fixed::FixedCascade::process`] or [`crate::fixed::direct::DirectCascade::process`]
+//! computes (`host-tests/c_reference.rs` compiles it and checks). The C is kept as C, in
+//! `src/export/c/*.h`, and pasted in after the tables it reads.
 
 use std::fmt::Write as _;
 
@@ -12,14 +20,18 @@ const F32_INTRO: &[&str] = &[
     " * {b0, b1, b2, a1, a2} with y = b0 x + b1 x[k-1] + b2 x[k-2] - a1 y[k-1] - a2 y[k-2].",
     " * CMSIS-DSP's arm_biquad_cascade_df1_f32 / _df2T_f32 take {b0, b1, b2, -a1, -a2}",
     " * (the opposite sign of a1, a2) and apply no input gain: scale the input, or b of",
-    " * the first section, by unlag_gain. */",
+    " * the first section, by unlag_gain. Or run the reference implementation at the end of",
+    " * this header, the board's arithmetic bit for bit: unlag_state, unlag_init() (start in",
+    " * equilibrium) or unlag_reset(), then unlag_process() per sample. */",
 ];
 const FIXED_INTRO: &[&str] = &[
     " * Normal-form sections, per sample and section (u the section input, x its states):",
     " *   x1' = trunc((a11 x1 + a12 x2 + b1 u) >> 30)   x2' = trunc((a21 x1 + a22 x2 + b2 u) >> 30)",
     " *   y   = round((c1 x1 + c2 x2 + d u) >> shift)   in 64-bit accumulators, saturated to int32;",
     " * see unlag::fixed for the exact arithmetic. Input: Q1.31 of UNLAG_FULL_SCALE; output:",
-    " * Q1.31 of UNLAG_FULL_SCALE * 2^UNLAG_OUTPUT_EXPONENT. */",
+    " * Q1.31 of UNLAG_FULL_SCALE * 2^UNLAG_OUTPUT_EXPONENT. The reference implementation at the",
+    " * end of this header is that arithmetic bit for bit: unlag_state, unlag_init() (start in",
+    " * equilibrium) or unlag_reset(), unlag_process() per sample, unlag_take_overflow(). */",
 ];
 const DIRECT_INTRO: &[&str] = &[
     " * Direct-form-I sections with first-order error feedback, per sample and section (x the",
@@ -27,7 +39,9 @@ const DIRECT_INTRO: &[&str] = &[
     " *   acc = e + b0 x0 + b1 x1 + b2 x2 + na1 y1 + na2 y2      (na = -a: the NEGATED denominator)",
     " *   y = acc >> 30 (floor; high word saturated to 30 bits), e = acc & (2^30 - 1);",
     " * see unlag::fixed::direct for the exact arithmetic. Input: Q1.31 of UNLAG_FULL_SCALE;",
-    " * output: Q1.31 of UNLAG_FULL_SCALE * 2^UNLAG_OUTPUT_EXPONENT. */",
+    " * output: Q1.31 of UNLAG_FULL_SCALE * 2^UNLAG_OUTPUT_EXPONENT. The reference implementation",
+    " * at the end of this header is that arithmetic bit for bit: unlag_state, unlag_init() (start",
+    " * in equilibrium) or unlag_reset(), unlag_process() per sample, unlag_take_overflow(). */",
 ];
 const BANK_INTRO: &[&str] = &[
     " * One compensator per gas temperature: u_hat = cascade(unlag_bank_gains[i] * y), each section",
@@ -43,8 +57,18 @@ const BANK_INTRO: &[&str] = &[
 const NONLINEAR_INTRO: &str = "
 /* Nonlinear damping: with d = y[k] - y[k-1], add
 * cascade(unlag_nonlinear_gain * unlag_nonlinear_lowpass_gain * |d| d) through the
-* sections below to the compensator's output for the same sample. */
+* sections below to the compensator's output for the same sample
+* (unlag_nonlinear_process() at the end of this header). */
 ";
+
+/// The reference implementations pasted after the tables (C99, `stdint.h` only), kept as C
+/// files: the `f32` cascade, its nonlinear-damping correction, the integer helpers of both
+/// fixed-point forms, the normal form and the direct form.
+const F32_KERNEL: &str = include_str!("c/f32.h");
+const NONLINEAR_KERNEL: &str = include_str!("c/nonlinear.h");
+const INT_HELPERS: &str = include_str!("c/int.h");
+const FIXED_KERNEL: &str = include_str!("c/fixed.h");
+const DIRECT_KERNEL: &str = include_str!("c/direct.h");
 
 /// The bank's selection function, the board's rule in C.
 const BANK_SELECT: &str = "\
@@ -131,8 +155,10 @@ fn fixed(
 
 impl BoardImage {
     /// A C header: `#define`s and `static const` arrays (`float` for `f32`, `int32_t` for
-    /// fixed point), and for a bank the selection function `unlag_bank_select()` with the
-    /// board's rule. `source` names the model file.
+    /// fixed point), then for one set the reference implementation of the board's kernel
+    /// (`unlag_state`, `unlag_reset()`, `unlag_init()`, `unlag_process()`; see the module
+    /// docs), and for a bank the selection function `unlag_bank_select()` with the board's
+    /// rule. `source` names the model file.
     #[must_use]
     pub fn to_c(&self, source: &str) -> String {
         let (flags, intro, guard) = match self {
@@ -158,9 +184,7 @@ impl BoardImage {
             env!("CARGO_PKG_VERSION"),
             intro.join("\n")
         );
-        if !matches!(self, Self::F32(_)) {
-            s.push_str("#include <stdint.h>\n\n");
-        }
+        s.push_str("#include <stdint.h>\n\n");
         let t = self.timing();
         match self {
             Self::F32(c) => {
@@ -195,6 +219,11 @@ impl BoardImage {
                         n.lowpass.iter().map(|sec| floats(*sec)),
                     );
                 }
+                let _ = write!(s, "\n{F32_KERNEL}");
+                // A design's low-pass has at least one section (C has no empty array).
+                if c.nonlinear.as_ref().is_some_and(|n| !n.lowpass.is_empty()) {
+                    let _ = write!(s, "\n{NONLINEAR_KERNEL}");
+                }
             }
             Self::Fixed(c) => {
                 let rows = c.sections.iter().map(|f| {
@@ -207,6 +236,7 @@ impl BoardImage {
                 let layout = "{a11, a12, a21, a22, b1, b2, c1, c2, d, shift} per section";
                 let scale = (c.full_scale, c.output_exponent);
                 fixed(&mut s, &t, scale, ("fixed", 10, layout), rows.collect());
+                let _ = write!(s, "\n{INT_HELPERS}\n{FIXED_KERNEL}");
             }
             Self::Direct(c) => {
                 let rows = c
@@ -216,6 +246,7 @@ impl BoardImage {
                 let layout = "{b0, b1, b2, -a1, -a2} per section, Q2.30";
                 let scale = (c.full_scale, c.output_exponent);
                 fixed(&mut s, &t, scale, ("direct", 5, layout), rows.collect());
+                let _ = write!(s, "\n{INT_HELPERS}\n{DIRECT_KERNEL}");
             }
             Self::Bank(b) => {
                 let _ = writeln!(

@@ -658,6 +658,49 @@ mod tests {
     }
 
     #[test]
+    fn every_single_set_header_ends_with_its_reference_kernel() {
+        for (image, _, _) in kinds() {
+            let c = image.to_c("m.toml");
+            let (tables, kernel) = c
+                .split_once("/* ---- Reference implementation")
+                .unwrap_or((&c, ""));
+            let has = |what: &str| kernel.contains(what);
+            match &image {
+                BoardImage::F32(f) => {
+                    assert!(has(
+                        "static inline float unlag_process(unlag_state *state, float x)"
+                    ));
+                    assert!(has(
+                        "static inline void unlag_init(unlag_state *state, float x0)"
+                    ));
+                    assert_eq!(has("unlag_nonlinear_process"), f.nonlinear.is_some());
+                }
+                BoardImage::Fixed(_) | BoardImage::Direct(_) => {
+                    assert!(has(
+                        "static inline int32_t unlag_process(unlag_state *state, int32_t input)"
+                    ));
+                    assert!(has(
+                        "static inline int unlag_take_overflow(unlag_state *state)"
+                    ));
+                    let table = if matches!(image, BoardImage::Fixed(_)) {
+                        "unlag_fixed_sections[i]"
+                    } else {
+                        "unlag_direct_sections[i]"
+                    };
+                    assert!(has(table), "{c}");
+                }
+                BoardImage::Bank(_) => assert!(kernel.is_empty(), "{c}"),
+            }
+            // The functions come after every table they read, and declare none of their own.
+            assert!(
+                !tables.contains("static inline") || kernel.is_empty(),
+                "{c}"
+            );
+            assert!(!kernel.contains("static const"), "{c}");
+        }
+    }
+
+    #[test]
     fn the_kinds_shorthands_are_the_images_writers() {
         let c = f32_set(true);
         let image = BoardImage::from(c.clone());

@@ -98,7 +98,7 @@ impl Compensation {
     /// no start-up transient.
     ///
     /// # Errors
-    /// [`InverseError`] when the coefficients are refused (not with exported ones).
+    /// [`InverseError`] when the coefficients are refused (exported ones never are).
     pub fn new(first_pa: [f32; CHANNELS]) -> Result<Self, InverseError> {
         let coefficients = CascadeCoefficients::new(coefficients::GAIN, &coefficients::SECTIONS)?;
         Ok(Self {

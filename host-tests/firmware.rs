@@ -328,6 +328,51 @@ fn board_replay_on_a_soft_float_cortex_m4_is_bit_identical_to_the_host() {
     });
 }
 
+/// `u_hat` of `unlag compensate` with its defaults on the replayed trace (the f32 samples
+/// widened exactly), with the shipped model file as it is (`None`: an f32 board), or with a
+/// `[board]` section for a fixed-point board whose ADC reads +-`full_scale`.
+fn cli_u_hat(full_scale: Option<f64>) -> Vec<f64> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!(
+        "cli-as-board-{}",
+        full_scale.map_or("f32".to_string(), |f| f.to_string())
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut model = std::fs::read_to_string(root.join("examples/data/board_model.toml")).unwrap();
+    if let Some(fs) = full_scale {
+        model.push_str(&format!(
+            "\n[board]\narithmetic = \"fixed\"\nfull_scale = {fs:?}\n"
+        ));
+    }
+    let model_path = dir.join("model.toml");
+    std::fs::write(&model_path, model).unwrap();
+    let mut csv = String::from("t,y\n");
+    for (k, y) in trace::TRACE.iter().enumerate() {
+        csv.push_str(&format!("{},{}\n", k as f64 / 10_000.0, f64::from(*y)));
+    }
+    let (input, output) = (dir.join("trace.csv"), dir.join("out.csv"));
+    std::fs::write(&input, csv).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_unlag"))
+        .arg("compensate")
+        .args([&model_path, &input])
+        .arg("-o")
+        .arg(&output)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&output).unwrap();
+    let mut lines = text.lines();
+    let column = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .position(|h| h == "u_hat")
+        .unwrap();
+    lines
+        .map(|l| l.split(',').nth(column).unwrap().parse().unwrap())
+        .collect()
+}
+
 /// Builds and boots `examples/board_replay.rs` for `board` and checks all it reports against
 /// the host; every Cortex-M target runs the fixed-point kernels.
 fn check_board_replay(board: &Board) {
@@ -392,6 +437,27 @@ fn check_board_replay(board: &Board) {
         );
     }
     assert!(stdout.contains("FIXED overflow=false"), "{stdout}");
+    // `unlag compensate` with its defaults computes what the board computed, in the board's
+    // arithmetic: f32 for the shipped model, fixed point for the same model given a
+    // fixed-point board and the ADC's range.
+    let cli_f32: Vec<u32> = cli_u_hat(None)
+        .into_iter()
+        .map(|v| (v as f32).to_bits())
+        .collect();
+    let board_f32: Vec<u32> = board_y.iter().map(|&(_, b)| b).collect();
+    assert_eq!(
+        cli_f32, board_f32,
+        "{test}: unlag compensate (f32) != the board"
+    );
+    let lsb = fixed::FULL_SCALE * f64::from(fixed::OUTPUT_EXPONENT_M8 - 31).exp2();
+    let cli_fixed: Vec<u32> = cli_u_hat(Some(fixed::FULL_SCALE))
+        .into_iter()
+        .map(|v| (v / lsb).round() as i32 as u32)
+        .collect();
+    assert_eq!(
+        cli_fixed, board_fixed,
+        "{test}: unlag compensate (fixed) != the board"
+    );
     assert!(
         stdout.contains("UPDATE refused: blob corrupted"),
         "{stdout}"

@@ -652,3 +652,105 @@ fn the_direct_form_is_chosen_on_the_command_line_and_runs_bit_exact() {
     assert!(unlag::blob::parse_fixed::<8>(&std::fs::read(&bin).unwrap()).is_ok());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A run well above the step test (a reflected shock: 2.6 times the step) is not clamped by
+/// a fixed-point board whose full scale `unlag fit` chose by default, where the old default (the
+/// tests' largest |y| plus 25 %) clamped it; a full scale stated below the run clamps, and the
+/// count is reported.
+#[test]
+fn the_default_full_scale_holds_a_reflected_shock_and_a_clamped_run_is_counted() {
+    let dir = std::env::temp_dir().join(format!("unlag-full-scale-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let unlag = |args: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_unlag"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        (
+            String::from_utf8_lossy(&o.stdout).into_owned(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let step = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/data/step_test_1.csv");
+    // The run: the same step 2.6 times as large, as a reflected shock brings it.
+    let text = std::fs::read_to_string(step).unwrap();
+    let mut lines = text.lines();
+    let mut run = format!("{}\n", lines.next().unwrap());
+    let mut run_peak = 0.0f64;
+    let mut step_peak = 0.0f64;
+    for l in lines {
+        let cells: Vec<f64> = l.split(',').map(|c| c.trim().parse().unwrap()).collect();
+        step_peak = step_peak.max(cells[2].abs());
+        run_peak = run_peak.max((2.6 * cells[2]).abs());
+        run.push_str(&format!(
+            "{},{},{}\n",
+            cells[0],
+            2.6 * cells[1],
+            2.6 * cells[2]
+        ));
+    }
+    let run_path = dir.join("reflected.csv");
+    std::fs::write(&run_path, run).unwrap();
+    assert!(
+        run_peak > 1.25 * step_peak,
+        "the run must leave the old default"
+    );
+    let model = dir.join("probe.toml");
+    let m = model.to_str().unwrap();
+    let (printed, _) = unlag(&["fit", step, "-o", m, "--board", "fixed", "--json"]);
+    let fit: serde_json::Value = serde_json::from_str(&printed).unwrap();
+    assert_eq!(fit["full_scale"]["stated"], false, "{fit}");
+    assert!(
+        fit["full_scale"]["value"].as_f64().unwrap() > run_peak,
+        "{fit}"
+    );
+    let out = dir.join("out.csv");
+    let compensate = |model: &str| {
+        let (printed, stderr) = unlag(&[
+            "compensate",
+            model,
+            run_path.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ]);
+        (
+            serde_json::from_str::<serde_json::Value>(&printed).unwrap(),
+            stderr,
+        )
+    };
+    // The board's arithmetic by default, nothing clamped.
+    let (c, stderr) = compensate(m);
+    assert_eq!(c["arithmetic"], "32-bit fixed point", "{c}");
+    assert_eq!(c["clamped_inputs"], 0, "{c} {stderr}");
+    assert!(!stderr.contains("clamped"), "{stderr}");
+    // The ADC's range stated below the run: the samples beyond it are clamped and counted.
+    let small = dir.join("small.toml");
+    let s = small.to_str().unwrap();
+    let (printed, _) = unlag(&[
+        "fit",
+        step,
+        "-o",
+        s,
+        "--board",
+        "fixed",
+        "--full-scale",
+        "2000",
+    ]);
+    assert!(
+        printed.contains("full scale +-2000 (the ADC's range, as stated)"),
+        "{printed}"
+    );
+    let (c, stderr) = compensate(s);
+    let clamped = c["clamped_inputs"].as_u64().unwrap();
+    assert!(clamped > 100, "{c}");
+    assert!(
+        stderr.contains(&format!("warning: {clamped} samples of")) && stderr.contains("+-2000"),
+        "{stderr}"
+    );
+}

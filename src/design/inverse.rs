@@ -191,6 +191,13 @@ pub struct Design {
     pub check: Option<check::Check>,
 }
 
+/// `gain` and `sections` rounded to `T` and widened back: the coefficients a board given the
+/// exported set builds its cascade from.
+fn as_exported<T: Sample>(gain: f64, sections: &[[f64; 5]]) -> (f64, Vec<[f64; 5]>) {
+    let round = |v: f64| T::from_f64(v).to_f64();
+    (round(gain), sections.iter().map(|s| s.map(round)).collect())
+}
+
 /// Group delay at DC, in samples, of `prod (1 - from z^-1) / (1 - to z^-1)` times `lp`: the
 /// phase slope over a small step from `omega = 0`, measured from the phase at DC (a zero
 /// reflected from the positive real axis makes the product negative there).
@@ -395,7 +402,9 @@ impl Design {
     }
 
     /// Runs the compensator on `y` in arithmetic `T` with the board's code, starting in
-    /// equilibrium with `y[0]`.
+    /// equilibrium with `y[0]`: built, as the board builds it, from the coefficients rounded
+    /// to `T` (what `unlag export` writes), so that its start in equilibrium is the board's
+    /// too.
     ///
     /// # Errors
     /// [`DesignError::Cascade`] when the sections do not validate (too many, or a pole too
@@ -410,7 +419,8 @@ impl Design {
     }
 
     fn run_with<T: Sample, const N: usize>(&self, y: &[f64]) -> Result<Vec<f64>> {
-        let c = CascadeCoefficients::<T, N>::new(self.gain, &self.sections)
+        let (gain, sections) = as_exported::<T>(self.gain, &self.sections);
+        let c = CascadeCoefficients::<T, N>::new(gain, &sections)
             .map_err(|error| DesignError::Cascade { error })?;
         let mut st: CascadeState<T, N> =
             c.equilibrium(T::from_f64(y.first().copied().unwrap_or(0.0)));
@@ -445,8 +455,9 @@ impl Design {
         y: &[f64],
     ) -> Result<Vec<f64>> {
         let (lp_gain, lp) = self.lowpass_sections(fs)?;
+        let (lp_gain, lp) = as_exported::<T>(lp_gain, &lp);
         let c = crate::compensator::NonlinearDampingCoefficients::<T, 4>::new(
-            gain * fs * fs,
+            T::from_f64(gain * fs * fs).to_f64(),
             lp_gain,
             &lp,
         )

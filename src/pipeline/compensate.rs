@@ -336,24 +336,25 @@ fn run_fixed(
     y: &[f64],
 ) -> Result<(Vec<f64>, FixedRunSummary)> {
     let other = |planned: f64| stated.filter(|&s| s != planned);
-    let (run, full_scale) = if let Some(plan) = &d.fixed_direct {
-        match other(plan.full_scale) {
+    let (run, full_scale) = match (&d.fixed_direct, &d.fixed, stated) {
+        (Some(plan), _, _) => match other(plan.full_scale) {
             Some(fs) => (DirectPlan::new(d, fs)?.run(y)?, fs),
             None => (plan.run(y)?, plan.full_scale),
-        }
-    } else {
-        let plan = d.fixed.as_ref().ok_or_else(|| {
-            Error::InvalidParameter {
+        },
+        (None, Some(plan), _) => match other(plan.full_scale) {
+            Some(fs) => (FixedPlan::new(d, fs)?.run(y)?, fs),
+            None => (plan.run(y)?, plan.full_scale),
+        },
+        // No plan stored, a range stated: planned for it, as the export plans it.
+        (None, None, Some(fs)) => (FixedPlan::new(d, fs)?.run(y)?, fs),
+        (None, None, None) => {
+            return Err(Error::InvalidParameter {
                 parameter: crate::error::Parameter::Arithmetic,
                 message: format!("{} has no fixed-point plan", model.display()),
             }
             .advised(Advice::PlanFixedPoint {
                 model: model.to_path_buf(),
-            })
-        })?;
-        match other(plan.full_scale) {
-            Some(fs) => (FixedPlan::new(d, fs)?.run(y)?, fs),
-            None => (plan.run(y)?, plan.full_scale),
+            }))
         }
     };
     let summary = FixedRunSummary {

@@ -1,8 +1,10 @@
-//! The board's output on runs unlike the step test (issue 60, item 4): a bank of drawn
-//! probes, each fitted from ONE step test with `unlag fit`'s default options, then its
-//! stored compensator run by `unlag compensate` on runs of other kinds, as the board runs it
-//! (f32 and 32-bit fixed point) and as the host can (f64, the offline optimum, a design
-//! chosen for the run), every output scored against the run's true pressure.
+//! The board's output on runs unlike the step test: a bank of drawn probes, each fitted from
+//! ONE step test with `unlag fit`'s default options, then its stored compensator run by
+//! `unlag compensate` on runs of other kinds, as the board runs it (f32 and 32-bit fixed
+//! point) and as the host can (f64, the offline optimum, a design chosen for the run); and,
+//! per run kind, the board's compensator fitted on the same step test with `--signal` a
+//! rehearsal (another run of that kind, drawn anew with its own parameters, the probe alone),
+//! in f32 and fixed point. Every output is scored against the run's true pressure.
 //!
 //! The files beside it in `bench_runs/`: `probe.rs` (the probes and their drawing),
 //! `runs.rs` (the step test and the runs: pressures, simulation, channels), `execute.rs`

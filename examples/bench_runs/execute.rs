@@ -27,15 +27,23 @@ pub enum Column {
     HostOffline,
     /// A design chosen for the run (host only; `--adapt-to-run`, where the binary has it).
     HostAdapt,
+    /// In f32 on the board, the compensator fitted on the same step test with `--signal` a
+    /// rehearsal: another run of the same kind drawn anew (its own parameters and noise),
+    /// recorded by the probe alone (no reference column).
+    RunsF32,
+    /// The same in fixed point.
+    RunsFixed,
 }
 
 /// Every column, in report order.
-pub const COLUMNS: [Column; 5] = [
+pub const COLUMNS: [Column; 7] = [
     Column::BoardF32,
     Column::BoardFixed,
     Column::HostF64,
     Column::HostOffline,
     Column::HostAdapt,
+    Column::RunsF32,
+    Column::RunsFixed,
 ];
 
 impl Column {
@@ -47,6 +55,8 @@ impl Column {
             Self::HostF64 => "f64",
             Self::HostOffline => "offline",
             Self::HostAdapt => "adapt",
+            Self::RunsF32 => "runs-f32",
+            Self::RunsFixed => "runs-fixed",
         }
     }
 
@@ -58,12 +68,31 @@ impl Column {
             Self::HostF64 => &["--arithmetic", "f64"],
             Self::HostOffline => &["--offline"],
             Self::HostAdapt => &["--adapt-to-run"],
+            Self::RunsF32 => &["--arithmetic", "f32"],
+            Self::RunsFixed => &["--arithmetic", "fixed"],
         }
     }
 
     /// A board runs it.
     pub fn is_board(self) -> bool {
-        matches!(self, Self::BoardF32 | Self::BoardFixed)
+        matches!(
+            self,
+            Self::BoardF32 | Self::BoardFixed | Self::RunsF32 | Self::RunsFixed
+        )
+    }
+
+    /// Its compensator was designed with a rehearsal run of the kind it runs on.
+    pub fn is_for_runs(self) -> bool {
+        matches!(self, Self::RunsF32 | Self::RunsFixed)
+    }
+
+    /// The model file it runs, in the probe's directory.
+    fn model(self, kind: RunKind) -> String {
+        if self.is_for_runs() {
+            format!("model-{}.toml", kind.name())
+        } else {
+            "model.toml".into()
+        }
     }
 }
 
@@ -224,8 +253,8 @@ fn replay(
     let e = |e: unlag::Error| e.to_string();
     let latency = d.latency_samples;
     match column {
-        Column::BoardF32 => Ok((d.run::<f32>(y).map_err(e)?, latency, 0, false)),
-        Column::BoardFixed => {
+        Column::BoardF32 | Column::RunsF32 => Ok((d.run::<f32>(y).map_err(e)?, latency, 0, false)),
+        Column::BoardFixed | Column::RunsFixed => {
             let run = match (&d.fixed_direct, &d.fixed) {
                 (Some(p), _) => p.run(y).map_err(e)?,
                 (None, Some(p)) => p.run(y).map_err(e)?,
@@ -290,6 +319,17 @@ fn write_record(dir: &Path, name: &str, fs: f64, rec: &Recorded) -> Result<(), S
     )
 }
 
+/// Writes a `t,y` CSV: a run recorded by the probe alone.
+fn write_probe_alone(path: &Path, fs: f64, y: &[f64]) -> Result<(), String> {
+    use std::fmt::Write as _;
+    let mut s = String::with_capacity(30 * y.len());
+    s.push_str("t,y\n");
+    for (k, v) in y.iter().enumerate() {
+        let _ = writeln!(s, "{:.9},{v:.6}", k as f64 / fs);
+    }
+    std::fs::write(path, s).map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
+
 /// The probe's step test and runs, `fit`, and every column on every run.
 pub fn run_probe(probe: &Probe, s: &Settings) -> ProbeResult {
     let start = Instant::now();
@@ -311,13 +351,25 @@ pub fn run_probe(probe: &Probe, s: &Settings) -> ProbeResult {
         let rec = runs::record(probe, &step, &mut rng)?;
         write_record(&dir, "step", probe.fs, &rec)?;
         result.step_adc = (rec.adc.min_pa, rec.adc.max_pa);
-        list.into_iter()
+        let made = list
+            .into_iter()
             .map(|run| {
                 let rec = runs::record(probe, &run, &mut rng)?;
                 write_record(&dir, run.kind.name(), probe.fs, &rec)?;
                 Ok((run, rec))
             })
-            .collect()
+            .collect::<Result<Vec<_>, String>>()?;
+        // The rehearsals, drawn after the runs so that the runs are those of the same seed
+        // without them: one more run of each kind, its own parameters, the probe alone.
+        for run in runs::draw_runs(probe, &mut rng) {
+            let rec = runs::record(probe, &run, &mut rng)?;
+            write_probe_alone(
+                &dir.join(format!("{}-rehearsal.csv", run.kind.name())),
+                probe.fs,
+                &rec.y,
+            )?;
+        }
+        Ok(made)
     })();
     let made = match made {
         Ok(m) => m,
@@ -339,6 +391,21 @@ pub fn run_probe(probe: &Probe, s: &Settings) -> ProbeResult {
     }
     let file = unlag::file::ModelFile::load(&dir.join("model.toml")).ok();
     result.model = file.as_ref().map(model_info);
+    // The compensators designed for each kind of run, with its rehearsal: (kind, fit's error).
+    let mut for_runs: Vec<(RunKind, Result<unlag::file::ModelFile, String>)> = Vec::new();
+    for kind in runs::RUN_KINDS {
+        let model = Column::RunsF32.model(kind);
+        let rehearsal = format!("{}-rehearsal.csv", kind.name());
+        let log = format!("fit-{}.log", kind.name());
+        let fitted = unlag(
+            &s.unlag,
+            &dir,
+            &["fit", "step.csv", "--signal", &rehearsal, "-o", &model],
+            &log,
+        )
+        .and_then(|_| unlag::file::ModelFile::load(&dir.join(&model)).map_err(|e| e.to_string()));
+        for_runs.push((kind, fitted));
+    }
     for (run, rec) in &made {
         let name = run.kind.name();
         let from = settling(rec.truth.len());
@@ -351,12 +418,22 @@ pub fn run_probe(probe: &Probe, s: &Settings) -> ProbeResult {
                 if c == Column::HostAdapt && !s.adapt {
                     return (c, Err("the binary has no --adapt-to-run".into()));
                 }
+                let file = if c.is_for_runs() {
+                    match for_runs.iter().find(|(k, _)| *k == run.kind) {
+                        Some((_, Ok(f))) => Some(f),
+                        Some((_, Err(e))) => return (c, Err(format!("fit --signal: {e}"))),
+                        None => return (c, Err("no rehearsal".into())),
+                    }
+                } else {
+                    file.as_ref()
+                };
+                let model = c.model(run.kind);
                 let out = format!("{name}-{}.csv", c.name());
                 let log = format!("{name}-{}.log", c.name());
                 let input = format!("{name}.csv");
                 let mut args = vec![
                     "compensate",
-                    "model.toml",
+                    model.as_str(),
                     input.as_str(),
                     "-o",
                     out.as_str(),
@@ -375,7 +452,7 @@ pub fn run_probe(probe: &Probe, s: &Settings) -> ProbeResult {
                 });
                 // A board does not fall back: where the CLI did, the stored compensator is
                 // scored as the board runs it.
-                let o = match (o, &file) {
+                let o = match (o, file) {
                     (Ok(cli), Some(file)) if c.is_board() && cli.fell_back.is_some() => {
                         replay(file, c, &rec.y).map(|(u_hat, latency, clamped, overflowed)| {
                             let (error, error_recorded, lag) = score(&u_hat, latency, rec);

@@ -109,9 +109,9 @@ fn ratio_text(v: Option<f64>) -> String {
 }
 
 /// One row of a summary table.
-fn row(name: &str, rows: &[&RunResult], a: Against) -> String {
-    let f = board(rows, Column::BoardF32, a);
-    let x = board(rows, Column::BoardFixed, a);
+fn row(name: &str, rows: &[&RunResult], a: Against, pair: Pair) -> String {
+    let f = board(rows, pair[0], a);
+    let x = board(rows, pair[1], a);
     let host: Vec<f64> = rows
         .iter()
         .filter_map(|r| host_best(r, a).map(|h| a.raw(r) / h))
@@ -145,16 +145,24 @@ fixed median | fixed worst | fixed worse than raw | fixed clamped | host best me
 f32 within 1.5x host | fixed within 1.5x host | CLI fell back f32/fixed | no output f32/fixed |\n\
 |---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|\n";
 
+/// A board's two arithmetics running one compensator: `[f32, fixed]`.
+pub type Pair = [Column; 2];
+
+/// The compensator fitted on the step test alone.
+pub const STEP_TEST: Pair = [Column::BoardF32, Column::BoardFixed];
+/// The compensator fitted on the step test with `--signal` a rehearsal of the run's kind.
+pub const FOR_RUNS: Pair = [Column::RunsF32, Column::RunsFixed];
+
 /// The summary tables (per run kind, per probe family) against `a`.
-fn tables(r: &mut String, results: &[ProbeResult], a: Against) {
+fn tables(r: &mut String, results: &[ProbeResult], a: Against, pair: Pair) {
     let all: Vec<&RunResult> = results.iter().flat_map(|p| &p.runs).collect();
     let _ = writeln!(r, "\nBy run kind:\n\n{HEADER}");
     r.pop();
     for kind in RUN_KINDS {
         let rows: Vec<&RunResult> = all.iter().copied().filter(|x| x.kind == kind).collect();
-        r.push_str(&row(kind.name(), &rows, a));
+        r.push_str(&row(kind.name(), &rows, a, pair));
     }
-    r.push_str(&row("**all**", &all, a));
+    r.push_str(&row("**all**", &all, a, pair));
     let _ = writeln!(r, "\nBy probe family:\n\n{HEADER}");
     r.pop();
     for family in FAMILIES {
@@ -163,9 +171,9 @@ fn tables(r: &mut String, results: &[ProbeResult], a: Against) {
             .filter(|p| p.probe.family == family)
             .flat_map(|p| &p.runs)
             .collect();
-        r.push_str(&row(family.name(), &rows, a));
+        r.push_str(&row(family.name(), &rows, a, pair));
     }
-    r.push_str(&row("**all**", &all, a));
+    r.push_str(&row("**all**", &all, a, pair));
 }
 
 /// The three targets for one board column, over every run.
@@ -202,7 +210,7 @@ fn host_cell(r: &RunResult) -> String {
 }
 
 /// Each probe: its model and, per run kind, f32 / fixed / host best ratios.
-fn probes_table(r: &mut String, results: &[ProbeResult]) {
+fn probes_table(r: &mut String, results: &[ProbeResult], pair: Pair) {
     r.push_str(
         "\nEach probe (ratios against the true pressure, f32 / fixed / host best):\n\n\
          | probe | family | gen | f_n Hz | damping | fs Hz | model | design | full scale / step |",
@@ -244,8 +252,8 @@ fn probes_table(r: &mut String, results: &[ProbeResult]) {
                     let _ = write!(
                         r,
                         " {} / {} / {} |",
-                        cell(x, Column::BoardF32),
-                        cell(x, Column::BoardFixed),
+                        cell(x, pair[0]),
+                        cell(x, pair[1]),
                         host_cell(x)
                     );
                 }
@@ -257,14 +265,14 @@ fn probes_table(r: &mut String, results: &[ProbeResult]) {
 }
 
 /// The runs where a board output is worse than raw or beyond [`WITHIN`] of the host's best.
-fn misses(r: &mut String, results: &[ProbeResult]) {
+fn misses(r: &mut String, results: &[ProbeResult], pair: Pair) {
     let mut rows: Vec<(f64, String)> = Vec::new();
     for p in results {
         for x in &p.runs {
             let host = host_best(x, Against::Truth);
             let mut why = Vec::new();
             let mut least = f64::INFINITY;
-            for c in [Column::BoardF32, Column::BoardFixed] {
+            for c in pair {
                 let Some(o) = x.output(c) else {
                     why.push(format!("{}: no output", c.name()));
                     continue;
@@ -352,15 +360,31 @@ pub fn report(results: &[ProbeResult], adapt: bool, seconds: f64) -> String {
             p.failure.as_deref().unwrap_or("")
         );
     }
-    r.push_str("\n### Against the true pressure\n");
-    tables(&mut r, results, Against::Truth);
     r.push_str("\nTargets (against the true pressure, every run):\n\n");
-    targets(&mut r, results, Column::BoardF32);
-    targets(&mut r, results, Column::BoardFixed);
-    r.push_str("\n### Against the recorded reference (noise and ADC included)\n");
-    tables(&mut r, results, Against::Recorded);
-    probes_table(&mut r, results);
-    misses(&mut r, results);
+    for pair in [STEP_TEST, FOR_RUNS] {
+        for c in pair {
+            targets(&mut r, results, c);
+        }
+    }
+    for (pair, title) in [
+        (
+            STEP_TEST,
+            "fitted on the step test alone (`unlag fit step.csv`)",
+        ),
+        (
+            FOR_RUNS,
+            "fitted on the step test for the runs (`unlag fit step.csv --signal REHEARSAL.csv`, \
+             a run of the same kind drawn anew, the probe alone)",
+        ),
+    ] {
+        let _ = writeln!(r, "\n## The board's compensator {title}");
+        r.push_str("\n### Against the true pressure\n");
+        tables(&mut r, results, Against::Truth, pair);
+        r.push_str("\n### Against the recorded reference (noise and ADC included)\n");
+        tables(&mut r, results, Against::Recorded, pair);
+        probes_table(&mut r, results, pair);
+        misses(&mut r, results, pair);
+    }
     r
 }
 

@@ -28,9 +28,11 @@ pub struct InverseArgs {
     /// Largest -3 dB band in Hz the optimum may take (a quieter prior narrows it to this).
     #[arg(long, value_name = "HZ")]
     pub max_band: Option<f64>,
-    /// The user's own recorded runs (CSV, repeatable) to learn the pressure's prior from,
-    /// instead of the step tests: from their reference column the increments' level and
-    /// correlation (steps and ramps), else a random walk's level from the probe signal.
+    /// Runs of the kind the board will compensate (CSV, repeatable; the probe alone will do):
+    /// the pressure's prior is learnt from them instead of the step tests. From their
+    /// reference column, the increments' level and correlation (steps and ramps); from a run
+    /// recorded by the probe alone, the level whose compensator the runs' own spectra predict
+    /// the least error for. Give the fastest runs you will make.
     #[arg(long = "signal", value_name = "RUN.csv")]
     pub signal: Vec<PathBuf>,
     /// Low-pass family of the band limit.

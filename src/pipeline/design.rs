@@ -300,7 +300,7 @@ fn asked_request(
             max_band_hz,
         } => (max_latency_samples, max_band_hz),
     };
-    let (mut noise, prior) = noise_and_prior(model, spec, raw, learnt, stored)?;
+    let (mut noise, mut prior) = noise_and_prior(model, spec, raw, learnt, stored)?;
     // A record with no quiet segment shows no coloured probe noise by itself: the noise model
     // fitted beside the dynamics (`coloured-noise`) supplies it.
     if noise.probe_ar_std == 0.0 {
@@ -308,13 +308,20 @@ fn asked_request(
             noise.take_ar_part(ar, effects::innovation_std(effects));
         }
     }
+    let options = OptimalOptions {
+        max_band_hz,
+        max_latency_samples,
+        lowpass: spec.lowpass,
+        lowpass_order: spec.lowpass_order,
+    };
+    // Runs the probe recorded alone: the level whose optimum their spectra predict least
+    // error for.
+    if spec.signal.iter().any(|r| r.u.is_none()) {
+        let runs: Vec<&[f64]> = spec.signal.iter().map(|r| r.y.as_slice()).collect();
+        prior = check::prior_for_runs(model, &noise, prior, &options, &runs);
+    }
     Ok(Request::Optimal {
-        options: OptimalOptions {
-            max_band_hz,
-            max_latency_samples,
-            lowpass: spec.lowpass,
-            lowpass_order: spec.lowpass_order,
-        },
+        options,
         noise: Some(noise),
         prior: Some(prior),
     })

@@ -176,6 +176,87 @@ impl<'a> RunJudge<'a> {
     }
 }
 
+/// Levels of the signal prior tried for `--signal` runs recorded by the probe alone, in
+/// decades of the increments' variance around the level their increments give: a hundred
+/// times louder to ten thousand times quieter, in half decades.
+pub const RUN_PRIOR_DECADES: [f64; 13] = [
+    2.0, 1.5, 1.0, 0.5, 0.0, -0.5, -1.0, -1.5, -2.0, -2.5, -3.0, -3.5, -4.0,
+];
+
+/// The signal prior for runs the probe recorded alone (`runs`, probe signals): among
+/// `estimate` scaled by [`RUN_PRIOR_DECADES`], the one whose optimum for `noise` and `options`
+/// has the least predicted mean-square error on the runs' own spectra, each relative to the
+/// raw probe's on the same run and averaged over the runs. A random walk's level read from
+/// the increments misjudges a run whose spectrum is not a random walk's (turbulence that
+/// ends at a band limit, a train of wakes); the error the runs' spectra predict judges the
+/// compensator itself. `estimate` when no run is long enough for a spectrum or no level
+/// gives a design.
+#[must_use]
+pub fn prior_for_runs(
+    model: &Model,
+    noise: &NoiseModel,
+    estimate: SignalPrior,
+    options: &OptimalOptions,
+    runs: &[&[f64]],
+) -> SignalPrior {
+    let pressures: Vec<optimal::RunPressure> = runs
+        .iter()
+        .filter_map(|y| optimal::RunSpectrum::measure(y))
+        .map(|s| s.pressure(model, noise))
+        .collect();
+    if pressures.is_empty() {
+        return estimate;
+    }
+    let candidates: Vec<(SignalPrior, Design)> = RUN_PRIOR_DECADES
+        .iter()
+        .filter_map(|decades| {
+            let p = SignalPrior {
+                increment_std: estimate.increment_std * 10f64.powf(0.5 * decades),
+                ..estimate
+            };
+            optimal::design(model, noise, &p, options)
+                .ok()
+                .map(|d| (p, d))
+        })
+        .collect();
+    // Each run's raw error, on the same lags for every candidate.
+    let Some(widest) = candidates
+        .iter()
+        .map(|(_, d)| d.latency_samples.round().max(0.0) as usize)
+        .max()
+    else {
+        return estimate;
+    };
+    let (_, raw_lags) = super::comparison_lags(None, widest, widest, model.delay);
+    let raw: Vec<f64> = pressures
+        .iter()
+        .map(|p| p.predicted(1.0, &[], raw_lags.clone()))
+        .collect();
+    candidates
+        .into_iter()
+        .map(|(p, d)| {
+            let latency = d.latency_samples.round().max(0.0) as usize;
+            let (lags, _) = super::comparison_lags(Some(&d), latency, latency, model.delay);
+            let relative = pressures
+                .iter()
+                .zip(&raw)
+                .map(|(pressure, raw)| {
+                    let e = pressure.predicted(d.gain, &d.sections, lags.clone());
+                    if *raw > 0.0 {
+                        (e / raw).powi(2)
+                    } else {
+                        0.0
+                    }
+                })
+                .sum::<f64>()
+                / pressures.len() as f64;
+            (relative, p)
+        })
+        .filter(|(r, _)| r.is_finite())
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map_or(estimate, |(_, p)| p)
+}
+
 /// Which designs the run check may run instead of the stored one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RunCandidates {
@@ -444,6 +525,7 @@ fn describe(d: &Design, recon: &[Reconstruction]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::PI;
 
     fn leaky_line() -> Model {
         // A first-order lag (pole 0.9) behind a leak (pole 0.9995, zero 0.99995), DC gain 0.95.
@@ -468,6 +550,67 @@ mod tests {
             ..Options::default()
         });
         design_checked(m, &tests, &request, 0.0).unwrap()
+    }
+
+    #[test]
+    fn runs_inside_the_probes_band_get_a_quieter_prior_and_a_smaller_error() {
+        // A first-order probe (time constant 20 samples: a band of 80 Hz at 10 kHz).
+        let m = Model {
+            fs: 10_000.0,
+            delay: 2,
+            a: vec![-0.95],
+            b: vec![0.05],
+        };
+        let noise = optimal::NoiseModel {
+            probe_white_std: 2e-3,
+            probe_ar_pole: 0.0,
+            probe_ar_std: 0.0,
+            reference_std: 0.0,
+            source: crate::fit::step::NoiseSource::PreStep,
+        };
+        let n = 16_000;
+        // Slow fluctuations (5 to 20 Hz, far inside the band) and a train of unit steps, each
+        // with the probe's noise.
+        let slow: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64 / m.fs;
+                0.2 * (2.0 * PI * 5.0 * t).sin()
+                    + 0.1 * (2.0 * PI * 13.0 * t + 1.0).sin()
+                    + 0.05 * (2.0 * PI * 20.0 * t + 2.0).sin()
+            })
+            .collect();
+        let steps: Vec<f64> = (0..n).map(|k| ((k / 1500) % 2) as f64).collect();
+        let recorded = |u: &[f64], seed| crate::testing::with_noise(&m.simulate(u), 2e-3, seed);
+        let (y_slow, y_steps) = (recorded(&slow, 5), recorded(&steps, 6));
+        // The level a step in 2000 samples gives.
+        let estimate = SignalPrior {
+            increment_std: (1.0f64 / 2000.0).sqrt(),
+            increment_pole: 0.0,
+            source: optimal::PriorSource::Runs,
+        };
+        let options = OptimalOptions::default();
+        let for_slow = prior_for_runs(&m, &noise, estimate, &options, &[&y_slow]);
+        let for_steps = prior_for_runs(&m, &noise, estimate, &options, &[&y_steps]);
+        assert!(
+            for_slow.increment_std < 0.1 * for_steps.increment_std,
+            "{for_slow:?} {for_steps:?}"
+        );
+        // On the slow run, the chosen prior's optimum beats the estimate's, measured against
+        // the true pressure at each one's latency.
+        let error = |p: &SignalPrior| {
+            let d = optimal::design(&m, &noise, p, &options).unwrap();
+            let u_hat = d.run::<f64>(&y_slow).unwrap();
+            let lag = d.latency_samples.round() as usize;
+            let sse: f64 = (2000..n).map(|k| (u_hat[k] - slow[k - lag]).powi(2)).sum();
+            (sse / (n - 2000) as f64).sqrt()
+        };
+        let (chosen, assumed) = (error(&for_slow), error(&estimate));
+        assert!(chosen < 0.7 * assumed, "{chosen} {assumed}");
+        // No run long enough for a spectrum: the estimate stands.
+        assert_eq!(
+            prior_for_runs(&m, &noise, estimate, &options, &[&y_slow[..50]]),
+            estimate
+        );
     }
 
     #[test]

@@ -223,7 +223,8 @@ pub fn estimate_prior(tests: &[Test<'_>], noise: &NoiseModel) -> SignalPrior {
 /// them (`2 sigma_u^2` and `-sigma_u^2`), give `q` and `rho` (steps give `rho` near 0, smooth
 /// runs near 1). Else from the probe signal over the model's DC gain, its increments taken
 /// over `scale` samples (the probe's response time) so that the probe's noise and lag weigh
-/// little, less the noise's share `2 sigma_y^2`, as a plain random walk.
+/// little, less the noise's share `2 sigma_y^2`, as a plain random walk: the first estimate
+/// that [`crate::design::inverse::check::prior_for_runs`] then judges on the runs' spectra.
 #[must_use]
 pub fn prior_from_runs(
     runs: &[(Option<&[f64]>, &[f64])],

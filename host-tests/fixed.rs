@@ -6,6 +6,8 @@
 // Test code: a failed unwrap is a failed test, with its location.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 use std::f64::consts::PI;
 use std::process::Command;
 
@@ -220,10 +222,7 @@ fn compensate_with_fixed_arithmetic_runs_the_planned_integers() {
     std::fs::create_dir_all(&dir).unwrap();
     let model = dir.join("model.toml");
     let unlag = |args: &[&str]| {
-        let o = Command::new(env!("CARGO_BIN_EXE_unlag"))
-            .args(args)
-            .output()
-            .unwrap();
+        let o = common::unlag(args);
         assert!(
             o.status.success(),
             "{args:?}: {}{}",
@@ -662,10 +661,7 @@ fn the_default_full_scale_holds_a_reflected_shock_and_a_clamped_run_is_counted()
     let dir = std::env::temp_dir().join(format!("unlag-full-scale-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let unlag = |args: &[&str]| {
-        let o = Command::new(env!("CARGO_BIN_EXE_unlag"))
-            .args(args)
-            .output()
-            .unwrap();
+        let o = common::unlag(args);
         assert!(
             o.status.success(),
             "{args:?}: {}",

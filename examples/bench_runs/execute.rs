@@ -391,7 +391,7 @@ pub fn run_probe(probe: &Probe, s: &Settings) -> ProbeResult {
     }
     let file = unlag::file::ModelFile::load(&dir.join("model.toml")).ok();
     result.model = file.as_ref().map(model_info);
-    // The compensators designed for each kind of run, with its rehearsal: (kind, fit's error).
+    // Per kind of run, the model file fitted with its rehearsal, or why there is none.
     let mut for_runs: Vec<(RunKind, Result<unlag::file::ModelFile, String>)> = Vec::new();
     for kind in runs::RUN_KINDS {
         let model = Column::RunsF32.model(kind);

@@ -191,11 +191,17 @@ pub struct Design {
     pub check: Option<check::Check>,
 }
 
-/// `gain` and `sections` rounded to `T` and widened back: the coefficients a board given the
-/// exported set builds its cascade from.
+/// `v` rounded to `T` and widened back: the coefficient a board given the exported set holds.
+fn exported<T: Sample>(v: f64) -> f64 {
+    T::from_f64(v).to_f64()
+}
+
+/// `gain` and `sections` as [`exported`]: what a board builds its cascade from.
 fn as_exported<T: Sample>(gain: f64, sections: &[[f64; 5]]) -> (f64, Vec<[f64; 5]>) {
-    let round = |v: f64| T::from_f64(v).to_f64();
-    (round(gain), sections.iter().map(|s| s.map(round)).collect())
+    (
+        exported::<T>(gain),
+        sections.iter().map(|s| s.map(exported::<T>)).collect(),
+    )
 }
 
 /// Group delay at DC, in samples, of `prod (1 - from z^-1) / (1 - to z^-1)` times `lp`: the
@@ -457,7 +463,7 @@ impl Design {
         let (lp_gain, lp) = self.lowpass_sections(fs)?;
         let (lp_gain, lp) = as_exported::<T>(lp_gain, &lp);
         let c = crate::compensator::NonlinearDampingCoefficients::<T, 4>::new(
-            T::from_f64(gain * fs * fs).to_f64(),
+            exported::<T>(gain * fs * fs),
             lp_gain,
             &lp,
         )

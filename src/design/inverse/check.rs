@@ -154,10 +154,15 @@ struct RunJudge<'a> {
 
 impl<'a> RunJudge<'a> {
     fn new(design: &Design, model: &'a Model, y: &[f64]) -> Option<Self> {
-        let noise = design.noise.as_ref()?;
+        Self::with_noise(model, design.noise.as_ref()?, y, design.latency_samples)
+    }
+
+    /// The run `y` through `model` and `noise`, the raw probe aligned within the lags a design
+    /// of `latency` samples is compared on.
+    fn with_noise(model: &'a Model, noise: &NoiseModel, y: &[f64], latency: f64) -> Option<Self> {
         let pressure = optimal::RunSpectrum::measure(y)?.pressure(model, noise);
-        let latency = design.latency_samples.round().max(0.0) as usize;
-        let (_, raw_lags) = super::comparison_lags(Some(design), latency, latency, model.delay);
+        let latency = latency.round().max(0.0) as usize;
+        let (_, raw_lags) = super::comparison_lags(None, latency, latency, model.delay);
         let raw = pressure.predicted(1.0, &[], raw_lags);
         Some(Self {
             model,
@@ -199,14 +204,6 @@ pub fn prior_for_runs(
     options: &OptimalOptions,
     runs: &[&[f64]],
 ) -> SignalPrior {
-    let pressures: Vec<optimal::RunPressure> = runs
-        .iter()
-        .filter_map(|y| optimal::RunSpectrum::measure(y))
-        .map(|s| s.pressure(model, noise))
-        .collect();
-    if pressures.is_empty() {
-        return estimate;
-    }
     let candidates: Vec<(SignalPrior, Design)> = RUN_PRIOR_DECADES
         .iter()
         .filter_map(|decades| {
@@ -219,37 +216,28 @@ pub fn prior_for_runs(
                 .map(|d| (p, d))
         })
         .collect();
-    // Each run's raw error, on the same lags for every candidate.
-    let Some(widest) = candidates
+    // Every candidate judged against the same raw error on each run: aligned within the
+    // widest candidate's lags.
+    let widest = candidates
         .iter()
-        .map(|(_, d)| d.latency_samples.round().max(0.0) as usize)
-        .max()
-    else {
-        return estimate;
-    };
-    let (_, raw_lags) = super::comparison_lags(None, widest, widest, model.delay);
-    let raw: Vec<f64> = pressures
+        .map(|(_, d)| d.latency_samples)
+        .fold(0.0, f64::max);
+    let judges: Vec<RunJudge<'_>> = runs
         .iter()
-        .map(|p| p.predicted(1.0, &[], raw_lags.clone()))
+        .filter_map(|y| RunJudge::with_noise(model, noise, y, widest))
+        .filter(|j| j.raw > 0.0)
         .collect();
+    if judges.is_empty() {
+        return estimate;
+    }
     candidates
         .into_iter()
         .map(|(p, d)| {
-            let latency = d.latency_samples.round().max(0.0) as usize;
-            let (lags, _) = super::comparison_lags(Some(&d), latency, latency, model.delay);
-            let relative = pressures
+            let relative = judges
                 .iter()
-                .zip(&raw)
-                .map(|(pressure, raw)| {
-                    let e = pressure.predicted(d.gain, &d.sections, lags.clone());
-                    if *raw > 0.0 {
-                        (e / raw).powi(2)
-                    } else {
-                        0.0
-                    }
-                })
+                .map(|j| j.judge(&d).ratio().powi(2))
                 .sum::<f64>()
-                / pressures.len() as f64;
+                / judges.len() as f64;
             (relative, p)
         })
         .filter(|(r, _)| r.is_finite())

@@ -224,6 +224,71 @@ fn cli_refuses_a_model_without_a_design_and_writes_nothing() {
     assert!(e.to_string().contains("bare.toml"), "{e}");
 }
 
+/// A model edited after its compensator was designed (its `a` emptied, a coefficient or the
+/// delay changed, the compensator's model name removed) is refused at the field, and no blob
+/// of the old compensator is written.
+#[test]
+fn cli_never_exports_a_compensator_that_does_not_belong_to_the_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(model_path()).unwrap();
+    let a_line = text.lines().find(|l| l.starts_with("a = [")).unwrap();
+    let first_a = a_line
+        .trim_start_matches("a = [")
+        .split(',')
+        .next()
+        .unwrap()
+        .to_string();
+    let nudged: f64 = first_a.trim().parse::<f64>().unwrap() * (1.0 + 1e-6);
+    let cases = [
+        (
+            "empty-a.toml",
+            text.replacen(a_line, "a = []", 1),
+            "b has 5 coefficients but a has 0",
+        ),
+        (
+            "nudged-a.toml",
+            text.replacen(&first_a, &nudged.to_string(), 1),
+            "designed for another model",
+        ),
+        (
+            "delay.toml",
+            text.replacen("\ndelay = 21\n", "\ndelay = 22\n", 1),
+            "designed for another model",
+        ),
+        (
+            "unnamed.toml",
+            text.lines()
+                .filter(|l| !l.starts_with("model_sha256"))
+                .map(|l| format!("{l}\n"))
+                .collect(),
+            "does not name the model",
+        ),
+    ];
+    for (name, edited, expected) in cases {
+        assert_ne!(edited, text, "{name}: the edit did not apply");
+        let model = dir.path().join(name);
+        std::fs::write(&model, &edited).unwrap();
+        for format in ["bin", "rust", "c"] {
+            let out = dir.path().join(format!("{name}.{format}"));
+            let o = unlag(&[
+                "export",
+                model.to_str().unwrap(),
+                "--format",
+                format,
+                "-o",
+                out.to_str().unwrap(),
+            ]);
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(1), "{name}: {err}");
+            assert_eq!(err.trim().lines().count(), 1, "{err}");
+            assert!(err.contains(expected), "{name}: {err}");
+            // The message names the file, line and column.
+            assert!(err.contains(&format!("{name}:")), "{err}");
+            assert!(!out.exists(), "{name}: {format} written");
+        }
+    }
+}
+
 /// The fixed-point sections the board benchmark runs (examples/bench_board.rs), made from the
 /// shipped design by `unlag::design::quantise::FixedPlan` for the first 1, 2 and 4 sections (m = 2, 4,
 /// 8). `UNLAG_BLESS=1 cargo test --test export` rewrites the file.

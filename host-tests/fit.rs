@@ -439,3 +439,39 @@ fn with_coloured_noise_both_methods_state_the_spread_of_their_estimates() {
         "Box-Jenkins states {bj:.2} of its spread"
     );
 }
+
+/// A record that ends 37 samples after the step, the probe still rising: the fit is unstable,
+/// and the message says how much of the response the record held and what to do.
+#[test]
+fn an_unstable_fit_of_a_record_cut_short_after_the_step_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("short.csv");
+    let mut rng = Rng::new(37);
+    let (onset, n, fs) = (200, 237, 10_000.0);
+    let mut text = String::from("t,u,y\n");
+    let mut y = 0.0;
+    for k in 0..n {
+        let u: f64 = if k >= onset { 1.0 } else { 0.0 };
+        // Still accelerating when the record ends.
+        y += 0.002 * u * (1.0 + 0.01 * (k as f64 - onset as f64));
+        text.push_str(&format!(
+            "{},{},{}\n",
+            k as f64 / fs,
+            u + 0.001 * rng.gauss(),
+            y + 0.0005 * rng.gauss()
+        ));
+    }
+    std::fs::write(&csv, text).unwrap();
+    let out = dir.path().join("m.toml");
+    let o = common::unlag(&["fit", csv.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("short.csv"), "{err}");
+    assert!(err.contains("unstable"), "{err}");
+    assert!(
+        err.contains("the record ends 37 samples (0.0037 s) after the step"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

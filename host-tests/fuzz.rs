@@ -1,8 +1,12 @@
 //! Fuzzing the three readers of outside bytes (the CSV trace reader, the model-file loader and
 //! the board's blob parser) with proptest: random bytes, and valid files mutated byte by byte
 //! (a blob also with its CRC made right again, so that the mutation reaches the checks behind
-//! it). Each must answer every input with a value or a typed error, never a panic. Cases per
-//! property: `FUZZ_CASES` (default 2000; `PROPTEST_CASES` is not read here).
+//! it). Each must answer every input with a value or a typed error, never a panic; a model
+//! file that loads must be one a board can run. Cases per property: `FUZZ_CASES` (default
+//! 2000; `PROPTEST_CASES` is not read here), drawn from the fixed seed `FUZZ_SEED` (default
+//! 61): every run of `cargo test` tries the same inputs, and a failure reproduces. A release
+//! is fuzzed with a million cases each:
+//! `FUZZ_CASES=1000000 FUZZ_SEED=<new> cargo test --release --test fuzz`.
 
 // Test code: a failed unwrap is a failed test, with its location.
 #![allow(clippy::unwrap_used)]
@@ -21,6 +25,19 @@ fn cases() -> u32 {
         .unwrap_or(2000)
 }
 
+/// The fuzzing budget and seed: [`cases`] cases from the seed `FUZZ_SEED` (default 61).
+fn config() -> ProptestConfig {
+    let seed = std::env::var("FUZZ_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(61);
+    ProptestConfig {
+        cases: cases(),
+        rng_seed: proptest::test_runner::RngSeed::Fixed(seed),
+        ..ProptestConfig::default()
+    }
+}
+
 const CSV: &str = "t,u,y\n0,0,0\n0.001,0,0.01\n0.002,1,0.2\n0.003,1,0.5\n0.004,1,0.7\n\
                    0.005,1,0.85\n0.006,1,0.93\n0.007,1,0.97\n0.008,1,0.99\n0.009,1,1\n";
 
@@ -30,6 +47,46 @@ fn model_text() -> String {
         "/examples/data/board_model.toml"
     ))
     .unwrap()
+}
+
+/// The shipped model with both fixed-point plans stored, as `unlag invert --board fixed`
+/// writes them: the mutations then reach the plans' checks.
+fn model_with_plans_text() -> String {
+    use unlag::design::quantise::{DirectPlan, FixedPlan};
+    static TEXT: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    TEXT.get_or_init(|| {
+        let mut f = ModelFile::parse(Path::new("m.toml"), &model_text()).unwrap();
+        let d = f.inverse.as_mut().unwrap();
+        d.fixed = Some(FixedPlan::new(d, 20_000.0).unwrap());
+        d.fixed_direct = Some(DirectPlan::new(d, 20_000.0).unwrap());
+        f.to_toml().unwrap()
+    })
+    .clone()
+}
+
+/// What a loaded model file promises: a usable model, and a stored compensator (with its
+/// plans) that belongs to it.
+fn usable(m: &ModelFile) -> Result<(), TestCaseError> {
+    use unlag::design::quantise::{DirectPlan, FixedPlan};
+    prop_assert!(m.model.fs.is_finite() && m.model.fs >= unlag::file::MIN_SAMPLE_RATE_HZ);
+    prop_assert!(m.model.delay <= unlag::file::MAX_DELAY);
+    prop_assert!(m.model.a.iter().chain(&m.model.b).all(|c| c.is_finite()));
+    prop_assert!(m.model.b.len() <= m.model.a.len() + 1);
+    if let Some(d) = &m.inverse {
+        let fingerprint = m.model.fingerprint();
+        prop_assert_eq!(d.model_sha256.as_deref(), Some(fingerprint.as_str()));
+        if let Some(p) = &d.fixed {
+            let again = FixedPlan::new(d, p.full_scale).unwrap();
+            prop_assert_eq!(p.output_exponent, again.output_exponent);
+            prop_assert_eq!(p.board_sections(), again.board_sections());
+        }
+        if let Some(p) = &d.fixed_direct {
+            let again = DirectPlan::new(d, p.full_scale).unwrap();
+            prop_assert_eq!(p.output_exponent, again.output_exponent);
+            prop_assert_eq!(p.board_sections(), again.board_sections());
+        }
+    }
+    Ok(())
 }
 
 fn blob_bytes() -> Vec<u8> {
@@ -102,7 +159,7 @@ fn parse_csv(bytes: &[u8]) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(cases()))]
+    #![proptest_config(config())]
 
     #[test]
     fn the_csv_reader_never_panics_on_random_bytes(bytes in prop::collection::vec(text_byte(), 0..400)) {
@@ -123,10 +180,19 @@ proptest! {
         let bytes = apply(model_text().into_bytes(), &edits);
         if let Ok(text) = String::from_utf8(bytes) {
             if let Ok(m) = ModelFile::parse(Path::new("fuzz.toml"), &text) {
-                // What loads is usable: finite, stable, a delay within the limit.
-                prop_assert!(m.model.fs.is_finite() && m.model.fs > 0.0);
-                prop_assert!(m.model.delay <= unlag::file::MAX_DELAY);
-                prop_assert!(m.model.a.iter().chain(&m.model.b).all(|c| c.is_finite()));
+                usable(&m)?;
+            }
+        }
+    }
+
+    #[test]
+    fn a_mutated_model_with_fixed_point_plans_loads_only_when_its_plans_belong(
+        edits in prop::collection::vec(edit_with(text_byte()), 1..8)
+    ) {
+        let bytes = apply(model_with_plans_text().into_bytes(), &edits);
+        if let Ok(text) = String::from_utf8(bytes) {
+            if let Ok(m) = ModelFile::parse(Path::new("fuzz.toml"), &text) {
+                usable(&m)?;
             }
         }
     }

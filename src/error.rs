@@ -126,7 +126,7 @@ pub enum Error {
         what: &'static str,
     },
     /// A fitted or loaded model is unstable (a pole on or outside the unit circle).
-    #[error("{context}: the model is unstable: pole {pole} has |z| = {radius:.6} >= 1")]
+    #[error("{context}: the model is unstable: pole {pole} has |z| = {radius:.6} >= 1{note}")]
     UnstableModel {
         /// Which model.
         context: String,
@@ -134,6 +134,9 @@ pub enum Error {
         pole: String,
         /// Its magnitude.
         radius: f64,
+        /// What the record says about it (`; the record ends ... after the step ...`), or
+        /// empty.
+        note: String,
     },
     /// The model cannot be inverted directly.
     #[error("{context}: the direct inverse is unstable: zero {zero} of B(z) has |z| = {radius:.6} >= 1 (a non-minimum-phase model; a stable inverse design is needed)")]
@@ -521,3 +524,41 @@ impl std::fmt::Display for Advice {
 
 /// Host-side result.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// `v` for a message: six significant digits, without the binary fraction's tail
+/// (`6561.85`, not `6561.849999999999`), in powers of ten outside `1e-4..1e7` (`1e300`, not
+/// three hundred digits).
+#[must_use]
+pub fn number(v: f64) -> String {
+    let a = v.abs();
+    if !v.is_finite() || a == 0.0 || (1e-4..1e7).contains(&a) {
+        return format!("{v:.5e}")
+            .parse::<f64>()
+            .map_or_else(|_| v.to_string(), |r| r.to_string());
+    }
+    let s = format!("{v:.5e}");
+    match s.split_once('e') {
+        Some((mantissa, exponent)) if mantissa.contains('.') => {
+            let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+            format!("{mantissa}e{exponent}")
+        }
+        _ => s,
+    }
+}
+
+#[cfg(test)]
+mod number_tests {
+    use super::number;
+
+    #[test]
+    fn numbers_in_messages_are_short() {
+        assert_eq!(number(6_561.849_999_999_999), "6561.85");
+        assert_eq!(number(1e300), "1e300");
+        assert_eq!(number(-1.234_567_89e-300), "-1.23457e-300");
+        assert_eq!(number(20_000.0), "20000");
+        assert_eq!(number(-1.0), "-1");
+        assert_eq!(number(0.0), "0");
+        assert_eq!(number(f64::NAN), "NaN");
+        assert_eq!(number(2.5e7), "2.5e7");
+    }
+}

@@ -40,7 +40,7 @@ pub use image::{
 };
 pub use request::{prepare, ExportRequest, ExportSummary, Exported, Sets};
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::file::write_atomically;
 use crate::file::ModelFile;
 
@@ -144,8 +144,22 @@ fn render(
     format: Format,
     number_format: NumberFormat,
 ) -> Result<(Vec<u8>, Summary)> {
-    let image = BoardImage::from_model_file(file, model, number_format)?;
-    let bytes = image.render(format, &source_name(model))?;
+    // What the export itself refuses (the board's code, the blob's read-back, a plan) names
+    // the model file it came from.
+    let in_file = |e: Error| match e.location() {
+        (None, _, _)
+            if e.stage::<ExportError>().is_some()
+                || e.stage::<crate::design::DesignError>().is_some() =>
+        {
+            Error::Model {
+                path: model.to_path_buf(),
+                message: e.to_string(),
+            }
+        }
+        _ => e,
+    };
+    let image = BoardImage::from_model_file(file, model, number_format).map_err(in_file)?;
+    let bytes = image.render(format, &source_name(model)).map_err(in_file)?;
     let timing = image.timing();
     let summary = Summary {
         number_format: image.number_format(),

@@ -14,7 +14,9 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Error, Result};
+use crate::design::inverse::Design;
+use crate::design::quantise::{DirectPlan, FixedPlan};
+use crate::error::{number, Error, Result};
 use crate::fit::model::{FitReport, Model, Source, Uncertainty, MAX_ORDER};
 use crate::fit::{Method, TestRole};
 use crate::modelling::diagnose::Current;
@@ -338,7 +340,21 @@ impl ModelFile {
     /// # Errors
     /// [`Error::Serialise`] if serialisation fails (it does not for finite values).
     pub fn to_toml(&self) -> Result<String> {
-        let body = toml::to_string(self).map_err(|e| Error::Serialise {
+        // A compensator designed in this run names the model it was designed for; one read
+        // from a file keeps the name it had (and was checked against the model when read).
+        let stamped;
+        let file = match &self.inverse {
+            Some(d) if d.model_sha256.is_none() => {
+                let mut f = self.clone();
+                if let Some(d) = f.inverse.as_mut() {
+                    d.model_sha256 = Some(self.model.fingerprint());
+                }
+                stamped = f;
+                &stamped
+            }
+            _ => self,
+        };
+        let body = toml::to_string(file).map_err(|e| Error::Serialise {
             what: "model file",
             message: e.to_string(),
         })?;
@@ -362,18 +378,16 @@ impl ModelFile {
 
     /// Reads and checks a model file: its syntax, every field's type and name (an unknown or
     /// misspelt field is refused with the nearest known name), and the limits of what the
-    /// numbers may be: version, sample rate, delay, order, finite coefficients, a stable
-    /// model, and a stable, finite stored compensator. Every error names the line and column
-    /// of the field.
+    /// numbers may be: version, sample rate, delay, order, coefficient lengths, finite
+    /// coefficients, a stable model, and a stable, finite stored compensator that names this
+    /// model ([`crate::fit::model::Model::fingerprint`]) with fixed-point plans that its design
+    /// gives. Every error names the line and column of the field. At most
+    /// [`MAX_MODEL_FILE_BYTES`] are read.
     ///
     /// # Errors
     /// [`Error::ModelAt`] (or [`Error::Io`] when the file cannot be read).
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            action: "cannot read",
-            source,
-        })?;
+        let text = read_model_text(path)?;
         Self::parse(path, &text)
     }
 
@@ -409,12 +423,13 @@ impl ModelFile {
             ));
         }
         let m = &file.model;
-        if !(m.fs.is_finite() && m.fs > 0.0 && m.fs <= MAX_SAMPLE_RATE_HZ) {
+        if !(m.fs.is_finite() && (MIN_SAMPLE_RATE_HZ..=MAX_SAMPLE_RATE_HZ).contains(&m.fs)) {
             return Err(field(
                 &["fs"],
                 format!(
-                    "fs must be a sample rate in Hz above 0 and at most {MAX_SAMPLE_RATE_HZ:e}, not {}",
-                    m.fs
+                    "fs must be a sample rate in Hz from {MIN_SAMPLE_RATE_HZ} to \
+                     {MAX_SAMPLE_RATE_HZ:e}, not {}",
+                    number(m.fs)
                 ),
             ));
         }
@@ -433,6 +448,17 @@ impl ModelFile {
             return Err(field(
                 &["b"],
                 "b is empty: a model needs b0 at least".into(),
+            ));
+        }
+        if m.b.len() > m.a.len() + 1 {
+            return Err(field(
+                &["b"],
+                format!(
+                    "b has {} coefficients but a has {}: a model of order m has a = [a1..am] \
+                     and at most m + 1 coefficients b = [b0..bm]; restore a, or fit again",
+                    m.b.len(),
+                    m.a.len()
+                ),
             ));
         }
         for (key, coefficients) in [("a", &m.a), ("b", &m.b)] {
@@ -467,6 +493,7 @@ impl ModelFile {
             }
         }
         if let Some(d) = &file.inverse {
+            check_belongs(d, m, &field)?;
             for (key, value) in [
                 ("gain", d.gain),
                 ("latency_samples", d.latency_samples),
@@ -476,7 +503,7 @@ impl ModelFile {
                 if !value.is_finite() {
                     return Err(field(
                         &["inverse", key],
-                        format!("inverse.{key} = {value} is not a finite number"),
+                        format!("inverse.{key} = {} is not a finite number", number(value)),
                     ));
                 }
             }
@@ -490,13 +517,16 @@ impl ModelFile {
                     format!("the stored compensator cannot run: {e}"),
                 ));
             }
+            check_plans(d, &field)?;
         }
         if let Some(fs) = file.board.full_scale {
             if !(fs.is_finite() && fs > 0.0) {
                 return Err(field(
                     &["board", "full_scale"],
                     format!(
-                        "board.full_scale = {fs} must be the ADC's range in the probe's units, a positive number"
+                        "board.full_scale = {} must be the ADC's range in the probe's units, a \
+                         positive number",
+                        number(fs)
                     ),
                 ));
             }
@@ -518,12 +548,260 @@ impl ModelFile {
                 if !(value.is_finite() && (value > 0.0 || key == "volume_m3" && value == 0.0)) {
                     return Err(field(
                         &["probe", key],
-                        format!("probe.{key} = {value} must be a positive number"),
+                        format!("probe.{key} = {} must be a positive number", number(value)),
                     ));
                 }
             }
         }
         Ok(file)
+    }
+}
+
+/// Largest model file read (16 MiB). A model file holds a few hundred numbers and its
+/// history, a few kilobytes; anything near this size is not one (a recording, a disk image,
+/// a device that never ends), and is refused before it is read into memory.
+pub const MAX_MODEL_FILE_BYTES: u64 = 16 << 20;
+
+/// Lowest sample rate a model file may carry (1 Hz). The slowest pressure-measuring system
+/// the crate models (a line of hundreds of metres) still responds within seconds, and a step
+/// test of it is sampled at tens of Hz at least; a rate below 1 Hz is a unit mistake, and one
+/// near zero would reach the board's single-precision blob as 0.
+pub const MIN_SAMPLE_RATE_HZ: f64 = 1.0;
+
+/// Reads a model file's text: at most [`MAX_MODEL_FILE_BYTES`] (a device or a huge file is
+/// refused before it fills memory), UTF-8 (a stray byte is refused at its line and column).
+///
+/// # Errors
+/// [`Error::Io`] when the file cannot be read, [`Error::Model`] when it is too large,
+/// [`Error::ModelAt`] when it is not UTF-8.
+pub fn read_model_text(path: &Path) -> Result<String> {
+    use std::io::Read as _;
+    let io = |source| Error::Io {
+        path: path.to_path_buf(),
+        action: "cannot read",
+        source,
+    };
+    let f = std::fs::File::open(path).map_err(io)?;
+    let meta = f.metadata().map_err(io)?;
+    if meta.is_dir() {
+        return Err(io(std::io::Error::other(
+            "it is a directory, not a model file",
+        )));
+    }
+    let too_large = || Error::Model {
+        path: path.to_path_buf(),
+        message: format!(
+            "larger than {} MiB: not a model file (a model file is a few kilobytes of TOML)",
+            MAX_MODEL_FILE_BYTES >> 20
+        ),
+    };
+    if meta.len() > MAX_MODEL_FILE_BYTES {
+        return Err(too_large());
+    }
+    let mut bytes = Vec::new();
+    f.take(MAX_MODEL_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > MAX_MODEL_FILE_BYTES {
+        return Err(too_large());
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        let bytes = e.as_bytes();
+        let at = e.utf8_error().valid_up_to();
+        let valid = std::str::from_utf8(bytes.get(..at).unwrap_or_default()).unwrap_or_default();
+        let (line, column) = line_col(valid, valid.len());
+        Error::ModelAt {
+            path: path.to_path_buf(),
+            line,
+            column,
+            message: format!(
+                "not UTF-8 text (byte 0x{:02x} at byte offset {at}): a model file is TOML as \
+                 `unlag fit` writes it",
+                bytes.get(at).copied().unwrap_or_default()
+            ),
+        }
+    })
+}
+
+/// Refuses a stored compensator that does not name the model beside it: one designed for
+/// another model (the file's `a`, `b`, `fs` or `delay` edited after the design) must not
+/// reach a board.
+fn check_belongs(d: &Design, m: &Model, field: &dyn Fn(&[&str], String) -> Error) -> Result<()> {
+    let fix = "design it again for this model with `unlag invert`, or restore the model's \
+               coefficients";
+    match &d.model_sha256 {
+        None => Err(field(
+            &["inverse"],
+            format!(
+                "the stored compensator does not name the model it was designed for \
+                 (inverse.model_sha256 is missing), so it cannot be shown to belong to this \
+                 model; {fix}"
+            ),
+        )),
+        Some(h) if *h != m.fingerprint() => Err(field(
+            &["inverse", "model_sha256"],
+            format!(
+                "the stored compensator was designed for another model (its model_sha256 is \
+                 not this file's fs, delay, a and b): {fix}"
+            ),
+        )),
+        Some(_) => Ok(()),
+    }
+}
+
+/// Refuses a fixed-point plan that is not the one the stored compensator gives: every
+/// integer, shift, form and exponent is planned again from the design and its full scale,
+/// and compared (the bounds, computed in floating point, to a relative 1e-9).
+fn check_plans(d: &Design, field: &dyn Fn(&[&str], String) -> Error) -> Result<()> {
+    let fix = "plan it again with `unlag invert --board fixed`, or remove the section";
+    let planned = [
+        (
+            "fixed",
+            d.fixed.as_ref().map(|p| {
+                (
+                    p.full_scale,
+                    serde_json::to_value(p),
+                    FixedPlan::new(d, p.full_scale).map(serde_json::to_value),
+                )
+            }),
+        ),
+        (
+            "fixed_direct",
+            d.fixed_direct.as_ref().map(|p| {
+                (
+                    p.full_scale,
+                    serde_json::to_value(p),
+                    DirectPlan::new(d, p.full_scale).map(serde_json::to_value),
+                )
+            }),
+        ),
+    ];
+    for (key, plan) in planned {
+        let Some((full_scale, stored, again)) = plan else {
+            continue;
+        };
+        if !(full_scale.is_finite() && full_scale > 0.0) {
+            return Err(field(
+                &["inverse", key, "full_scale"],
+                format!(
+                    "inverse.{key}.full_scale = {} must be the ADC's range in the probe's units, \
+                     a positive number; {fix}",
+                    number(full_scale)
+                ),
+            ));
+        }
+        let again = match again {
+            Ok(Ok(v)) => v,
+            Ok(Err(e)) => {
+                return Err(field(
+                    &["inverse", key],
+                    format!("inverse.{key} cannot be compared: {e}"),
+                ))
+            }
+            Err(e) => {
+                return Err(field(
+                    &["inverse", key],
+                    format!(
+                        "inverse.{key}: the stored compensator gives no plan for full scale {} \
+                         ({e}); {fix}",
+                        number(full_scale)
+                    ),
+                ))
+            }
+        };
+        let stored = stored.map_err(|e| {
+            field(
+                &["inverse", key],
+                format!("inverse.{key} cannot be compared: {e}"),
+            )
+        })?;
+        let mut path = vec![key.to_string()];
+        if let Some((stored, planned)) = first_difference(&stored, &again, &mut path) {
+            let keys: Vec<&str> = std::iter::once("inverse")
+                .chain(path.iter().map(String::as_str))
+                .collect();
+            return Err(field(
+                &keys,
+                format!(
+                    "inverse.{} is {stored}, but the stored compensator gives {planned} for this \
+                     plan's full scale: the plan does not belong to the compensator; {fix}",
+                    dotted(&path)
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `fixed.sections[2].shift` for the keys `fixed`, `sections`, `2`, `shift`.
+fn dotted(path: &[String]) -> String {
+    let mut out = String::new();
+    for k in path {
+        if k.parse::<usize>().is_ok() {
+            out.push_str(&format!("[{k}]"));
+        } else {
+            if !out.is_empty() {
+                out.push('.');
+            }
+            out.push_str(k);
+        }
+    }
+    out
+}
+
+/// The first place two plans differ, as `(stored, planned)` texts, with `path` extended to
+/// it: integers and strings exactly, other numbers to a relative 1e-9.
+fn first_difference(
+    stored: &serde_json::Value,
+    planned: &serde_json::Value,
+    path: &mut Vec<String>,
+) -> Option<(String, String)> {
+    use serde_json::Value;
+    let text = |v: &Value| {
+        let s = v.to_string();
+        if s.chars().count() > 40 {
+            format!("{}…", s.chars().take(40).collect::<String>())
+        } else {
+            s
+        }
+    };
+    match (stored, planned) {
+        (Value::Object(a), Value::Object(b)) => {
+            for (k, va) in a {
+                path.push(k.clone());
+                let vb = b.get(k).unwrap_or(&Value::Null);
+                if let Some(d) = first_difference(va, vb, path) {
+                    return Some(d);
+                }
+                path.pop();
+            }
+            None
+        }
+        (Value::Array(a), Value::Array(b)) if a.len() == b.len() => {
+            for (i, (va, vb)) in a.iter().zip(b).enumerate() {
+                path.push(i.to_string());
+                if let Some(d) = first_difference(va, vb, path) {
+                    return Some(d);
+                }
+                path.pop();
+            }
+            None
+        }
+        (Value::Array(a), Value::Array(b)) => Some((
+            format!("{} entries", a.len()),
+            format!("{} entries", b.len()),
+        )),
+        (Value::Number(a), Value::Number(b)) => {
+            let same = match (a.as_i64(), b.as_i64()) {
+                (Some(x), Some(y)) => x == y,
+                _ => match (a.as_f64(), b.as_f64()) {
+                    (Some(x), Some(y)) => x == y || (x - y).abs() <= 1e-9 * x.abs().max(y.abs()),
+                    _ => false,
+                },
+            };
+            (!same).then(|| (text(stored), text(planned)))
+        }
+        (a, b) => (a != b).then(|| (text(a), text(b))),
     }
 }
 
@@ -538,12 +816,40 @@ fn offset_of(text: &str, keys: &[&str]) -> usize {
     };
     let mut table: &dyn toml_edit::TableLike = doc.as_table();
     let mut offset = 0;
-    for key in keys {
+    let mut keys = keys.iter();
+    while let Some(key) = keys.next() {
         let Some((k, item)) = table.get_key_value(key) else {
             break;
         };
         if let Some(span) = item.span().or_else(|| k.span()) {
             offset = span.start;
+        }
+        // An array of tables (`[[inverse.fixed.sections]]`): the next key is its index.
+        if let Some(array) = item.as_array_of_tables() {
+            let Some(t) = keys
+                .next()
+                .and_then(|i| i.parse::<usize>().ok())
+                .and_then(|i| array.get(i))
+            else {
+                break;
+            };
+            if let Some(span) = t.span() {
+                offset = span.start;
+            }
+            table = t;
+            continue;
+        }
+        if let Some(array) = item.as_array() {
+            if let Some(v) = keys
+                .next()
+                .and_then(|i| i.parse::<usize>().ok())
+                .and_then(|i| array.get(i))
+            {
+                if let Some(span) = v.span() {
+                    offset = span.start;
+                }
+            }
+            break;
         }
         match item.as_table_like() {
             Some(t) => table = t,
@@ -676,6 +982,150 @@ mod tests {
         // A rise within the refit's own spread is not one.
         f.history.push(row(8, 0.0110 * 1.005, 0.003));
         assert!(f.error_rises().is_empty());
+    }
+
+    /// The shipped model with a fixed-point plan for a 20000 full scale, as `unlag invert
+    /// --board fixed` stores it.
+    fn with_plan() -> String {
+        let shipped = include_str!("../examples/data/board_model.toml");
+        let mut f = ModelFile::parse(Path::new("m.toml"), shipped).unwrap();
+        let d = f.inverse.as_mut().unwrap();
+        d.fixed = Some(FixedPlan::new(d, 20_000.0).unwrap());
+        d.fixed_direct = Some(DirectPlan::new(d, 20_000.0).unwrap());
+        f.to_toml().unwrap()
+    }
+
+    /// The error for `text` and the 1-based line of the first line of `text` that starts
+    /// with `marker` at or after the line containing `after`.
+    fn refused(text: &str) -> (usize, String) {
+        match ModelFile::parse(Path::new("m.toml"), text).unwrap_err() {
+            Error::ModelAt { line, message, .. } => (line, message),
+            e => panic!("{e:?}"),
+        }
+    }
+
+    fn line_of(text: &str, after: &str, marker: &str) -> usize {
+        let start = text.find(after).unwrap();
+        let at = start + text[start..].find(marker).unwrap();
+        text[..at].matches('\n').count() + 1
+    }
+
+    #[test]
+    fn a_stored_compensator_names_its_model_and_another_model_is_refused() {
+        let text = with_plan();
+        let f = ModelFile::parse(Path::new("m.toml"), &text).unwrap();
+        let d = f.inverse.as_ref().unwrap();
+        assert_eq!(
+            d.model_sha256.as_deref(),
+            Some(f.model.fingerprint().as_str())
+        );
+        // A design made in this run is stamped when written, and reads back the same.
+        let mut fresh = f.clone();
+        fresh.inverse.as_mut().unwrap().model_sha256 = None;
+        assert_eq!(fresh.to_toml().unwrap(), text);
+        // The model changed under the compensator: refused at the compensator's model name.
+        let mut moved = f.clone();
+        moved.model.b[0] *= 1.0 + 1e-12;
+        let moved_text = toml::to_string(&moved).unwrap();
+        let (line, message) = refused(&moved_text);
+        assert!(message.contains("designed for another model"), "{message}");
+        assert_eq!(line, line_of(&moved_text, "[inverse]", "model_sha256"));
+    }
+
+    #[test]
+    fn a_fixed_point_plan_that_the_compensator_does_not_give_is_refused_at_its_field() {
+        let text = with_plan();
+        let cases = [
+            (
+                "output_exponent = ",
+                "output_exponent = 100",
+                "inverse.fixed.output_exponent is 100",
+            ),
+            (
+                "form = \"",
+                "form = \"banana",
+                "inverse.fixed.sections[0].form is \"banana",
+            ),
+            (
+                "full_scale = 20000.0",
+                "full_scale = -1.0",
+                "inverse.fixed.full_scale = -1 must be",
+            ),
+            (
+                "shift = ",
+                "shift = 70\n# ",
+                "inverse.fixed.sections[0].shift is 70",
+            ),
+        ];
+        for (from, to, expected) in cases {
+            let at = text.find("[inverse.fixed]").unwrap();
+            let k = at + text[at..].find(from).unwrap();
+            let edited = format!("{}{to}{}", &text[..k], &text[k + from.len()..]);
+            let (line, message) = refused(&edited);
+            assert!(message.contains(expected), "{from}: {message}");
+            assert_eq!(
+                line,
+                line_of(&edited, "[inverse.fixed]", to.trim_end_matches("\n# ")),
+                "{message}"
+            );
+        }
+        // The direct form's plan is checked too.
+        let at = text.find("[inverse.fixed_direct]").unwrap();
+        let k = at + text[at..].find("output_exponent = ").unwrap();
+        let edited = format!("{}output_exponent = -7\n#{}", &text[..k], &text[k..]);
+        let (_, message) = refused(&edited);
+        assert!(
+            message.contains("inverse.fixed_direct.output_exponent is -7"),
+            "{message}"
+        );
+    }
+
+    #[test]
+    fn coefficient_lengths_and_rates_out_of_physics_are_refused() {
+        let shipped = include_str!("../examples/data/board_model.toml");
+        let a = shipped.lines().find(|l| l.starts_with("a = [")).unwrap();
+        let (line, message) = refused(&shipped.replacen(a, "a = []", 1));
+        assert!(
+            message.contains("b has 5 coefficients but a has 0"),
+            "{message}"
+        );
+        assert_eq!(line, line_of(shipped, "", "\nb = ") + 1);
+        for (fs, shown) in [("1e-300", "1e-300"), ("1e300", "1e300"), ("0.5", "0.5")] {
+            let text = shipped.replacen("fs = 10000.0", &format!("fs = {fs}"), 1);
+            let (_, message) = refused(&text);
+            assert!(message.ends_with(&format!("not {shown}")), "{message}");
+            assert!(message.len() < 120, "{message}");
+        }
+    }
+
+    #[test]
+    fn a_model_file_is_read_within_its_limit_and_as_utf8_with_a_position() {
+        let dir = tempfile::tempdir().unwrap();
+        let big = dir.path().join("big.toml");
+        let f = std::fs::File::create(&big).unwrap();
+        f.set_len(MAX_MODEL_FILE_BYTES + 1).unwrap();
+        let e = read_model_text(&big).unwrap_err().to_string();
+        assert!(e.contains("larger than 16 MiB"), "{e}");
+        if Path::new("/dev/zero").exists() {
+            let e = read_model_text(Path::new("/dev/zero"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("larger than 16 MiB"), "{e}");
+        }
+        let bad = dir.path().join("bad.toml");
+        std::fs::write(&bad, b"format_version = 1\nfs = 1\xff0\n").unwrap();
+        let e = ModelFile::load(&bad).unwrap_err();
+        let Error::ModelAt {
+            line,
+            column,
+            ref message,
+            ..
+        } = e
+        else {
+            panic!("{e:?}");
+        };
+        assert_eq!((line, column), (2, 7), "{e}");
+        assert!(message.contains("byte 0xff"), "{e}");
     }
 
     /// The fit's method is stored by its name, read back as the method, and written as it

@@ -128,11 +128,16 @@ impl FitArgs {
     /// file in the way that is not a model is never replaced silently; `--fresh` replaces a
     /// model (even a broken one), never a file that is not TOML at all (a recorded test).
     fn previous(&self) -> Result<Option<ModelFile>> {
-        if self.fresh && self.output.is_file() {
-            let text = std::fs::read(&self.output).unwrap_or_default();
-            let is_toml = std::str::from_utf8(&text)
-                .ok()
-                .is_some_and(|t| t.parse::<toml::Table>().is_ok());
+        // Only a regular file can hold a model to continue: a device (`/dev/null`, `/dev/full`)
+        // or a pipe is written to, never read from.
+        if self.output == Path::new("-") || !self.output.is_file() {
+            return Ok(None);
+        }
+        if self.fresh {
+            // Read as a model file is, within its size limit: a recording in the way is
+            // refused without being read whole.
+            let is_toml = crate::file::read_model_text(&self.output)
+                .is_ok_and(|t| t.parse::<toml::Table>().is_ok());
             if !is_toml {
                 return Err(Error::InvalidArgument {
                     what: "output",
@@ -143,13 +148,8 @@ impl FitArgs {
                     ),
                 });
             }
-        }
-        if self.fresh {
             // A fresh fit still keeps the probe's geometry of the model it replaces.
             return Ok(ModelFile::load(&self.output).ok());
-        }
-        if self.output == Path::new("-") || !self.output.exists() {
-            return Ok(None);
         }
         ModelFile::load(&self.output)
             .map(Some)

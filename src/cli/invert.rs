@@ -191,12 +191,9 @@ impl InverseArgs {
     }
 }
 
-/// `v` to six significant digits, without the binary fraction's tail (`6561.85`, not
-/// `6561.849999999999`).
+/// `v` to six significant digits ([`crate::error::number`]).
 pub(super) fn number(v: f64) -> String {
-    format!("{v:.5e}")
-        .parse::<f64>()
-        .map_or_else(|_| v.to_string(), |r| r.to_string())
+    crate::error::number(v)
 }
 
 /// The board the model file is for, in one line; with a default full scale, its rule and the

@@ -126,6 +126,11 @@ pub struct Reconstruction {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Design {
+    /// The [`Model::fingerprint`](crate::fit::model::Model::fingerprint) of the model this
+    /// compensator was designed for, stamped when a model file is written: a file whose model
+    /// no longer has it is refused ([`crate::file::ModelFile::load`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_sha256: Option<String>,
     /// How it was built (the words the CLI prints and the model file stores).
     pub method: DesignMethod,
     /// Low-pass family.
@@ -386,6 +391,7 @@ pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
         prior: None,
         budget: None,
         check: None,
+        model_sha256: None,
     })
 }
 

@@ -532,7 +532,28 @@ pub fn fit_as_found(
         .collect();
     let Some(best_crit) = usable.iter().map(|c| c.5).reduce(f64::min) else {
         if let Some(c) = candidates.first() {
-            c.1.check_stable(estimation.name)?;
+            // What the record held of the response: an unstable fit of a probe (a passive,
+            // stable system) most often saw too little of it after the step.
+            let after = p.y.len().saturating_sub(p.onset);
+            c.1.check_stable(estimation.name).map_err(|e| match e {
+                Error::UnstableModel {
+                    context,
+                    pole,
+                    radius,
+                    ..
+                } => Error::UnstableModel {
+                    context,
+                    pole,
+                    radius,
+                    note: format!(
+                        "; the record ends {after} samples ({} s) after the step: a probe is \
+                         stable, so an unstable fit most often means the record holds too little \
+                         of its response; record until the probe has settled",
+                        crate::error::number(after as f64 / c.1.fs)
+                    ),
+                },
+                e => e,
+            })?;
         }
         return Err(first_error.unwrap_or_else(|| {
             FitError::NoUsableOrder {

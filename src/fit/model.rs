@@ -43,6 +43,24 @@ impl Model {
         self.a.len().max(self.b.len().saturating_sub(1))
     }
 
+    /// SHA-256 of the model's numbers (`fs`, `delay`, `a`, `b`, each float by its IEEE bits),
+    /// lower-case hex: what a stored compensator names as the model it was designed for, so
+    /// that a model edited after its design is never exported with the old compensator.
+    #[must_use]
+    pub fn fingerprint(&self) -> String {
+        use sha2::{Digest, Sha256};
+        let mut h = Sha256::new();
+        h.update(self.fs.to_bits().to_le_bytes());
+        h.update((self.delay as u64).to_le_bytes());
+        for c in [&self.a, &self.b] {
+            h.update((c.len() as u64).to_le_bytes());
+            for v in c {
+                h.update(v.to_bits().to_le_bytes());
+            }
+        }
+        h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+    }
+
     /// Steady-state gain `sum b / (1 + sum a)` (1 for a calibrated probe).
     #[must_use]
     pub fn dc_gain(&self) -> f64 {
@@ -96,6 +114,7 @@ impl Model {
                     context: context.to_string(),
                     pole: poly::format_root(*p),
                     radius: p.norm(),
+                    note: String::new(),
                 });
             }
         }

@@ -106,6 +106,7 @@ pub fn delay_only(model: &Model) -> Result<Design> {
         prior: None,
         budget: None,
         check: None,
+        model_sha256: None,
     })
 }
 

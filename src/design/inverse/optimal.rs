@@ -386,6 +386,7 @@ fn design_for(
         prior: Some(*prior),
         budget: Some(full_budget),
         check: None,
+        model_sha256: None,
     })
 }
 

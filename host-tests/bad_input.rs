@@ -589,3 +589,226 @@ fn a_usage_error_as_json_names_the_missing_argument() {
         "{message}"
     );
 }
+
+/// A line without end (`/dev/zero`) given as the trace, the test or a `--signal` run, under a
+/// 3 GB address-space limit: one error line naming the file and line, never the allocator's
+/// abort (the CSV reader's buffer used to double until it asked for 4 GiB), and no output.
+#[test]
+fn an_endless_line_is_refused_under_a_memory_limit() {
+    if !Path::new("/dev/zero").exists() || !Path::new("/bin/bash").exists() {
+        eprintln!("skipped: no /dev/zero or no bash");
+        return;
+    }
+    let examples = format!("{}/examples/data", env!("CARGO_MANIFEST_DIR"));
+    let model = format!("{examples}/board_model.toml");
+    let step = format!("{examples}/step_test_1.csv");
+    let (csv, toml) = (tmp("zero.csv"), tmp("zero.toml"));
+    let cases: [(&[&str], &str); 3] = [
+        (&["compensate", &model, "/dev/zero", "-o", &csv], &csv),
+        (&["fit", "/dev/zero", "-o", &toml], &toml),
+        (&["fit", &step, "--signal", "/dev/zero", "-o", &toml], &toml),
+    ];
+    for (args, output) in cases {
+        let o = Command::new("/bin/bash")
+            .arg("-c")
+            .arg("ulimit -v 3000000 && exec \"$0\" \"$@\"")
+            .arg(env!("CARGO_BIN_EXE_unlag"))
+            .args(args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        let what = format!("unlag {}: {stderr}", args.join(" "));
+        assert_eq!(o.status.code(), Some(1), "{what}");
+        assert_eq!(stderr.lines().count(), 1, "one line expected: {what}");
+        assert_eq!(
+            stderr.trim_end(),
+            "error: /dev/zero:1: line 1 is longer than 1 MiB: a row of numbers is a few hundred \
+             bytes; is this a text CSV file?",
+            "{what}"
+        );
+        assert!(!Path::new(output).exists(), "output written: {what}");
+    }
+}
+
+/// A step test at 10 kHz (400 rows, a first-order response), written to `name` with the
+/// header `header`, fields joined by `sep`, time multiplied by `time_scale`, and decimal
+/// commas when `comma`.
+fn step_file(name: &str, header: &str, sep: &str, time_scale: f64, comma: bool) -> String {
+    let mut s = format!("{header}\n");
+    for k in 0..400 {
+        let u = if k < 100 { 0.0 } else { 1.0 };
+        let y = if k < 100 {
+            0.0
+        } else {
+            1.0 - (-(f64::from(k) - 100.0) / 5.0).exp()
+        };
+        let t = f64::from(k) * 1e-4 * time_scale;
+        let row = [format!("{t:.9}"), format!("{u}"), format!("{y:.6}")]
+            .map(|f| if comma { f.replace('.', ",") } else { f })
+            .join(sep);
+        s.push_str(&row);
+        s.push('\n');
+    }
+    let path = tmp(name);
+    std::fs::write(&path, s).unwrap();
+    path
+}
+
+/// The sample rate a model file was fitted at.
+fn model_fs(path: &str) -> f64 {
+    let text = std::fs::read_to_string(path).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("fs = "))
+        .unwrap_or_else(|| panic!("no fs in {text}"));
+    line.trim_start_matches("fs = ").parse().unwrap()
+}
+
+/// A file separated by semicolons or tabs, or with decimal commas, is named as such with the
+/// flag that reads it, by every command; read with the flags it fits, and the results are
+/// written back in the file's own dialect.
+#[test]
+fn delimiters_and_decimal_commas_are_named_with_their_fix() {
+    let toml = tmp("dialect.toml");
+    let out = tmp("dialect_out.csv");
+    let semi = step_file("semi.csv", "t;u;y", ";", 1.0, false);
+    csv_readers(
+        &semi,
+        "semi.csv:1: the header 't;u;y' is one column: its names are separated by ';', not by \
+         ','; read the file with the delimiter ';' (--delimiter ';')",
+    );
+    let tab = step_file("tab.csv", "t\tu\ty", "\t", 1.0, false);
+    refuses(
+        &["fit", &tab, "-o", &toml],
+        Some(&toml),
+        "separated by tab, not by ','; read the file with the delimiter tab (--delimiter tab)",
+    );
+    let comma = step_file("comma.csv", "t;u;y", ";", 1.0, true);
+    refuses(
+        &["fit", &comma, "-o", &toml],
+        Some(&toml),
+        "the rows have decimal commas) (--delimiter ';' --decimal-comma)",
+    );
+    refuses(
+        &["fit", &comma, "--delimiter", ";", "-o", &toml],
+        Some(&toml),
+        "comma.csv:2:1: '0,000000000' in column 't' is not a number: it has a decimal comma; \
+         read commas in numbers as decimal points (--decimal-comma)",
+    );
+    refuses(
+        &["fit", &comma, "--decimal-comma", "-o", &toml],
+        Some(&toml),
+        "need a delimiter other than ',' (every decimal comma would split a field) \
+         (--decimal-comma with --delimiter ';' or tab)",
+    );
+    let o = unlag(&["fit", &tab, "--delimiter", "long", "-o", &toml]);
+    assert_eq!(o.status.code(), Some(2));
+    // Read as they are written.
+    let flags = ["--delimiter", ";", "--decimal-comma"];
+    let o = unlag(&[&["fit", &comma, "--order", "2", "-o", &toml][..], &flags].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!((model_fs(&toml) - 10_000.0).abs() < 1e-6);
+    let o = unlag(&[&["compensate", &toml, &comma, "-o", &out][..], &flags].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let written = std::fs::read_to_string(&out).unwrap();
+    let mut rows = written.lines();
+    assert_eq!(rows.next(), Some("t;u;y;u_hat"));
+    let second = rows.nth(1).unwrap();
+    assert!(second.starts_with("0,000100000;0;0,000000;"), "{second}");
+    let o = unlag(&[
+        "fit",
+        &tab,
+        "--delimiter",
+        "tab",
+        "--order",
+        "2",
+        "-o",
+        &toml,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// The time column's unit comes from its name; a column without one that steps too slowly for
+/// seconds is refused with the fix, not fitted at a thousandth of its rate.
+#[test]
+fn time_units_are_read_from_the_column_name_or_asked_for() {
+    let toml = tmp("units.toml");
+    let samples = step_file("samples.csv", "t,u,y", ",", 1e4, false);
+    refuses(
+        &["fit", &samples, "-o", &toml],
+        Some(&toml),
+        "samples.csv:3:1: time column 't' steps by 1 per row: as seconds that is 1 Hz, below the \
+         10 Hz a probe's step test is sampled at (milliseconds or sample numbers?); name the unit \
+         in the column's name (t_ms, t_us) or give the sample rate (--fs HZ, or rename the \
+         column t_ms and give --t t_ms)",
+    );
+    let o = unlag(&[
+        "fit", &samples, "--fs", "10000", "--order", "2", "-o", &toml,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!((model_fs(&toml) - 10_000.0).abs() < 1e-6);
+    for (name, scale) in [("t_ms", 1e3), ("t[us]", 1e6), ("time (s)", 1.0)] {
+        let path = step_file("units.csv", &format!("{name},u,y"), ",", scale, false);
+        let o = unlag(&["fit", &path, "--t", name, "--order", "2", "-o", &toml]);
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!((model_fs(&toml) - 10_000.0).abs() < 1e-3, "{name}");
+    }
+}
+
+/// Values no sum can hold, and columns that hold one value, are refused where they are read,
+/// not later as a fit that found nothing.
+#[test]
+fn huge_values_and_constant_columns_are_refused_where_they_are() {
+    let toml = tmp("values.toml");
+    let good = std::fs::read_to_string(step_file("values.csv", "t,u,y", ",", 1.0, false)).unwrap();
+    let huge = tmp("huge.csv");
+    std::fs::write(
+        &huge,
+        good.replacen(
+            "\n0.000200000,0,0.000000\n",
+            "\n0.000200000,1e300,0.000000\n",
+            1,
+        ),
+    )
+    .unwrap();
+    csv_readers(
+        &huge,
+        "huge.csv:4:2: '1e300' in column 'u': |value| above 1e100 cannot be a pressure or a \
+         time in any unit and overflows the fit's sums; is the column scaled?",
+    );
+    let constant: String = good
+        .lines()
+        .map(|l| match l.rsplit_once(',') {
+            Some((head, _)) if l != "t,u,y" => format!("{head},0.25\n"),
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    let flat = tmp("flat.csv");
+    std::fs::write(&flat, constant).unwrap();
+    refuses(
+        &["fit", &flat, "-o", &toml],
+        Some(&toml),
+        "flat.csv: the probe column 'y' is constant (0.25) from line 2 to line 401: nothing to \
+         fit; is it the right column, or was the probe connected?",
+    );
+    let long = tmp("long_cell.csv");
+    std::fs::write(
+        &long,
+        good.replacen(
+            "\n0.000100000,0,",
+            &format!("\n0.000100000,{},", "7".repeat(100_000)),
+            1,
+        ),
+    )
+    .unwrap();
+    refuses(
+        &["fit", &long, "-o", &toml],
+        Some(&toml),
+        "long_cell.csv:3:2: value '77777777777777777777777777777777…' (100000 bytes at byte \
+         41) in column 'u' is not finite",
+    );
+}

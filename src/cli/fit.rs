@@ -208,6 +208,13 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
             .zip(rates.iter().copied())
             .collect::<Vec<_>>(),
     )?;
+    // The `--signal` runs are read again when the compensator is designed, after the fit: a
+    // bad run is refused here, before minutes of fitting.
+    if args.inverse.bandwidth.is_none() && !args.inverse.direct {
+        for run in &args.inverse.signal {
+            Trace::read(run, &args.columns.columns(false))?;
+        }
+    }
     let tests = as_tests(&traces, &names)?;
     // The modelling loop: the output file's effects and history carry over.
     let previous = args.previous()?;

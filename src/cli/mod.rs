@@ -83,7 +83,7 @@ pub enum Command {
 /// Column names and sample rate of the input CSV.
 #[derive(Debug, Clone, Args)]
 pub struct ColumnArgs {
-    /// Time column (seconds).
+    /// Time column, in seconds unless its name gives the unit: `t_ms`, `time_us`, `t[ns]`.
     #[arg(long = "t", default_value = "t", value_name = "NAME")]
     pub time_column: String,
     /// Reference column.
@@ -95,6 +95,35 @@ pub struct ColumnArgs {
     /// Sample rate in Hz, for files without a time column.
     #[arg(long, value_name = "HZ")]
     pub fs: Option<f64>,
+    /// The character between fields: one ASCII character, or `tab` (also `\t`).
+    #[arg(long, value_name = "CHAR", default_value = ",", value_parser = parse_delimiter)]
+    pub delimiter: u8,
+    /// Read a comma in a number as its decimal point (`0,5`); needs a --delimiter other than
+    /// ','. Results are written back the same way.
+    #[arg(long)]
+    pub decimal_comma: bool,
+}
+
+/// A delimiter from the command line: one ASCII character that cannot be part of a number, a
+/// name's quote or a comment, or `tab`.
+fn parse_delimiter(text: &str) -> std::result::Result<u8, String> {
+    let byte = match text {
+        "tab" | "\\t" | "\t" => b'\t',
+        _ => match text.as_bytes() {
+            [b] => *b,
+            _ => return Err(format!("'{text}' is not one character (give one, or tab)")),
+        },
+    };
+    if byte.is_ascii_alphanumeric()
+        || matches!(byte, b'.' | b'-' | b'+' | b'"' | b'#' | b'\n' | b'\r')
+        || !byte.is_ascii()
+    {
+        return Err(format!(
+            "'{}' cannot separate fields (it can be part of a number, a quote or a comment)",
+            text.escape_debug()
+        ));
+    }
+    Ok(byte)
 }
 
 impl ColumnArgs {
@@ -105,6 +134,8 @@ impl ColumnArgs {
             output: self.output_column.clone(),
             sample_rate_hz: self.fs,
             require_input,
+            delimiter: self.delimiter,
+            decimal_comma: self.decimal_comma,
         }
     }
 }
@@ -196,7 +227,33 @@ pub fn describe(e: &Error) -> String {
             None => text,
         };
     }
+    match e {
+        Error::Trace(TraceError::WrongDelimiter {
+            found,
+            decimal_comma,
+            ..
+        }) => {
+            let flag = match found {
+                b'\t' => "tab".to_string(),
+                d => format!("'{}'", char::from(*d)),
+            };
+            let comma = if *decimal_comma {
+                " --decimal-comma"
+            } else {
+                ""
+            };
+            return format!("{e} (--delimiter {flag}{comma})");
+        }
+        Error::Trace(TraceError::ImplausibleTime { .. }) => {
+            return format!("{e} (--fs HZ, or rename the column t_ms and give --t t_ms)");
+        }
+        _ => {}
+    }
     let flag = match e {
+        Error::Trace(TraceError::DecimalComma { .. }) => Some("--decimal-comma"),
+        Error::Trace(TraceError::DecimalCommaDelimiter) => {
+            Some("--decimal-comma with --delimiter ';' or tab")
+        }
         Error::Trace(TraceError::MissingColumn { role, .. }) => Some(match role {
             ColumnRole::Probe => "--y",
             ColumnRole::Reference => "--u",

@@ -385,6 +385,7 @@ mod tests {
             output: "y".into(),
             sample_rate_hz: None,
             require_input: false,
+            ..Columns::default()
         };
         Trace::parse(Path::new("run.csv"), csv.as_bytes(), &columns).unwrap()
     }

@@ -39,7 +39,7 @@ pub enum TraceError {
         source: std::io::Error,
     },
     /// The sample rate given for a file without a time column is not a rate.
-    #[error("invalid sample rate: the sample rate must be a positive number of Hz up to {max:e}, not {given:?}")]
+    #[error("invalid sample rate: the sample rate must be a positive number of Hz up to {max:e}, not {}", short(*.given))]
     SampleRate {
         /// What was given.
         given: f64,
@@ -63,13 +63,13 @@ pub enum TraceError {
         what: &'static str,
     },
     /// A required column is not in the header.
-    #[error("{path}:1: missing column '{column}' (the header has: {found}); {}", missing_hint(*.role, *.needed))]
+    #[error("{path}:1: missing column {column} (the header has: {found}); {}", missing_hint(*.role, *.needed))]
     MissingColumn {
         /// The file.
         path: PathBuf,
-        /// The column asked for.
+        /// The column asked for, quoted and cut ([`crate::trace::echo`]).
         column: String,
-        /// The header's column names, comma-separated.
+        /// The header's column names, comma-separated, cut ([`crate::trace::echo`]).
         found: String,
         /// Which column it is.
         role: ColumnRole,
@@ -78,7 +78,7 @@ pub enum TraceError {
         needed: bool,
     },
     /// A field is not a number.
-    #[error("{path}:{line}:{column}: '{value}' in column '{name}' is not a number")]
+    #[error("{path}:{line}:{column}: {value} in column {name} is not a number")]
     NotANumber {
         /// The file.
         path: PathBuf,
@@ -86,13 +86,13 @@ pub enum TraceError {
         line: u64,
         /// 1-based field position.
         column: usize,
-        /// The column's name.
+        /// The column's name, quoted and cut ([`crate::trace::echo`]).
         name: String,
-        /// The text found.
+        /// The text found, quoted and cut ([`crate::trace::echo`]).
         value: String,
     },
     /// A field is NaN or infinite.
-    #[error("{path}:{line}:{column}: value '{value}' in column '{name}' is not finite")]
+    #[error("{path}:{line}:{column}: value {value} in column {name} is not finite")]
     NonFinite {
         /// The file.
         path: PathBuf,
@@ -100,9 +100,9 @@ pub enum TraceError {
         line: u64,
         /// 1-based field position.
         column: usize,
-        /// The column's name.
+        /// The column's name, quoted and cut ([`crate::trace::echo`]).
         name: String,
-        /// The text found.
+        /// The text found, quoted and cut ([`crate::trace::echo`]).
         value: String,
     },
     /// A row has the wrong number of fields, or the CSV is malformed.
@@ -116,7 +116,7 @@ pub enum TraceError {
         message: String,
     },
     /// Time does not increase from one row to the next.
-    #[error("{path}:{line}:{column}: time in column '{name}' does not increase ({previous} then {value})")]
+    #[error("{path}:{line}:{column}: time in column {name} does not increase ({} then {})", short(*.previous), short(*.value))]
     TimeNotIncreasing {
         /// The file.
         path: PathBuf,
@@ -124,7 +124,7 @@ pub enum TraceError {
         line: u64,
         /// 1-based field position.
         column: usize,
-        /// The column's name.
+        /// The column's name, quoted and cut ([`crate::trace::echo`]).
         name: String,
         /// The previous time.
         previous: f64,
@@ -132,7 +132,7 @@ pub enum TraceError {
         value: f64,
     },
     /// The time step varies by more than 1 %.
-    #[error("{path}:{line}:{column}: time step {step:.6e} s in column '{name}' differs from the mean step {nominal:.6e} s by {percent:.2} % (more than 1 % jitter: resample the trace or give the sample rate)")]
+    #[error("{path}:{line}:{column}: time step {step:.6e} {unit} in column {name} differs from the mean step {nominal:.6e} {unit} by {percent:.2} % (more than 1 % jitter: resample the trace or give the sample rate)")]
     NonUniformTime {
         /// The file.
         path: PathBuf,
@@ -140,7 +140,7 @@ pub enum TraceError {
         line: u64,
         /// 1-based field position.
         column: usize,
-        /// The column's name.
+        /// The column's name, quoted and cut ([`crate::trace::echo`]).
         name: String,
         /// The offending step.
         step: f64,
@@ -148,6 +148,8 @@ pub enum TraceError {
         nominal: f64,
         /// Relative deviation in percent.
         percent: f64,
+        /// The time column's unit ("s", "ms", "µs", "ns").
+        unit: &'static str,
     },
     /// Fewer than two samples: no time step.
     #[error("{path}: {samples} samples is too short: a trace needs at least 2")]
@@ -158,7 +160,7 @@ pub enum TraceError {
         samples: usize,
     },
     /// The ADC saturated: the signal sits flat at its extreme value, entered with a jump.
-    #[error("{path}:{line}:{column}: column '{name}' looks clipped: {run} samples flat at its {which} value {value} from this line on (the ADC saturated; re-record with more range)")]
+    #[error("{path}:{line}:{column}: column {name} looks clipped: {run} samples flat at its {which} value {} from this line on (the ADC saturated; re-record with more range)", short(*.value))]
     Clipped {
         /// The file.
         path: PathBuf,
@@ -166,7 +168,7 @@ pub enum TraceError {
         line: u64,
         /// 1-based field position.
         column: usize,
-        /// The column's name.
+        /// The column's name, quoted and cut ([`crate::trace::echo`]).
         name: String,
         /// Length of the flat run.
         run: usize,
@@ -174,6 +176,113 @@ pub enum TraceError {
         which: &'static str,
         /// The clipped value.
         value: f64,
+    },
+    /// A physical line (or a quoted record) is longer than [`crate::trace::MAX_LINE_BYTES`]:
+    /// not a row of numbers. Refused before the reader's buffer grows for it.
+    #[error("{path}:{line}: {} longer than {}: a row of numbers is a few hundred bytes; is this a text CSV file{}?", long_what(*.line, *.quoted), bytes(*.limit), if *.quoted { ", or is a quote left open" } else { "" })]
+    LineTooLong {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line where the long line (or record) starts.
+        line: u64,
+        /// The limit, in bytes.
+        limit: u64,
+        /// Whether the line breaks are inside a quoted field (a record over many lines).
+        quoted: bool,
+    },
+    /// The signals' buffers could not grow: the recording does not fit in memory.
+    #[error("{path}:{line}: out of memory at line {line} ({rows} rows read): the recording is too long for this machine's memory; cut it into shorter tests")]
+    OutOfMemory {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line being read.
+        line: u64,
+        /// Rows read so far.
+        rows: usize,
+    },
+    /// The header is one column holding another delimiter: the file is separated by it.
+    #[error("{path}:1: the header {header} is one column: its names are separated by {}, not by {}; read the file with the delimiter {}{}", delimiter_name(*.found), delimiter_name(*.expected), delimiter_name(*.found), if *.decimal_comma { ", and commas in numbers as decimal points (the rows have decimal commas)" } else { "" })]
+    WrongDelimiter {
+        /// The file.
+        path: PathBuf,
+        /// The header as found (cut, [`crate::trace::echo`]).
+        header: String,
+        /// The delimiter the file was read with.
+        expected: u8,
+        /// The delimiter the header holds.
+        found: u8,
+        /// Whether the first row's numbers have decimal commas too.
+        decimal_comma: bool,
+    },
+    /// A number written with a decimal comma, read without decimal commas.
+    #[error("{path}:{line}:{column}: {value} in column {name} is not a number: it has a decimal comma; read commas in numbers as decimal points")]
+    DecimalComma {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: u64,
+        /// 1-based field position.
+        column: usize,
+        /// The column's name, quoted and cut ([`crate::trace::echo`]).
+        name: String,
+        /// The text found, quoted and cut ([`crate::trace::echo`]).
+        value: String,
+    },
+    /// Decimal commas asked for with the comma as the delimiter.
+    #[error("invalid delimiter: numbers with decimal commas need a delimiter other than ',' (every decimal comma would split a field)")]
+    DecimalCommaDelimiter,
+    /// A value too large for any pressure or time, which would overflow the fit's sums.
+    #[error("{path}:{line}:{column}: {value} in column {name}: |value| above {max:e} cannot be a pressure or a time in any unit and overflows the fit's sums; is the column scaled?")]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: u64,
+        /// 1-based field position.
+        column: usize,
+        /// The column's name, quoted and cut ([`crate::trace::echo`]).
+        name: String,
+        /// The text found, quoted and cut ([`crate::trace::echo`]).
+        value: String,
+        /// The largest magnitude accepted ([`crate::trace::MAX_MAGNITUDE`]).
+        max: f64,
+    },
+    /// A time column without a unit in its name whose step, read as seconds, is slower than
+    /// any probe's step test is sampled.
+    #[error("{path}:{line}:{column}: time column {name} steps by {} per row: as seconds that is {} Hz, below the {} Hz a probe's step test is sampled at (milliseconds or sample numbers?); name the unit in the column's name (t_ms, t_us) or give the sample rate", short(*.step), short(*.rate_hz), short(*.min))]
+    ImplausibleTime {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the second row.
+        line: u64,
+        /// 1-based field position.
+        column: usize,
+        /// The column's name, quoted and cut ([`crate::trace::echo`]).
+        name: String,
+        /// The mean step, in the file's numbers.
+        step: f64,
+        /// The rate it gives as seconds.
+        rate_hz: f64,
+        /// The lowest plausible rate ([`crate::trace::MIN_PLAUSIBLE_RATE_HZ`]).
+        min: f64,
+    },
+    /// A column that a fit needs holds one value from its first row to its last.
+    #[error("{path}: the {role} column {name} is constant ({}) from line {first} to line {last}: nothing to fit; {}", short(*.value), constant_hint(*.role))]
+    Constant {
+        /// The file.
+        path: PathBuf,
+        /// Which column.
+        role: ColumnRole,
+        /// The column's name, quoted and cut ([`crate::trace::echo`]).
+        name: String,
+        /// 1-based field position.
+        column: usize,
+        /// The value it holds.
+        value: f64,
+        /// 1-based line of the first row.
+        first: u64,
+        /// 1-based line of the last row.
+        last: u64,
     },
     /// Columns written beside the trace do not fit it, or the file changed since it was read.
     #[error("{path}: {message}")]
@@ -183,6 +292,51 @@ pub enum TraceError {
         /// What differs.
         message: String,
     },
+}
+
+/// A number for a message: as written when short, else in scientific notation (never the 300
+/// digits `{}` gives 1e300).
+pub(crate) fn short(x: f64) -> String {
+    let plain = x.to_string();
+    if plain.len() <= 12 {
+        plain
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// A byte count in the largest binary unit that divides it.
+fn bytes(n: u64) -> String {
+    match n {
+        n if n >= 1 << 20 && n % (1 << 20) == 0 => format!("{} MiB", n >> 20),
+        n if n >= 1 << 10 && n % (1 << 10) == 0 => format!("{} KiB", n >> 10),
+        n => format!("{n} bytes"),
+    }
+}
+
+/// A delimiter as a message names it: `';'`, or `tab`.
+pub fn delimiter_name(d: u8) -> String {
+    match d {
+        b'\t' => "tab".into(),
+        d if d.is_ascii_graphic() || d == b' ' => format!("'{}'", char::from(d)),
+        d => format!("byte {d:#04x}"),
+    }
+}
+
+fn long_what(line: u64, quoted: bool) -> String {
+    if quoted {
+        format!("the quoted record from line {line} is")
+    } else {
+        format!("line {line} is")
+    }
+}
+
+fn constant_hint(role: ColumnRole) -> &'static str {
+    match role {
+        ColumnRole::Probe => "is it the right column, or was the probe connected?",
+        ColumnRole::Reference => "is it the right column, and did the test have its step?",
+        ColumnRole::Time => "is it the right column?",
+    }
 }
 
 fn missing_hint(role: ColumnRole, needed: bool) -> String {
@@ -210,6 +364,14 @@ impl TraceError {
             Self::TooShort { .. } => "too-short",
             Self::Clipped { .. } => "clipped",
             Self::Mismatch { .. } => "mismatch",
+            Self::LineTooLong { .. } => "line-too-long",
+            Self::OutOfMemory { .. } => "out-of-memory",
+            Self::WrongDelimiter { .. } => "wrong-delimiter",
+            Self::DecimalComma { .. } => "decimal-comma",
+            Self::DecimalCommaDelimiter => "invalid-argument",
+            Self::TooLarge { .. } => "too-large",
+            Self::ImplausibleTime { .. } => "implausible-time",
+            Self::Constant { .. } => "constant",
         }
     }
 
@@ -231,7 +393,27 @@ impl TraceError {
             }
             | Self::Clipped {
                 path, line, column, ..
+            }
+            | Self::DecimalComma {
+                path, line, column, ..
+            }
+            | Self::TooLarge {
+                path, line, column, ..
+            }
+            | Self::ImplausibleTime {
+                path, line, column, ..
             } => (Some(path), Some(*line), Some(*column as u64)),
+            Self::Constant {
+                path,
+                first,
+                column,
+                ..
+            } => (Some(path), Some(*first), Some(*column as u64)),
+            Self::LineTooLong { path, line, .. } | Self::OutOfMemory { path, line, .. } => {
+                (Some(path), Some(*line), None)
+            }
+            Self::WrongDelimiter { path, .. } => (Some(path), Some(1), None),
+            Self::DecimalCommaDelimiter => (None, None, None),
             Self::Empty { path, line, .. } | Self::Malformed { path, line, .. } => {
                 (Some(path), Some(*line), None)
             }

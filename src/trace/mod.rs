@@ -26,6 +26,72 @@ pub type Result<T, E = TraceError> = std::result::Result<T, E>;
 /// Highest sample rate a record or a model file may carry (1 GHz).
 pub const MAX_SAMPLE_RATE_HZ: f64 = 1e9;
 
+/// Longest line (or quoted record) a trace may have: 1 MiB. A row of numbers is a few hundred
+/// bytes; a longer line is not a row (a binary file, a file without line ends, a device such
+/// as `/dev/zero`), and the CSV reader would grow its buffer for it until memory runs out.
+/// The limit is checked on the bytes as they are read, before the reader's buffer grows.
+pub const MAX_LINE_BYTES: u64 = 1 << 20;
+
+/// Largest magnitude a value may have. No pressure in any unit (1e100 Pa is beyond any star's
+/// core) and no time comes near it, and the fit squares the values and sums the squares over
+/// up to a billion rows: below 1e100 those sums stay under 1e209, far from `f64`'s 1.8e308,
+/// while 1e300 overflows to infinity at the first square.
+pub const MAX_MAGNITUDE: f64 = 1e100;
+
+/// Lowest sample rate a time column without a unit in its name is believed in seconds. The
+/// dynamics a pressure probe is tested for (line and cavity resonances, diaphragms, the
+/// transport delay of its tubing) lie between about 10 Hz and a few MHz; a step test sampled
+/// below 10 Hz sees none of them, so such a column is much more likely milliseconds,
+/// microseconds or sample numbers than seconds.
+pub const MIN_PLAUSIBLE_RATE_HZ: f64 = 10.0;
+
+/// Characters of a header or a cell an error message echoes before cutting it ([`echo`]).
+pub const ECHO_CHARS: usize = 32;
+
+/// A header or a cell as a message echoes it: quoted, control characters escaped (a tab as
+/// `\t`), and when longer than [`ECHO_CHARS`] characters, cut there with an ellipsis and
+/// followed by its length and the byte of the file where it starts:
+/// `'0000…' (10485760 bytes at byte 7)`. A 10 MB cell does not make a 10 MB message.
+#[must_use]
+pub fn echo(text: &str, at_byte: u64) -> String {
+    match text.char_indices().nth(ECHO_CHARS) {
+        None => format!("'{}'", text.escape_debug()),
+        Some((cut, _)) => format!(
+            "'{}…' ({} bytes at byte {at_byte})",
+            text.get(..cut).unwrap_or("").escape_debug(),
+            text.len()
+        ),
+    }
+}
+
+/// A time column's unit, from its name (`t_ms`, `time_us`, `t[ms]`, `t (µs)`, `time_s`): its
+/// symbol and its length in seconds; `None` when the name carries no unit.
+#[must_use]
+pub fn time_unit(name: &str) -> Option<(&'static str, f64)> {
+    let name = name.trim();
+    let bracketed = |open: char, close: char| {
+        name.strip_suffix(close)
+            .and_then(|s| s.rsplit_once(open))
+            .map(|(_, unit)| unit)
+    };
+    let token = bracketed('[', ']')
+        .or_else(|| bracketed('(', ')'))
+        .or_else(|| {
+            name.rsplit_once(['_', ' ', '-', '/', '.'])
+                .map(|(_, unit)| unit)
+        })?;
+    match token.trim().to_lowercase().as_str() {
+        "s" | "sec" | "secs" | "seconds" => Some(("s", 1.0)),
+        "ms" | "msec" => Some(("ms", 1e-3)),
+        "us" | "µs" | "μs" | "usec" => Some(("µs", 1e-6)),
+        "ns" | "nsec" => Some(("ns", 1e-9)),
+        _ => None,
+    }
+}
+
+/// Rows looked at for decimal commas when the header shows the file has another delimiter.
+const DELIMITER_ROWS: usize = 16;
+
 /// Rows read before the signals' buffers are sized from the file's length.
 const SIZING_ROWS: usize = 64;
 
@@ -51,7 +117,14 @@ pub struct Columns {
     /// Sample rate in Hz, when the file has no time column.
     pub sample_rate_hz: Option<f64>,
     /// Whether the reference column must be present (fitting needs it; compensating does not).
+    /// A trace read for a fit is also refused when its reference or probe column is constant.
     pub require_input: bool,
+    /// The byte between fields: `b','` by default, `b';'` or `b'\t'` for files written where
+    /// the comma is the decimal point. Results are written back with the same delimiter.
+    pub delimiter: u8,
+    /// Whether a comma in a number is its decimal point (`0,5` is one half); only with a
+    /// delimiter other than `,`. Results are written back with decimal commas too.
+    pub decimal_comma: bool,
 }
 
 impl Default for Columns {
@@ -62,6 +135,8 @@ impl Default for Columns {
             output: "y".into(),
             sample_rate_hz: None,
             require_input: true,
+            delimiter: b',',
+            decimal_comma: false,
         }
     }
 }
@@ -85,6 +160,8 @@ pub struct Trace {
     pub y_column: usize,
     /// The header, to write the columns back.
     pub headers: csv::StringRecord,
+    /// The file's delimiter and whether its numbers have decimal commas, to write it back alike.
+    dialect: (u8, bool),
     /// Where the rows are read again to be written back with new columns (they are not kept:
     /// a trace holds its two signals, 16 bytes a sample).
     source: Source,
@@ -134,12 +211,160 @@ impl<R: Read> Read for Hashing<R> {
     }
 }
 
-/// The CSV reader every trace is read (and read again) with.
-fn csv_reader<R: Read>(reader: R) -> csv::Reader<R> {
+/// The CSV reader every trace is read (and read again) with: lines bounded by
+/// [`MAX_LINE_BYTES`], the field count checked by the caller (to read a row of a file whose
+/// header was split at the wrong delimiter).
+fn csv_reader<R: Read>(reader: R, delimiter: u8, trim: csv::Trim) -> csv::Reader<LineLimit<R>> {
     csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
+        .trim(trim)
+        .delimiter(delimiter)
+        .flexible(true)
         .comment(Some(b'#'))
-        .from_reader(reader)
+        .from_reader(LineLimit::new(reader, delimiter))
+}
+
+/// Where a [`LineLimit`] is in the CSV syntax, as far as the length of a record needs it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Syntax {
+    RecordStart,
+    FieldStart,
+    Field,
+    Quoted,
+    QuoteInQuoted,
+    Comment,
+}
+
+/// A reader that refuses a line, or a quoted record over many lines, longer than
+/// [`MAX_LINE_BYTES`]: the bytes are counted as they pass, before the CSV reader's buffer grows
+/// for them (it would grow without bound on a file without line ends).
+struct LineLimit<R> {
+    inner: R,
+    delimiter: u8,
+    state: Syntax,
+    /// Bytes since the last line end.
+    physical: u64,
+    /// Bytes since the current record started.
+    record: u64,
+    /// Line ends seen.
+    newlines: u64,
+    /// 1-based line the current record started on.
+    record_line: u64,
+}
+
+/// The error a [`LineLimit`] gives, found again in the CSV reader's error.
+#[derive(Debug)]
+struct TooLong {
+    line: u64,
+    quoted: bool,
+}
+
+impl std::fmt::Display for TooLong {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "line {} is longer than {MAX_LINE_BYTES} bytes",
+            self.line
+        )
+    }
+}
+
+impl std::error::Error for TooLong {}
+
+impl<R> LineLimit<R> {
+    fn new(inner: R, delimiter: u8) -> Self {
+        Self {
+            inner,
+            delimiter,
+            state: Syntax::RecordStart,
+            physical: 0,
+            record: 0,
+            newlines: 0,
+            record_line: 1,
+        }
+    }
+
+    /// Counts one byte; an error when it makes its line or record too long.
+    fn step(&mut self, b: u8) -> std::io::Result<()> {
+        use Syntax::{Comment, Field, FieldStart, QuoteInQuoted, Quoted, RecordStart};
+        if self.state == RecordStart {
+            self.record = 0;
+            self.record_line = self.newlines + 1;
+        }
+        self.state = match (self.state, b) {
+            (Comment, b'\n') => RecordStart,
+            (Comment, _) => Comment,
+            (RecordStart, b'#') => Comment,
+            (Quoted, b'"') => QuoteInQuoted,
+            (Quoted, _) | (QuoteInQuoted, b'"') | (RecordStart | FieldStart, b'"') => Quoted,
+            (_, b'\n' | b'\r') => RecordStart,
+            (_, d) if d == self.delimiter => FieldStart,
+            _ => Field,
+        };
+        if b == b'\n' {
+            self.newlines += 1;
+            self.physical = 0;
+        } else {
+            self.physical += 1;
+        }
+        self.record += 1;
+        let too_long = if self.physical > MAX_LINE_BYTES {
+            TooLong {
+                line: self.newlines + 1,
+                quoted: false,
+            }
+        } else if self.record > MAX_LINE_BYTES {
+            TooLong {
+                line: self.record_line,
+                quoted: true,
+            }
+        } else {
+            return Ok(());
+        };
+        Err(std::io::Error::other(too_long))
+    }
+}
+
+impl<R: Read> Read for LineLimit<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        for &b in buf.get(..n).unwrap_or(&[]) {
+            self.step(b)?;
+        }
+        Ok(n)
+    }
+}
+
+/// Pushes `x`, growing `v` with `try_reserve` (doubling) so that a recording too long for the
+/// memory is an error, not an abort.
+fn grow<T>(v: &mut Vec<T>, x: T, oom: impl Fn() -> TraceError) -> Result<()> {
+    if v.len() == v.capacity() {
+        v.try_reserve(v.len().max(SIZING_ROWS)).map_err(|_| oom())?;
+    }
+    v.push(x);
+    Ok(())
+}
+
+/// Whether `text` reads as a number once its one comma is a decimal point.
+fn has_decimal_comma(text: &str) -> bool {
+    text.matches(',').count() == 1 && text.replace(',', ".").parse::<f64>().is_ok()
+}
+
+/// Of the delimiters a trace may be written with, one that the header's single field holds,
+/// splitting it into columns, other than `delimiter`.
+fn other_delimiter(header: &csv::StringRecord, delimiter: u8) -> Option<u8> {
+    if header.len() != 1 {
+        return None;
+    }
+    let only = header.get(0)?;
+    [b';', b'\t', b',', b'|']
+        .into_iter()
+        .filter(|&d| d != delimiter)
+        .find(|&d| {
+            only.split(char::from(d))
+                .filter(|f| !f.trim().is_empty())
+                .count()
+                >= 2
+        })
 }
 
 impl Trace {
@@ -178,8 +403,14 @@ impl Trace {
                 });
             }
         }
-        let mut reader = csv_reader(reader);
-        let headers = reader.headers().map_err(|e| csv_error(path, &e))?.clone();
+        if columns.decimal_comma && columns.delimiter == b',' {
+            return Err(TraceError::DecimalCommaDelimiter);
+        }
+        // Not trimmed by the reader: a field's place in the record gives its byte in the file.
+        let mut reader = csv_reader(reader, columns.delimiter, csv::Trim::None);
+        let raw = reader.headers().map_err(|e| csv_error(path, &e))?.clone();
+        let mut headers = raw.clone();
+        headers.trim();
         if headers.is_empty() || headers.iter().all(str::is_empty) {
             return Err(TraceError::Empty {
                 path: p(),
@@ -187,40 +418,66 @@ impl Trace {
                 what: "no header row",
             });
         }
+        let header_at = raw.position().map_or(0, csv::Position::byte);
+        let byte_of = |rec: &csv::StringRecord, at: u64, i: usize| {
+            let text = rec.get(i).unwrap_or("");
+            let lead = text.len() - text.trim_start().len();
+            at + rec.range(i).map_or(0, |r| r.start as u64) + i as u64 + lead as u64
+        };
+        let name_of = |i: usize| echo(headers.get(i).unwrap_or(""), byte_of(&raw, header_at, i));
         let find = |name: &str| headers.iter().position(|h| h == name);
-        let found = headers.iter().collect::<Vec<_>>().join(", ");
-        let y_idx = find(&columns.output).ok_or_else(|| TraceError::MissingColumn {
-            path: p(),
-            column: columns.output.clone(),
-            found: found.clone(),
-            role: ColumnRole::Probe,
-            needed: false,
-        })?;
+        let mut missing = |column: &str, role: ColumnRole| {
+            if let Some(found) = other_delimiter(&raw, columns.delimiter) {
+                // The rows are split at the same wrong delimiter: joined back, then split at
+                // the header's, their numbers show whether their decimal point is a comma.
+                // The first rows may be all zeros: a few are looked at.
+                let mut row = csv::StringRecord::new();
+                let mut decimal_comma = false;
+                for _ in 0..DELIMITER_ROWS {
+                    if !matches!(reader.read_record(&mut row), Ok(true)) {
+                        break;
+                    }
+                    decimal_comma |= row
+                        .iter()
+                        .collect::<Vec<_>>()
+                        .join(&char::from(columns.delimiter).to_string())
+                        .split(char::from(found))
+                        .any(|f| has_decimal_comma(f.trim()));
+                }
+                return TraceError::WrongDelimiter {
+                    path: p(),
+                    header: echo(raw.get(0).unwrap_or(""), header_at),
+                    expected: columns.delimiter,
+                    found,
+                    decimal_comma,
+                };
+            }
+            TraceError::MissingColumn {
+                path: p(),
+                column: echo(column, 0),
+                found: echo(&headers.iter().collect::<Vec<_>>().join(", "), header_at),
+                role,
+                needed: false,
+            }
+        };
+        let y_idx = match find(&columns.output) {
+            Some(i) => i,
+            None => return Err(missing(&columns.output, ColumnRole::Probe)),
+        };
         let u_idx = match find(&columns.input) {
             Some(i) => Some(i),
             None if columns.require_input => {
-                return Err(TraceError::MissingColumn {
-                    path: p(),
-                    column: columns.input.clone(),
-                    found: found.clone(),
-                    role: ColumnRole::Reference,
-                    needed: false,
-                })
+                return Err(missing(&columns.input, ColumnRole::Reference))
             }
             None => None,
         };
         let t_idx = if columns.sample_rate_hz.is_some() {
             None
         } else {
-            Some(
-                find(&columns.time).ok_or_else(|| TraceError::MissingColumn {
-                    path: p(),
-                    column: columns.time.clone(),
-                    found: found.clone(),
-                    role: ColumnRole::Time,
-                    needed: false,
-                })?,
-            )
+            match find(&columns.time) {
+                Some(i) => Some(i),
+                None => return Err(missing(&columns.time, ColumnRole::Time)),
+            }
         };
 
         let mut t = Vec::new();
@@ -234,47 +491,99 @@ impl Trace {
                 Ok(false) => break,
                 Err(e) => return Err(csv_error(path, &e)),
             }
-            if lines.len() == SIZING_ROWS {
+            let line = rec.position().map_or(0, csv::Position::line);
+            let rows = lines.len();
+            let oom = || TraceError::OutOfMemory {
+                path: p(),
+                line,
+                rows,
+            };
+            if rec.len() != raw.len() {
+                return Err(TraceError::Malformed {
+                    path: p(),
+                    line,
+                    message: format!(
+                        "expected {} fields like the header, found {}",
+                        raw.len(),
+                        rec.len()
+                    ),
+                });
+            }
+            if rows == SIZING_ROWS {
                 // The file's length over the bytes a row has taken so far: room for all the
                 // rows at once, instead of buffers doubling (and briefly tripling) as they grow.
                 let start = rec.position().map_or(0, csv::Position::byte);
                 let per_row = (start / SIZING_ROWS as u64).max(1);
-                let rows = usize::try_from(size / per_row + size / per_row / 8).unwrap_or(0);
-                for v in [&mut t, &mut u, &mut y] {
-                    v.reserve(rows);
+                let more = usize::try_from(size / per_row + size / per_row / 8).unwrap_or(0);
+                for (v, used) in [(&mut t, t_idx), (&mut u, u_idx), (&mut y, Some(y_idx))] {
+                    if used.is_some() {
+                        v.try_reserve(more).map_err(|_| oom())?;
+                    }
                 }
-                lines.reserve(rows);
+                lines.try_reserve(more).map_err(|_| oom())?;
             }
-            let line = rec.position().map_or(0, csv::Position::line);
+            let at = rec.position().map_or(0, csv::Position::byte);
             let field = |idx: usize| -> Result<f64> {
-                let text = rec.get(idx).unwrap_or("");
-                let name = headers.get(idx).unwrap_or("").to_string();
-                let v: f64 = text.parse().map_err(|_| TraceError::NotANumber {
-                    path: p(),
-                    line,
-                    column: idx + 1,
-                    name: name.clone(),
-                    value: text.to_string(),
-                })?;
+                let text = rec.get(idx).unwrap_or("").trim();
+                let value = || echo(text, byte_of(&rec, at, idx));
+                let parsed = if columns.decimal_comma && text.contains(',') {
+                    text.replace(',', ".").parse::<f64>()
+                } else {
+                    text.parse::<f64>()
+                };
+                let Ok(v) = parsed else {
+                    return Err(
+                        if !columns.decimal_comma
+                            && columns.delimiter != b','
+                            && has_decimal_comma(text)
+                        {
+                            TraceError::DecimalComma {
+                                path: p(),
+                                line,
+                                column: idx + 1,
+                                name: name_of(idx),
+                                value: value(),
+                            }
+                        } else {
+                            TraceError::NotANumber {
+                                path: p(),
+                                line,
+                                column: idx + 1,
+                                name: name_of(idx),
+                                value: value(),
+                            }
+                        },
+                    );
+                };
                 if !v.is_finite() {
                     return Err(TraceError::NonFinite {
                         path: p(),
                         line,
                         column: idx + 1,
-                        name,
-                        value: text.to_string(),
+                        name: name_of(idx),
+                        value: value(),
+                    });
+                }
+                if v.abs() > MAX_MAGNITUDE {
+                    return Err(TraceError::TooLarge {
+                        path: p(),
+                        line,
+                        column: idx + 1,
+                        name: name_of(idx),
+                        value: value(),
+                        max: MAX_MAGNITUDE,
                     });
                 }
                 Ok(v)
             };
             if let Some(i) = t_idx {
-                t.push(field(i)?);
+                grow(&mut t, field(i)?, oom)?;
             }
             if let Some(i) = u_idx {
-                u.push(field(i)?);
+                grow(&mut u, field(i)?, oom)?;
             }
-            y.push(field(y_idx)?);
-            lines.push(line);
+            grow(&mut y, field(y_idx)?, oom)?;
+            grow(&mut lines, line, oom)?;
         }
         if y.is_empty() {
             return Err(TraceError::Empty {
@@ -285,7 +594,29 @@ impl Trace {
         }
         let sample_rate_hz = match (columns.sample_rate_hz, t_idx) {
             (Some(fs), _) => fs,
-            (None, Some(ti)) => check_time(path, &t, &lines, ti + 1, &columns.time)?,
+            (None, Some(ti)) => {
+                let unit = time_unit(&columns.time);
+                let (symbol, seconds) = unit.unwrap_or(("s", 1.0));
+                let time = TimeColumn {
+                    column: ti + 1,
+                    name: name_of(ti),
+                    unit: symbol,
+                };
+                let per_unit = check_time(path, &t, &lines, &time)?;
+                let rate = per_unit / seconds;
+                if unit.is_none() && rate < MIN_PLAUSIBLE_RATE_HZ {
+                    return Err(TraceError::ImplausibleTime {
+                        path: p(),
+                        line: lines.get(1).copied().unwrap_or(0),
+                        column: ti + 1,
+                        name: time.name,
+                        step: 1.0 / per_unit,
+                        rate_hz: rate,
+                        min: MIN_PLAUSIBLE_RATE_HZ,
+                    });
+                }
+                rate
+            }
             (None, None) => unreachable_fs(path)?,
         };
         if sample_rate_hz.is_nan() || sample_rate_hz > MAX_SAMPLE_RATE_HZ {
@@ -299,9 +630,31 @@ impl Trace {
                 ),
             });
         }
-        check_clipping(path, &y, &lines, y_idx + 1, &columns.output)?;
+        if columns.require_input {
+            let signals = [
+                (u_idx.map(|i| (&u, i)), ColumnRole::Reference),
+                (Some((&y, y_idx)), ColumnRole::Probe),
+            ];
+            for (signal, role) in signals {
+                let Some((x, i)) = signal else { continue };
+                if let (Some(&first), true) = (x.first(), x.len() >= 2) {
+                    if x.iter().all(|&v| v == first) {
+                        return Err(TraceError::Constant {
+                            path: p(),
+                            role,
+                            name: name_of(i),
+                            column: i + 1,
+                            value: first,
+                            first: lines.first().copied().unwrap_or(0),
+                            last: lines.last().copied().unwrap_or(0),
+                        });
+                    }
+                }
+            }
+        }
+        check_clipping(path, &y, &lines, y_idx + 1, &name_of(y_idx))?;
         if let Some(ui) = u_idx {
-            check_clipping(path, &u, &lines, ui + 1, &columns.input)?;
+            check_clipping(path, &u, &lines, ui + 1, &name_of(ui))?;
         }
         // The sizing estimate leaves room to spare: give it back (the signals live for the run).
         u.shrink_to_fit();
@@ -315,6 +668,7 @@ impl Trace {
             u_column: u_idx.map(|i| i + 1),
             y_column: y_idx + 1,
             headers,
+            dialect: (columns.delimiter, columns.decimal_comma),
             source: Source::File,
         })
     }
@@ -338,8 +692,8 @@ impl Trace {
     pub fn input(&self) -> Result<&[f64]> {
         self.u.as_deref().ok_or_else(|| TraceError::MissingColumn {
             path: self.path.clone(),
-            column: "u".into(),
-            found: self.headers.iter().collect::<Vec<_>>().join(", "),
+            column: echo("u", 0),
+            found: echo(&self.headers.iter().collect::<Vec<_>>().join(", "), 0),
             role: ColumnRole::Reference,
             needed: true,
         })
@@ -377,15 +731,21 @@ impl Trace {
             }
             .into()
         };
-        let mut header = self.headers.iter().collect::<Vec<_>>().join(",");
+        let (delimiter, decimal_comma) = self.dialect;
+        let sep = char::from(delimiter);
+        let mut header = self
+            .headers
+            .iter()
+            .collect::<Vec<_>>()
+            .join(&sep.to_string());
         for (name, _) in extra {
-            header.push(',');
+            header.push(sep);
             header.push_str(name);
         }
         header.push('\n');
         out.write_all(header.as_bytes())?;
         let mut copy = |reader: &mut dyn Read| -> std::result::Result<(), CopyFailure> {
-            let mut reader = csv_reader(reader);
+            let mut reader = csv_reader(reader, delimiter, csv::Trim::All);
             let mut rec = csv::StringRecord::new();
             // Skip the header.
             reader.headers().map_err(|_| changed())?;
@@ -395,14 +755,20 @@ impl Trace {
                 line.clear();
                 for (i, f) in rec.iter().enumerate() {
                     if i > 0 {
-                        line.push(b',');
+                        line.push(delimiter);
                     }
                     line.extend_from_slice(f.as_bytes());
                 }
                 for (_, col) in extra {
                     let v = col.get(k).copied().ok_or_else(changed)?;
                     // `{}` on f64 prints the shortest text that reads back to the same value.
-                    write!(line, ",{v}")?;
+                    let text = v.to_string();
+                    line.push(delimiter);
+                    if decimal_comma {
+                        line.extend_from_slice(text.replace('.', ",").as_bytes());
+                    } else {
+                        line.extend_from_slice(text.as_bytes());
+                    }
                 }
                 line.push(b'\n');
                 out.write_all(&line)?;
@@ -436,6 +802,16 @@ fn unreachable_fs(path: &Path) -> Result<f64> {
 }
 
 fn csv_error(path: &Path, e: &csv::Error) -> TraceError {
+    if let csv::ErrorKind::Io(io) = e.kind() {
+        if let Some(long) = io.get_ref().and_then(|e| e.downcast_ref::<TooLong>()) {
+            return TraceError::LineTooLong {
+                path: path.to_path_buf(),
+                line: long.line,
+                limit: MAX_LINE_BYTES,
+                quoted: long.quoted,
+            };
+        }
+    }
     let line = e.position().map_or(0, csv::Position::line);
     let message = match e.kind() {
         csv::ErrorKind::UnequalLengths {
@@ -451,8 +827,19 @@ fn csv_error(path: &Path, e: &csv::Error) -> TraceError {
     }
 }
 
-/// Checks that time increases uniformly and returns the sample rate.
-fn check_time(path: &Path, t: &[f64], lines: &[u64], column: usize, name: &str) -> Result<f64> {
+/// The time column, as messages name it.
+struct TimeColumn {
+    /// 1-based field position.
+    column: usize,
+    /// Its name, quoted and cut ([`echo`]).
+    name: String,
+    /// Its unit's symbol.
+    unit: &'static str,
+}
+
+/// Checks that time increases uniformly and returns the sample rate, per the column's unit.
+fn check_time(path: &Path, t: &[f64], lines: &[u64], time: &TimeColumn) -> Result<f64> {
+    let (column, name) = (time.column, time.name.as_str());
     let n = t.len();
     let (Some(&first), Some(&last)) = (t.first(), t.last()) else {
         return Err(TraceError::Empty {
@@ -495,6 +882,7 @@ fn check_time(path: &Path, t: &[f64], lines: &[u64], column: usize, name: &str) 
                     step,
                     nominal,
                     percent: dev * 100.0,
+                    unit: time.unit,
                 });
             }
         }
@@ -657,7 +1045,7 @@ mod tests {
         for k in 0..60 {
             let t = k as f64 * 1e-3;
             let y = (1.0 - (-(k as f64) / 10.0).exp() * ((k as f64) * 0.5).cos() * 1.0).min(1.2);
-            s.push_str(&format!("{t},1,{y}\n"));
+            s.push_str(&format!("{t},{},{y}\n", u8::from(k > 0)));
         }
         let e = parse(&s).unwrap_err().to_string();
         assert!(e.contains("clipped"), "{e}");
@@ -666,7 +1054,7 @@ mod tests {
         for k in 0..60 {
             let t = k as f64 * 1e-3;
             let y = ((1.0 - (-(k as f64) / 5.0).exp()) * 256.0).round() / 256.0;
-            s.push_str(&format!("{t},1,{y}\n"));
+            s.push_str(&format!("{t},{},{y}\n", u8::from(k > 0)));
         }
         assert!(parse(&s).is_ok());
     }
@@ -733,7 +1121,7 @@ mod tests {
                 "{},{},{}\n",
                 k as f64 * 1e-3,
                 u8::from(k > 100),
-                0.5
+                f64::from(u8::from(k > 102)) * 0.5
             ));
         }
         std::fs::write(&input, &text).unwrap();
@@ -741,6 +1129,357 @@ mod tests {
         assert_eq!(tr.len(), 10_000);
         // Room for the rows and an eighth more, never the doubling growth gives.
         assert!(tr.y.capacity() < 10_000 * 5 / 4, "{}", tr.y.capacity());
+    }
+
+    fn parse_with(text: &str, columns: &Columns) -> Result<Trace> {
+        Trace::parse(Path::new("x.csv"), text.as_bytes(), columns)
+    }
+
+    /// A step test at 10 kHz: `t,u,y` rows, each field through `cell`, joined by `sep`.
+    fn step_test(header: &str, sep: &str, time_scale: f64, cell: fn(String) -> String) -> String {
+        let mut s = format!("{header}\n");
+        for k in 0..200 {
+            let u = if k < 50 { 0.0 } else { 1.0 };
+            let y = if k < 50 {
+                0.0
+            } else {
+                1.0 - (-(f64::from(k) - 50.0) / 8.0).exp()
+            };
+            let fields = [f64::from(k) * 1e-4 * time_scale, u, y].map(|v| cell(format!("{v}")));
+            s.push_str(&fields.join(sep));
+            s.push('\n');
+        }
+        s
+    }
+
+    #[test]
+    fn echo_cuts_long_text_and_says_its_length_and_byte() {
+        assert_eq!(echo("abc", 9), "'abc'");
+        assert_eq!(echo("t\tu", 0), "'t\\tu'");
+        let huge = "0".repeat(10 << 20);
+        let e = echo(&huge, 7);
+        assert!(e.len() < 80, "{e}");
+        assert!(e.ends_with("…' (10485760 bytes at byte 7)"), "{e}");
+        // Cut on a character, not inside one.
+        let e = echo(&"µ".repeat(100), 0);
+        assert!(
+            e.starts_with(&format!("'{}…'", "µ".repeat(ECHO_CHARS))),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn an_endless_line_is_refused_before_it_is_buffered() {
+        // `/dev/zero` in a reader: it never ends, so only the line limit stops the read.
+        let e = Trace::parse_reader(
+            Path::new("zero"),
+            std::io::repeat(0),
+            0,
+            &Columns::default(),
+        )
+        .unwrap_err();
+        assert!(matches!(e, TraceError::LineTooLong { line: 1, .. }), "{e}");
+        assert_eq!(
+            e.to_string(),
+            "zero:1: line 1 is longer than 1 MiB: a row of numbers is a few hundred bytes; is \
+             this a text CSV file?"
+        );
+        // A long second line, and a quoted field whose record runs over many short lines.
+        let long = format!("t,u,y\n0,0,{}\n", "1".repeat(2 << 20));
+        let e = parse(&long).unwrap_err().to_string();
+        assert!(e.starts_with("x.csv:2: line 2 is longer than 1 MiB"), "{e}");
+        let quoted = format!("t,u,y\n0,0,0\n0,0,\"{}\"\n", "1\n".repeat(1 << 20));
+        let e = parse(&quoted).unwrap_err().to_string();
+        assert!(
+            e.starts_with("x.csv:3: the quoted record from line 3"),
+            "{e}"
+        );
+        // Long comments and many lines are fine: only one line's length counts.
+        let mut ok = format!("# {}\n", "'\"".repeat(1000));
+        ok.push_str(&step_test("t,u,y", ",", 1.0, |c| c));
+        assert!(parse(&ok).is_ok());
+    }
+
+    #[test]
+    fn a_recording_too_long_for_memory_is_an_error_not_an_abort() {
+        // A file said to be 2^64 bytes long: the buffers sized for it cannot be had.
+        let text = step_test("t,u,y", ",", 1.0, |c| c);
+        let e = Trace::parse_reader(
+            Path::new("x.csv"),
+            text.as_bytes(),
+            u64::MAX,
+            &Columns::default(),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                e,
+                TraceError::OutOfMemory {
+                    rows: SIZING_ROWS,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(
+            e.to_string()
+                .contains("out of memory at line 66 (64 rows read)"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_long_cell_is_echoed_cut_with_its_byte() {
+        let text = format!("t,u,y\n0,0,0\n0.0001,1, {}\n", "x".repeat(100_000));
+        let e = parse(&text).unwrap_err().to_string();
+        assert!(e.len() < 200, "{e}");
+        // The cell starts after "t,u,y\n0,0,0\n0.0001,1, ".
+        assert!(
+            e.contains("…' (100000 bytes at byte 22) in column 'y' is not a number"),
+            "{e}"
+        );
+        let header = format!("t,u,{}\n0,0,0\n", "v".repeat(100_000));
+        let e = parse(&header).unwrap_err().to_string();
+        assert!(e.len() < 300, "{e}");
+        assert!(e.contains("(100006 bytes at byte 0)"), "{e}");
+    }
+
+    #[test]
+    fn another_delimiter_in_the_header_is_named_with_the_decimal_comma() {
+        let semi = step_test("t;u;y", ";", 1.0, |c| c);
+        let e = parse(&semi).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                TraceError::WrongDelimiter {
+                    found: b';',
+                    decimal_comma: false,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(
+            e.to_string().contains("separated by ';', not by ','"),
+            "{e}"
+        );
+        let comma = step_test("t;u;y", ";", 1.0, |c| c.replace('.', ","));
+        let e = parse(&comma).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                TraceError::WrongDelimiter {
+                    decimal_comma: true,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        let tab = step_test("t\tu\ty", "\t", 1.0, |c| c);
+        let e = parse(&tab).unwrap_err().to_string();
+        assert!(
+            e.contains("'t\\tu\\ty'") && e.contains("separated by tab"),
+            "{e}"
+        );
+        // Read with the delimiter, the decimal commas are named next.
+        let semi_columns = Columns {
+            delimiter: b';',
+            ..Columns::default()
+        };
+        let e = parse_with(&comma, &semi_columns).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                TraceError::DecimalComma {
+                    line: 3,
+                    column: 1,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(
+            e.to_string().starts_with(
+                "x.csv:3:1: '0,0001' in column 't' is not a number: it has a decimal comma"
+            ),
+            "{e}"
+        );
+        // And read with both.
+        let both = Columns {
+            decimal_comma: true,
+            ..semi_columns.clone()
+        };
+        let tr = parse_with(&comma, &both).unwrap();
+        let plain = parse(&step_test("t,u,y", ",", 1.0, |c| c)).unwrap();
+        assert_eq!(tr.y, plain.y);
+        assert!((tr.sample_rate_hz - 10_000.0).abs() < 1e-6);
+        assert!(parse_with(
+            &tab,
+            &Columns {
+                delimiter: b'\t',
+                ..Columns::default()
+            }
+        )
+        .is_ok());
+    }
+
+    #[test]
+    fn results_are_written_back_in_the_files_own_dialect() {
+        let columns = Columns {
+            delimiter: b';',
+            decimal_comma: true,
+            ..Columns::default()
+        };
+        let tr = parse_with("t;u;y\n0;0;0\n0,001;1;0,5\n", &columns).unwrap();
+        let mut out = Vec::new();
+        tr.write_csv_with(&mut out, &[("u_hat", &[0.25, 1.5])])
+            .unwrap();
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            "t;u;y;u_hat\n0;0;0;0,25\n0,001;1;0,5;1,5\n"
+        );
+    }
+
+    #[test]
+    fn decimal_commas_with_the_comma_delimiter_are_refused() {
+        let columns = Columns {
+            decimal_comma: true,
+            ..Columns::default()
+        };
+        let e = parse_with("t,u,y\n0,0,0\n", &columns).unwrap_err();
+        assert!(matches!(e, TraceError::DecimalCommaDelimiter), "{e}");
+        assert_eq!(e.kind(), "invalid-argument");
+    }
+
+    #[test]
+    fn the_time_unit_is_read_from_the_column_name() {
+        for (name, unit) in [
+            ("t", None),
+            ("time", None),
+            ("t_ms", Some("ms")),
+            ("time_ms", Some("ms")),
+            ("t[ms]", Some("ms")),
+            ("t (ms)", Some("ms")),
+            ("t_us", Some("µs")),
+            ("t [µs]", Some("µs")),
+            ("time_s", Some("s")),
+            ("t_ns", Some("ns")),
+            ("t_probe", None),
+        ] {
+            assert_eq!(time_unit(name).map(|(s, _)| s), unit, "{name}");
+        }
+        // Milliseconds: 0.1 ms steps are 10 kHz.
+        let ms = step_test("t_ms,u,y", ",", 1e3, |c| c);
+        let columns = Columns {
+            time: "t_ms".into(),
+            ..Columns::default()
+        };
+        let tr = parse_with(&ms, &columns).unwrap();
+        assert!(
+            (tr.sample_rate_hz - 10_000.0).abs() < 1e-3,
+            "{}",
+            tr.sample_rate_hz
+        );
+        // Jitter is said in the column's unit.
+        let e = parse_with("t_ms,u,y\n0,0,0\n1,1,1\n2.5,1,1\n3.5,1,2\n", &columns)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("ms in column 't_ms' differs from the mean step 1.166667e0 ms"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_time_column_too_slow_for_seconds_is_refused_unless_its_unit_is_named() {
+        // Sample numbers in a column named `t`: 1 Hz if seconds.
+        let samples = step_test("t,u,y", ",", 1e4, |c| c);
+        let e = parse(&samples).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                TraceError::ImplausibleTime {
+                    line: 3,
+                    column: 1,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        let text = e.to_string();
+        assert!(
+            text.contains("steps by 1 per row: as seconds that is 1 Hz, below the 10 Hz"),
+            "{text}"
+        );
+        // Named seconds are believed; 10 Hz and faster is believed without a name.
+        let named = Columns {
+            time: "time_s".into(),
+            ..Columns::default()
+        };
+        let tr = parse_with(&samples.replacen("t,", "time_s,", 1), &named).unwrap();
+        assert!((tr.sample_rate_hz - 1.0).abs() < 1e-9);
+        assert!(parse(&step_test("t,u,y", ",", 1e3, |c| c)).is_ok());
+    }
+
+    #[test]
+    fn values_no_sum_can_hold_are_refused_where_they_are() {
+        let e = parse("t,u,y\n0,0,0\n0.001,1e300,0.5\n0.002,1,0.9\n").unwrap_err();
+        assert!(
+            matches!(
+                e,
+                TraceError::TooLarge {
+                    line: 3,
+                    column: 2,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(
+            e.to_string()
+                .contains("'1e300' in column 'u': |value| above 1e100"),
+            "{e}"
+        );
+        assert!(parse("t,u,y\n0,0,0\n0.001,-1e99,0.5\n0.002,1,0.9\n").is_ok());
+    }
+
+    #[test]
+    fn a_constant_column_is_refused_for_a_fit_only() {
+        let text = "t,u,y\n0,0,0.25\n0.001,1,0.25\n0.002,1,0.25\n";
+        let e = parse(text).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "x.csv: the probe column 'y' is constant (0.25) from line 2 to line 4: nothing to \
+             fit; is it the right column, or was the probe connected?"
+        );
+        assert_eq!(e.location().1, Some(2));
+        let e = parse("t,u,y\n0,3,0\n0.001,3,1\n0.002,3,2\n").unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("the reference column 'u' is constant (3)"),
+            "{e}"
+        );
+        let run = Columns {
+            require_input: false,
+            ..Columns::default()
+        };
+        assert!(parse_with(text, &run).is_ok());
+    }
+
+    #[test]
+    fn numbers_in_messages_are_short() {
+        assert_eq!(error::short(1e300), "1e300");
+        assert_eq!(error::short(0.25), "0.25");
+        let e = parse_with(
+            "y\n1\n",
+            &Columns {
+                sample_rate_hz: Some(1e300),
+                ..Columns::default()
+            },
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.ends_with("not 1e300"), "{e}");
     }
 
     #[test]

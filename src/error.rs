@@ -525,25 +525,11 @@ impl std::fmt::Display for Advice {
 /// Host-side result.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
-/// `v` for a message: six significant digits, without the binary fraction's tail
-/// (`6561.85`, not `6561.849999999999`), in powers of ten outside `1e-4..1e7` (`1e300`, not
-/// three hundred digits).
+/// `v` for a message: six significant digits, in powers of ten outside `1e-4..1e7` (`1e300`,
+/// not three hundred digits). The trace room's formatter, shared.
 #[must_use]
 pub fn number(v: f64) -> String {
-    let a = v.abs();
-    if !v.is_finite() || a == 0.0 || (1e-4..1e7).contains(&a) {
-        return format!("{v:.5e}")
-            .parse::<f64>()
-            .map_or_else(|_| v.to_string(), |r| r.to_string());
-    }
-    let s = format!("{v:.5e}");
-    match s.split_once('e') {
-        Some((mantissa, exponent)) if mantissa.contains('.') => {
-            let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
-            format!("{mantissa}e{exponent}")
-        }
-        _ => s,
-    }
+    crate::trace::short(v)
 }
 
 #[cfg(test)]

@@ -294,14 +294,24 @@ pub enum TraceError {
     },
 }
 
-/// A number for a message: as written when short, else in scientific notation (never the 300
-/// digits `{}` gives 1e300).
-pub(crate) fn short(x: f64) -> String {
-    let plain = x.to_string();
-    if plain.len() <= 12 {
-        plain
-    } else {
-        format!("{x:e}")
+/// A number for a message: six significant digits, without the binary fraction's tail
+/// (`6561.85`, not `6561.849999999999`), in powers of ten outside `1e-4..1e7` (`1e300`, never
+/// the 300 digits `{}` gives). The crate's other rooms use it as [`crate::error::number`].
+#[must_use]
+pub fn short(x: f64) -> String {
+    let a = x.abs();
+    if !x.is_finite() || a == 0.0 || (1e-4..1e7).contains(&a) {
+        return format!("{x:.5e}")
+            .parse::<f64>()
+            .map_or_else(|_| x.to_string(), |r| r.to_string());
+    }
+    let s = format!("{x:.5e}");
+    match s.split_once('e') {
+        Some((mantissa, exponent)) if mantissa.contains('.') => {
+            let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+            format!("{mantissa}e{exponent}")
+        }
+        _ => s,
     }
 }
 

@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use sha2::{Digest, Sha256};
 
 mod error;
-pub use error::{ColumnRole, CopyFailure, TraceError};
+pub use error::{short, ColumnRole, CopyFailure, TraceError};
 
 /// The trace room's result.
 pub type Result<T, E = TraceError> = std::result::Result<T, E>;

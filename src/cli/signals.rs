@@ -21,16 +21,18 @@ pub fn install() {
                     SIGTERM => "SIGTERM",
                     _ => "SIGHUP",
                 };
-                let abandoned = crate::file::remove_unfinished();
-                match abandoned.first() {
-                    Some(path) => crate::errln!(
-                        "error: interrupted by {name}: {} was not written (its unfinished copy is \
-                         removed; a file already there is unchanged)",
-                        path.display()
-                    ),
-                    None => crate::errln!("error: interrupted by {name}"),
-                }
-                std::process::exit(128 + signal);
+                // Exits with the writes held, so that none reports being stopped.
+                crate::file::remove_unfinished(|abandoned| {
+                    match abandoned.first() {
+                        Some(path) => crate::errln!(
+                            "error: interrupted by {name}: {} was not written (its unfinished \
+                             copy is removed; a file already there is unchanged)",
+                            path.display()
+                        ),
+                        None => crate::errln!("error: interrupted by {name}"),
+                    }
+                    std::process::exit(128 + signal)
+                });
             }
         });
 }

@@ -61,22 +61,24 @@ fn live() -> MutexGuard<'static, Live> {
     LIVE.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
-/// Removes the temporary files of the writes under way and returns the outputs they were
-/// for; from then on no write makes or renames a temporary (each fails instead). For a
-/// process about to exit on a signal: call it from the signal handling of the program (the
-/// `unlag` binary does, see `unlag::cli::signals`), never from a signal handler itself (it
-/// takes a lock and allocates).
-pub fn remove_unfinished() -> Vec<PathBuf> {
+/// Removes the temporary files of the writes under way, then calls `then` with the outputs
+/// they were for and returns what it returns. From then on no write makes or renames a
+/// temporary (each fails instead), and while `then` runs none even finishes failing: a
+/// program exiting on a signal exits in `then`, and no other thread reports the writes it
+/// stopped. For the program's own signal handling (the `unlag` binary's, see
+/// `unlag::cli::signals`), never from a signal handler itself (this takes a lock and
+/// allocates).
+pub fn remove_unfinished<R>(then: impl FnOnce(Vec<PathBuf>) -> R) -> R {
     let mut live = live();
     live.abandoned = true;
-    let removed = std::mem::take(&mut live.temporaries);
-    removed
+    let targets = std::mem::take(&mut live.temporaries)
         .into_iter()
         .map(|(tmp, target)| {
             let _ = std::fs::remove_file(&tmp);
             target
         })
-        .collect()
+        .collect();
+    then(targets)
 }
 
 /// The files this process has written so far (by [`write_atomically`] and

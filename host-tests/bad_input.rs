@@ -377,10 +377,13 @@ fn outputs_follow_the_umask_keep_a_files_mode_and_a_links_target() {
     let target = tmp("target.csv");
     let link = tmp("link.csv");
     let _ = std::fs::remove_file(&link);
-    std::fs::write(&target, "old").unwrap();
+    // An earlier output of simulate, recognised through the link (another file is refused).
+    let old = "t,u,y,y_model\n0,0,0,0\n";
+    std::fs::write(&target, old).unwrap();
     std::os::unix::fs::symlink(&target, &link).unwrap();
     let o = unlag(&["simulate", m, &csv, "-o", &link]);
-    assert!(o.status.success());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_ne!(std::fs::read_to_string(&target).unwrap(), old);
     assert!(std::fs::symlink_metadata(&link)
         .unwrap()
         .file_type()
@@ -810,5 +813,113 @@ fn huge_values_and_constant_columns_are_refused_where_they_are() {
         Some(&toml),
         "long_cell.csv:3:2: value '77777777777777777777777777777777…' (100000 bytes at byte \
          41) in column 'u' is not finite",
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn an_output_replaces_only_its_own_kind_of_file_and_never_a_read_only_one() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let m = good_model();
+    let csv = data("line_val.csv");
+    let est = data("line_est.csv");
+    let ok = |args: &[&str]| {
+        let o = unlag(args);
+        assert!(
+            o.status.success(),
+            "unlag {}: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    // Another recording in the way: refused before any work, byte for byte as it was
+    // (`refuses` checks), the message naming the way out.
+    let other = tmp("other_recording.csv");
+    std::fs::copy(&csv, &other).unwrap();
+    let not = |what: &str| format!("exists and is not {what}");
+    for (args, what) in [
+        (
+            vec!["compensate", m, &csv, "-o", &other],
+            "an output of unlag compensate",
+        ),
+        (
+            vec!["simulate", m, &csv, "-o", &other],
+            "an output of unlag simulate",
+        ),
+        (
+            vec!["export", m, "--format", "c", "-o", &other],
+            "an output of unlag export",
+        ),
+        (vec!["report", m, &est, "-o", &other], "an unlag report"),
+    ] {
+        refuses(&args, Some(&other), &not(what));
+        refuses(&args, Some(&other), "--force");
+    }
+    // Their own outputs are replaced; one command's output is not another's.
+    let comp = tmp("own_compensate.csv");
+    let _ = std::fs::remove_file(&comp);
+    ok(&["compensate", m, &csv, "-o", &comp]);
+    ok(&["compensate", m, &csv, "-o", &comp]);
+    refuses(
+        &["simulate", m, &csv, "-o", &comp],
+        Some(&comp),
+        &not("an output of unlag simulate"),
+    );
+    let code = tmp("own_export.h");
+    let _ = std::fs::remove_file(&code);
+    for format in ["c", "rust", "bin", "c"] {
+        ok(&["export", m, "--format", format, "-o", &code]);
+    }
+    // --force replaces another file.
+    ok(&["simulate", m, &csv, "-o", &other, "--force"]);
+    assert_ne!(std::fs::read(&other).unwrap(), std::fs::read(&csv).unwrap());
+    // A read-only file is never replaced, not even an own output under --force.
+    std::fs::set_permissions(&comp, std::fs::Permissions::from_mode(0o444)).unwrap();
+    refuses(
+        &["compensate", m, &csv, "-o", &comp, "--force"],
+        Some(&comp),
+        "is read-only",
+    );
+    refuses(
+        &["compensate", m, &csv, "-o", &comp],
+        Some(&comp),
+        "is read-only",
+    );
+    std::fs::set_permissions(&comp, std::fs::Permissions::from_mode(0o644)).unwrap();
+}
+
+#[test]
+fn a_closed_standard_output_is_one_line_saying_what_was_written() {
+    let m = good_model();
+    let csv = data("line_val.csv");
+    let out = tmp("closed_stdout.csv");
+    let _ = std::fs::remove_file(&out);
+    let run = |args: &[&str]| {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_unlag"))
+            .args(args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // The reader is gone before the command prints (`| head -c 0`).
+        drop(child.stdout.take());
+        child.wait_with_output().unwrap()
+    };
+    let o = run(&["compensate", m, &csv, "-o", &out]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert_eq!(
+        stderr,
+        format!("error: standard output closed (broken pipe); {out} was written\n")
+    );
+    assert!(std::fs::read_to_string(&out)
+        .unwrap()
+        .starts_with("t,u,y,u_hat"));
+    let o = run(&["inspect", m]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert_eq!(
+        stderr,
+        "error: standard output closed (broken pipe); no file was written\n"
     );
 }

@@ -1336,7 +1336,10 @@ fn sensor_resonance_through_the_command_line() {
         with * 3.0 < plain || with < 1.5 * floor,
         "{with} against {plain} (floor {floor})"
     );
-    // And the reconstruction against the reference improves on the plain model's.
+    // And the reconstruction against the reference improves on the plain model's (written
+    // beside: compensate does not replace simulate's output).
+    let compensated = dir.join("u_hat.csv");
+    let o = compensated.to_str().unwrap();
     let c = unlag_json(&["compensate", s, &val, "-o", o, "--json"]);
     let (u_hat, raw) = (
         c["nrmse_u_hat"].as_f64().unwrap(),
@@ -1395,9 +1398,10 @@ fn temperature_through_the_command_line() {
         m,
         "--json",
     ]);
-    let out = dir.join("y.csv");
-    let o = out.to_str().unwrap();
+    // One output per command: compensate does not replace simulate's output.
     let at = |model: &str, extra: &[&str], cmd: &str, key: &str| {
+        let out = dir.join(format!("{cmd}.csv"));
+        let o = out.to_str().unwrap();
         let mut args = vec![cmd, model, val.as_str(), "-o", o, "--json"];
         args.extend_from_slice(extra);
         unlag_json(&args)[key].as_f64().unwrap()

@@ -125,6 +125,15 @@ pub enum Error {
         /// What the input is.
         what: &'static str,
     },
+    /// An existing file the output would replace, refused: read-only, or (without `--force`)
+    /// not one of the command's own outputs.
+    #[error("{path}: refused: {reason}")]
+    NotReplaced {
+        /// The output asked for.
+        path: PathBuf,
+        /// Why, and what to do instead.
+        reason: String,
+    },
     /// A fitted or loaded model is unstable (a pole on or outside the unit circle).
     #[error("{context}: the model is unstable: pole {pole} has |z| = {radius:.6} >= 1{note}")]
     UnstableModel {
@@ -265,6 +274,7 @@ impl Error {
             Self::UnsupportedOnBoard { .. } => "unsupported-on-board",
             Self::Plot { .. } => "plot",
             Self::Overwrite { .. } => "overwrite",
+            Self::NotReplaced { .. } => "not-replaced",
             Self::Blob { .. } => "blob",
         }
     }
@@ -285,7 +295,8 @@ impl Error {
             | Self::Model { path, .. }
             | Self::UnsupportedOnBoard { path, .. }
             | Self::Blob { path, .. }
-            | Self::Overwrite { output: path, .. } => (Some(path), None, None),
+            | Self::Overwrite { output: path, .. }
+            | Self::NotReplaced { path, .. } => (Some(path), None, None),
             Self::InvalidArgument { .. }
             | Self::InvalidParameter { .. }
             | Self::Stage(_)

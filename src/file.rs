@@ -8,7 +8,10 @@
 //! from ([`ModelFile::current`]).
 
 mod write;
-pub use write::{write_atomically, write_atomically_with, WriteFailure};
+pub use write::{
+    check_replace, remove_unfinished, write_atomically, write_atomically_with, written,
+    WriteFailure, STALE_AFTER,
+};
 
 use std::path::Path;
 

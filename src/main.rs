@@ -6,6 +6,8 @@ use clap::Parser;
 
 fn main() -> ExitCode {
     one_malloc_arena();
+    // SIGINT, SIGTERM, SIGHUP: the unfinished outputs removed, then exit 128 + the signal.
+    unlag::cli::signals::install();
     let cli = match unlag::cli::Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
@@ -55,8 +57,23 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
         (Ok(()), Err(e)) => {
-            if e.kind() != std::io::ErrorKind::BrokenPipe {
-                unlag::errln!("error: cannot write to standard output: {e}");
+            // The command did its work; only its text was lost. Say what was done.
+            let written = unlag::file::written();
+            let done = match written.as_slice() {
+                [] => "no file was written".to_string(),
+                [one] => format!("{} was written", one.display()),
+                many => format!(
+                    "{} were written",
+                    many.iter()
+                        .map(|p| p.display().to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            };
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                unlag::errln!("error: standard output closed (broken pipe); {done}");
+            } else {
+                unlag::errln!("error: cannot write to standard output: {e}; {done}");
             }
             ExitCode::FAILURE
         }

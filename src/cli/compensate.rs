@@ -37,6 +37,10 @@ pub struct CompensateArgs {
     /// Output CSV: the input columns plus `u_hat`.
     #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
     pub output: PathBuf,
+    /// Replace an existing file at the output's path that is not an output of this command
+    /// (a read-only file is never replaced).
+    #[arg(long)]
+    pub force: bool,
     /// Arithmetic of the compensator. Default: the board's, from the model file's `[board]`
     /// (`unlag fit --board`): f32, or fixed point bit for bit as the board computes it.
     #[arg(long, value_enum)]

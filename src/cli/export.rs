@@ -49,7 +49,9 @@ pub struct ExportArgs {
     /// `--format rust` or `c`, f32.
     #[arg(long, value_name = "FROM:TO:STEP")]
     pub temperatures: Option<String>,
-    /// Export a compensator that the check marked not better than the raw probe.
+    /// Export a compensator that the check marked not better than the raw probe, and replace
+    /// an existing file at the output's path that is not an export (a read-only file is never
+    /// replaced).
     #[arg(long)]
     pub force: bool,
     /// Where to write it (written atomically).

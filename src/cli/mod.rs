@@ -25,7 +25,9 @@ pub mod invert;
 pub mod modelling;
 pub mod physics;
 pub mod predict;
+mod replace;
 pub mod report;
+pub mod signals;
 pub mod simulate;
 
 pub use compensate::{Arithmetic, CompensateArgs};
@@ -527,6 +529,39 @@ impl Command {
                     });
                 }
             }
+        }
+        // An existing file in the way is replaced only when it is the command's own output
+        // (or under --force), and never when read-only.
+        type Own = fn(&[u8]) -> bool;
+        let replaces: Option<(&Path, Own, &str, bool)> = match self {
+            Self::Compensate(a) => Some((
+                &a.output,
+                replace::compensate_csv,
+                "an output of unlag compensate (a CSV whose last column is u_hat)",
+                a.force,
+            )),
+            Self::Simulate(a) => Some((
+                &a.output,
+                replace::simulate_csv,
+                "an output of unlag simulate (a CSV whose last column is y_model)",
+                a.force,
+            )),
+            Self::Export(a) => Some((
+                &a.output,
+                replace::export,
+                "an output of unlag export (its banner comment or blob magic)",
+                a.force,
+            )),
+            Self::Report(a) => Some((
+                &a.output,
+                replace::report_html,
+                "an unlag report (its page title)",
+                a.force,
+            )),
+            _ => None,
+        };
+        if let Some((path, own, what, force)) = replaces {
+            crate::file::check_replace(path, own, what, force)?;
         }
         Ok(())
     }

@@ -33,6 +33,10 @@ pub struct ReportArgs {
     /// Where to write the report (one self-contained HTML file).
     #[arg(short = 'o', long = "output", value_name = "REPORT.html")]
     pub output: PathBuf,
+    /// Replace an existing file at the output's path that is not an output of this command
+    /// (a read-only file is never replaced).
+    #[arg(long)]
+    pub force: bool,
     /// Column names.
     #[command(flatten)]
     pub columns: ColumnArgs,

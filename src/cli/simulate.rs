@@ -25,6 +25,10 @@ pub struct SimulateArgs {
     /// Output CSV: the input columns plus `y_model`.
     #[arg(short = 'o', long = "output", value_name = "OUT.csv")]
     pub output: PathBuf,
+    /// Replace an existing file at the output's path that is not an output of this command
+    /// (a read-only file is never replaced).
+    #[arg(long)]
+    pub force: bool,
     /// Gas temperature of the recording (K), for a model with a `temperature` effect; without
     /// it the time-scale factor is estimated from the recording.
     #[arg(long, value_name = "K")]

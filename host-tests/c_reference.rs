@@ -225,7 +225,7 @@ fn random_codes(n: usize, seed: u64) -> Vec<i32> {
 /// A square wave between `lo` and `hi`, `half` samples each, for `n` samples.
 fn square<T: Copy>(lo: T, hi: T, half: usize, n: usize) -> Vec<T> {
     (0..n)
-        .map(|k| if (k / half) % 2 == 0 { hi } else { lo })
+        .map(|k| if (k / half).is_multiple_of(2) { hi } else { lo })
         .collect()
 }
 

@@ -287,6 +287,32 @@ fn cli_never_exports_a_compensator_that_does_not_belong_to_the_model() {
             assert!(!out.exists(), "{name}: {format} written");
         }
     }
+    // What the refusal advises works: `unlag invert` designs a compensator for the edited
+    // model (saying the stored one is dropped), and that one exports.
+    let edited = dir.path().join("delay.toml");
+    let again = dir.path().join("again.toml");
+    let test = root().join("examples/data/step_test_1.csv");
+    let o = unlag(&[
+        "invert",
+        edited.to_str().unwrap(),
+        test.to_str().unwrap(),
+        "-o",
+        again.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("designed for another model"), "{err}");
+    let bin = dir.path().join("again.bin");
+    let o = unlag(&[
+        "export",
+        again.to_str().unwrap(),
+        "--format",
+        "bin",
+        "-o",
+        bin.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(bin.exists());
 }
 
 /// The fixed-point sections the board benchmark runs (examples/bench_board.rs), made from the

@@ -3,7 +3,7 @@
 //!
 //! [`ModelFile`] is what `unlag fit` writes and every later command reads. It sits above the
 //! stages it composes: the fit stage's [`Model`] and [`FitReport`], the design stage's
-//! [`Design`](crate::design::Design), the modelling loop's
+//! [`Design`], the modelling loop's
 //! [`Effect`](crate::modelling::effects::Effect)s; and it says the state a diagnosis of it starts
 //! from ([`ModelFile::current`]).
 
@@ -399,6 +399,22 @@ impl ModelFile {
     /// # Errors
     /// As [`ModelFile::load`].
     pub fn parse(path: &Path, text: &str) -> Result<Self> {
+        Self::parse_with(path, text, Stored::Checked).map(|(f, _)| f)
+    }
+
+    /// [`ModelFile::load`] for designing the compensator anew (`unlag invert`): a stored
+    /// compensator that does not belong to the model (the model edited after its design, a
+    /// plan that differs) is dropped instead of refused, and `true` says so; everything else
+    /// is checked as [`ModelFile::load`] checks it.
+    ///
+    /// # Errors
+    /// As [`ModelFile::load`], less the stored compensator's belonging.
+    pub fn load_for_redesign(path: &Path) -> Result<(Self, bool)> {
+        let text = read_model_text(path)?;
+        Self::parse_with(path, &text, Stored::DroppedWhenStale)
+    }
+
+    fn parse_with(path: &Path, text: &str, stored: Stored) -> Result<(Self, bool)> {
         let at = |offset: usize, message: String| {
             let (line, column) = line_col(text, offset);
             Error::ModelAt {
@@ -408,7 +424,7 @@ impl ModelFile {
                 message,
             }
         };
-        let file: Self = toml::from_str(text).map_err(|e| {
+        let mut file: Self = toml::from_str(text).map_err(|e| {
             let first = e.message().lines().next().unwrap_or("invalid TOML");
             at(
                 e.span().map_or(0, |s| s.start),
@@ -495,6 +511,14 @@ impl ModelFile {
                 ));
             }
         }
+        let stale = file.inverse.as_ref().is_some_and(|d| {
+            stored == Stored::DroppedWhenStale
+                && (check_belongs(d, m, &field).is_err() || check_plans(d, &field).is_err())
+        });
+        if stale {
+            file.inverse = None;
+        }
+        let m = &file.model;
         if let Some(d) = &file.inverse {
             check_belongs(d, m, &field)?;
             for (key, value) in [
@@ -556,8 +580,18 @@ impl ModelFile {
                 }
             }
         }
-        Ok(file)
+        Ok((file, stale))
     }
+}
+
+/// What [`ModelFile`]'s reader does with a stored compensator that does not belong to the
+/// model beside it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stored {
+    /// Refused, at its field.
+    Checked,
+    /// Dropped: a new one is about to be designed.
+    DroppedWhenStale,
 }
 
 /// Largest model file read (16 MiB). A model file holds a few hundred numbers and its

@@ -46,7 +46,7 @@ pub const fn stress_input(k: usize) -> i32 {
     let r = r ^ (r >> 15);
     match (k / 256) % 4 {
         0 => {
-            if (k / 64) % 2 == 0 {
+            if (k / 64).is_multiple_of(2) {
                 i32::MAX
             } else {
                 i32::MIN

@@ -479,7 +479,16 @@ pub(super) fn print_inverse(d: &inverse::Design, fs: f64) {
 /// # Errors
 /// The model file's, the traces' and the design's errors.
 pub fn run_invert(args: &InvertArgs) -> Result<()> {
-    let file = ModelFile::load(&args.model)?;
+    // A stored compensator that no longer belongs to the model (the model edited since) is
+    // what this command replaces: said, not refused.
+    let (file, stale) = ModelFile::load_for_redesign(&args.model)?;
+    if stale {
+        crate::errln!(
+            "note: the compensator stored in {} was designed for another model (or its plan \
+             differs); designing a new one for the model in the file",
+            name(&args.model)
+        );
+    }
     let columns = args.columns.columns(true);
     let traces = args
         .files

@@ -25,6 +25,7 @@ pub mod invert;
 pub mod modelling;
 pub mod physics;
 pub mod predict;
+pub mod reference;
 mod replace;
 pub mod report;
 pub mod signals;

@@ -403,9 +403,9 @@ impl ModelFile {
     }
 
     /// [`ModelFile::load`] for designing the compensator anew (`unlag invert`): a stored
-    /// compensator that does not belong to the model (the model edited after its design, a
-    /// plan that differs) is dropped instead of refused, and `true` says so; everything else
-    /// is checked as [`ModelFile::load`] checks it.
+    /// compensator designed for another model (the model edited after its design) is dropped
+    /// instead of refused, and `true` says so; everything else, a broken compensator for this
+    /// model included, is checked as [`ModelFile::load`] checks it.
     ///
     /// # Errors
     /// As [`ModelFile::load`], less the stored compensator's belonging.
@@ -511,9 +511,10 @@ impl ModelFile {
                 ));
             }
         }
+        // Stale: designed for another model (a compensator that names this model but is
+        // broken is refused all the same).
         let stale = file.inverse.as_ref().is_some_and(|d| {
-            stored == Stored::DroppedWhenStale
-                && (check_belongs(d, m, &field).is_err() || check_plans(d, &field).is_err())
+            stored == Stored::DroppedWhenStale && check_belongs(d, m, &field).is_err()
         });
         if stale {
             file.inverse = None;

@@ -427,7 +427,10 @@ fn inspect_blob(args: &InspectArgs, bytes: &[u8]) -> Result<()> {
         5 * s.sections + 1
     );
     if let (Some(full_scale), Some(exp)) = (s.full_scale, s.output_exponent) {
-        crate::outln!("  ADC full scale {full_scale}, output Q1.31 of full scale x 2^{exp}");
+        crate::outln!(
+            "  ADC full scale {}, output Q1.31 of full scale x 2^{exp}",
+            crate::error::number(full_scale)
+        );
     }
     if let (Some(gain), Some(dc)) = (s.gain, s.dc_gain) {
         crate::outln!("  input gain {gain:.7}, steady-state gain of the cascade {dc:.6}");

@@ -484,8 +484,8 @@ pub fn run_invert(args: &InvertArgs) -> Result<()> {
     let (file, stale) = ModelFile::load_for_redesign(&args.model)?;
     if stale {
         crate::errln!(
-            "note: the compensator stored in {} was designed for another model (or its plan \
-             differs); designing a new one for the model in the file",
+            "note: the compensator stored in {} was designed for another model; designing a new \
+             one for the model in the file",
             name(&args.model)
         );
     }

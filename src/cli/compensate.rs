@@ -217,11 +217,11 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
         return Ok(());
     }
     crate::outln!(
-        "compensated {} samples of {} with {what} ({arith}); u_hat lags the true pressure by {:.2} samples ({:.6} s)",
+        "compensated {} samples of {} with {what} ({arith}); u_hat lags the true pressure by {:.2} samples ({})",
         trace.len(),
         trace.path.display(),
         latency,
-        latency / fs
+        super::console::duration(latency / fs)
     );
     if let Some(e) = error {
         crate::outln!(

@@ -83,3 +83,46 @@ macro_rules! errln {
         $crate::cli::console::warn(format_args!("{}\n", format_args!($($arg)*)))
     };
 }
+
+/// A time for a person to read: four significant digits in the unit that suits it (`2.1 ms`,
+/// `37.5 µs`, `1.25 s`), not `0.002100000 s`. `--json` keeps the seconds in full.
+#[must_use]
+pub fn duration(seconds: f64) -> String {
+    let a = seconds.abs();
+    let (scale, unit) = match a {
+        a if a == 0.0 || !a.is_finite() || a >= 1.0 => (1.0, "s"),
+        a if a >= 1e-3 => (1e3, "ms"),
+        a if a >= 1e-6 => (1e6, "µs"),
+        _ => (1e9, "ns"),
+    };
+    let v = seconds * scale;
+    let digits = match v.abs() {
+        v if v >= 100.0 => 1,
+        v if v >= 10.0 => 2,
+        _ => 3,
+    };
+    let text = format!("{v:.digits$}");
+    let text = if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.')
+    } else {
+        &text
+    };
+    format!("{text} {unit}")
+}
+
+#[cfg(test)]
+mod duration_tests {
+    use super::duration;
+
+    #[test]
+    fn times_are_read_in_the_unit_that_suits_them() {
+        assert_eq!(duration(0.0021), "2.1 ms");
+        assert_eq!(duration(0.002_900_000_1), "2.9 ms");
+        assert_eq!(duration(3.75e-5), "37.5 µs");
+        assert_eq!(duration(1.25), "1.25 s");
+        assert_eq!(duration(0.0), "0 s");
+        assert_eq!(duration(-0.0123456), "-12.35 ms");
+        assert_eq!(duration(2.5e-9), "2.5 ns");
+        assert_eq!(duration(123.456), "123.5 s");
+    }
+}

@@ -412,12 +412,12 @@ fn print_fit(file: &ModelFile, est: &Trace) {
     let m = &file.model;
     let Some(r) = &file.fit else { return };
     crate::outln!(
-        "estimation test {}: {} samples at {} Hz, step onset at sample {} (t = {:.6} s)",
+        "estimation test {}: {} samples at {} Hz, step onset at sample {} (t = {})",
         est.path.display(),
         est.len(),
         est.sample_rate_hz,
         r.step_onset,
-        r.step_onset as f64 / est.sample_rate_hz
+        super::console::duration(r.step_onset as f64 / est.sample_rate_hz)
     );
     for note in &r.notes {
         crate::outln!("note: {note}");
@@ -468,10 +468,10 @@ fn print_fit(file: &ModelFile, est: &Trace) {
         );
     }
     crate::outln!(
-        "model: order {}, delay {} samples ({:.6} s), method {}",
+        "model: order {}, delay {} samples ({}), method {}",
         m.order(),
         m.delay,
-        m.delay as f64 / m.fs,
+        super::console::duration(m.delay as f64 / m.fs),
         r.method
     );
     crate::outln!("  a = {:?}", m.a);

@@ -206,11 +206,11 @@ fn print_roots(what: &str, roots: &[analysis::Root]) {
 
 fn print_analysis(name: &str, a: &Analysis) {
     crate::outln!(
-        "model {name}: order {}, fs {} Hz, delay {} samples ({:.9} s)",
+        "model {name}: order {}, fs {} Hz, delay {} samples ({})",
         a.order,
         a.sample_rate_hz,
         a.delay_samples,
-        a.delay_s
+        super::console::duration(a.delay_s)
     );
     print_roots("poles", &a.poles);
     print_roots("zeros of B", &a.zeros);
@@ -419,10 +419,10 @@ fn inspect_blob(args: &InspectArgs, bytes: &[u8]) -> Result<()> {
         }
     );
     crate::outln!(
-        "  sample rate {} Hz, model delay {} samples ({:.6} s), {} sections ({} multiply-adds per sample)",
+        "  sample rate {} Hz, model delay {} samples ({}), {} sections ({} multiply-adds per sample)",
         s.sample_rate_hz,
         s.delay_samples,
-        f64::from(s.delay_samples) / s.sample_rate_hz,
+        super::console::duration(f64::from(s.delay_samples) / s.sample_rate_hz),
         s.sections,
         5 * s.sections + 1
     );

@@ -354,8 +354,11 @@ pub(super) fn print_inverse(d: &inverse::Design, fs: f64) {
         );
     }
     crate::outln!(
-        "  corrected bandwidth {:.1} Hz (+/-1 dB, +/-5 deg); noise gain {:.3}; latency {:.2} samples ({:.6} s)",
-        d.corrected_bandwidth_hz, d.noise_gain, d.latency_samples, d.latency_s
+        "  corrected bandwidth {:.1} Hz (+/-1 dB, +/-5 deg); noise gain {:.3}; latency {:.2} samples ({})",
+        d.corrected_bandwidth_hz,
+        d.noise_gain,
+        d.latency_samples,
+        super::console::duration(d.latency_s)
     );
     crate::outln!(
         "  in band ({}): worst magnitude error {:.3} dB, worst phase error {:.2} deg; pole margin {:.4}",

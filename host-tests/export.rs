@@ -302,6 +302,18 @@ fn cli_never_exports_a_compensator_that_does_not_belong_to_the_model() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("designed for another model"), "{err}");
+    // `unlag fit` onto a model file whose compensator names no model (written before the
+    // compensator named its model) continues it and designs the compensator anew.
+    let unnamed = dir.path().join("unnamed.toml");
+    let o = unlag(&[
+        "fit",
+        test.to_str().unwrap(),
+        "-o",
+        unnamed.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let refitted = std::fs::read_to_string(&unnamed).unwrap();
+    assert!(refitted.contains("\nmodel_sha256 = \""), "{refitted}");
     let bin = dir.path().join("again.bin");
     let o = unlag(&[
         "export",

@@ -149,10 +149,14 @@ impl FitArgs {
                 });
             }
             // A fresh fit still keeps the probe's geometry of the model it replaces.
-            return Ok(ModelFile::load(&self.output).ok());
+            return Ok(ModelFile::load_for_redesign(&self.output)
+                .ok()
+                .map(|(f, _)| f));
         }
-        ModelFile::load(&self.output)
-            .map(Some)
+        // The fit designs the compensator anew: one stored for another model (or naming none)
+        // is dropped, not refused.
+        ModelFile::load_for_redesign(&self.output)
+            .map(|(f, _)| Some(f))
             .map_err(|e| Error::InvalidArgument {
                 what: "output",
                 message: format!(

@@ -513,15 +513,16 @@ impl ModelFile {
         }
         // Stale: designed for another model (a compensator that names this model but is
         // broken is refused all the same).
-        let stale = file.inverse.as_ref().is_some_and(|d| {
-            stored == Stored::DroppedWhenStale && check_belongs(d, m, &field).is_err()
-        });
+        let belongs = file.inverse.as_ref().map(|d| check_belongs(d, m, &field));
+        let stale = match belongs {
+            Some(Err(_)) if stored == Stored::DroppedWhenStale => true,
+            Some(Err(e)) => return Err(e),
+            _ => false,
+        };
         if stale {
             file.inverse = None;
         }
-        let m = &file.model;
         if let Some(d) = &file.inverse {
-            check_belongs(d, m, &field)?;
             for (key, value) in [
                 ("gain", d.gain),
                 ("latency_samples", d.latency_samples),

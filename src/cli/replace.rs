@@ -11,7 +11,11 @@ fn last_column(head: &[u8]) -> Option<&str> {
     let header = lines.find(|l| !l.trim_start().starts_with('#'))?;
     // The line must be whole: the head may end inside it.
     lines.next()?;
-    let last = header.trim_end_matches('\r').rsplit(',').next()?;
+    // Written back in the input's own delimiter (`--delimiter`).
+    let last = header
+        .trim_end_matches('\r')
+        .rsplit([',', ';', '\t', '|'])
+        .next()?;
     Some(last.trim().trim_matches('"'))
 }
 
@@ -48,6 +52,9 @@ mod tests {
     fn own_outputs_are_recognised_and_others_are_not() {
         assert!(compensate_csv(b"t,u,y,u_hat\n0,0,0,0\n"));
         assert!(compensate_csv(b"t,y,u_hat\r\n0,0,0\r\n"));
+        // Written back in a semicolon- or tab-separated input's own dialect.
+        assert!(compensate_csv(b"t;u;y;u_hat\n0;0;0;0,5\n"));
+        assert!(simulate_csv(b"t\tu\ty\ty_model\n0\t0\t0\t0\n"));
         assert!(compensate_csv(
             b"# unlag compensate: u_hat is from x\nt,y,u_hat\n"
         ));

@@ -300,7 +300,7 @@ fn asked_request(
             max_band_hz,
         } => (max_latency_samples, max_band_hz),
     };
-    let (mut noise, mut prior) = noise_and_prior(model, spec, raw, learnt, stored)?;
+    let (mut noise, mut prior, steps_prior) = noise_and_prior(model, spec, raw, learnt, stored)?;
     // A record with no quiet segment shows no coloured probe noise by itself: the noise model
     // fitted beside the dynamics (`coloured-noise`) supplies it.
     if noise.probe_ar_std == 0.0 {
@@ -315,10 +315,11 @@ fn asked_request(
         lowpass_order: spec.lowpass_order,
     };
     // Runs the probe recorded alone: the level whose optimum their spectra predict least
-    // error for.
+    // error for, searched around the level their increments give and the step tests' own.
     if spec.signal.iter().any(|r| r.u.is_none()) {
         let runs: Vec<&[f64]> = spec.signal.iter().map(|r| r.y.as_slice()).collect();
-        prior = check::prior_for_runs(model, &noise, prior, &options, &runs);
+        let levels: Vec<SignalPrior> = std::iter::once(prior).chain(steps_prior).collect();
+        prior = check::prior_for_runs(model, &noise, &levels, &options, &runs);
     }
     Ok(Request::Optimal {
         options,
@@ -329,13 +330,15 @@ fn asked_request(
 
 /// The probe noise, measured on the `raw` tests, and the signal prior, from the `--signal`
 /// runs or the `learnt` tests; without tests, those `stored` with the model's last design.
+/// With `--signal` runs, also the prior the step tests alone give (the `learnt` tests', or
+/// the stored one), when there is one.
 fn noise_and_prior(
     model: &Model,
     spec: &CompensatorSpec,
     raw: &[Test<'_>],
     learnt: &[Test<'_>],
     stored: Option<&Design>,
-) -> Result<(NoiseModel, SignalPrior)> {
+) -> Result<(NoiseModel, SignalPrior, Option<SignalPrior>)> {
     let stored = stored.and_then(|d| d.noise.zip(d.prior));
     let noise = match (raw.is_empty(), stored) {
         (true, Some((noise, _))) => noise,
@@ -350,10 +353,18 @@ fn noise_and_prior(
         }
         _ => optimal::estimate_noise(raw),
     };
+    let steps_prior = match (learnt.is_empty(), stored) {
+        (true, Some((_, prior))) => Some(prior),
+        (true, None) => None,
+        (false, _) => Some(optimal::estimate_prior(
+            learnt,
+            &optimal::estimate_noise(learnt),
+        )),
+    };
     let prior = if spec.signal.is_empty() {
-        match (learnt.is_empty(), stored) {
-            (true, Some((_, prior))) => prior,
-            _ => optimal::estimate_prior(learnt, &optimal::estimate_noise(learnt)),
+        match steps_prior {
+            Some(prior) => prior,
+            None => optimal::estimate_prior(learnt, &optimal::estimate_noise(learnt)),
         }
     } else {
         let pairs: Vec<(Option<&[f64]>, &[f64])> = spec
@@ -372,7 +383,11 @@ fn noise_and_prior(
             .unwrap_or(8.0) as usize;
         optimal::prior_from_runs(&pairs, model.dc_gain(), &noise, scale.max(8))
     };
-    Ok((noise, prior))
+    Ok((
+        noise,
+        prior,
+        steps_prior.filter(|_| !spec.signal.is_empty()),
+    ))
 }
 
 /// The stored compensator `stored` designed anew for `model`, its model rescaled in time by

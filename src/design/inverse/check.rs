@@ -189,28 +189,48 @@ pub const RUN_PRIOR_DECADES: [f64; 13] = [
     2.0, 1.5, 1.0, 0.5, 0.0, -0.5, -1.0, -1.5, -2.0, -2.5, -3.0, -3.5, -4.0,
 ];
 
-/// The signal prior for runs the probe recorded alone (`runs`, probe signals): among
-/// `estimate` scaled by [`RUN_PRIOR_DECADES`], the one whose optimum for `noise` and `options`
-/// has the least predicted mean-square error on the runs' own spectra, each relative to the
-/// raw probe's on the same run and averaged over the runs. A random walk's level read from
-/// the increments misjudges a run whose spectrum is not a random walk's (turbulence that
-/// ends at a band limit, a train of wakes); the error the runs' spectra predict judges the
-/// compensator itself. `estimate` when no run is long enough for a spectrum or no level
-/// gives a design.
+/// The signal prior for runs the probe recorded alone (`runs`, probe signals): among the
+/// `levels` (the level the runs' increments give, and the step tests' own) each scaled by
+/// [`RUN_PRIOR_DECADES`], the one whose optimum for `noise` and `options` has the least
+/// predicted mean-square error on the runs' own spectra, each relative to the raw probe's on
+/// the same run and averaged over the runs. A random walk's level read from the increments
+/// misjudges a run whose spectrum is not a random walk's (turbulence that ends at a band
+/// limit, a train of wakes), and says nothing when the increments do not rise above the
+/// probe's noise (a level of zero: only a bound); the error the runs' spectra predict judges
+/// the compensator itself, whichever level it starts from. The first level with a positive
+/// increment when no run is long enough for a spectrum or no level gives a design.
 #[must_use]
 pub fn prior_for_runs(
     model: &Model,
     noise: &NoiseModel,
-    estimate: SignalPrior,
+    levels: &[SignalPrior],
     options: &OptimalOptions,
     runs: &[&[f64]],
 ) -> SignalPrior {
-    let candidates: Vec<(SignalPrior, Design)> = RUN_PRIOR_DECADES
+    let Some(&estimate) = levels
         .iter()
-        .filter_map(|decades| {
+        .find(|p| p.increment_std > 0.0 && p.increment_std.is_finite())
+        .or(levels.first())
+    else {
+        return SignalPrior {
+            increment_std: 0.0,
+            increment_pole: 0.0,
+            source: optimal::PriorSource::Runs,
+        };
+    };
+    let candidates: Vec<(SignalPrior, Design)> = levels
+        .iter()
+        .filter(|level| level.increment_std > 0.0)
+        .flat_map(|level| {
+            RUN_PRIOR_DECADES
+                .iter()
+                .map(move |decades| (level, decades))
+        })
+        .filter_map(|(level, decades)| {
             let p = SignalPrior {
-                increment_std: estimate.increment_std * 10f64.powf(0.5 * decades),
-                ..estimate
+                increment_std: level.increment_std * 10f64.powf(0.5 * decades),
+                source: optimal::PriorSource::Runs,
+                ..*level
             };
             optimal::design(model, noise, &p, options)
                 .ok()
@@ -578,8 +598,8 @@ mod tests {
             source: optimal::PriorSource::Runs,
         };
         let options = OptimalOptions::default();
-        let for_slow = prior_for_runs(&m, &noise, estimate, &options, &[&y_slow]);
-        let for_steps = prior_for_runs(&m, &noise, estimate, &options, &[&y_steps]);
+        let for_slow = prior_for_runs(&m, &noise, &[estimate], &options, &[&y_slow]);
+        let for_steps = prior_for_runs(&m, &noise, &[estimate], &options, &[&y_steps]);
         assert!(
             for_slow.increment_std < 0.1 * for_steps.increment_std,
             "{for_slow:?} {for_steps:?}"
@@ -597,8 +617,35 @@ mod tests {
         assert!(chosen < 0.7 * assumed, "{chosen} {assumed}");
         // No run long enough for a spectrum: the estimate stands.
         assert_eq!(
-            prior_for_runs(&m, &noise, estimate, &options, &[&y_slow[..50]]),
+            prior_for_runs(&m, &noise, &[estimate], &options, &[&y_slow[..50]]),
             estimate
+        );
+        // Increments that do not rise above the noise give a level of zero, which is only a
+        // bound: the search starts from the next level (the step tests'), judged on the run as
+        // before, and ends at the same prior the slow run chose from the estimate.
+        let silent = SignalPrior {
+            increment_std: 0.0,
+            ..estimate
+        };
+        let from_steps = prior_for_runs(&m, &noise, &[silent, estimate], &options, &[&y_slow]);
+        assert_eq!(from_steps, for_slow);
+        // Two levels: the search covers both, so it predicts no more error than from either.
+        let predicted = |p: &SignalPrior| {
+            let d = optimal::design(&m, &noise, p, &options).unwrap();
+            RunJudge::with_noise(&m, &noise, &y_slow, d.latency_samples)
+                .unwrap()
+                .judge(&d)
+                .ratio()
+        };
+        let loud = SignalPrior {
+            increment_std: 1e3 * estimate.increment_std,
+            ..estimate
+        };
+        let both = prior_for_runs(&m, &noise, &[loud, estimate], &options, &[&y_slow]);
+        let alone = prior_for_runs(&m, &noise, &[loud], &options, &[&y_slow]);
+        assert!(
+            predicted(&both) <= predicted(&alone) * (1.0 + 1e-9),
+            "{both:?} {alone:?}"
         );
     }
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Writes src/board/fixed/direct/m4_direct.s: the Thumb-2 kernels of the direct-form fixed-point
-cascade (`unlag::fixed::direct::DirectCascade::process` and `process_in_place`) for 1..=4
+cascade (`unlag::board::fixed::direct::DirectCascade::process` and `process_in_place`) for 1..=4
 sections.
 
     python3 bench/gen_m4_direct.py      # rewrites the file; commit the result

@@ -94,8 +94,10 @@ mod board {
 
     /// The board-side blob parser, out of line so that `.ci/no-panic.sh` can check it too.
     #[inline(never)]
-    fn parse_blob(bytes: &[u8]) -> Result<unlag::blob::CoefficientSet<4>, unlag::blob::BlobError> {
-        unlag::blob::parse(bytes)
+    fn parse_blob(
+        bytes: &[u8],
+    ) -> Result<unlag::board::blob::CoefficientSet<4>, unlag::board::blob::BlobError> {
+        unlag::board::blob::parse(bytes)
     }
 
     /// The board-side parser of the direct-form blob, out of line so that `.ci/no-panic.sh`
@@ -103,8 +105,8 @@ mod board {
     #[inline(never)]
     fn parse_direct_blob(
         bytes: &[u8],
-    ) -> Result<unlag::blob::DirectCoefficientSet<4>, unlag::blob::BlobError> {
-        unlag::blob::parse_direct(bytes)
+    ) -> Result<unlag::board::blob::DirectCoefficientSet<4>, unlag::board::blob::BlobError> {
+        unlag::board::blob::parse_direct(bytes)
     }
 
     #[inline(never)]
@@ -134,8 +136,8 @@ mod board {
             debug::exit(debug::EXIT_FAILURE);
         }
         // The direct form's blob, written here and parsed back (the parser stays in the ELF).
-        let mut direct_blob = [0u8; unlag::blob::encoded_len_direct(4)];
-        let parsed = unlag::blob::encode_direct(
+        let mut direct_blob = [0u8; unlag::board::blob::encoded_len_direct(4)];
+        let parsed = unlag::board::blob::encode_direct(
             &mut direct_blob,
             10_000.0,
             2,

@@ -3,7 +3,7 @@
 //! For three probes, from a few samples per period to a thousand (fs/fn about 16, 100 and
 //! 1000), the stable band-limited compensator is designed in f64 and run three ways on the same
 //! long simulated probe signal: in f64 (the reference), in the board's 32-bit fixed point
-//! (normal-form sections, `unlag::fixed`), and, beside it, as one 32-bit direct-form filter
+//! (normal-form sections, `unlag::board::fixed`), and, beside it, as one 32-bit direct-form filter
 //! of the whole compensator (coefficients quantised the same way, exact `i128` accumulation,
 //! so only the form differs). Then a 10^8-sample full-scale random walk counts overflows, and a
 //! zero input after full-scale excitation shows how long the states take to reach exactly zero.
@@ -14,12 +14,12 @@
 
 use std::f64::consts::PI;
 
-use unlag::compensator::{CascadeCoefficients, CascadeState};
+use unlag::board::compensator::{CascadeCoefficients, CascadeState};
+use unlag::board::fixed::direct::{DirectCascade, DirectState};
+use unlag::board::fixed::{FixedCascade, FixedState};
 use unlag::design::inverse::{self, Design, Options};
 use unlag::design::quantise::{DirectPlan, FixedPlan};
 use unlag::fit::model::{filter, Model};
-use unlag::fixed::direct::{DirectCascade, DirectState};
-use unlag::fixed::{FixedCascade, FixedState};
 
 /// ADC full scale of the simulated probe signals.
 const FULL_SCALE: f64 = 2.0;
@@ -239,7 +239,7 @@ fn main() {
             cascade.process(&mut st, v);
         }
         let radius = design.sections.iter().fold(0.0f64, |r, s| {
-            r.max(unlag::compensator::section_pole_radius(s[3], s[4]))
+            r.max(unlag::board::compensator::section_pole_radius(s[3], s[4]))
         });
         let bound = (2.0 * 31.0 * 2f64.ln() / -radius.ln()).ceil() as usize;
         let mut steps = 0usize;
@@ -268,7 +268,7 @@ fn main() {
         );
     }
     println!();
-    println!("Direct form I with first-order error feedback (`unlag::fixed::direct`, `DirectPlan`), same signals:");
+    println!("Direct form I with first-order error feedback (`unlag::board::fixed::direct`, `DirectPlan`), same signals:");
     println!();
     println!(
         "| case | headroom (bits, L1 bound incl. error feedback) | SNR direct-form sections vs f64 | SNR same integers, plain truncation (no error feedback) vs f64 | full-scale random walk: samples, overflows | zero input after full-scale excitation: samples until the outputs are zero; largest output code left after 10^6 samples |"

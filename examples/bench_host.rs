@@ -36,7 +36,7 @@ use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use unlag::compensator::{
+use unlag::board::compensator::{
     CascadeCoefficients, CascadeState, InverseCoefficients, InverseState, Sample,
 };
 use unlag::design::inverse;

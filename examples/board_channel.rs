@@ -30,10 +30,10 @@
 
 use core::fmt::Write;
 
-use unlag::blob::{self, BlobError};
-use unlag::compensator::{CascadeCoefficients, CascadeState, InverseError};
-use unlag::fixed::input::{AdcInput, InputError};
-use unlag::fixed::{FixedCascade, FixedError, FixedState};
+use unlag::board::blob::{self, BlobError};
+use unlag::board::compensator::{CascadeCoefficients, CascadeState, InverseError};
+use unlag::board::fixed::input::{AdcInput, InputError};
+use unlag::board::fixed::{FixedCascade, FixedError, FixedState};
 
 /// The `f32` compensator, as `unlag export probe.toml --format rust -o src/coefficients.rs`
 /// writes it.
@@ -162,7 +162,7 @@ impl Compensation {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub enum SwapError {
-    /// The blob was refused by `unlag::blob::parse`.
+    /// The blob was refused by `unlag::board::blob::parse`.
     Blob(BlobError),
     /// The blob is valid but for another sample rate than this board's ADC runs at.
     SampleRate {

@@ -18,7 +18,7 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 use embedded_hal::spi::SpiDevice;
-use unlag::compensator::{CascadeCoefficients, CascadeState};
+use unlag::board::compensator::{CascadeCoefficients, CascadeState};
 
 /// Exported by `unlag export examples/data/board_model.toml --format rust`.
 mod coefficients {

@@ -14,7 +14,7 @@
 //! Built in at compile time (no file system on the board):
 //! * `examples/data/board_coefficients.bin`: `unlag export examples/data/board_model.toml
 //!   --format bin -o examples/data/board_coefficients.bin`, parsed and validated on the board
-//!   by [`unlag::blob::parse`];
+//!   by [`unlag::board::blob::parse`];
 //! * `examples/data/board_trace.rs`: 1024 samples of the probe column of
 //!   `examples/data/step_test_2.csv`, a falling pressure step.
 //!
@@ -26,7 +26,7 @@
 
 use core::fmt::Write;
 
-use unlag::blob::{self, CoefficientSet};
+use unlag::board::blob::{self, CoefficientSet};
 
 mod trace {
     include!("data/board_trace.rs");
@@ -68,11 +68,11 @@ fn code(y: f32) -> i32 {
 /// The fixed-point compensator on the same trace: one output code per sample, on the host and
 /// on the board alike (integer arithmetic, so the two must agree bit for bit).
 fn replay_fixed(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
-    let Ok(c) = unlag::fixed::FixedCascade::<4>::new(&fixed::SECTIONS_M8) else {
+    let Ok(c) = unlag::board::fixed::FixedCascade::<4>::new(&fixed::SECTIONS_M8) else {
         writeln!(out, "ERROR fixed-point sections refused")?;
         return Ok(false);
     };
-    let kind = if unlag::fixed::uses_kernel() {
+    let kind = if unlag::board::fixed::uses_kernel() {
         "asm"
     } else {
         "portable"
@@ -111,15 +111,14 @@ const CHUNKS: [usize; 12] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 64, 100];
 /// last block). Reports whether this build runs the Cortex-M kernel and the FNV-1a hash of the
 /// output bits of each run.
 fn replay_sections<const K: usize>(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
-    let Some(Ok(c)) = coefficients::SECTIONS
-        .get(..K)
-        .map(|s| unlag::compensator::CascadeCoefficients::<f32, K>::new(coefficients::GAIN, s))
-    else {
+    let Some(Ok(c)) = coefficients::SECTIONS.get(..K).map(|s| {
+        unlag::board::compensator::CascadeCoefficients::<f32, K>::new(coefficients::GAIN, s)
+    }) else {
         writeln!(out, "ERROR K={K}: sections refused")?;
         return Ok(false);
     };
     let first = trace::TRACE.first().copied().unwrap_or(0.0);
-    let kind = if unlag::compensator::f32_cascade_uses_kernel(K) {
+    let kind = if unlag::board::compensator::f32_cascade_uses_kernel(K) {
         "asm"
     } else {
         "portable"
@@ -150,11 +149,11 @@ fn replay_sections<const K: usize>(out: &mut impl Write) -> Result<bool, core::f
 /// overflow flag after each sample (read and cleared every sample), and how many samples
 /// overflowed.
 fn replay_fixed_stress(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
-    let Ok(c) = unlag::fixed::FixedCascade::<4>::new(&stress::STRESS_SECTIONS) else {
+    let Ok(c) = unlag::board::fixed::FixedCascade::<4>::new(&stress::STRESS_SECTIONS) else {
         writeln!(out, "ERROR stress sections refused")?;
         return Ok(false);
     };
-    let mut state = unlag::fixed::FixedState::default();
+    let mut state = unlag::board::fixed::FixedState::default();
     let mut overflows = 0u32;
     let bits = (0..stress::STRESS_LEN).flat_map(|k| {
         let y = c.process(&mut state, stress::stress_input(k));
@@ -174,11 +173,11 @@ fn replay_fixed_stress(out: &mut impl Write) -> Result<bool, core::fmt::Error> {
 fn replay_direct<const K: usize>(
     out: &mut impl Write,
     name: &str,
-    sections: &[unlag::fixed::direct::DirectSection],
+    sections: &[unlag::board::fixed::direct::DirectSection],
     len: usize,
     input: impl Fn(usize) -> i32,
 ) -> Result<bool, core::fmt::Error> {
-    use unlag::fixed::direct::{uses_kernel, DirectCascade, DirectState};
+    use unlag::board::fixed::direct::{uses_kernel, DirectCascade, DirectState};
     let Some(Ok(c)) = sections.get(..K).map(DirectCascade::<K>::new) else {
         writeln!(out, "ERROR direct {name} K={K}: sections refused")?;
         return Ok(false);

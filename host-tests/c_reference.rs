@@ -24,15 +24,15 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
-use unlag::blob;
-use unlag::compensator::{
+use unlag::board::blob;
+use unlag::board::compensator::{
     CascadeCoefficients, CascadeState, NonlinearDampingCoefficients, NonlinearDampingState,
 };
+use unlag::board::fixed::direct::{DirectCascade, DirectSection, DirectState};
+use unlag::board::fixed::{FixedCascade, FixedSection, FixedState};
 use unlag::export::{
     BoardCoefficients, BoardNonlinear, DirectBoardCoefficients, FixedBoardCoefficients,
 };
-use unlag::fixed::direct::{DirectCascade, DirectSection, DirectState};
-use unlag::fixed::{FixedCascade, FixedSection, FixedState};
 
 /// Sections of the shipped design (`examples/data/board_model.toml`): the capacity the Rust
 /// side runs with, so that it has no identity sections the C does not run.

@@ -333,3 +333,87 @@ fn fit_compensate_simulate_end_to_end() {
         .fold(0.0, f64::max);
     assert!(worst < 1e-2 * scale, "f32 vs f64: {worst} of {scale}");
 }
+
+/// The traces' pressure unit, read from the column names or given with `--unit`, is stored in
+/// the model file and carried by every pressure printed, with the prefix that suits it; the
+/// model itself does not change with it.
+#[test]
+fn pressures_are_printed_in_the_traces_unit() {
+    let original = std::fs::read_to_string(format!(
+        "{}/examples/data/step_test_1.csv",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    let (_, rows) = original.split_once('\n').unwrap();
+    let named = tmp("named_kpa.csv");
+    std::fs::write(&named, format!("t,p_kPa,y_kPa\n{rows}")).unwrap();
+    let (plain_model, named_model, psi_model) =
+        (tmp("plain.toml"), tmp("named.toml"), tmp("psi.toml"));
+    let fit = |file: &Path, extra: &[&str], model: &Path| {
+        let mut args = vec!["fit", file.to_str().unwrap(), "--order", "4"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["-o", model.to_str().unwrap()]);
+        let o = unlag(&args);
+        assert!(o.status.success(), "{:?}", text(&o));
+        text(&o).0
+    };
+    let steps = format!(
+        "{}/examples/data/step_test_1.csv",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let plain = fit(Path::new(&steps), &[], &plain_model);
+    let by_name = fit(&named, &["--u", "p_kPa", "--y", "y_kPa"], &named_model);
+    let by_flag = fit(Path::new(&steps), &["--unit", "psi"], &psi_model);
+    let line = |out: &str| {
+        out.lines()
+            .find(|l| l.trim_start().starts_with("full scale +-"))
+            .unwrap()
+            .to_string()
+    };
+    // Without a unit the number alone; the shipped test's largest |y| is 1375.29.
+    assert!(
+        line(&plain).contains("largest |y|, 1375,"),
+        "{}",
+        line(&plain)
+    );
+    // In kPa the same numbers are MPa: 1375.29 kPa is 1.375 MPa.
+    assert!(
+        line(&by_name).contains("largest |y|, 1.375 MPa,"),
+        "{}",
+        line(&by_name)
+    );
+    assert!(
+        line(&by_flag).contains("largest |y|, 1375 psi,"),
+        "{}",
+        line(&by_flag)
+    );
+    let board = |path: &Path| {
+        let text = std::fs::read_to_string(path).unwrap();
+        let v: toml::Value = toml::from_str(&text).unwrap();
+        (
+            v.get("board")
+                .and_then(|b| b.get("unit"))
+                .and_then(|u| u.as_str())
+                .map(String::from),
+            v.get("a").cloned(),
+        )
+    };
+    let (p, n, s) = (board(&plain_model), board(&named_model), board(&psi_model));
+    assert_eq!(
+        (p.0.as_deref(), n.0.as_deref(), s.0.as_deref()),
+        (None, Some("kPa"), Some("psi"))
+    );
+    assert_eq!(p.1, n.1, "the unit changes the printing, not the model");
+    // A unit unlag does not know is refused with the ones it does.
+    let o = unlag(&[
+        "fit",
+        &steps,
+        "--unit",
+        "furlong",
+        "-o",
+        tmp("bad.toml").to_str().unwrap(),
+    ]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("'furlong'") && err.contains("kPa"), "{err}");
+}

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use proptest::prelude::*;
-use unlag::blob::{self, BlobError, CoefficientSet};
-use unlag::compensator::CascadeCoefficients;
+use unlag::board::blob::{self, BlobError, CoefficientSet};
+use unlag::board::compensator::CascadeCoefficients;
 use unlag::export::{self, BoardCoefficients, Format};
 use unlag::file::ModelFile;
 
@@ -354,12 +354,12 @@ fn render_fixed_bench_sections() -> String {
             e = plan.output_exponent
         ));
         s.push_str(&format!(
-            "/// Sections for m = {m}.\npub const SECTIONS_M{m}: [unlag::fixed::FixedSection; {k}] = [\n",
+            "/// Sections for m = {m}.\npub const SECTIONS_M{m}: [unlag::board::fixed::FixedSection; {k}] = [\n",
             m = 2 * k
         ));
         for f in plan.board_sections() {
             s.push_str(&format!(
-                "    unlag::fixed::FixedSection {{ a: {:?}, b: {:?}, c: {:?}, d: {}, shift: {} }},\n",
+                "    unlag::board::fixed::FixedSection {{ a: {:?}, b: {:?}, c: {:?}, d: {}, shift: {} }},\n",
                 f.a, f.b, f.c, f.d, f.shift
             ));
         }
@@ -410,12 +410,12 @@ fn render_direct_bench_sections() -> String {
             e = plan.output_exponent
         ));
         s.push_str(&format!(
-            "/// Sections for m = {m}.\npub const SECTIONS_M{m}: [unlag::fixed::direct::DirectSection; {k}] = [\n",
+            "/// Sections for m = {m}.\npub const SECTIONS_M{m}: [unlag::board::fixed::direct::DirectSection; {k}] = [\n",
             m = 2 * k
         ));
         for f in plan.board_sections() {
             s.push_str(&format!(
-                "    unlag::fixed::direct::DirectSection {{ b: {:?}, neg_a: {:?} }},\n",
+                "    unlag::board::fixed::direct::DirectSection {{ b: {:?}, neg_a: {:?} }},\n",
                 f.b, f.neg_a
             ));
         }
@@ -448,7 +448,7 @@ fn fixed_point_export_round_trips_and_every_flip_is_refused() {
     let set: blob::FixedCoefficientSet<4> = blob::parse_fixed(&bytes).unwrap();
     assert_eq!(
         set.cascade,
-        unlag::fixed::FixedCascade::<4>::new(&c.sections).unwrap()
+        unlag::board::fixed::FixedCascade::<4>::new(&c.sections).unwrap()
     );
     assert_eq!(set.full_scale, 1000.0);
     assert_eq!(set.output_exponent, c.output_exponent);

@@ -27,7 +27,7 @@ use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use unlag::blob::{self, CoefficientSet};
+use unlag::board::blob::{self, CoefficientSet};
 
 mod trace {
     include!("../examples/data/board_trace.rs");
@@ -183,7 +183,7 @@ fn fnv1a(bits: impl Iterator<Item = u32>) -> u64 {
 
 /// The host's outputs for the first `K` sections, one portable call per sample.
 fn host_sections<const K: usize>() -> Vec<u32> {
-    let c = unlag::compensator::CascadeCoefficients::<f32, K>::new(
+    let c = unlag::board::compensator::CascadeCoefficients::<f32, K>::new(
         coefficients::GAIN,
         &coefficients::SECTIONS[..K],
     )
@@ -202,8 +202,8 @@ mod stress {
 /// The host's run of the fixed-point stress case: the hash of outputs and overflow flags, and
 /// the number of samples that overflowed (as `examples/board_replay.rs` reports them).
 fn host_fixed_stress() -> (u64, u32) {
-    let c = unlag::fixed::FixedCascade::<4>::new(&stress::STRESS_SECTIONS).expect("valid");
-    let mut state = unlag::fixed::FixedState::default();
+    let c = unlag::board::fixed::FixedCascade::<4>::new(&stress::STRESS_SECTIONS).expect("valid");
+    let mut state = unlag::board::fixed::FixedState::default();
     let mut overflows = 0u32;
     let mut bits = Vec::new();
     for k in 0..stress::STRESS_LEN {
@@ -223,7 +223,8 @@ mod fixed {
 /// The host's run of the fixed-point compensator: one output code per sample.
 fn host_fixed_outputs() -> Vec<u32> {
     let code = |y: f32| (f64::from(y) / fixed::FULL_SCALE * 2_147_483_648.0).round() as i32;
-    let c = unlag::fixed::FixedCascade::<4>::new(&fixed::SECTIONS_M8).expect("valid sections");
+    let c =
+        unlag::board::fixed::FixedCascade::<4>::new(&fixed::SECTIONS_M8).expect("valid sections");
     let mut state = c.equilibrium(code(trace::TRACE[0]));
     trace::TRACE
         .iter()
@@ -243,10 +244,10 @@ const CHUNKS: [usize; 12] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 64, 100];
 /// call <hash> overflows=<n>` and `DH <name> K=<k> block <hash>`), with the portable code.
 fn host_direct<const K: usize>(
     name: &str,
-    sections: &[unlag::fixed::direct::DirectSection],
+    sections: &[unlag::board::fixed::direct::DirectSection],
     input: &[i32],
 ) -> [String; 2] {
-    use unlag::fixed::direct::{DirectCascade, DirectState};
+    use unlag::board::fixed::direct::{DirectCascade, DirectState};
     let c = DirectCascade::<K>::new(&sections[..K]).expect("valid sections");
     let mut state = DirectState::<K>::default();
     let mut overflows = 0u32;

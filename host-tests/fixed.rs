@@ -12,10 +12,10 @@ use std::f64::consts::PI;
 use std::process::Command;
 
 use proptest::prelude::*;
+use unlag::board::fixed::{FixedCascade, FixedSection, FixedState};
 use unlag::design::inverse::{self, Options};
 use unlag::design::quantise::FixedPlan;
 use unlag::fit::model::Model;
-use unlag::fixed::{FixedCascade, FixedSection, FixedState};
 
 /// A probe model from pole pairs `(radius, angle)` and zeros inside or outside the circle.
 fn model(poles: &[(f64, f64)], zeros: &[f64], fs: f64) -> Model {
@@ -140,7 +140,7 @@ proptest! {
             .sections
             .iter()
             .map(|s| {
-                let r = unlag::compensator::section_pole_radius(s[3], s[4]);
+                let r = unlag::board::compensator::section_pole_radius(s[3], s[4]);
                 2.0 * (31.0 * 2f64.ln() / -r.ln()).ceil() + 2.0
             })
             .sum();
@@ -158,9 +158,9 @@ proptest! {
     fn the_worst_case_input_does_not_overflow((design, plan) in random_plan()) {
         // The input that maximises the output at sample n: the sign of the time-reversed
         // impulse response, at full scale. It reaches the L1 bound the plan is scaled for.
-        let c = unlag::compensator::CascadeCoefficients::<f64, 8>::new(design.gain, &design.sections)
+        let c = unlag::board::compensator::CascadeCoefficients::<f64, 8>::new(design.gain, &design.sections)
             .unwrap();
-        let mut st = unlag::compensator::CascadeState::default();
+        let mut st = unlag::board::compensator::CascadeState::default();
         let n = 20_000;
         let h: Vec<f64> = (0..n)
             .map(|k| c.process(&mut st, if k == 0 { 1.0 } else { 0.0 }))
@@ -202,8 +202,11 @@ fn fixed_point_tracks_f64_at_high_sample_rates() {
         .collect();
     let run = plan.run(&y).unwrap();
     assert!(!run.overflowed && run.clipped_inputs == 0);
-    let c = unlag::compensator::CascadeCoefficients::<f64, 8>::new(design.gain, &design.sections)
-        .unwrap();
+    let c = unlag::board::compensator::CascadeCoefficients::<f64, 8>::new(
+        design.gain,
+        &design.sections,
+    )
+    .unwrap();
     let mut st = c.equilibrium(y[0]);
     let reference: Vec<f64> = y.iter().map(|&v| c.process(&mut st, v)).collect();
     let s: f64 = reference.iter().map(|v| v * v).sum();
@@ -287,8 +290,8 @@ fn compensate_with_fixed_arithmetic_runs_the_planned_integers() {
 
 // ---- The direct form (issue 16 item 4): DF-I sections with first-order error feedback.
 
+use unlag::board::fixed::direct::{DirectCascade, DirectSection, DirectState};
 use unlag::design::quantise::DirectPlan;
-use unlag::fixed::direct::{DirectCascade, DirectSection, DirectState};
 
 /// The direct form's documented arithmetic, written independently: `i128`, floor division,
 /// the residual carried, the high word clamped to 30 bits (the output then within 3 codes of
@@ -342,9 +345,12 @@ prop_compose! {
 
 /// The impulse response of the f64 cascade, `n` samples.
 fn impulse(design: &inverse::Design, n: usize) -> Vec<f64> {
-    let c = unlag::compensator::CascadeCoefficients::<f64, 8>::new(design.gain, &design.sections)
-        .unwrap();
-    let mut st = unlag::compensator::CascadeState::default();
+    let c = unlag::board::compensator::CascadeCoefficients::<f64, 8>::new(
+        design.gain,
+        &design.sections,
+    )
+    .unwrap();
+    let mut st = unlag::board::compensator::CascadeState::default();
     (0..n)
         .map(|k| c.process(&mut st, if k == 0 { 1.0 } else { 0.0 }))
         .collect()
@@ -484,9 +490,11 @@ fn direct_form_accuracy_at_three_sample_rates() {
             .collect();
         let run = plan.run(&y).unwrap();
         assert!(!run.overflowed && run.clipped_inputs == 0);
-        let c =
-            unlag::compensator::CascadeCoefficients::<f64, 8>::new(design.gain, &design.sections)
-                .unwrap();
+        let c = unlag::board::compensator::CascadeCoefficients::<f64, 8>::new(
+            design.gain,
+            &design.sections,
+        )
+        .unwrap();
         let mut st = c.equilibrium(y[0]);
         let reference: Vec<f64> = y.iter().map(|&v| c.process(&mut st, v)).collect();
         let s: f64 = reference.iter().map(|v| v * v).sum();
@@ -589,7 +597,7 @@ fn the_direct_form_is_chosen_on_the_command_line_and_runs_bit_exact() {
     ]);
     let text = std::fs::read_to_string(&rs).unwrap();
     assert!(
-        text.contains("unlag::fixed::direct::DirectSection { b: ["),
+        text.contains("unlag::board::fixed::direct::DirectSection { b: ["),
         "{text}"
     );
     for s in &plan.board_sections() {
@@ -623,14 +631,14 @@ fn the_direct_form_is_chosen_on_the_command_line_and_runs_bit_exact() {
         bin.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let set: unlag::blob::DirectCoefficientSet<8> =
-        unlag::blob::parse_direct(&std::fs::read(&bin).unwrap()).unwrap();
+    let set: unlag::board::blob::DirectCoefficientSet<8> =
+        unlag::board::blob::parse_direct(&std::fs::read(&bin).unwrap()).unwrap();
     assert_eq!(set.sections, plan.sections.len());
     assert_eq!(set.full_scale, 4.0);
     assert_eq!(set.output_exponent, plan.output_exponent);
     assert_eq!(
         set.cascade,
-        unlag::fixed::direct::DirectCascade::<8>::new(&plan.board_sections()).unwrap()
+        unlag::board::fixed::direct::DirectCascade::<8>::new(&plan.board_sections()).unwrap()
     );
     // --fixed-form normal on the same model plans the normal form anew (number format 1).
     let o = run(&[
@@ -648,7 +656,7 @@ fn the_direct_form_is_chosen_on_the_command_line_and_runs_bit_exact() {
         bin.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(unlag::blob::parse_fixed::<8>(&std::fs::read(&bin).unwrap()).is_ok());
+    assert!(unlag::board::blob::parse_fixed::<8>(&std::fs::read(&bin).unwrap()).is_ok());
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -14,7 +14,7 @@
 use std::path::Path;
 
 use proptest::prelude::*;
-use unlag::blob;
+use unlag::board::blob;
 use unlag::file::ModelFile;
 use unlag::trace::{Columns, Trace};
 
@@ -57,8 +57,8 @@ fn model_with_plans_text() -> String {
     TEXT.get_or_init(|| {
         let mut f = ModelFile::parse(Path::new("m.toml"), &model_text()).unwrap();
         let d = f.inverse.as_mut().unwrap();
-        d.fixed = Some(FixedPlan::new(d, 20_000.0).unwrap());
-        d.fixed_direct = Some(DirectPlan::new(d, 20_000.0).unwrap());
+        d.fixed = Some(FixedPlan::new(&*d, 20_000.0).unwrap());
+        d.fixed_direct = Some(DirectPlan::new(&*d, 20_000.0).unwrap());
         f.to_toml().unwrap()
     })
     .clone()

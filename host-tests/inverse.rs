@@ -10,7 +10,7 @@ use std::f64::consts::PI;
 
 use common::{add_noise, continuous_line, Rng};
 use proptest::prelude::*;
-use unlag::compensator::CascadeCoefficients;
+use unlag::board::compensator::CascadeCoefficients;
 use unlag::design::inverse::{self, aligned_error, cascade_response, model_response};
 use unlag::fit::model::Model;
 use unlag::fit::{self, Options, Order, Test};

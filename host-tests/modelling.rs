@@ -565,7 +565,7 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
         "--json",
     ]);
     let bytes = std::fs::read(p("nl.bin")).unwrap();
-    let set: unlag::blob::CoefficientSet<8> = unlag::blob::parse(&bytes).unwrap();
+    let set: unlag::board::blob::CoefficientSet<8> = unlag::board::blob::parse(&bytes).unwrap();
     let correction = set.nonlinear.expect("the correction in the blob");
     let mut st = set.cascade.equilibrium(big_y[0] as f32);
     let mut sn = correction.equilibrium(big_y[0] as f32);
@@ -607,7 +607,7 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
     let lin = std::fs::read(p("lin.bin")).unwrap();
     assert_eq!(
         u16::from_le_bytes([lin[4], lin[5]]),
-        unlag::blob::FORMAT_VERSION
+        unlag::board::blob::FORMAT_VERSION
     );
 
     // Fixed point does not run the correction: refused, one line, exit 1, nothing written.
@@ -1448,7 +1448,7 @@ fn temperature_through_the_command_line() {
 /// to the true one in the middle of the step does not disturb the output.
 #[test]
 fn temperature_bank_picks_the_set_for_the_measured_temperature() {
-    use unlag::compensator::TemperatureBank;
+    use unlag::board::compensator::TemperatureBank;
     use unlag::export::bank::{BoardBank, TemperatureRange};
     let dir = std::env::temp_dir().join(format!("unlag-tempbank-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -1584,7 +1584,7 @@ fn temperature_bank_picks_the_set_for_the_measured_temperature() {
             .inverse
             .unwrap();
         let (g, lp) = d.lowpass_sections(case.fs).unwrap();
-        let c = unlag::compensator::CascadeCoefficients::<f64, 8>::new(g, &lp).unwrap();
+        let c = unlag::board::compensator::CascadeCoefficients::<f64, 8>::new(g, &lp).unwrap();
         let mut st = c.equilibrium(u[0]);
         u.iter()
             .map(|&v| c.process(&mut st, v))

@@ -113,7 +113,7 @@ pub enum Error {
         /// The blob file.
         path: PathBuf,
         /// The board parser's error.
-        error: crate::blob::BlobError,
+        error: crate::board::blob::BlobError,
     },
     /// An output would replace one of the command's inputs.
     #[error("{output}: refused: this output is the input {input} ({what}); writing it would destroy the input, so give another output path")]
@@ -437,16 +437,16 @@ impl std::fmt::Display for Parameter {
 pub enum BoardRefusal {
     /// The `f32` cascade's or nonlinear correction's constructor.
     #[error(transparent)]
-    Inverse(#[from] crate::compensator::InverseError),
+    Inverse(#[from] crate::board::compensator::InverseError),
     /// The fixed-point normal form's constructor.
     #[error(transparent)]
-    Fixed(#[from] crate::fixed::FixedError),
+    Fixed(#[from] crate::board::fixed::FixedError),
     /// The fixed-point direct form's constructor.
     #[error(transparent)]
-    Direct(#[from] crate::fixed::direct::DirectError),
+    Direct(#[from] crate::board::fixed::direct::DirectError),
     /// The blob encoder.
     #[error(transparent)]
-    Blob(#[from] crate::blob::BlobError),
+    Blob(#[from] crate::board::blob::BlobError),
 }
 
 /// What to do about an error ([`Error::Advised`]), in the library's words (`Display`); the

@@ -4,22 +4,22 @@
 //! firmware builds in: the coefficients rounded once to the board's numbers, checked again
 //! after the rounding as the board checks them, and written. What is written is one
 //! [`BoardImage`] ([`image`]): the `f32` cascade (with the nonlinear-damping correction when
-//! the model has it), the fixed-point cascade of [`crate::fixed`] in normal form (the integers
+//! the model has it), the fixed-point cascade of [`crate::board::fixed`] in normal form (the integers
 //! of [`crate::design::quantise::FixedPlan`], [`NumberFormat::Fixed`]) or direct form
 //! ([`crate::design::quantise::DirectPlan`], [`NumberFormat::FixedDirect`]), or a table of `f32` sets,
 //! one per gas temperature, for a board that measures it ([`bank`], `--temperatures`). One
 //! writer per format renders every kind:
 //!
 //! * [`Format::Rust`] ([`BoardImage::to_rust`]): `const` items a Rust firmware `include!`s and
-//!   hands to [`crate::compensator::CascadeCoefficients::new`] (or the kind's own
+//!   hands to [`crate::board::compensator::CascadeCoefficients::new`] (or the kind's own
 //!   constructor);
 //! * [`Format::C`] ([`BoardImage::to_c`]): a header for C firmware (`static const` arrays);
 //! * [`Format::Bin`] ([`BoardImage::to_bin`]): the versioned, CRC-protected blob of
-//!   [`crate::blob`], for updating a running board over a serial link (one set: not a bank).
+//!   [`crate::board::blob`], for updating a running board over a serial link (one set: not a bank).
 //!
 //! All three carry the same values, so a board gets bit-identical coefficients whichever way
 //! they arrive. The output file is written atomically. Every `f32` section is
-//! `[b0, b1, b2, a1, a2]` in the crate's sign convention (see [`crate::compensator`]);
+//! `[b0, b1, b2, a1, a2]` in the crate's sign convention (see [`crate::board::compensator`]);
 //! CMSIS-DSP's biquad functions want `a1`, `a2` negated, which the C header says.
 
 use std::path::Path;
@@ -54,7 +54,7 @@ pub enum Format {
     Rust,
     /// A C header.
     C,
-    /// The binary blob of [`crate::blob`].
+    /// The binary blob of [`crate::board::blob`].
     Bin,
 }
 

@@ -69,6 +69,7 @@ pub struct ModelFile {
 /// [board]
 /// arithmetic = "fixed"   # "f32" (a board with an FPU) or "fixed" (32-bit fixed point)
 /// full_scale = 20000.0   # the ADC's range in the probe's units: readings within +-full_scale
+/// unit = "Pa"            # the traces' pressure unit, for printing (Pa, kPa, psi, mV, ...)
 /// ```
 ///
 /// The full scale is a property of the acquisition chain, not of a test: the fixed-point
@@ -85,6 +86,11 @@ pub struct Board {
     /// design chose ([`crate::pipeline::default_full_scale`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub full_scale: Option<f64>,
+    /// The unit the traces' pressures (and the full scale) are in, as stated by the user or
+    /// read from the column names (`p_kPa`): only for printing them (`6.562 kPa`); `None`:
+    /// not known, numbers printed alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unit: Option<crate::trace::PressureUnit>,
 }
 
 impl Board {
@@ -99,10 +105,10 @@ impl Board {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum BoardArithmetic {
-    /// IEEE single precision (a Cortex-M4F or M7: [`crate::compensator`]).
+    /// IEEE single precision (a Cortex-M4F or M7: [`crate::board::compensator`]).
     #[default]
     F32,
-    /// 32-bit fixed point (a board without an FPU: [`crate::fixed`]), the plan stored with the
+    /// 32-bit fixed point (a board without an FPU: [`crate::board::fixed`]), the plan stored with the
     /// design.
     Fixed,
 }
@@ -246,16 +252,7 @@ impl HeldOutChange {
     }
 }
 
-/// Whether a held-out error went from `before` to `after` by a rise of more than
-/// [`ERROR_RISE_NOTED`].
-#[must_use]
-pub fn error_rose(before: f64, after: f64) -> bool {
-    after > before * (1.0 + ERROR_RISE_NOTED)
-}
-
-/// A held-out error that rises by more than this share has risen ([`HeldOutChange::rose`]): a
-/// refit of the same model on the same data moves it by far less.
-pub const ERROR_RISE_NOTED: f64 = 0.01;
+pub use crate::modelling::{error_rose, ERROR_RISE_NOTED};
 
 /// One test's error in a history row.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -536,9 +533,9 @@ impl ModelFile {
                     ));
                 }
             }
-            if let Err(e) = crate::compensator::CascadeCoefficients::<
+            if let Err(e) = crate::board::compensator::CascadeCoefficients::<
                 f64,
-                { crate::compensator::MAX_TEST_ORDER },
+                { crate::board::compensator::MAX_TEST_ORDER },
             >::new(d.gain, &d.sections)
             {
                 return Err(field(
@@ -1029,8 +1026,8 @@ mod tests {
         let shipped = include_str!("../examples/data/board_model.toml");
         let mut f = ModelFile::parse(Path::new("m.toml"), shipped).unwrap();
         let d = f.inverse.as_mut().unwrap();
-        d.fixed = Some(FixedPlan::new(d, 20_000.0).unwrap());
-        d.fixed_direct = Some(DirectPlan::new(d, 20_000.0).unwrap());
+        d.fixed = Some(FixedPlan::new(&*d, 20_000.0).unwrap());
+        d.fixed_direct = Some(DirectPlan::new(&*d, 20_000.0).unwrap());
         f.to_toml().unwrap()
     }
 

@@ -12,8 +12,8 @@
 //! - **The host** (feature `std`, on by default): reading traces, fitting, designing,
 //!   exporting, the modelling loop, the HTML report and the command line.
 //! - **The board** (`no_std`, no allocation, no panic in the per-sample path): the
-//!   compensators, in `f32` ([`compensator`]) and 32-bit fixed point ([`fixed`]), and the
-//!   parser of the coefficient blob ([`blob`]). Firmware depends on the crate with
+//!   compensators, in `f32` ([`board::compensator`]) and 32-bit fixed point ([`board::fixed`]),
+//!   and the parser of the coefficient blob ([`board::blob`]). Firmware depends on the crate with
 //!   `default-features = false` and gets only this side.
 //!
 //! # Data flow
@@ -28,7 +28,7 @@
 //! 3. [`design`] builds the compensator from the model and the measured noise, and plans its
 //!    fixed-point version.
 //! 4. [`export`] writes the compensator as Rust constants, a C header or a binary blob.
-//! 5. [`board`] runs it per sample: [`compensator`], [`fixed`], [`blob`], and
+//! 5. [`board`] runs it per sample: [`board::compensator`], [`board::fixed`], [`board::blob`], and
 //!    [`board::process`], which makes the compensators `dsp_process` processors.
 //!
 //! Beside the flow: [`modelling`] finds the physical effect a model misses (the modelling
@@ -40,7 +40,7 @@
 //! # Example: the per-sample call on the board
 //!
 //! ```
-//! use unlag::compensator::{CascadeCoefficients, CascadeState};
+//! use unlag::board::compensator::{CascadeCoefficients, CascadeState};
 //! // gain and sections [b0, b1, b2, a1, a2] from `unlag export`; checked once, here.
 //! let c = CascadeCoefficients::<f32, 4>::new(2.0, &[[1.0, -0.5, 0.0, -0.3, 0.0]]).unwrap();
 //! let mut state = CascadeState::default();
@@ -76,16 +76,16 @@
 // compensate a record), resamples a model and diagnoses one against its tests; export and
 // the report read them; the CLI parses, asks the pipeline and prints. Imports go in the order
 // board, trace, error, poly, fit, physics, design, modelling, file, pipeline, export, report,
-// cli, each room importing rooms before it, with known exceptions: design::inverse and
-// design::quantise import each other, file imports modelling::diagnose (and diagnose
-// file::error_rose), and fit::noise imports a design constant. Errors: trace, fit, design,
+// cli, each room importing only rooms before it, and no two modules of a room importing
+// each other round a circle (host-tests/imports.rs reads the code and fails on an upward
+// arrow or a circle). The board's modules are reached through `board`: the crate root
+// re-exports none of them. Errors: trace, fit, design,
 // physics, modelling and export each have their own enum, which `error::Error` carries (as
 // `Error::Trace` or `Error::Stage`) without importing the stages; the CLI adds the flag that
 // fixes a problem (`cli::describe`).
 // Everything but `board` is host side, behind the `std` feature.
 
 pub mod board;
-pub use board::{blob, compensator, fixed};
 
 #[cfg(feature = "std")]
 #[cfg_attr(docsrs, doc(cfg(feature = "std")))]

@@ -5,7 +5,7 @@
 use core::hint::black_box;
 
 use cortex_m_semihosting::hprintln;
-use unlag::compensator::{
+use unlag::board::compensator::{
     BankChannel, CascadeCoefficients, CascadeState, NonlinearDampingCoefficients,
     NonlinearDampingState, TemperatureBank,
 };

@@ -9,8 +9,8 @@ use cortex_m_semihosting::hprintln;
 use dsp_fixedpoint::Q32;
 use dsp_process::SplitProcess;
 use idsp::iir::{Biquad, Cascade, DirectForm};
-use unlag::fixed::direct::{DirectCascade, DirectSection, DirectState};
-use unlag::fixed::{FixedCascade, FixedSection, FixedState};
+use unlag::board::fixed::direct::{DirectCascade, DirectSection, DirectState};
+use unlag::board::fixed::{FixedCascade, FixedSection, FixedState};
 
 use crate::board::{direct, fixed, measure, report, N};
 

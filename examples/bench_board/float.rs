@@ -7,7 +7,7 @@ use core::hint::black_box;
 use cortex_m_semihosting::hprintln;
 use dsp_process::SplitProcess;
 use idsp::iir::{Biquad, Cascade, DirectForm};
-use unlag::compensator::{CascadeCoefficients, CascadeState};
+use unlag::board::compensator::{CascadeCoefficients, CascadeState};
 
 use crate::board::{coefficients, measure, report, N};
 

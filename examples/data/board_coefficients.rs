@@ -2,7 +2,7 @@
 // The board's compensator: u_hat = cascade(GAIN * y), each section [b0, b1, b2, a1, a2]
 // with y = b0 x + b1 x[k-1] + b2 x[k-2] - a1 y[k-1] - a2 y[k-2]. The values are the f32
 // coefficients the board runs, widened exactly to f64. Build the compensator with
-// `unlag::compensator::CascadeCoefficients::<f32, SECTION_COUNT>::new(GAIN, &SECTIONS)`.
+// `unlag::board::compensator::CascadeCoefficients::<f32, SECTION_COUNT>::new(GAIN, &SECTIONS)`.
 /// Sample rate in Hz the coefficients belong to.
 pub const SAMPLE_RATE_HZ: f64 = 10000.0;
 /// The probe model's delay in samples.

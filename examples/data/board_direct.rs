@@ -7,22 +7,22 @@ pub const FULL_SCALE: f64 = 1000.0;
 /// Output exponent for m = 2: the output is Q1.31 of FULL_SCALE * 2^e.
 pub const OUTPUT_EXPONENT_M2: i32 = 0;
 /// Sections for m = 2.
-pub const SECTIONS_M2: [unlag::fixed::direct::DirectSection; 1] = [
-    unlag::fixed::direct::DirectSection { b: [144367973, -271494458, 134316338], neg_a: [1492695079, -776063649] },
+pub const SECTIONS_M2: [unlag::board::fixed::direct::DirectSection; 1] = [
+    unlag::board::fixed::direct::DirectSection { b: [144367973, -271494458, 134316338], neg_a: [1492695079, -776063649] },
 ];
 /// Output exponent for m = 4: the output is Q1.31 of FULL_SCALE * 2^e.
 pub const OUTPUT_EXPONENT_M4: i32 = 2;
 /// Sections for m = 4.
-pub const SECTIONS_M4: [unlag::fixed::direct::DirectSection; 2] = [
-    unlag::fixed::direct::DirectSection { b: [148295075, -278879659, 137970015], neg_a: [1492695079, -776063649] },
-    unlag::fixed::direct::DirectSection { b: [261326834, -509882823, 249820343], neg_a: [1736911411, -743044847] },
+pub const SECTIONS_M4: [unlag::board::fixed::direct::DirectSection; 2] = [
+    unlag::board::fixed::direct::DirectSection { b: [148295075, -278879659, 137970015], neg_a: [1492695079, -776063649] },
+    unlag::board::fixed::direct::DirectSection { b: [261326834, -509882823, 249820343], neg_a: [1736911411, -743044847] },
 ];
 /// Output exponent for m = 8: the output is Q1.31 of FULL_SCALE * 2^e.
 pub const OUTPUT_EXPONENT_M8: i32 = 6;
 /// Sections for m = 8.
-pub const SECTIONS_M8: [unlag::fixed::direct::DirectSection; 4] = [
-    unlag::fixed::direct::DirectSection { b: [148295075, -278879659, 137970015], neg_a: [1492695079, -776063649] },
-    unlag::fixed::direct::DirectSection { b: [464541771, -906381736, 444087515], neg_a: [1736911411, -743044847] },
-    unlag::fixed::direct::DirectSection { b: [277955958, 555911914, 277955958], neg_a: [1655348465, -641890856] },
-    unlag::fixed::direct::DirectSection { b: [145835417, 291670835, 145835417], neg_a: [673049553, 0] },
+pub const SECTIONS_M8: [unlag::board::fixed::direct::DirectSection; 4] = [
+    unlag::board::fixed::direct::DirectSection { b: [148295075, -278879659, 137970015], neg_a: [1492695079, -776063649] },
+    unlag::board::fixed::direct::DirectSection { b: [464541771, -906381736, 444087515], neg_a: [1736911411, -743044847] },
+    unlag::board::fixed::direct::DirectSection { b: [277955958, 555911914, 277955958], neg_a: [1655348465, -641890856] },
+    unlag::board::fixed::direct::DirectSection { b: [145835417, 291670835, 145835417], neg_a: [673049553, 0] },
 ];

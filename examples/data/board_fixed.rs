@@ -7,22 +7,22 @@ pub const FULL_SCALE: f64 = 1000.0;
 /// Output exponent for m = 2: the output is Q1.31 of FULL_SCALE * 2^e.
 pub const OUTPUT_EXPONENT_M2: i32 = 0;
 /// Sections for m = 2.
-pub const SECTIONS_M2: [unlag::fixed::FixedSection; 1] = [
-    unlag::fixed::FixedSection { a: [746347539, -525601892, 525601892, 746347539], b: [118872941, 0], c: [-639486087, -354994890], d: 144367973, shift: 30 },
+pub const SECTIONS_M2: [unlag::board::fixed::FixedSection; 1] = [
+    unlag::board::fixed::FixedSection { a: [746347539, -525601892, 525601892, 746347539], b: [118872941, 0], c: [-639486087, -354994890], d: 144367973, shift: 30 },
 ];
 /// Output exponent for m = 4: the output is Q1.31 of FULL_SCALE * 2^e.
 pub const OUTPUT_EXPONENT_M4: i32 = 1;
 /// Sections for m = 4.
-pub const SECTIONS_M4: [unlag::fixed::FixedSection; 2] = [
-    unlag::fixed::FixedSection { a: [746347539, -525601892, 525601892, 746347539], b: [118872941, 0], c: [-656881408, -364651473], d: 148295075, shift: 30 },
-    unlag::fixed::FixedSection { a: [868455706, -208861237, 208861237, 868455706], b: [774371812, 0], c: [-483390282, -43137674], d: 1045307340, shift: 31 },
+pub const SECTIONS_M4: [unlag::board::fixed::FixedSection; 2] = [
+    unlag::board::fixed::FixedSection { a: [746347539, -525601892, 525601892, 746347539], b: [118872941, 0], c: [-656881408, -364651473], d: 148295075, shift: 30 },
+    unlag::board::fixed::FixedSection { a: [868455706, -208861237, 208861237, 868455706], b: [774371812, 0], c: [-483390282, -43137674], d: 1045307340, shift: 31 },
 ];
 /// Output exponent for m = 8: the output is Q1.31 of FULL_SCALE * 2^e.
 pub const OUTPUT_EXPONENT_M8: i32 = 6;
 /// Sections for m = 8.
-pub const SECTIONS_M8: [unlag::fixed::FixedSection; 4] = [
-    unlag::fixed::FixedSection { a: [746347539, -525601892, 525601892, 746347539], b: [118872941, 0], c: [-656881408, -364651473], d: 148295075, shift: 30 },
-    unlag::fixed::FixedSection { a: [868455706, -208861237, 208861237, 868455706], b: [774371812, 0], c: [-389474179, -34756616], d: 842218458, shift: 30 },
-    unlag::fixed::FixedSection { a: [827674233, -64656192, 64656192, 827674233], b: [868760283, 0], c: [41943360, 616024232], d: 9581997, shift: 26 },
-    unlag::fixed::FixedSection { a: [673049553, 0, 1073741824, 0], b: [641904693, 0], c: [640801722, 243945226], d: 145835416, shift: 30 },
+pub const SECTIONS_M8: [unlag::board::fixed::FixedSection; 4] = [
+    unlag::board::fixed::FixedSection { a: [746347539, -525601892, 525601892, 746347539], b: [118872941, 0], c: [-656881408, -364651473], d: 148295075, shift: 30 },
+    unlag::board::fixed::FixedSection { a: [868455706, -208861237, 208861237, 868455706], b: [774371812, 0], c: [-389474179, -34756616], d: 842218458, shift: 30 },
+    unlag::board::fixed::FixedSection { a: [827674233, -64656192, 64656192, 827674233], b: [868760283, 0], c: [41943360, 616024232], d: 9581997, shift: 26 },
+    unlag::board::fixed::FixedSection { a: [673049553, 0, 1073741824, 0], b: [641904693, 0], c: [640801722, 243945226], d: 145835416, shift: 30 },
 ];

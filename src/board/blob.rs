@@ -31,7 +31,7 @@
 //! # Format version 2: the nonlinear-damping correction
 //!
 //! A compensator with the `nonlinear-damping` correction
-//! ([`crate::compensator::NonlinearDampingCoefficients`], `f32` only) is written as format
+//! ([`crate::board::compensator::NonlinearDampingCoefficients`], `f32` only) is written as format
 //! version 2 ([`FORMAT_VERSION_NONLINEAR`], [`encode_nonlinear`]); a compensator without it is
 //! still written as version 1, so boards that read version 1 only keep working and refuse a
 //! correction they cannot run. Version 2 differs in two places:
@@ -48,19 +48,19 @@
 //! `m` within the capacity `N`. Fixed point has no version 2.
 //!
 //! With number format 1 (fixed point, [`parse_fixed`], [`encode_fixed`]) the fractional-bits
-//! byte is [`crate::fixed::STATE_BITS`] (30), the four bytes at offset 24 hold the output
+//! byte is [`crate::board::fixed::STATE_BITS`] (30), the four bytes at offset 24 hold the output
 //! exponent `e` (`i32`: the output is Q1.31 of `full_scale 2^e`), an `f64` full scale (the
 //! input code `2^31`, in the probe's units) follows at offset 28, and each section is 40
 //! bytes: `a11 a12 a21 a22 b1 b2 c1 c2 d` as `i32`, `shift` as `u8` and three zero bytes
-//! (see [`crate::fixed::FixedSection`]); the CRC-32 ends the blob as before.
+//! (see [`crate::board::fixed::FixedSection`]); the CRC-32 ends the blob as before.
 //!
 //! With number format 2 (the direct form of the fixed-point compensator, [`parse_direct`],
 //! [`encode_direct`]) the header is the same as for number format 1 (fractional bits
-//! [`crate::fixed::direct::COEFFICIENT_BITS`], output exponent, `f64` full scale) and each
+//! [`crate::board::fixed::direct::COEFFICIENT_BITS`], output exponent, `f64` full scale) and each
 //! section is 20 bytes: `b0 b1 b2 na1 na2` as `i32`, with `na = -a` **negated** (see
-//! [`crate::fixed::direct::DirectSection`]).
+//! [`crate::board::fixed::direct::DirectSection`]).
 //!
-//! Sections follow the crate's sign convention (see [`crate::compensator`]):
+//! Sections follow the crate's sign convention (see [`crate::board::compensator`]):
 //! `y = b0 x + b1 x[k-1] + b2 x[k-2] - a1 y[k-1] - a2 y[k-2]`. The CRC detects every single-bit
 //! error and every burst up to 32 bits; the checks of magic, version, length, number format,
 //! reserved bytes, sample rate and stability catch an incompatible but intact blob.
@@ -68,7 +68,7 @@
 //! # Example
 //!
 //! ```
-//! use unlag::blob::{self, CoefficientSet};
+//! use unlag::board::blob::{self, CoefficientSet};
 //! let sections = [[1.0f32, -0.5, 0.0, -0.25, 0.0]];
 //! let mut buf = [0u8; blob::encoded_len(1)];
 //! let n = blob::encode(&mut buf, 10_000.0, 3, 0.5, &sections).unwrap();
@@ -92,9 +92,9 @@
 
 use core::fmt;
 
-use crate::compensator::InverseError;
-use crate::fixed::direct::DirectError;
-use crate::fixed::{FixedError, STATE_BITS};
+use crate::board::compensator::InverseError;
+use crate::board::fixed::direct::DirectError;
+use crate::board::fixed::{FixedError, STATE_BITS};
 
 mod direct;
 mod fixed;
@@ -194,14 +194,14 @@ pub enum NumberFormat {
     /// IEEE-754 single precision (code 0).
     F32,
     /// Fixed point with the given number of fractional bits (code 1): the
-    /// [`crate::fixed::FixedCascade`], read by [`parse_fixed`]; [`parse`] refuses it
+    /// [`crate::board::fixed::FixedCascade`], read by [`parse_fixed`]; [`parse`] refuses it
     /// with [`BlobError::UnsupportedNumberFormat`].
     Fixed {
         /// Fractional bits of the coefficient format.
         frac_bits: u8,
     },
     /// The direct form of the fixed-point compensator (code 2):
-    /// [`crate::fixed::direct::DirectCascade`], read by [`parse_direct`].
+    /// [`crate::board::fixed::direct::DirectCascade`], read by [`parse_direct`].
     FixedDirect {
         /// Fractional bits of the coefficient format.
         frac_bits: u8,
@@ -274,17 +274,17 @@ pub enum BlobError {
     },
     /// The coefficients are not finite, or a section is not stable.
     InvalidCoefficients(InverseError),
-    /// A fixed-point blob's fractional bits are not [`crate::fixed::STATE_BITS`].
+    /// A fixed-point blob's fractional bits are not [`crate::board::fixed::STATE_BITS`].
     UnsupportedFractionalBits {
         /// The value found at offset 7.
         found: u8,
     },
     /// A fixed-point blob's full scale is not finite and positive.
     InvalidFullScale,
-    /// The fixed-point sections are refused by [`crate::fixed::FixedCascade::new`].
+    /// The fixed-point sections are refused by [`crate::board::fixed::FixedCascade::new`].
     InvalidFixedSections(FixedError),
     /// The direct-form sections are refused by
-    /// [`crate::fixed::direct::DirectCascade::new`].
+    /// [`crate::board::fixed::direct::DirectCascade::new`].
     InvalidDirectSections(DirectError),
     /// [`encode`]: the output buffer is shorter than [`encoded_len`].
     BufferTooSmall {
@@ -352,9 +352,9 @@ impl From<InverseError> for BlobError {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
-    use crate::compensator::{CascadeCoefficients, NonlinearDampingCoefficients};
-    use crate::fixed::direct::{DirectCascade, DirectSection};
-    use crate::fixed::{FixedCascade, FixedSection};
+    use crate::board::compensator::{CascadeCoefficients, NonlinearDampingCoefficients};
+    use crate::board::fixed::direct::{DirectCascade, DirectSection};
+    use crate::board::fixed::{FixedCascade, FixedSection};
 
     const SECTIONS: [[f32; 5]; 2] = [[1.0, -1.5, 0.6, -1.2, 0.72], [0.3, 0.2, 0.0, -0.5, 0.0]];
 

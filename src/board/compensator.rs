@@ -39,7 +39,7 @@
 //! # Example
 //!
 //! ```
-//! use unlag::compensator::Compensator;
+//! use unlag::board::compensator::Compensator;
 //! // y[k] = 0.5 u[k-2] + 0.5 y[k-1]: a first-order lag with a delay of two samples.
 //! let mut c = Compensator::<f32, 2>::new(&[0.5], &[-0.5], 0.0).unwrap();
 //! let u = [0.0f32, 1.0, 1.0, 1.0, 1.0, 1.0];
@@ -217,7 +217,7 @@ pub use nonlinear::{NonlinearDampingCoefficients, NonlinearDampingState};
 /// same bits.
 ///
 /// ```
-/// use unlag::compensator::f32_cascade_uses_kernel;
+/// use unlag::board::compensator::f32_cascade_uses_kernel;
 ///
 /// // There are kernels for 1 to 4 sections only, and none on the host.
 /// assert!(!f32_cascade_uses_kernel(5));
@@ -431,7 +431,7 @@ pub fn section_pole_radius(a1: f64, a2: f64) -> f64 {
 /// `b2` of every section, contiguous.
 ///
 /// ```
-/// use unlag::compensator::{CascadeCoefficients, CascadeState, InverseError};
+/// use unlag::board::compensator::{CascadeCoefficients, CascadeState, InverseError};
 ///
 /// // 0.5 / (1 - 0.5 z^-1): the gain 0.5 and one section [b0, b1, b2, a1, a2], a DC gain of
 /// // one. Room for two sections: the second stays an identity.

@@ -1,4 +1,4 @@
-//! The fixed-point compensator: the same cascade as [`crate::compensator`], in 32-bit integers,
+//! The fixed-point compensator: the same cascade as [`crate::board::compensator`], in 32-bit integers,
 //! for boards without an FPU and for MHz sample rates.
 //!
 //! This module owns the per-sample integer arithmetic and nothing else: coefficients are
@@ -117,7 +117,7 @@ impl FixedSection {
     /// format is chosen per section by the host's scaling, so it has no type of its own).
     ///
     /// ```
-    /// use unlag::fixed::{FixedSection, I2F30};
+    /// use unlag::board::fixed::{FixedSection, I2F30};
     ///
     /// let q = I2F30::from_num;
     /// let lag = FixedSection::from_q([q(0.9), q(0.0), q(0.0), q(0.0)], [q(0.5), q(0.0)], [1 << 29, 0], 0, 30);
@@ -213,7 +213,7 @@ impl core::error::Error for FixedError {}
 /// Validated fixed-point coefficients of a cascade of up to `N` sections.
 ///
 /// ```
-/// use unlag::fixed::{FixedCascade, FixedError, FixedSection, FixedState};
+/// use unlag::board::fixed::{FixedCascade, FixedError, FixedSection, FixedState};
 ///
 /// const HALF: i32 = 1 << 29; // 0.5 in Q2.30
 /// // A lag x' = Qt(0.5 x + 0.5 u), y = x (c in Q.30), then an exact halving y = Qr(0.5 u).
@@ -382,7 +382,7 @@ impl<const N: usize> FixedCascade<N> {
     /// cost; the block functions stay on `i32` codes, the words an ADC's DMA writes.
     ///
     /// ```
-    /// use unlag::fixed::{FixedCascade, FixedSection, FixedState, I1F31};
+    /// use unlag::board::fixed::{FixedCascade, FixedSection, FixedState, I1F31};
     ///
     /// // The host's plan for F = 4000 Pa with output exponent e = 1: a section that halves the
     /// // codes (y = Qr(0.5 u)) while the output's unit doubles, one bit of headroom at gain 1.
@@ -397,7 +397,7 @@ impl<const N: usize> FixedCascade<N> {
     /// assert_eq!(y.to_num::<f64>(), 0.125); // of F * 2^e
     /// assert_eq!(y.to_num::<f64>() * full_scale * 2f64.powi(output_exponent), 1000.0); // Pa
     /// assert_eq!(y.to_bits(), c.process(&mut state, u.to_bits())); // the same bits as i32
-    /// # Ok::<(), unlag::fixed::FixedError>(())
+    /// # Ok::<(), unlag::board::fixed::FixedError>(())
     /// ```
     #[inline]
     pub fn process_q(&self, state: &mut FixedState<N>, input: I1F31) -> I1F31 {
@@ -487,7 +487,7 @@ mod m4;
 ///
 /// ```
 /// # #[cfg(not(target_arch = "arm"))]
-/// assert!(!unlag::fixed::uses_kernel());
+/// assert!(!unlag::board::fixed::uses_kernel());
 /// ```
 #[must_use]
 pub const fn uses_kernel() -> bool {

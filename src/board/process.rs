@@ -32,7 +32,7 @@
 //!
 //! ```
 //! use dsp_process::{Inplace, Process, Split};
-//! use unlag::compensator::{CascadeCoefficients, CascadeState};
+//! use unlag::board::compensator::{CascadeCoefficients, CascadeState};
 //!
 //! // A first-order lag: u = 0.2 y + 0.8 u[-1].
 //! let c = CascadeCoefficients::<f32, 1>::new(0.2, &[[1.0, 0.0, 0.0, -0.8, 0.0]])?;
@@ -50,7 +50,7 @@
 //! q.inplace(&mut xy);
 //! assert_eq!(xy, expected);
 //! assert_eq!(p.state, q.state);
-//! # Ok::<(), unlag::compensator::InverseError>(())
+//! # Ok::<(), unlag::board::compensator::InverseError>(())
 //! ```
 
 #![deny(
@@ -237,7 +237,7 @@ mod tests {
     #[test]
     fn fixed_point_compensators_are_processors_too() {
         // A stable section (pole 0.5, the identity's numerator) so that the state matters.
-        let mut section = crate::fixed::direct::DirectSection::IDENTITY;
+        let mut section = crate::board::fixed::direct::DirectSection::IDENTITY;
         section.neg_a = [1 << 29, 0];
         let c = DirectCascade::<1>::new(&[section]).unwrap();
         let mut p = Split::new(c, DirectState::default());
@@ -247,7 +247,7 @@ mod tests {
         p.block(&x, &mut y);
         assert_eq!(y, x.map(|v| c.process(&mut own, v)));
         assert_ne!(y[4], 0, "the pole's memory shows: {y:?}");
-        let f = FixedCascade::<1>::new(&[crate::fixed::FixedSection::IDENTITY]).unwrap();
+        let f = FixedCascade::<1>::new(&[crate::board::fixed::FixedSection::IDENTITY]).unwrap();
         let mut q = Split::new(f, FixedState::default());
         let mut own = FixedState::default();
         for v in [0, 1000, -2000, i32::MAX / 4] {

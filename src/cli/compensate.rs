@@ -119,7 +119,7 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
                 "warning: {} samples of {} lie outside the fixed-point full scale +-{} and were clamped",
                 f.clamped_inputs,
                 trace.path.display(),
-                f.full_scale
+                console::pressure(f.full_scale, file.board.unit)
             );
         }
         if f.overflowed {
@@ -217,10 +217,10 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
         return Ok(());
     }
     crate::outln!(
-        "compensated {} samples of {} with {what} ({arith}); u_hat lags the true pressure by {:.2} samples ({})",
+        "compensated {} samples of {} with {what} ({arith}); u_hat lags the true pressure by {} samples ({})",
         trace.len(),
         trace.path.display(),
-        latency,
+        console::significant(latency),
         super::console::duration(latency / fs)
     );
     if let Some(e) = error {

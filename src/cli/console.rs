@@ -84,31 +84,7 @@ macro_rules! errln {
     };
 }
 
-/// A time for a person to read: four significant digits in the unit that suits it (`2.1 ms`,
-/// `37.5 µs`, `1.25 s`), not `0.002100000 s`. `--json` keeps the seconds in full.
-#[must_use]
-pub fn duration(seconds: f64) -> String {
-    let a = seconds.abs();
-    let (scale, unit) = match a {
-        a if a == 0.0 || !a.is_finite() || a >= 1.0 => (1.0, "s"),
-        a if a >= 1e-3 => (1e3, "ms"),
-        a if a >= 1e-6 => (1e6, "µs"),
-        _ => (1e9, "ns"),
-    };
-    let v = seconds * scale;
-    let digits = match v.abs() {
-        v if v >= 100.0 => 1,
-        v if v >= 10.0 => 2,
-        _ => 3,
-    };
-    let text = format!("{v:.digits$}");
-    let text = if text.contains('.') {
-        text.trim_end_matches('0').trim_end_matches('.')
-    } else {
-        &text
-    };
-    format!("{text} {unit}")
-}
+pub use crate::trace::unit::{duration, hz, pressure, si, significant};
 
 #[cfg(test)]
 mod duration_tests {
@@ -124,5 +100,31 @@ mod duration_tests {
         assert_eq!(duration(-0.0123456), "-12.35 ms");
         assert_eq!(duration(2.5e-9), "2.5 ns");
         assert_eq!(duration(123.456), "123.5 s");
+        assert_eq!(duration(4000.0), "4000 s");
+    }
+
+    #[test]
+    fn one_policy_four_significant_digits_and_the_prefix_that_suits() {
+        use super::{hz, pressure, si, significant};
+        use crate::trace::PressureUnit;
+        assert_eq!(significant(6_561.849_999_999_999), "6562");
+        assert_eq!(significant(0.320_031), "0.32");
+        assert_eq!(significant(0.320_731), "0.3207");
+        assert_eq!(significant(1.373_169e-9), "1.373e-9");
+        assert_eq!(significant(-2.5e7), "-2.5e7");
+        assert_eq!(significant(1.867_58), "1.868");
+        assert_eq!(significant(20_000.0), "20000");
+        assert_eq!(significant(0.0), "0");
+        assert_eq!(significant(f64::NAN), "NaN");
+        assert_eq!(significant(f64::INFINITY), "inf");
+        assert_eq!(hz(111.974_674), "112 Hz");
+        assert_eq!(hz(1_328_000.08), "1.328 MHz");
+        assert_eq!(si(0.85, "Pa"), "850 mPa");
+        assert_eq!(pressure(6_561.85, Some(PressureUnit::Pa)), "6.562 kPa");
+        assert_eq!(pressure(6.56185, Some(PressureUnit::KPa)), "6.562 kPa");
+        assert_eq!(pressure(0.2, Some(PressureUnit::MPa)), "200 kPa");
+        assert_eq!(pressure(14.6959, Some(PressureUnit::Psi)), "14.7 psi");
+        assert_eq!(pressure(6_561.85, None), "6562");
+        assert_eq!(pressure(12.5, Some(PressureUnit::MV)), "12.5 mV");
     }
 }

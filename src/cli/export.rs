@@ -3,7 +3,7 @@
 //!
 //! Owns only the arguments, the writing of the file and what is printed; the export's policy
 //! (which compensator may be exported, in which fixed-point form, at which temperatures), the
-//! rendering and the checks live in [`crate::export`] and [`crate::blob`].
+//! rendering and the checks live in [`crate::export`] and [`crate::board::blob`].
 
 use std::path::PathBuf;
 
@@ -45,7 +45,7 @@ pub struct ExportArgs {
     pub temperature: Option<f64>,
     /// A bank of sets, one per gas temperature FROM, FROM+STEP, ... up to TO (K, e.g.
     /// 253:353:10), for a board that measures the temperature and picks the set itself
-    /// (`unlag::compensator::TemperatureBank`); a model with a `temperature` effect,
+    /// (`unlag::board::compensator::TemperatureBank`); a model with a `temperature` effect,
     /// `--format rust` or `c`, f32.
     #[arg(long, value_name = "FROM:TO:STEP")]
     pub temperatures: Option<String>,
@@ -78,7 +78,7 @@ pub enum FormatArg {
 pub enum NumberFormatArg {
     /// IEEE single precision.
     F32,
-    /// 32-bit fixed point (`unlag::fixed`).
+    /// 32-bit fixed point (`unlag::board::fixed`).
     Fixed,
 }
 
@@ -140,14 +140,19 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
     })?;
     crate::file::write_atomically(&args.output, &exported.bytes)?;
     match &exported.summary {
-        ExportSummary::One(c) => print_one(args, name, c),
+        ExportSummary::One(c) => print_one(args, name, c, file.board.unit),
         ExportSummary::Bank(c) => print_bank(args, name, c),
     }
     Ok(())
 }
 
 /// What `unlag export` wrote: one set.
-fn print_one(args: &ExportArgs, name: &str, c: &export::Summary) {
+fn print_one(
+    args: &ExportArgs,
+    name: &str,
+    c: &export::Summary,
+    unit: Option<crate::trace::PressureUnit>,
+) {
     if args.json {
         crate::outln!(
             "{}",
@@ -167,7 +172,7 @@ fn print_one(args: &ExportArgs, name: &str, c: &export::Summary) {
         let full_scale = c.full_scale.map_or_else(String::new, |fs| {
             format!(
                 ", full scale +-{} (inputs are Q1.31 of it: readings beyond it clamp)",
-                super::invert::number(fs)
+                super::console::pressure(fs, unit)
             )
         });
         crate::outln!(

@@ -223,9 +223,10 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     // The modelling loop: the output file's effects and history carry over.
     let previous = args.previous()?;
     // The board carries over from the model the fit replaces, as its probe geometry does.
-    let board = args
-        .inverse
-        .board(previous.as_ref().map_or_else(Board::default, |p| p.board));
+    let board = args.inverse.board(
+        previous.as_ref().map_or_else(Board::default, |p| p.board),
+        &args.columns,
+    );
     let digests: Vec<String> = traces.iter().map(|t| t.sha256.clone()).collect();
     // Modes named in this fit: a dropped mode named again needs no hint.
     let named_again = args
@@ -320,7 +321,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     print_fit(&file, est);
     print_held_out_changes(&changes, &file);
     if let Some(d) = &file.inverse {
-        print_inverse(d, file.model.fs);
+        print_inverse(d, file.model.fs, file.board.unit);
         print_board(&file.board, &full_scale);
     }
     crate::outln!("wrote {}", args.output.display());

@@ -215,14 +215,14 @@ fn print_analysis(name: &str, a: &Analysis) {
     print_roots("poles", &a.poles);
     print_roots("zeros of B", &a.zeros);
     crate::outln!(
-        "stable: {}, margin {:.6} (1 - max |pole|)",
+        "stable: {}, margin {} (1 - max |pole|)",
         if a.stable { "yes" } else { "NO" },
-        a.stability_margin
+        super::console::significant(a.stability_margin)
     );
     crate::outln!(
-        "minimum phase: {}, margin {:.6} (1 - max |zero|){}",
+        "minimum phase: {}, margin {} (1 - max |zero|){}",
         if a.minimum_phase { "yes" } else { "no" },
-        a.minimum_phase_margin,
+        super::console::significant(a.minimum_phase_margin),
         if a.minimum_phase {
             ""
         } else {
@@ -249,16 +249,16 @@ fn print_continuous(ct: &Result<Continuous>, fs: f64) {
         Ok(c) => {
             crate::outln!("continuous-time equivalent (step invariant, H(s) = (D + sum r/(s - s_i)) e^(-s tau)):");
             crate::outln!(
-                "  delay tau = {:.9} s = {:.6} samples ({}), feedthrough D = {:.6e}",
-                c.delay_s,
-                c.delay_s * fs,
+                "  delay tau = {} = {} samples ({}), feedthrough D = {}",
+                super::console::duration(c.delay_s),
+                super::console::significant(c.delay_s * fs),
                 match c.delay_found {
                     continuous::DelayFound::ZeroCrossing => "where the step response crosses zero",
                     continuous::DelayFound::MinimumOfResponse =>
                         "no zero crossing: where the step response is smallest; the rest is D",
                     continuous::DelayFound::NoDelay => "no delay",
                 },
-                c.feedthrough
+                super::console::significant(c.feedthrough)
             );
             for (s, r) in c.poles.iter().zip(&c.residues) {
                 let (fn_hz, zeta) = (
@@ -377,11 +377,11 @@ fn blob_bytes(path: &std::path::Path) -> Result<Option<Vec<u8>>> {
     let named_bin = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("bin"));
-    if head.get(..n) != Some(&crate::blob::MAGIC[..]) && !named_bin {
+    if head.get(..n) != Some(&crate::board::blob::MAGIC[..]) && !named_bin {
         return Ok(None);
     }
     // A blob is small: read at most a little more than the largest one.
-    let limit = crate::blob::encoded_len_fixed(crate::blob::MAX_SECTIONS) as u64 + 1;
+    let limit = crate::board::blob::encoded_len_fixed(crate::board::blob::MAX_SECTIONS) as u64 + 1;
     let mut bytes = head.get(..n).unwrap_or_default().to_vec();
     f.take(limit).read_to_end(&mut bytes).map_err(io)?;
     Ok(Some(bytes))
@@ -429,7 +429,7 @@ fn inspect_blob(args: &InspectArgs, bytes: &[u8]) -> Result<()> {
     if let (Some(full_scale), Some(exp)) = (s.full_scale, s.output_exponent) {
         crate::outln!(
             "  ADC full scale {}, output Q1.31 of full scale x 2^{exp}",
-            crate::error::number(full_scale)
+            super::console::significant(full_scale)
         );
     }
     if let (Some(gain), Some(dc)) = (s.gain, s.dc_gain) {

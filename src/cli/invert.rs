@@ -6,12 +6,12 @@ use std::path::PathBuf;
 use clap::{Args, ValueEnum};
 use serde_json::json;
 
-use super::{as_tests, check_rate, json_err, name, pct, read_test, ColumnArgs};
+use super::{as_tests, check_rate, console, json_err, name, pct, read_test, ColumnArgs};
 use crate::design::inverse;
 use crate::error::{Error, Result};
 use crate::file::{Board, BoardArithmetic, ModelFile};
 use crate::pipeline::{self, CompensatorRequest, CompensatorSpec, FullScale, Roles, Shape};
-use crate::trace::Trace;
+use crate::trace::{PressureUnit, Trace};
 
 /// How to design the compensator (shared by `fit` and `invert`).
 #[derive(Debug, Clone, Args)]
@@ -52,6 +52,12 @@ pub struct InverseArgs {
     /// the step, with the probe's overshoot).
     #[arg(long, value_name = "FS")]
     pub full_scale: Option<f64>,
+    /// The traces' pressure unit (Pa, hPa, kPa, MPa, mbar, bar, psi, mmHg, V, mV): pressures
+    /// are then printed in it with the prefix that suits them (`6.562 kPa`). Stored in the
+    /// model file's `[board]`. Default: the unit the --u or --y column's name ends with
+    /// (`p_kPa`, `u [Pa]`), else the model file's.
+    #[arg(long, value_name = "UNIT")]
+    pub unit: Option<crate::trace::PressureUnit>,
     /// The board's arithmetic: `f32` (a board with an FPU: Cortex-M4F, M7) or `fixed` (32-bit
     /// fixed point, a board without one). Stored in the model file's `[board]`: `unlag
     /// compensate` computes in it and `unlag export` writes it unless told otherwise. Default:
@@ -69,9 +75,9 @@ pub struct InverseArgs {
 /// The board's arithmetic on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum BoardArg {
-    /// IEEE single precision (`unlag::compensator`).
+    /// IEEE single precision (`unlag::board::compensator`).
     F32,
-    /// 32-bit fixed point (`unlag::fixed`).
+    /// 32-bit fixed point (`unlag::board::fixed`).
     Fixed,
 }
 
@@ -87,9 +93,9 @@ impl From<BoardArg> for BoardArithmetic {
 /// Fixed-point form on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum FixedFormArg {
-    /// Normal (coupled) state-space sections (`unlag::fixed::FixedCascade`).
+    /// Normal (coupled) state-space sections (`unlag::board::fixed::FixedCascade`).
     Normal,
-    /// Direct-form-I sections with error feedback (`unlag::fixed::direct::DirectCascade`).
+    /// Direct-form-I sections with error feedback (`unlag::board::fixed::direct::DirectCascade`).
     Direct,
 }
 
@@ -115,10 +121,14 @@ impl InverseArgs {
     /// The board the output model file is for: the arithmetic and the range given here, else
     /// those `stated` in the model file it replaces.
     #[must_use]
-    pub(crate) fn board(&self, stated: Board) -> Board {
+    pub(crate) fn board(&self, stated: Board, columns: &ColumnArgs) -> Board {
+        let named = [&columns.input_column, &columns.output_column]
+            .into_iter()
+            .find_map(|c| crate::trace::PressureUnit::of_column(c));
         Board {
             arithmetic: self.board.map_or(stated.arithmetic, Into::into),
             full_scale: self.full_scale.or(stated.full_scale),
+            unit: self.unit.or(named).or(stated.unit),
         }
     }
 
@@ -191,14 +201,10 @@ impl InverseArgs {
     }
 }
 
-/// `v` to six significant digits ([`crate::error::number`]).
-pub(super) fn number(v: f64) -> String {
-    crate::error::number(v)
-}
-
 /// The board the model file is for, in one line; with a default full scale, its rule and the
 /// resolution it costs, and how to state the ADC's range instead.
 pub(super) fn print_board(board: &Board, full_scale: &FullScale) {
+    let p = |v: f64| console::pressure(v, board.unit);
     let arithmetic = match board.arithmetic {
         BoardArithmetic::F32 => "f32 (`unlag compensate` and `unlag export` default to it; --board fixed for a board without an FPU)",
         BoardArithmetic::Fixed => "32-bit fixed point (`unlag compensate` and `unlag export` default to it)",
@@ -207,27 +213,27 @@ pub(super) fn print_board(board: &Board, full_scale: &FullScale) {
     if full_scale.stated {
         crate::outln!(
             "  full scale +-{} (the ADC's range, as stated): the tests reach {} of it",
-            number(full_scale.value),
+            p(full_scale.value),
             pct(full_scale.tests_peak / full_scale.value)
         );
         if full_scale.tests_peak > full_scale.value {
             crate::errln!(
                 "warning: the tests reach {} but the full scale is +-{}: a fixed-point board clamps \
                  their readings beyond it; give the ADC's range with --full-scale",
-                number(full_scale.tests_peak),
-                number(full_scale.value)
+                p(full_scale.tests_peak),
+                p(full_scale.value)
             );
         }
     } else {
         crate::outln!(
             "  full scale +-{} (default: the tests' largest |y|, {}, plus {} times their swing, \
              rounded up: room for a reflected shock of 2 to 2.6 times the step and the probe's \
-             overshoot); it costs {:.1} bits of fixed-point resolution against the tests' own \
+             overshoot); it costs {} bits of fixed-point resolution against the tests' own \
              range. Give the ADC's range with --full-scale",
-            number(full_scale.value),
-            number(full_scale.tests_peak),
+            p(full_scale.value),
+            p(full_scale.tests_peak),
             pipeline::DEFAULT_FULL_SCALE_SWINGS,
-            full_scale.unused_bits()
+            console::significant(full_scale.unused_bits())
         );
     }
 }
@@ -299,7 +305,8 @@ pub struct InvertArgs {
 
 /// The design as `unlag fit` and `unlag invert` print it: its method, band, noise, latency,
 /// fixed-point plans, error budget, reconstructions and the check's verdict.
-pub(super) fn print_inverse(d: &inverse::Design, fs: f64) {
+pub(super) fn print_inverse(d: &inverse::Design, fs: f64, unit: Option<PressureUnit>) {
+    let p = |v: f64| console::pressure(v, unit);
     crate::outln!("compensator: {}", d.method);
     if !d.reflected_zeros.is_empty() {
         crate::outln!(
@@ -340,24 +347,24 @@ pub(super) fn print_inverse(d: &inverse::Design, fs: f64) {
     let smoother = d.is_smoother();
     if smoother {
         crate::outln!(
-            "  -3 dB band of the corrected probe {:.1} Hz; {} sections",
-            d.lowpass_hz,
+            "  -3 dB band of the corrected probe {}; {} sections",
+            console::hz(d.lowpass_hz),
             d.sections.len()
         );
     } else {
         crate::outln!(
-            "  {:?} low-pass, order {}, corner {:.1} Hz; {} sections",
+            "  {:?} low-pass, order {}, corner {}; {} sections",
             d.lowpass,
             d.lowpass_order,
-            d.lowpass_hz,
+            console::hz(d.lowpass_hz),
             d.sections.len()
         );
     }
     crate::outln!(
-        "  corrected bandwidth {:.1} Hz (+/-1 dB, +/-5 deg); noise gain {:.3}; latency {:.2} samples ({})",
-        d.corrected_bandwidth_hz,
-        d.noise_gain,
-        d.latency_samples,
+        "  corrected bandwidth {} (+/-1 dB, +/-5 deg); noise gain {}; latency {} samples ({})",
+        console::hz(d.corrected_bandwidth_hz),
+        console::significant(d.noise_gain),
+        console::significant(d.latency_samples),
         super::console::duration(d.latency_s)
     );
     crate::outln!(
@@ -371,68 +378,74 @@ pub(super) fn print_inverse(d: &inverse::Design, fs: f64) {
         d.in_band_phase_error_deg,
         d.pole_margin
     );
-    if let Some(p) = &d.fixed {
-        let forms: Vec<&str> = p.sections.iter().map(|s| s.form.as_str()).collect();
+    if let Some(plan) = &d.fixed {
+        let forms: Vec<&str> = plan.sections.iter().map(|s| s.form.as_str()).collect();
         crate::outln!(
-            "  fixed point: inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {:.3}; headroom {:.2} bits by the L1 bound (no overflow possible); sections {}",
-            number(p.full_scale),
-            number(p.full_scale),
-            p.output_exponent,
-            p.l1_gain,
-            p.headroom_bits,
+            "  fixed point: inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {}; headroom {} bits by the L1 bound (no overflow possible); sections {}",
+            p(plan.full_scale),
+            p(plan.full_scale),
+            plan.output_exponent,
+            console::significant(plan.l1_gain),
+            console::significant(plan.headroom_bits),
             forms.join(", ")
         );
     }
-    if let Some(p) = &d.fixed_direct {
+    if let Some(plan) = &d.fixed_direct {
         crate::outln!(
-            "  fixed point (direct form with error feedback): inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {:.3}; headroom {:.2} bits by the L1 bound (no overflow possible); {} sections",
-            number(p.full_scale),
-            number(p.full_scale),
-            p.output_exponent,
-            p.l1_gain,
-            p.headroom_bits,
-            p.sections.len()
+            "  fixed point (direct form with error feedback): inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {}; headroom {} bits by the L1 bound (no overflow possible); {} sections",
+            p(plan.full_scale),
+            p(plan.full_scale),
+            plan.output_exponent,
+            console::significant(plan.l1_gain),
+            console::significant(plan.headroom_bits),
+            plan.sections.len()
         );
     }
     if let Some(b) = &d.budget {
         crate::outln!(
-            "  predicted error of u_hat (RMS, pressure units): {:.4} = noise {:.4} + band limit {:.4} (in quadrature); a noisy reference adds {:.4}",
-            b.total, b.noise, b.band_limit, b.reference
+            "  predicted error of u_hat (RMS): {} = noise {} + band limit {} (in quadrature); a noisy reference adds {}",
+            p(b.total),
+            p(b.noise),
+            p(b.band_limit),
+            p(b.reference)
         );
     }
     if let Some(n) = &d.noise {
         crate::outln!(
-            "  noise ({:?}): probe {:.3e} white{}, reference {:.3e}",
+            "  noise ({:?}, RMS): probe {} white{}, reference {}",
             n.source,
-            n.probe_white_std,
+            p(n.probe_white_std),
             if n.probe_ar_std > 0.0 {
                 format!(
-                    " + {:.3e} AR(1) pole {:.4}",
-                    n.probe_ar_std, n.probe_ar_pole
+                    " + {} AR(1) pole {}",
+                    p(n.probe_ar_std),
+                    console::significant(n.probe_ar_pole)
                 )
             } else {
                 String::new()
             },
-            n.reference_std
+            p(n.reference_std)
         );
     }
-    if let Some(p) = &d.prior {
-        let from = match p.source {
+    if let Some(prior) = &d.prior {
+        let from = match prior.source {
             inverse::optimal::PriorSource::StepTests => "the step tests' references",
             inverse::optimal::PriorSource::Runs => "the --signal runs",
             inverse::optimal::PriorSource::Given => "given",
         };
-        if p.increment_pole > 0.0 {
+        if prior.increment_pole > 0.0 {
             // The increments' pole as a corner: rho = exp(-2 pi f / fs).
-            let corner = -p.increment_pole.ln() * fs / (2.0 * std::f64::consts::PI);
+            let corner = -prior.increment_pole.ln() * fs / (2.0 * std::f64::consts::PI);
             crate::outln!(
-                "  signal prior (from {from}): steps and ramps, increments correlated {:.4} (its spectrum falls as 1/f^4 above {corner:.1} Hz), innovation {:.3e}",
-                p.increment_pole, p.increment_std
+                "  signal prior (from {from}): steps and ramps, increments correlated {} (its spectrum falls as 1/f^4 above {}), innovation {}",
+                console::significant(prior.increment_pole),
+                console::hz(corner),
+                p(prior.increment_std)
             );
         } else {
             crate::outln!(
-                "  signal prior (from {from}): steps, a random walk of increment {:.3e} per sample (its spectrum falls as 1/f^2)",
-                p.increment_std
+                "  signal prior (from {from}): steps, a random walk of increment {} per sample (its spectrum falls as 1/f^2)",
+                p(prior.increment_std)
             );
         }
     }
@@ -503,7 +516,7 @@ pub fn run_invert(args: &InvertArgs) -> Result<()> {
     }
     let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
     let tests = as_tests(&traces, &names)?;
-    let board = args.inverse.board(file.board);
+    let board = args.inverse.board(file.board, &args.columns);
     let spec = args.inverse.spec(&args.columns, file.model.fs, &board)?;
     let compensator = pipeline::design_compensator(&CompensatorRequest {
         model: &file.model,
@@ -531,7 +544,7 @@ pub fn run_invert(args: &InvertArgs) -> Result<()> {
         return Ok(());
     }
     if let Some(d) = &out.inverse {
-        print_inverse(d, out.model.fs);
+        print_inverse(d, out.model.fs, out.board.unit);
     }
     print_board(&out.board, &compensator.full_scale);
     crate::outln!("wrote {}", args.output.display());

@@ -3,9 +3,9 @@
 //! cannot be realised in the board's fixed point. In the design room's own words (no
 //! command-line flags: the CLI adds them); reached as [`crate::Error::Stage`].
 
-use crate::compensator::{InverseError, MIN_POLE_MARGIN};
-use crate::fixed::direct::DirectError;
-use crate::fixed::FixedError;
+use crate::board::compensator::{InverseError, MIN_POLE_MARGIN};
+use crate::board::fixed::direct::DirectError;
+use crate::board::fixed::FixedError;
 
 /// What can go wrong in designing or realising a compensator: one variant per problem, each
 /// saying the step it happened in.

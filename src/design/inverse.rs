@@ -25,7 +25,7 @@ use std::f64::consts::PI;
 
 use serde::{Deserialize, Serialize};
 
-use crate::compensator::{CascadeCoefficients, CascadeState, Sample, MIN_POLE_MARGIN};
+use crate::board::compensator::{CascadeCoefficients, CascadeState, Sample, MIN_POLE_MARGIN};
 use crate::design::DesignError;
 use crate::error::{Error, Result};
 use crate::fit::model::Model;
@@ -395,6 +395,15 @@ pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
     })
 }
 
+impl<'a> From<&'a Design> for crate::design::quantise::Cascade<'a> {
+    fn from(d: &'a Design) -> Self {
+        Self {
+            gain: d.gain,
+            sections: &d.sections,
+        }
+    }
+}
+
 impl Design {
     /// Whether this is the fixed-lag Kalman smoother (which has no low-pass of its own).
     #[must_use]
@@ -443,7 +452,7 @@ impl Design {
 
     /// The design's own low-pass as `(gain, sections)`, which the board's
     /// nonlinear-damping correction runs too
-    /// ([`NonlinearDampingCoefficients`](crate::compensator::NonlinearDampingCoefficients)).
+    /// ([`NonlinearDampingCoefficients`](crate::board::compensator::NonlinearDampingCoefficients)).
     ///
     /// # Errors
     /// As [`lowpass`].
@@ -468,7 +477,7 @@ impl Design {
     ) -> Result<Vec<f64>> {
         let (lp_gain, lp) = self.lowpass_sections(fs)?;
         let (lp_gain, lp) = as_exported::<T>(lp_gain, &lp);
-        let c = crate::compensator::NonlinearDampingCoefficients::<T, 4>::new(
+        let c = crate::board::compensator::NonlinearDampingCoefficients::<T, 4>::new(
             exported::<T>(gain * fs * fs),
             lp_gain,
             &lp,

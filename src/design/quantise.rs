@@ -1,7 +1,7 @@
 //! From a designed compensator (f64 second-order sections) to the board's fixed-point one:
 //! realisation, scaling and quantisation, chosen once on the host.
 //!
-//! This module owns [`FixedPlan`]: the integer coefficients of [`crate::fixed::FixedCascade`],
+//! This module owns [`FixedPlan`]: the integer coefficients of [`crate::board::fixed::FixedCascade`],
 //! the scaling that keeps every state and output inside `i32` for inputs within the ADC's full
 //! scale, the headroom that leaves, and the conversion between physical units and the board's
 //! integers. `unlag invert` stores the plan in the model file; `unlag compensate --arithmetic
@@ -21,13 +21,22 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::design::inverse::Design;
+use crate::board::fixed::{FixedCascade, FixedSection, FixedState, MAX_COEFFICIENT, STATE_BITS};
 use crate::design::DesignError;
 use crate::error::{Error, Result};
-use crate::fixed::{FixedCascade, FixedSection, FixedState, MAX_COEFFICIENT, STATE_BITS};
 
 mod direct;
 pub use direct::{DirectPlan, DirectPlanSection};
+
+/// What a fixed-point plan quantises: a cascade's input gain and its second-order sections
+/// `[b0, b1, b2, a1, a2]`, as a compensator design holds them (`&Design` converts into it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cascade<'a> {
+    /// The gain in front of the first section.
+    pub gain: f64,
+    /// The sections, in the order the signal passes them.
+    pub sections: &'a [[f64; 5]],
+}
 
 /// Which fixed-point form the board runs: the choice between the guarantees of the normal
 /// form and the instruction budget of the direct form (the trade table is in BENCHMARKS.md,
@@ -35,13 +44,13 @@ pub use direct::{DirectPlan, DirectPlanSection};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum FixedForm {
-    /// Normal (coupled) state-space sections, [`FixedPlan`] and [`crate::fixed::FixedCascade`]:
+    /// Normal (coupled) state-space sections, [`FixedPlan`] and [`crate::board::fixed::FixedCascade`]:
     /// no limit cycles, every state saturates with the flag, 100 dB at fs/fn = 1000; about
     /// 115 instructions a sample for m = 4 on a Cortex-M4. The default.
     #[default]
     Normal,
     /// Direct-form-I sections with first-order error feedback, [`DirectPlan`] and
-    /// [`crate::fixed::direct::DirectCascade`]: about 33 instructions a sample for m = 4;
+    /// [`crate::board::fixed::direct::DirectCascade`]: about 33 instructions a sample for m = 4;
     /// limit cycles of a few codes not excluded, about 90 dB at fs/fn = 1000.
     Direct,
 }
@@ -135,7 +144,7 @@ fn code_of(y: f64, full_scale: f64) -> (i32, bool) {
 /// sections, every pole inside the unit circle) and returns the length of impulse response
 /// the plan traces: long enough for the slowest pole to decay by e^-40, the tail then
 /// negligible.
-pub(super) fn impulse_len(design: &Design, full_scale: f64) -> Result<usize> {
+pub(super) fn impulse_len(design: &Cascade<'_>, full_scale: f64) -> Result<usize> {
     if !(full_scale.is_finite() && full_scale > 0.0) {
         return Err(Error::InvalidParameter {
             parameter: crate::error::Parameter::FullScale,
@@ -149,7 +158,7 @@ pub(super) fn impulse_len(design: &Design, full_scale: f64) -> Result<usize> {
         .sections
         .iter()
         .fold(0.0f64, |r, &[_, _, _, a1, a2]| {
-            r.max(crate::compensator::section_pole_radius(a1, a2))
+            r.max(crate::board::compensator::section_pole_radius(a1, a2))
         });
     if radius.is_nan() || radius >= 1.0 {
         return Err(DesignError::SectionPoleRadius { radius }.into());
@@ -267,8 +276,9 @@ impl FixedPlan {
     /// [`DesignError`] when the design has no sections or a pole on or outside the unit circle,
     /// a coefficient cannot be represented, a bound is not finite, or the quantised cascade is
     /// refused by the board's validation.
-    pub fn new(design: &Design, full_scale: f64) -> Result<Self> {
-        let len = impulse_len(design, full_scale)?;
+    pub fn new<'a>(design: impl Into<Cascade<'a>>, full_scale: f64) -> Result<Self> {
+        let design = design.into();
+        let len = impulse_len(&design, full_scale)?;
         // The input to the current section in the fixed-point domain: the impulse response
         // from the cascade input (a full-scale unit) to it, times its scale.
         let mut input = vec![0.0; len];
@@ -460,7 +470,7 @@ mod tests {
     use crate::design::inverse::{self, Options};
     use crate::fit::model::Model;
 
-    fn line_design(fs: f64, fn_hz: f64, zeta: f64, bandwidth: f64) -> Design {
+    fn line_design(fs: f64, fn_hz: f64, zeta: f64, bandwidth: f64) -> inverse::Design {
         let wn = 2.0 * std::f64::consts::PI * fn_hz / fs;
         let (re, im) = (-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
         let a = vec![-2.0 * re.exp() * im.cos(), (2.0 * re).exp()];
@@ -491,7 +501,7 @@ mod tests {
             let fixed = plan.run(&y).unwrap();
             assert!(!fixed.overflowed && fixed.clipped_inputs == 0);
             // The f64 reference from a zero state.
-            let c = crate::compensator::CascadeCoefficients::<f64, 8>::new(
+            let c = crate::board::compensator::CascadeCoefficients::<f64, 8>::new(
                 design.gain,
                 &design.sections,
             )
@@ -514,8 +524,8 @@ mod tests {
     /// the input a fraction of the full scale, the output of `full_scale * 2^output_exponent`.
     #[test]
     fn typed_samples_run_the_board_integers_bit_for_bit() {
-        use crate::fixed::direct::{DirectCascade, DirectState};
-        use crate::fixed::I1F31;
+        use crate::board::fixed::direct::{DirectCascade, DirectState};
+        use crate::board::fixed::I1F31;
 
         let design = line_design(1e6, 80e3, 0.2, 150e3);
         let full_scale = 2.0;

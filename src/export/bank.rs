@@ -1,18 +1,18 @@
 //! Export of a temperature bank (`unlag export MODEL --temperatures FROM:TO:STEP`): one `f32`
 //! coefficient set per gas temperature, for a board that measures the temperature and picks
-//! the set itself ([`crate::compensator::TemperatureBank`]).
+//! the set itself ([`crate::board::compensator::TemperatureBank`]).
 //!
 //! This module owns the temperature grid ([`TemperatureRange`]) and the sets (each designed by
 //! [`crate::pipeline::at_temperature`] and checked as [`BoardCoefficients::from_model_file`]
 //! checks one, then the whole table as the board's [`TemperatureBank::new`] checks it); the
 //! bank is written, as [`BoardImage::Bank`], by the image's Rust and C writers. Every set must
-//! have the same number of sections. The binary blob of [`crate::blob`] carries one set, so a
+//! have the same number of sections. The binary blob of [`crate::board::blob`] carries one set, so a
 //! bank is not written as `bin`: a running board is sent one set at a time (`--temperature K
 //! --format bin`).
 
 use std::path::Path;
 
-use crate::compensator::TemperatureBank;
+use crate::board::compensator::TemperatureBank;
 use crate::error::{Error, Result};
 use crate::export::{BoardCoefficients, BoardImage, Format, MAX_EXPORT_SECTIONS};
 use crate::file::write_atomically;
@@ -219,12 +219,12 @@ impl BoardBank {
     /// sets (use [`MAX_BANK_SETS`] only through this check: the lengths must match).
     ///
     /// # Errors
-    /// [`crate::compensator::BankError`] as the board reports it.
+    /// [`crate::board::compensator::BankError`] as the board reports it.
     pub fn board_bank<const SETS: usize>(
         &self,
     ) -> std::result::Result<
         TemperatureBank<f32, SETS, MAX_EXPORT_SECTIONS>,
-        crate::compensator::BankError,
+        crate::board::compensator::BankError,
     > {
         TemperatureBank::new(
             &self.temperatures_k,
@@ -252,7 +252,7 @@ pub fn warm_up_samples(sets: &[BoardCoefficients]) -> u32 {
     let radius = sets
         .iter()
         .flat_map(|s| &s.sections)
-        .map(|c| crate::compensator::section_pole_radius(f64::from(c[3]), f64::from(c[4])))
+        .map(|c| crate::board::compensator::section_pole_radius(f64::from(c[3]), f64::from(c[4])))
         .fold(0.0, f64::max);
     if radius <= 0.0 {
         return 1;

@@ -1,14 +1,14 @@
-//! The binary writer of a [`BoardImage`]: the blob of [`crate::blob`] for its number format,
+//! The binary writer of a [`BoardImage`]: the blob of [`crate::board::blob`] for its number format,
 //! encoded by the board's own encoder and parsed back by the board's own parser before it is
 //! returned.
 
 use super::image::{board_cascade, BoardImage};
 use super::ExportError;
 use super::MAX_EXPORT_SECTIONS;
-use crate::blob::{self, BlobError};
+use crate::board::blob::{self, BlobError};
+use crate::board::fixed::direct::DirectCascade;
+use crate::board::fixed::FixedCascade;
 use crate::error::{BoardRefusal, Error, Result};
-use crate::fixed::direct::DirectCascade;
-use crate::fixed::FixedCascade;
 
 /// The board's refusal of what export built, as the host's error.
 fn fail(refusal: impl Into<BoardRefusal>) -> Error {
@@ -41,7 +41,7 @@ fn same(equal: bool) -> Result<()> {
 }
 
 impl BoardImage {
-    /// The binary blob of [`crate::blob`]: format version 1 (number format 0, `f32`; 1, fixed
+    /// The binary blob of [`crate::board::blob`]: format version 1 (number format 0, `f32`; 1, fixed
     /// point; 2, its direct form), or version 2 for `f32` with the nonlinear-damping
     /// correction. It is checked by parsing it back with the board's parser before it is
     /// returned.

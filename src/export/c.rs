@@ -5,8 +5,8 @@
 //! A single set's header ends with a reference implementation of the board's kernel for its
 //! number format, in C99 with `stdint.h` only: a state struct `unlag_state`, `unlag_reset()`,
 //! `unlag_init()` (the equilibrium start) and the per-sample `unlag_process()`, bit for bit
-//! what [`crate::compensator::CascadeCoefficients::process`],
-//! [`crate::fixed::FixedCascade::process`] or [`crate::fixed::direct::DirectCascade::process`]
+//! what [`crate::board::compensator::CascadeCoefficients::process`],
+//! [`crate::board::fixed::FixedCascade::process`] or [`crate::board::fixed::direct::DirectCascade::process`]
 //! computes (`host-tests/c_reference.rs` compiles it and checks). The C is kept as C, in
 //! `src/export/c/*.h`, and pasted in after the tables it reads.
 
@@ -28,7 +28,7 @@ const FIXED_INTRO: &[&str] = &[
     " * Normal-form sections, per sample and section (u the section input, x its states):",
     " *   x1' = trunc((a11 x1 + a12 x2 + b1 u) >> 30)   x2' = trunc((a21 x1 + a22 x2 + b2 u) >> 30)",
     " *   y   = round((c1 x1 + c2 x2 + d u) >> shift)   in 64-bit accumulators, saturated to int32;",
-    " * see unlag::fixed for the exact arithmetic. Input: Q1.31 of UNLAG_FULL_SCALE; output:",
+    " * see unlag::board::fixed for the exact arithmetic. Input: Q1.31 of UNLAG_FULL_SCALE; output:",
     " * Q1.31 of UNLAG_FULL_SCALE * 2^UNLAG_OUTPUT_EXPONENT. The reference implementation at the",
     " * end of this header is that arithmetic bit for bit: unlag_state, unlag_init() (start in",
     " * equilibrium) or unlag_reset(), unlag_process() per sample, unlag_take_overflow(). */",
@@ -38,7 +38,7 @@ const DIRECT_INTRO: &[&str] = &[
     " * section input, y its output, e the residual carried, all int32, 64-bit accumulator):",
     " *   acc = e + b0 x0 + b1 x1 + b2 x2 + na1 y1 + na2 y2      (na = -a: the NEGATED denominator)",
     " *   y = acc >> 30 (floor; high word saturated to 30 bits), e = acc & (2^30 - 1);",
-    " * see unlag::fixed::direct for the exact arithmetic. Input: Q1.31 of UNLAG_FULL_SCALE;",
+    " * see unlag::board::fixed::direct for the exact arithmetic. Input: Q1.31 of UNLAG_FULL_SCALE;",
     " * output: Q1.31 of UNLAG_FULL_SCALE * 2^UNLAG_OUTPUT_EXPONENT. The reference implementation",
     " * at the end of this header is that arithmetic bit for bit: unlag_state, unlag_init() (start",
     " * in equilibrium) or unlag_reset(), unlag_process() per sample, unlag_take_overflow(). */",
@@ -49,7 +49,7 @@ const BANK_INTRO: &[&str] = &[
     " * CMSIS-DSP's biquads want a1, a2 negated). Pick the set with unlag_bank_select() on each",
     " * temperature reading; on a change, start the new set's states at its equilibrium for the last",
     " * input, run it beside the old set (whose output you keep) for UNLAG_BANK_WARM_UP_SAMPLES",
-    " * samples, then switch to it: no step (see unlag::compensator::bank). */",
+    " * samples, then switch to it: no step (see unlag::board::compensator::bank). */",
 ];
 
 /// The comment before the nonlinear-damping correction's declarations (its continuation

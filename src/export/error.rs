@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use crate::blob::BlobError;
+use crate::board::blob::BlobError;
 use crate::error::BoardRefusal;
 
 /// Everything export itself can find wrong; each stops the file from being written.

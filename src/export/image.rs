@@ -17,13 +17,13 @@ use std::path::Path;
 
 use super::bank::BoardBank;
 use super::{Format, NumberFormat, MAX_EXPORT_SECTIONS};
-use crate::compensator::{CascadeCoefficients, InverseError, NonlinearDampingCoefficients};
+use crate::board::compensator::{CascadeCoefficients, InverseError, NonlinearDampingCoefficients};
+use crate::board::fixed::direct::{DirectCascade, DirectSection};
+use crate::board::fixed::{FixedCascade, FixedSection};
 use crate::design::inverse::Design;
 use crate::design::quantise::{DirectPlan, FixedPlan};
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
-use crate::fixed::direct::{DirectCascade, DirectSection};
-use crate::fixed::{FixedCascade, FixedSection};
 
 /// One board image, in any of the kinds the board runs.
 #[derive(Debug, Clone, PartialEq)]
@@ -206,7 +206,7 @@ pub struct BoardCoefficients {
 }
 
 /// The board's nonlinear-damping correction as exported
-/// ([`crate::compensator::NonlinearDampingCoefficients`]), rounded to `f32`.
+/// ([`crate::board::compensator::NonlinearDampingCoefficients`]), rounded to `f32`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BoardNonlinear {
     /// Gain per squared sample difference of the probe signal: the quadratic loss (s^2 per
@@ -527,7 +527,7 @@ impl DirectBoardCoefficients {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::blob;
+    use crate::board::blob;
 
     const SECTION: [f32; 5] = [1.0, -0.5, 0.0, -0.25, 0.0];
 

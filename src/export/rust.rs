@@ -11,7 +11,7 @@ const F32_INTRO: &str = "\
 // The board's compensator: u_hat = cascade(GAIN * y), each section [b0, b1, b2, a1, a2]
 // with y = b0 x + b1 x[k-1] + b2 x[k-2] - a1 y[k-1] - a2 y[k-2]. The values are the f32
 // coefficients the board runs, widened exactly to f64. Build the compensator with
-// `unlag::compensator::CascadeCoefficients::<f32, SECTION_COUNT>::new(GAIN, &SECTIONS)`.
+// `unlag::board::compensator::CascadeCoefficients::<f32, SECTION_COUNT>::new(GAIN, &SECTIONS)`.
 ";
 const NONLINEAR_INTRO: &str = "\
 // Nonlinear damping: add `NonlinearDampingCoefficients::<f32, NONLINEAR_SECTION_COUNT>::new(
@@ -21,17 +21,17 @@ const NONLINEAR_INTRO: &str = "\
 const FIXED_INTRO: &str = "\
 // The board's fixed-point compensator: input codes are Q1.31 of FULL_SCALE, outputs
 // Q1.31 of FULL_SCALE * 2^OUTPUT_EXPONENT. Build it with
-// `unlag::fixed::FixedCascade::<SECTION_COUNT>::new(&SECTIONS)`.
+// `unlag::board::fixed::FixedCascade::<SECTION_COUNT>::new(&SECTIONS)`.
 ";
 const DIRECT_INTRO: &str = "\
 // The board's direct-form fixed-point compensator: input codes are Q1.31 of FULL_SCALE,
 // outputs Q1.31 of FULL_SCALE * 2^OUTPUT_EXPONENT. Build it with
-// `unlag::fixed::direct::DirectCascade::<SECTION_COUNT>::new(&SECTIONS)`.
+// `unlag::board::fixed::direct::DirectCascade::<SECTION_COUNT>::new(&SECTIONS)`.
 ";
 const BANK_INTRO: &str = "\
 // One compensator per gas temperature: u_hat = cascade(GAINS[i] * y), sections [b0, b1, b2, a1, a2]
-// as in `unlag::compensator::CascadeCoefficients`, f32 values widened exactly to f64. Build
-// `unlag::compensator::TemperatureBank::<f32, SET_COUNT, SECTION_COUNT>::new(
+// as in `unlag::board::compensator::CascadeCoefficients`, f32 values widened exactly to f64. Build
+// `unlag::board::compensator::TemperatureBank::<f32, SET_COUNT, SECTION_COUNT>::new(
 //     &TEMPERATURES_K, &GAINS, &SECTIONS, HYSTERESIS_K, WARM_UP_SAMPLES)`, run a channel with `process` and give it
 // each temperature reading with `set_temperature` (nearest set, hysteresis, bumpless handover).
 ";
@@ -98,10 +98,10 @@ fn fixed<S>(
 
 impl BoardImage {
     /// Rust source: `const` items to `include!` in a firmware module, for
-    /// [`crate::compensator::CascadeCoefficients::new`] (with
-    /// [`crate::compensator::NonlinearDampingCoefficients::new`] for the correction),
-    /// [`crate::fixed::FixedCascade::new`], [`crate::fixed::direct::DirectCascade::new`] or
-    /// [`crate::compensator::TemperatureBank::new`]. `source` names the model file.
+    /// [`crate::board::compensator::CascadeCoefficients::new`] (with
+    /// [`crate::board::compensator::NonlinearDampingCoefficients::new`] for the correction),
+    /// [`crate::board::fixed::FixedCascade::new`], [`crate::board::fixed::direct::DirectCascade::new`] or
+    /// [`crate::board::compensator::TemperatureBank::new`]. `source` names the model file.
     #[must_use]
     pub fn to_rust(&self, source: &str) -> String {
         let (flags, intro) = match self {
@@ -155,7 +155,7 @@ impl BoardImage {
                     &mut s,
                     &t,
                     scale,
-                    "unlag::fixed::FixedSection",
+                    "unlag::board::fixed::FixedSection",
                     &c.sections,
                     |f| {
                         format!(
@@ -167,7 +167,7 @@ impl BoardImage {
             }
             Self::Direct(c) => {
                 let scale = (c.full_scale, c.output_exponent);
-                let ty = "unlag::fixed::direct::DirectSection";
+                let ty = "unlag::board::fixed::direct::DirectSection";
                 fixed(&mut s, &t, scale, ty, &c.sections, |f| {
                     format!("b: {:?}, neg_a: {:?}", f.b, f.neg_a)
                 });

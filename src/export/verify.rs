@@ -1,12 +1,12 @@
 //! Reading a coefficient blob back on the PC, as the board will, before it is flashed or sent:
-//! the board's own parser ([`crate::blob::parse`], [`crate::blob::parse_fixed`]) decides
+//! the board's own parser ([`crate::board::blob::parse`], [`crate::board::blob::parse_fixed`]) decides
 //! whether it is valid, and a valid blob is described field by field.
 
-use crate::blob::{self, BlobError, NumberFormat};
-use crate::compensator::section_pole_radius;
+use crate::board::blob::{self, BlobError, NumberFormat};
+use crate::board::compensator::section_pole_radius;
 
-/// Sections a board built with [`crate::compensator::MAX_TEST_ORDER`] room reads.
-const CAPACITY: usize = crate::compensator::MAX_TEST_ORDER;
+/// Sections a board built with [`crate::board::compensator::MAX_TEST_ORDER`] room reads.
+const CAPACITY: usize = crate::board::compensator::MAX_TEST_ORDER;
 
 /// What a valid blob holds.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -42,7 +42,7 @@ pub struct BlobSummary {
 }
 
 /// Parses `bytes` with the board's parser for its number format (a board with room for
-/// [`crate::compensator::MAX_TEST_ORDER`] sections) and describes it.
+/// [`crate::board::compensator::MAX_TEST_ORDER`] sections) and describes it.
 ///
 /// # Errors
 /// The board parser's [`BlobError`].
@@ -167,8 +167,8 @@ mod tests {
     /// A direct-form blob is read by the direct-form parser, not refused by the normal form's.
     #[test]
     fn a_direct_form_blob_reads_back() {
+        use crate::board::fixed::direct::DirectSection;
         use crate::export::image::{BoardImage, DirectBoardCoefficients};
-        use crate::fixed::direct::DirectSection;
         let image: BoardImage = DirectBoardCoefficients {
             sample_rate_hz: 10_000.0,
             delay_samples: 3,
@@ -208,8 +208,8 @@ mod tests {
     /// CRC, and every error, are what reading the bytes directly gave.
     #[test]
     fn the_header_reader_gives_what_the_bytes_gave() {
-        use crate::fixed::direct::DirectSection;
-        use crate::fixed::FixedSection;
+        use crate::board::fixed::direct::DirectSection;
+        use crate::board::fixed::FixedSection;
         let s = [[1.0f32, -0.5, 0.0, -0.8, 0.0]];
         let mut f32_v1 = vec![0u8; blob::encoded_len(1)];
         blob::encode(&mut f32_v1, 1e4, 3, 2.0, &s).unwrap();

@@ -22,6 +22,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::fit::model::Model;
 use crate::poly::{self, Complex};
+use crate::trace::unit::{duration, hz, significant};
 
 /// Poles closer to the origin than this are reported as poles at `z = 0` (a pure FIR part).
 pub const ORIGIN_RADIUS: f64 = 1e-9;
@@ -229,10 +230,10 @@ fn mode(p: Complex, fs: f64) -> Mode {
             let s = fs * p.re.ln();
             let t = tc(s);
             let text = match t {
-                Some(t) if t > 0.0 => format!("real pole, time constant {}", seconds(t)),
+                Some(t) if t > 0.0 => format!("real pole, time constant {}", duration(t)),
                 Some(t) => format!(
                     "real pole outside the unit circle, grows with time constant {}",
-                    seconds(-t)
+                    duration(-t)
                 ),
                 None => "real pole at z = 1: an integrator".into(),
             };
@@ -247,7 +248,7 @@ fn mode(p: Complex, fs: f64) -> Mode {
             let t = tc(fs * r.ln());
             let envelope = t.map_or_else(
                 || "constant envelope".to_string(),
-                |t| format!("envelope time constant {}", seconds(t)),
+                |t| format!("envelope time constant {}", duration(t)),
             );
             (
                 ModeKind::Nyquist {
@@ -255,8 +256,8 @@ fn mode(p: Complex, fs: f64) -> Mode {
                     envelope_time_constant_s: t,
                 },
                 format!(
-                    "negative real pole: oscillates at Nyquist ({:.6} Hz), no continuous-time equivalent; {envelope}",
-                    fs / 2.0
+                    "negative real pole: oscillates at Nyquist ({}), no continuous-time equivalent; {envelope}",
+                    hz(fs / 2.0)
                 ),
             )
         }
@@ -274,23 +275,13 @@ fn mode(p: Complex, fs: f64) -> Mode {
                 s_re: s.re,
                 s_im: s.im,
             },
-            format!("resonance {fn_hz:.6} Hz, damping {zeta:.6}"),
+            format!("resonance {}, damping {}", hz(fn_hz), significant(zeta)),
         )
     };
     Mode {
         pole: Root::from(p),
         kind,
         description,
-    }
-}
-
-fn seconds(t: f64) -> String {
-    if t.abs() >= 1.0 {
-        format!("{t:.6} s")
-    } else if t.abs() >= 1e-3 {
-        format!("{:.6} ms", t * 1e3)
-    } else {
-        format!("{:.6} us", t * 1e6)
     }
 }
 

@@ -2,7 +2,7 @@
 //! a usable one, its compensator does not validate, or it has no continuous-time equivalent.
 //! In the fit room's own words (no command-line flags); reached as [`crate::Error::Stage`].
 
-use crate::compensator::InverseError;
+use crate::board::compensator::InverseError;
 use crate::fit::continuous::REPEATED_POLE_TOLERANCE;
 use crate::poly::{format_root, Complex};
 

@@ -1,14 +1,14 @@
 //! The identified probe model and what the host computes from it.
 //!
 //! This module owns [`Model`] (sample rate, delay, `a`, `b` in the crate's one sign convention,
-//! see [`crate::compensator`]), what can be computed from it on the host (simulation from the
+//! see [`crate::board::compensator`]), what can be computed from it on the host (simulation from the
 //! reference, DC gain, poles and zeros, compensation through the board's code), and the fit's
 //! report ([`FitReport`]) with its identification [`Method`]; the model file that stores them
 //! is [`crate::file`].
 
 use serde::{Deserialize, Serialize};
 
-use crate::compensator::{Compensator, InverseCoefficients, Sample};
+use crate::board::compensator::{Compensator, InverseCoefficients, Sample};
 use crate::error::{Error, Result};
 use crate::fit::{FitError, OrderSelection};
 use crate::poly::{self, Complex};

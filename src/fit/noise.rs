@@ -137,12 +137,12 @@ pub fn innovation_floor(x: &[f64], quiet: usize) -> Option<f64> {
 
 /// The AR model (order up to [`MAX_NOISE_ORDER`]) of a channel's quiet segment, the first
 /// `quiet` samples detrended: its noise alone, the signal still. `None` below
-/// [`crate::design::inverse::optimal::MIN_QUIET`] samples (a traverse).
+/// [`crate::fit::step::MIN_QUIET`] samples (a traverse).
 #[must_use]
 pub fn of_quiet_segment(x: &[f64], quiet: usize) -> Option<ArNoise> {
     let pre = x
         .get(..quiet)
-        .filter(|p| p.len() >= crate::design::inverse::optimal::MIN_QUIET)?;
+        .filter(|p| p.len() >= crate::fit::step::MIN_QUIET)?;
     Some(fit(&crate::fit::step::detrend(pre), MAX_NOISE_ORDER))
 }
 

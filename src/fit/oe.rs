@@ -17,7 +17,7 @@
 use faer::Mat;
 
 use super::arx::{self, Data, Params};
-use crate::compensator::schur_stable;
+use crate::board::compensator::schur_stable;
 use crate::error::Result;
 use crate::fit::model::filter;
 

@@ -71,6 +71,10 @@ pub fn channel_noise(x: &[f64], quiet: usize) -> (f64, NoiseSource) {
     }
 }
 
+/// Fewest quiet samples before a step that the noise is measured on; a test with fewer (a
+/// traverse, a balloon burst at once) gives its noise from its highest frequencies.
+pub const MIN_QUIET: usize = 64;
+
 /// Where a record's quiet segment ends: the onset of its step when it is a step test
 /// ([`Step::is_clean`]), else 0 (a traverse has none: its first samples are signal).
 #[must_use]

@@ -273,7 +273,7 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
     };
     if design.is_none() && nonlinear != 0.0 {
         // The direct inverse has no band limit: the correction is not filtered either.
-        let c = crate::compensator::NonlinearDampingCoefficients::<f64, 1>::new(
+        let c = crate::board::compensator::NonlinearDampingCoefficients::<f64, 1>::new(
             nonlinear * m.fs * m.fs,
             1.0,
             &[],

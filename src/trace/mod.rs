@@ -18,7 +18,9 @@ use std::path::{Path, PathBuf};
 use sha2::{Digest, Sha256};
 
 mod error;
+pub mod unit;
 pub use error::{short, ColumnRole, CopyFailure, TraceError};
+pub use unit::{time_unit, PressureUnit};
 
 /// The trace room's result.
 pub type Result<T, E = TraceError> = std::result::Result<T, E>;
@@ -61,31 +63,6 @@ pub fn echo(text: &str, at_byte: u64) -> String {
             text.get(..cut).unwrap_or("").escape_debug(),
             text.len()
         ),
-    }
-}
-
-/// A time column's unit, from its name (`t_ms`, `time_us`, `t[ms]`, `t (µs)`, `time_s`): its
-/// symbol and its length in seconds; `None` when the name carries no unit.
-#[must_use]
-pub fn time_unit(name: &str) -> Option<(&'static str, f64)> {
-    let name = name.trim();
-    let bracketed = |open: char, close: char| {
-        name.strip_suffix(close)
-            .and_then(|s| s.rsplit_once(open))
-            .map(|(_, unit)| unit)
-    };
-    let token = bracketed('[', ']')
-        .or_else(|| bracketed('(', ')'))
-        .or_else(|| {
-            name.rsplit_once(['_', ' ', '-', '/', '.'])
-                .map(|(_, unit)| unit)
-        })?;
-    match token.trim().to_lowercase().as_str() {
-        "s" | "sec" | "secs" | "seconds" => Some(("s", 1.0)),
-        "ms" | "msec" => Some(("ms", 1e-3)),
-        "us" | "µs" | "μs" | "usec" => Some(("µs", 1e-6)),
-        "ns" | "nsec" => Some(("ns", 1e-9)),
-        _ => None,
     }
 }
 

@@ -59,7 +59,7 @@ const CHANNELS: usize = 1;
 #[cfg(feature = "f32")]
 mod kind {
     use super::{CHANNELS, N};
-    use unlag::compensator::{CascadeCoefficients, CascadeState};
+    use unlag::board::compensator::{CascadeCoefficients, CascadeState};
 
     #[allow(dead_code)]
     mod coefficients {
@@ -107,7 +107,7 @@ mod kind {
 #[cfg(feature = "fixed")]
 mod kind {
     use super::{CHANNELS, N};
-    use unlag::fixed::{FixedCascade, FixedSection, FixedState};
+    use unlag::board::fixed::{FixedCascade, FixedSection, FixedState};
 
     #[allow(dead_code)]
     mod plan {
@@ -161,7 +161,7 @@ mod kind {
 #[cfg(feature = "direct")]
 mod kind {
     use super::{CHANNELS, N};
-    use unlag::fixed::direct::{DirectCascade, DirectSection, DirectState};
+    use unlag::board::fixed::direct::{DirectCascade, DirectSection, DirectState};
 
     #[allow(dead_code)]
     mod plan {

@@ -22,7 +22,7 @@ use panic_halt as _;
 use core::hint::black_box;
 
 use cortex_m_rt::entry;
-use unlag::compensator::{CascadeCoefficients, CascadeState};
+use unlag::board::compensator::{CascadeCoefficients, CascadeState};
 
 /// One section `[b0, b1, b2, a1, a2]`: a first-order low-pass with a pole at 0.5.
 const SECTIONS: [[f64; 5]; 1] = [[0.5, 0.0, 0.0, -0.5, 0.0]];

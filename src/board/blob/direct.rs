@@ -1,9 +1,9 @@
 //! The direct-form fixed-point blob (number format 2): the cascade of
-//! [`crate::fixed::direct`], its encoder and its parser.
+//! [`crate::board::fixed::direct`], its encoder and its parser.
 
 use super::header::{self, Fields};
 use super::{encoded_len_direct, BlobError, NumberFormat, FORMAT_VERSION};
-use crate::fixed::direct::{DirectCascade, DirectSection, COEFFICIENT_BITS};
+use crate::board::fixed::direct::{DirectCascade, DirectSection, COEFFICIENT_BITS};
 
 /// The number format this module reads and writes: fractional bits [`COEFFICIENT_BITS`].
 #[allow(clippy::cast_possible_truncation)]
@@ -43,14 +43,14 @@ impl<const N: usize> DirectCoefficientSet<N> {
 
 /// Parses and validates a direct-form fixed-point blob (number format 2) for a board with
 /// room for `N` sections: the same header checks as [`super::parse`], then the fractional bits, the
-/// full scale and every section as [`crate::fixed::direct::DirectCascade::new`] checks it.
+/// full scale and every section as [`crate::board::fixed::direct::DirectCascade::new`] checks it.
 ///
 /// # Errors
 /// The first [`BlobError`] found; never panics, whatever the bytes.
 ///
 /// ```
-/// use unlag::blob::{self, BlobError};
-/// use unlag::fixed::direct::{DirectSection, DirectState};
+/// use unlag::board::blob::{self, BlobError};
+/// use unlag::board::fixed::direct::{DirectSection, DirectState};
 ///
 /// let lag = DirectSection { b: [1 << 29, 0, 0], neg_a: [1 << 29, 0] };
 /// let mut buf = [0u8; blob::encoded_len_direct(1)];

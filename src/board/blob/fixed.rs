@@ -1,9 +1,9 @@
-//! The fixed-point blob (number format 1): the normal-form cascade of [`crate::fixed`], its
+//! The fixed-point blob (number format 1): the normal-form cascade of [`crate::board::fixed`], its
 //! encoder and its parser.
 
 use super::header::{self, Fields};
 use super::{encoded_len_fixed, BlobError, NumberFormat, FORMAT_VERSION};
-use crate::fixed::{FixedCascade, FixedSection, STATE_BITS};
+use crate::board::fixed::{FixedCascade, FixedSection, STATE_BITS};
 
 /// The number format this module reads and writes: fractional bits [`STATE_BITS`].
 #[allow(clippy::cast_possible_truncation)]
@@ -42,14 +42,14 @@ impl<const N: usize> FixedCoefficientSet<N> {
 
 /// Parses and validates a fixed-point blob (number format 1) for a board with room for `N`
 /// sections: the same header checks as [`super::parse`], then the fractional bits, the full scale and
-/// every section as [`crate::fixed::FixedCascade::new`] checks it.
+/// every section as [`crate::board::fixed::FixedCascade::new`] checks it.
 ///
 /// # Errors
 /// The first [`BlobError`] found; never panics, whatever the bytes.
 ///
 /// ```
-/// use unlag::blob::{self, BlobError};
-/// use unlag::fixed::{FixedSection, FixedState};
+/// use unlag::board::blob::{self, BlobError};
+/// use unlag::board::fixed::{FixedSection, FixedState};
 ///
 /// let sections = [FixedSection::IDENTITY; 2];
 /// let mut buf = [0u8; blob::encoded_len_fixed(2)];

@@ -6,7 +6,7 @@ use super::{
     encoded_len, encoded_len_nonlinear, BlobError, NumberFormat, FORMAT_VERSION,
     FORMAT_VERSION_NONLINEAR,
 };
-use crate::compensator::{CascadeCoefficients, NonlinearDampingCoefficients};
+use crate::board::compensator::{CascadeCoefficients, NonlinearDampingCoefficients};
 
 /// A validated coefficient set received from the host: the board's compensator and what it
 /// belongs to. Holding one means every field passed [`parse`].
@@ -34,7 +34,7 @@ impl<const N: usize> CoefficientSet<N> {
     /// See [`parse`].
     ///
     /// ```
-    /// use unlag::blob::{self, BlobError, CoefficientSet};
+    /// use unlag::board::blob::{self, BlobError, CoefficientSet};
     ///
     /// let mut old = [0u8; blob::encoded_len(1)];
     /// let n = blob::encode(&mut old, 10_000.0, 3, 1.0, &[[1.0, 0.0, 0.0, -0.5, 0.0]])?;
@@ -65,7 +65,7 @@ impl<const N: usize> CoefficientSet<N> {
 /// Checks, in order: length of the fixed header, magic, format version, total length against
 /// the section count, CRC-32, reserved bytes, sample rate, number format, fractional bits,
 /// section count against `N`, and finally every coefficient (finite, each section stable by
-/// [`crate::compensator::MIN_POLE_MARGIN`]).
+/// [`crate::board::compensator::MIN_POLE_MARGIN`]).
 ///
 /// # Errors
 /// The first [`BlobError`] found; never panics, whatever the bytes.

@@ -301,7 +301,7 @@ pub struct BlobHeader {
 /// [`BlobError::UnsupportedNumberFormat`] for an unknown number format code.
 ///
 /// ```
-/// use unlag::blob::{self, NumberFormat};
+/// use unlag::board::blob::{self, NumberFormat};
 /// let mut buf = [0u8; blob::encoded_len(1)];
 /// let n = blob::encode(&mut buf, 10_000.0, 3, 0.5, &[[1.0, -0.5, 0.0, -0.25, 0.0]]).unwrap();
 /// let header = blob::read_header(&buf[..n]).unwrap();

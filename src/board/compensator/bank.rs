@@ -43,7 +43,7 @@
 //! bounds-checked lookup and [`CascadeCoefficients::process`] (two while a set warms up).
 //!
 //! ```
-//! use unlag::compensator::TemperatureBank;
+//! use unlag::board::compensator::TemperatureBank;
 //! // Two one-section sets, at 273 K and 313 K: the hysteresis is half the step.
 //! let bank = TemperatureBank::<f32, 2, 1>::new(
 //!     &[273.0, 313.0],
@@ -231,7 +231,7 @@ impl<T: Sample, const SETS: usize, const N: usize> TemperatureBank<T, SETS, N> {
     /// different section counts, or a set [`CascadeCoefficients::new`] refuses.
     ///
     /// ```
-    /// use unlag::compensator::{BankError, TemperatureBank};
+    /// use unlag::board::compensator::{BankError, TemperatureBank};
     ///
     /// let sets = [[[0.5, 0.0, 0.0, -0.5, 0.0]], [[0.6, 0.0, 0.0, -0.4, 0.0]]];
     /// let bank = TemperatureBank::<f32, 2, 1>::new(&[273.0, 313.0], &[1.0, 1.0], &sets, 20.0, 0);

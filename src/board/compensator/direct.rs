@@ -32,7 +32,7 @@ impl<T: Sample, const M: usize> InverseCoefficients<T, M> {
     /// or `B(z)` has a zero on or outside the unit circle.
     ///
     /// ```
-    /// use unlag::compensator::{InverseCoefficients, InverseError, InverseState};
+    /// use unlag::board::compensator::{InverseCoefficients, InverseError, InverseState};
     ///
     /// // The probe y[k] = 0.5 u[k] + 0.5 y[k-1]: its inverse is u = 2 y[k] - y[k-1].
     /// let c = InverseCoefficients::<f32, 2>::new(&[0.5], &[-0.5])?;

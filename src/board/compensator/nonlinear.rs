@@ -16,7 +16,7 @@ use super::{CascadeCoefficients, CascadeState, InverseError, Sample};
 /// into the first).
 ///
 /// ```
-/// use unlag::compensator::NonlinearDampingCoefficients;
+/// use unlag::board::compensator::NonlinearDampingCoefficients;
 ///
 /// // g fs^2 = 0.3 through the one-section low-pass 0.5 / (1 - 0.5 z^-1).
 /// let c = NonlinearDampingCoefficients::<f32, 1>::new(0.3, 0.5, &[[1.0, 0.0, 0.0, -0.5, 0.0]])?;
@@ -28,7 +28,7 @@ use super::{CascadeCoefficients, CascadeState, InverseError, Sample};
 /// for (t, e) in terms.iter().zip(expected) {
 ///     assert!((t - e).abs() < 1e-6, "{terms:?}");
 /// }
-/// # Ok::<(), unlag::compensator::InverseError>(())
+/// # Ok::<(), unlag::board::compensator::InverseError>(())
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NonlinearDampingCoefficients<T, const N: usize> {

@@ -1,7 +1,7 @@
 //! The cheaper fixed-point form: direct-form-I biquads with first-order error feedback.
 //!
 //! This module owns the per-sample integer arithmetic of [`DirectCascade`], the alternative to
-//! the normal-form [`crate::fixed::FixedCascade`] that costs about a third of its instructions
+//! the normal-form [`crate::board::fixed::FixedCascade`] that costs about a third of its instructions
 //! on a Cortex-M4 and gives up part of its guarantees (see "What it guarantees" below, and the
 //! trade table in BENCHMARKS.md). Coefficients are planned on the host
 //! (`crate::design::quantise::DirectPlan`) and validated once, in [`DirectCascade::new`].
@@ -95,7 +95,7 @@ impl DirectSection {
     /// as Q2.30 numbers.
     ///
     /// ```
-    /// use unlag::fixed::{direct::DirectSection, I2F30};
+    /// use unlag::board::fixed::{direct::DirectSection, I2F30};
     ///
     /// let q = I2F30::from_num;
     /// let lag = DirectSection::from_q([q(0.5), q(0.0), q(0.0)], [q(0.5), q(0.0)]);
@@ -278,7 +278,7 @@ impl<const N: usize> DirectCascade<N> {
     /// A [`DirectError`] naming the section.
     ///
     /// ```
-    /// use unlag::fixed::direct::{DirectCascade, DirectError, DirectSection, DirectState};
+    /// use unlag::board::fixed::direct::{DirectCascade, DirectError, DirectSection, DirectState};
     ///
     /// const HALF: i32 = 1 << 29; // 0.5 in Q2.30
     /// // y[n] = 0.5 x[n] + 0.5 y[n-1], then an identity: a DC gain of one.
@@ -350,8 +350,8 @@ impl<const N: usize> DirectCascade<N> {
     /// cost; the block functions stay on `i32` codes, the words an ADC's DMA writes.
     ///
     /// ```
-    /// use unlag::fixed::direct::{DirectCascade, DirectSection, DirectState};
-    /// use unlag::fixed::I1F31;
+    /// use unlag::board::fixed::direct::{DirectCascade, DirectSection, DirectState};
+    /// use unlag::board::fixed::I1F31;
     ///
     /// // The host's plan for F = 4000 Pa with output exponent e = 1: a section that halves the
     /// // codes (y[n] = 0.5 x[n]) while the output's unit doubles, one bit of headroom at gain 1.
@@ -366,7 +366,7 @@ impl<const N: usize> DirectCascade<N> {
     /// assert_eq!(y.to_num::<f64>(), -0.125); // of F * 2^e
     /// assert_eq!(y.to_num::<f64>() * full_scale * 2f64.powi(output_exponent), -1000.0); // Pa
     /// assert_eq!(y.to_bits(), c.process(&mut state, u.to_bits())); // the same bits as i32
-    /// # Ok::<(), unlag::fixed::direct::DirectError>(())
+    /// # Ok::<(), unlag::board::fixed::direct::DirectError>(())
     /// ```
     #[inline]
     pub fn process_q(&self, state: &mut DirectState<N>, input: I1F31) -> I1F31 {
@@ -464,7 +464,7 @@ impl<const N: usize> DirectCascade<N> {
 /// the portable Rust code. Both compute the same bits.
 ///
 /// ```
-/// use unlag::fixed::direct::uses_kernel;
+/// use unlag::board::fixed::direct::uses_kernel;
 ///
 /// // There are kernels for 1 to 4 sections only, and none on the host.
 /// assert!(!uses_kernel(5));

@@ -66,7 +66,7 @@ impl core::error::Error for InputError {}
 /// `i32` range is clamped to it, and counted by [`AdcInput::block`].
 ///
 /// ```
-/// use unlag::fixed::input::AdcInput;
+/// use unlag::board::fixed::input::AdcInput;
 ///
 /// // A 16-bit ADC reading +-3000 Pa; the plan was made for +-2000 Pa.
 /// let input = AdcInput::new(16, 3000.0, 2000.0)?;
@@ -79,7 +79,7 @@ impl core::error::Error for InputError {}
 /// let matching = AdcInput::matching(16)?;
 /// assert_eq!(matching.block(&readings, &mut codes), 0);
 /// assert_eq!(codes, [0, 6000 << 16, 21_845 << 16, 21_846 << 16, i32::MIN]);
-/// # Ok::<(), unlag::fixed::input::InputError>(())
+/// # Ok::<(), unlag::board::fixed::input::InputError>(())
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

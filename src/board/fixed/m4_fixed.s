@@ -1,4 +1,4 @@
-@ The fixed-point cascade (`unlag::fixed::FixedCascade::process`) for Thumb-2 cores with the
+@ The fixed-point cascade (`unlag::board::fixed::FixedCascade::process`) for Thumb-2 cores with the
 @ 32x32->64 multiplies (SMULL/SMLAL) and SSAT: Cortex-M3/M4/M7/M33 and up. Hand-written; the
 @ same integer arithmetic as the portable Rust code, so the same bits.
 @

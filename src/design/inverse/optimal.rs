@@ -110,7 +110,9 @@ fn best_band_limited(
     };
     let score = |fc: f64| -> Option<(f64, super::Design, Budget)> {
         let d = super::design(model, fc, &inverse_options).ok()?;
-        if d.latency_samples > max_latency || d.pole_margin < crate::compensator::MIN_POLE_MARGIN {
+        if d.latency_samples > max_latency
+            || d.pole_margin < crate::board::compensator::MIN_POLE_MARGIN
+        {
             return None;
         }
         let b = budget(model, d.gain, &d.sections, d.latency_samples, noise, prior);
@@ -347,7 +349,7 @@ fn design_for(
                 }
             })
             .fold(0.0, f64::max);
-    if pole_margin.is_nan() || pole_margin < crate::compensator::MIN_POLE_MARGIN {
+    if pole_margin.is_nan() || pole_margin < crate::board::compensator::MIN_POLE_MARGIN {
         return Err(crate::design::DesignError::SmootherPoleMargin {
             margin: pole_margin,
         }

@@ -1,5 +1,5 @@
 //! From a designed compensator (f64 second-order sections) to the board's direct-form
-//! fixed-point one ([`crate::fixed::direct::DirectCascade`]): scaling and quantisation, chosen
+//! fixed-point one ([`crate::board::fixed::direct::DirectCascade`]): scaling and quantisation, chosen
 //! once on the host.
 //!
 //! This module owns [`DirectPlan`]. Each section keeps the design's denominator, quantised to
@@ -17,13 +17,12 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{impulse_len, TARGET};
-use crate::design::inverse::Design;
-use crate::design::DesignError;
-use crate::error::Result;
-use crate::fixed::direct::{
+use super::{impulse_len, Cascade, TARGET};
+use crate::board::fixed::direct::{
     DirectCascade, DirectSection, DirectState, COEFFICIENT_BITS, MAX_COEFFICIENT_SUM,
 };
+use crate::design::DesignError;
+use crate::error::Result;
 
 /// One section of a direct-form plan: the board's integers and the bounds behind them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -129,8 +128,9 @@ impl DirectPlan {
     /// [`DesignError`] when the design has no sections or a pole on or outside the unit circle,
     /// a coefficient cannot be represented, a bound is not finite or leaves no headroom, or the
     /// quantised cascade is refused by the board's validation.
-    pub fn new(design: &Design, full_scale: f64) -> Result<Self> {
-        let len = impulse_len(design, full_scale)?;
+    pub fn new<'a>(design: impl Into<Cascade<'a>>, full_scale: f64) -> Result<Self> {
+        let design = design.into();
+        let len = impulse_len(&design, full_scale)?;
         let mut input = vec![0.0; len];
         if let Some(first) = input.first_mut() {
             *first = 1.0;

@@ -1,6 +1,6 @@
 /* ---- Reference implementation: the f32 cascade --------------------------------------------
  *
- * unlag::compensator::CascadeCoefficients::<f32, UNLAG_SECTION_COUNT>::process in C99 (stdint.h
+ * unlag::board::compensator::CascadeCoefficients::<f32, UNLAG_SECTION_COUNT>::process in C99 (stdint.h
  * only: no libm, no allocation), bit for bit, on a target where float is IEEE single
  * precision evaluated as float (FLT_EVAL_METHOD 0: any FPU or soft-float library; not the
  * x87) and a * b + c is not fused into one rounding. Build with -ffp-contract=off: GCC fuses

@@ -1,6 +1,6 @@
 /* ---- Reference implementation: the fixed-point cascade in normal form ---------------------
  *
- * unlag::fixed::FixedCascade::<UNLAG_SECTION_COUNT>::process in C99 (stdint.h only: no libm,
+ * unlag::board::fixed::FixedCascade::<UNLAG_SECTION_COUNT>::process in C99 (stdint.h only: no libm,
  * no allocation, no undefined behaviour), bit for bit: integer arithmetic is exact. Only
  * unlag_init uses floating point (double, as the board's equilibrium does); it matches the
  * board where double is IEEE double evaluated as double and not fused (-ffp-contract=off).

@@ -1,6 +1,6 @@
 /* ---- Reference implementation: the nonlinear-damping correction ---------------------------
  *
- * unlag::compensator::NonlinearDampingCoefficients::<f32, UNLAG_NONLINEAR_SECTION_COUNT>
+ * unlag::board::compensator::NonlinearDampingCoefficients::<f32, UNLAG_NONLINEAR_SECTION_COUNT>
  * in C99, bit for bit under the same conditions as unlag_process above. Add its output to
  * unlag_process's for the same probe sample:
  *

@@ -2,10 +2,10 @@
 //! with effects is judged by, and the first change made as the user's fit will make it.
 
 use super::{mean, Candidate, Current, Remedy};
-use crate::file::error_rose;
 use crate::fit::model::Model;
 use crate::fit::{Options, Order, Test};
 use crate::modelling::effects::{self, Effect, FitChanges};
+use crate::modelling::error_rose;
 use crate::modelling::evidence::TestEvidence;
 
 /// A trial on a record longer than this refits on this many samples from just before the step

@@ -71,7 +71,7 @@ pub fn rms(nrmse: &[f64]) -> f64 {
 }
 
 /// The tests whose error the loss raises over the best single linear model's by more than a
-/// refit's warning ([`crate::file::error_rose`]), said for a note or a reading: `None` where
+/// refit's warning ([`crate::modelling::error_rose`]), said for a note or a reading: `None` where
 /// it raises none. A loss the tests fitted together agree on lowers each test's error, or
 /// leaves it; bank seed 152's case 043 (a light loss, 1.16x in all) took est.csv from
 /// 0.306 % to 0.220 % and val.csv from 0.247 % to 0.258 %, and a further run held out rose
@@ -81,7 +81,7 @@ pub fn rises_with_loss(names: &[&str], linear: &[f64], joint: &[f64]) -> Option<
     let risen: Vec<String> = names
         .iter()
         .zip(linear.iter().zip(joint))
-        .filter(|(_, (l, j))| crate::file::error_rose(**l, **j))
+        .filter(|(_, (l, j))| crate::modelling::error_rose(**l, **j))
         .map(|(n, (l, j))| format!("{n} ({:.3} % -> {:.3} %)", 100.0 * l, 100.0 * j))
         .collect();
     (!risen.is_empty()).then(|| {

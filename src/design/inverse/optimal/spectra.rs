@@ -109,9 +109,7 @@ impl SignalPrior {
     }
 }
 
-/// Fewest quiet samples before a step that the noise is measured on; a test with fewer (a
-/// traverse, a balloon burst at once) gives its noise from its highest frequencies.
-pub const MIN_QUIET: usize = 64;
+pub use crate::fit::step::MIN_QUIET;
 
 /// Measures both channels' noise on `tests`: before the step where there are at least 64 quiet
 /// samples (with an AR(1) part when the quiet segment is correlated), else from first

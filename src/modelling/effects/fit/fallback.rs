@@ -306,11 +306,11 @@ fn slower_than(model: &Model, samples: f64) -> Option<f64> {
 const OFFSET_GAIN: f64 = 0.9;
 
 /// The mean of what `model` leaves of the probe signal before the step, when the quiet
-/// segment (at least [`crate::design::inverse::optimal::MIN_QUIET`] samples) shows it clearly:
+/// segment (at least [`crate::fit::step::MIN_QUIET`] samples) shows it clearly:
 /// five standard errors from zero (its independent samples counted as a correlated noise
 /// leaves them), and at least half the segment's noise.
 fn pre_step_offset(model: &Model, test: &Test<'_>, onset: usize) -> Option<f64> {
-    if onset < crate::design::inverse::optimal::MIN_QUIET {
+    if onset < crate::fit::step::MIN_QUIET {
         return None;
     }
     let simulated = model.simulate(test.u.get(..onset)?);

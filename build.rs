@@ -36,6 +36,8 @@ fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=memory.x");
     println!("cargo:rustc-check-cfg=cfg(unlag_armv7m)");
+    // Set only by bench/board.sh, which links CMSIS-DSP into examples/bench_board.rs.
+    println!("cargo:rustc-check-cfg=cfg(unlag_bench_cmsis)");
     let target = env::var("TARGET").unwrap_or_default();
     let bare_metal = env::var("CARGO_CFG_TARGET_OS").is_ok_and(|os| os == "none");
     if bare_metal && (target.starts_with("thumbv7m-") || target.starts_with("thumbv7em-")) {

@@ -1,7 +1,8 @@
 //! Board benchmark: instructions per sample of the `f32` compensator on a Cortex-M4F in QEMU,
 //! for model orders m = 2, 4, 8 (m/2 second-order sections), called once per sample (ISR
 //! style, state by reference) and over a block, with the `idsp` crate's biquad cascade run
-//! beside it on the same coefficients and samples as the baseline.
+//! beside it on the same coefficients and samples as the baseline, and CMSIS-DSP's when
+//! `bash bench/board.sh` links it in.
 //!
 //! ```sh
 //! bash bench/board.sh          # builds, runs in QEMU, prints the Markdown table
@@ -15,7 +16,10 @@
 //!
 //! The benchmarks live beside it in `bench_board/`: `float.rs` (the `f32` compensator and
 //! idsp's `f32` cascade), `fixed_point.rs` (the fixed-point forms and idsp's `Q32<30>`
-//! cascade) and `effects.rs` (the nonlinear-damping correction and the temperature bank).
+//! cascade), `effects.rs` (the nonlinear-damping correction and the temperature bank) and
+//! `cmsis.rs` (CMSIS-DSP's `f32` and Q31 biquad cascades: only with `--cfg unlag_bench_cmsis`
+//! and the static library bench/board.sh builds from CMSIS-DSP's sources; a plain
+//! `cargo build` leaves it out).
 //!
 //! On the host this example only prints how to run it.
 #![cfg_attr(target_os = "none", no_std, no_main)]
@@ -213,6 +217,10 @@ mod board {
     }
 }
 
+/// CMSIS-DSP's biquads, linked only by `bash bench/board.sh` (`--cfg unlag_bench_cmsis`).
+#[cfg(all(target_os = "none", unlag_bench_cmsis))]
+#[path = "bench_board/cmsis.rs"]
+mod cmsis;
 #[cfg(target_os = "none")]
 #[path = "bench_board/effects.rs"]
 mod effects;

@@ -152,6 +152,8 @@ pub fn bench_direct<const K: usize>(
     }
     let out_scale = libm::exp2(f64::from(output_exponent) - 31.0) * direct::FULL_SCALE;
     let mut y = [0i32; N];
+    #[cfg(unlag_bench_cmsis)]
+    let mut y_direct = [0i32; N];
     let mut ok = true;
     let mut check = |name: &str, mode: &str, y: &[i32], overflowed: bool, required: bool| {
         let e = y
@@ -187,6 +189,8 @@ pub fn bench_direct<const K: usize>(
         });
         report("direct", m, "call", N, t);
         check("direct", "call", &y, s.overflowed(), true);
+        #[cfg(unlag_bench_cmsis)]
+        y_direct.copy_from_slice(&y);
     }
     {
         let c = black_box(&c);
@@ -212,6 +216,21 @@ pub fn bench_direct<const K: usize>(
         report("idspq", m, "call", N, t);
         check("idspq", "call", &y, false, false);
     }
+    // CMSIS-DSP (only when bench/board.sh links it) on the same integers, compared with
+    // idsp's output and unlag's direct form too.
+    #[cfg(unlag_bench_cmsis)]
+    crate::cmsis::bench_q31(
+        &sections.map(|s| {
+            let [b0, b1, b2] = s.b;
+            let [na1, na2] = s.neg_a;
+            [b0, b1, b2, na1, na2]
+        }),
+        &codes,
+        out_scale,
+        reference,
+        &y,
+        &y_direct,
+    );
     {
         let c = black_box(&idsp);
         let mut s = DirectForm::<i32, K> {

@@ -77,8 +77,9 @@ pub fn bench<const K: usize>(x: &[f32; N], y: &mut [f32; N], reference: &mut [f6
     }
     // idsp: the same sections in its convention ([b0, b1, b2, -a1, -a2]), gain folded
     // into the first section's numerator.
+    // CMSIS-DSP's biquads take the same arrays.
     let mut first = true;
-    let ba: [Biquad<f32>; K] = core::array::from_fn(|i| {
+    let ba: [[f32; 5]; K] = core::array::from_fn(|i| {
         let [b0, b1, b2, a1, a2] = sections
             .get(i)
             .copied()
@@ -89,9 +90,9 @@ pub fn bench<const K: usize>(x: &[f32; N], y: &mut [f32; N], reference: &mut [f6
             1.0
         };
         #[allow(clippy::cast_possible_truncation)]
-        Biquad::from([b0 * g, b1 * g, b2 * g, -a1, -a2].map(|v| v as f32))
+        [b0 * g, b1 * g, b2 * g, -a1, -a2].map(|v| v as f32)
     });
-    let idsp = Cascade(ba);
+    let idsp = Cascade(ba.map(Biquad::from));
     let mut ok = true;
     let mut check = |name: &str, mode: &str, y: &[f32], reference: &[f64]| {
         let e = max_diff(y, reference);
@@ -119,6 +120,11 @@ pub fn bench<const K: usize>(x: &[f32; N], y: &mut [f32; N], reference: &mut [f6
         report("unlag", m, "call", N, t);
         check("unlag", "call", y, reference);
     }
+    // CMSIS-DSP (only when bench/board.sh links it), compared with unlag's output too.
+    #[cfg(unlag_bench_cmsis)]
+    let cmsis_ok = crate::cmsis::bench_f32(&ba, x, reference, y);
+    #[cfg(not(unlag_bench_cmsis))]
+    let cmsis_ok = true;
     // unlag, block in place: 1024, then 512 (the difference is the marginal cost).
     {
         let c = black_box(&c);
@@ -165,5 +171,5 @@ pub fn bench<const K: usize>(x: &[f32; N], y: &mut [f32; N], reference: &mut [f6
         });
         report("idsp", m, "block", N / 2, t);
     }
-    ok
+    ok && cmsis_ok
 }

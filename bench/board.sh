@@ -185,7 +185,7 @@ if has_cmsis:
              + ("bit-identical to `direct`" if agree_direct.get("cmsq64", 1) == 0
                 else f"within {agree_direct.get('cmsq64')} codes of `direct`") + ".")
 else:
-    lines.append("**CMSIS-DSP could not be fetched or built in this run: its rows are missing.**")
+    lines.append("**CMSIS-DSP was not measured in this run (not wanted, or it could not be fetched or built): its rows are missing.**")
 lines.append("")
 lines.append("Command: `bash bench/board.sh --update`. Measured " + measured + "; " + rustc_v + ", " + qemu_v + ".")
 lines.append("")

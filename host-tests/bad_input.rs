@@ -837,6 +837,8 @@ fn an_output_replaces_only_its_own_kind_of_file_and_never_a_read_only_one() {
     let other = tmp("other_recording.csv");
     std::fs::copy(&csv, &other).unwrap();
     let not = |what: &str| format!("exists and is not {what}");
+    let fit_model = tmp("report_in_the_way.toml");
+    let _ = std::fs::remove_file(&fit_model);
     for (args, what) in [
         (
             vec!["compensate", m, &csv, "-o", &other],
@@ -851,6 +853,18 @@ fn an_output_replaces_only_its_own_kind_of_file_and_never_a_read_only_one() {
             "an output of unlag export",
         ),
         (vec!["report", m, &est, "-o", &other], "an unlag report"),
+        (
+            vec!["compare", m, &est, "--report", &other],
+            "an unlag report",
+        ),
+        (
+            vec!["diagnose", m, &est, "--report", &other],
+            "an unlag report",
+        ),
+        (
+            vec!["fit", &est, "-o", &fit_model, "--report", &other],
+            "an unlag report",
+        ),
     ] {
         refuses(&args, Some(&other), &not(what));
         refuses(&args, Some(&other), "--force");
@@ -870,7 +884,13 @@ fn an_output_replaces_only_its_own_kind_of_file_and_never_a_read_only_one() {
     for format in ["c", "rust", "bin", "c"] {
         ok(&["export", m, "--format", format, "-o", &code]);
     }
+    // Refused before any work: fit wrote no model.
+    assert!(!Path::new(&fit_model).exists());
     // --force replaces another file.
+    let page = tmp("other_for_a_report.csv");
+    std::fs::copy(&csv, &page).unwrap();
+    ok(&["compare", m, &est, "--report", &page, "--force"]);
+    assert!(std::fs::read_to_string(&page).unwrap().contains("<html"));
     ok(&["simulate", m, &csv, "-o", &other, "--force"]);
     assert_ne!(std::fs::read(&other).unwrap(), std::fs::read(&csv).unwrap());
     // A read-only file is never replaced, not even an own output under --force.

@@ -71,6 +71,10 @@ pub struct FitArgs {
     /// Also write the HTML report of the fitted model against the tests (as `unlag report`).
     #[arg(long, value_name = "REPORT.html")]
     pub report: Option<PathBuf>,
+    /// Replace an existing file at --report's path that is not an unlag report (a read-only
+    /// file is never replaced). The model output is replaced only when it is a model file.
+    #[arg(long, requires = "report")]
+    pub force: bool,
     /// Compensator design (on the validation tests, or the estimation test if there are none).
     #[command(flatten)]
     pub inverse: InverseArgs,

@@ -534,6 +534,7 @@ impl Command {
         // An existing file in the way is replaced only when it is the command's own output
         // (or under --force), and never when read-only.
         type Own = fn(&[u8]) -> bool;
+        const REPORT: &str = "an unlag report (its page title)";
         let replaces: Option<(&Path, Own, &str, bool)> = match self {
             Self::Compensate(a) => Some((
                 &a.output,
@@ -553,12 +554,15 @@ impl Command {
                 "an output of unlag export (its banner comment or blob magic)",
                 a.force,
             )),
-            Self::Report(a) => Some((
-                &a.output,
-                replace::report_html,
-                "an unlag report (its page title)",
-                a.force,
-            )),
+            Self::Report(a) => Some((&a.output, replace::report_html, REPORT, a.force)),
+            Self::Fit(a) => a
+                .report
+                .as_deref()
+                .map(|page| (page, replace::report_html as Own, REPORT, a.force)),
+            Self::Compare(a) | Self::Diagnose(a) => a
+                .report
+                .as_deref()
+                .map(|page| (page, replace::report_html as Own, REPORT, a.force)),
             _ => None,
         };
         if let Some((path, own, what, force)) = replaces {

@@ -34,6 +34,10 @@ pub struct LoopArgs {
     /// Also write the HTML report (as `unlag report`).
     #[arg(long, value_name = "REPORT.html")]
     pub report: Option<PathBuf>,
+    /// Replace an existing file at --report's path that is not an unlag report (a read-only
+    /// file is never replaced).
+    #[arg(long, requires = "report")]
+    pub force: bool,
 }
 
 struct Loaded {

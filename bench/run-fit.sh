@@ -53,18 +53,18 @@ echo
 
 if [ "${BENCH_FIT_5E6:-0}" = 1 ]; then sizes="$sizes 5e6"; fi
 
-echo "| rows | unlag fit (default), wall | peak memory | per sample | order / delay | numpy/scipy SM + OE, same order and delay | baseline / unlag | validation nrmse unlag | validation nrmse baseline | one pass over the file (cat) |"
-echo "|---|---|---|---|---|---|---|---|---|---|"
+echo "| rows | unlag fit (default), wall | its CPU time | peak memory | per sample | order / delay | numpy/scipy SM + OE, same order and delay | baseline / unlag | validation nrmse unlag | validation nrmse baseline | one pass over the file (cat) |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|"
 for n in $sizes; do
   dir=$(fit_data "$n")
   rm -f "$dir/m.toml"
-  /usr/bin/time -f "%e %M" -o "$dir/time.txt" "$unlag" fit "$dir/est.csv" -o "$dir/m.toml" > "$dir/fit.log" 2>&1
-  read -r wall kb < "$dir/time.txt"
+  /usr/bin/time -f "%e %M %U %S" -o "$dir/time.txt" "$unlag" fit "$dir/est.csv" -o "$dir/m.toml" > "$dir/fit.log" 2>&1
+  read -r wall kb user sys < "$dir/time.txt"
   "$venv/bin/python" bench/fit_baseline.py fit "$dir" "$dir/m.toml" > "$dir/baseline.txt"
   get() { awk -v k="$1" '$1 == "RESULT" && $2 == k { print $3 }' "$dir/baseline.txt"; }
   base=$(get baseline_seconds)
   rows=$(python3 -c "print(int(float('$n')))")
-  echo "| $n | ${wall} s | $(( kb / 1024 )) MB | $(python3 -c "print(f'{$kb * 1024 / $rows:.0f} B')") | $(get order) / $(get delay) | ${base} s | $(python3 -c "print(f'{$base / $wall:.2f}x')") | $(python3 -c "print(f'{100 * $(get unlag_val_nrmse):.4f} %')") | $(python3 -c "print(f'{100 * $(get baseline_val_nrmse):.4f} %')") | $(one_pass "$dir/est.csv") |"
+  echo "| $n | ${wall} s | $(python3 -c "print(f'{$user + $sys:.2f} s')") | $(( kb / 1024 )) MB | $(python3 -c "print(f'{$kb * 1024 / $rows:.0f} B')") | $(get order) / $(get delay) | ${base} s | $(python3 -c "print(f'{$base / $wall:.2f}x')") | $(python3 -c "print(f'{100 * $(get unlag_val_nrmse):.4f} %')") | $(python3 -c "print(f'{100 * $(get baseline_val_nrmse):.4f} %')") | $(one_pass "$dir/est.csv") |"
 done
 echo
 echo "date: $(date -u '+%Y-%m-%d %H:%M UTC'); git $(git rev-parse --short HEAD); binary $unlag; CPU: $(grep -m1 '^model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//'), $(nproc) cores; load average $(cut -d' ' -f1-3 /proc/loadavg)"

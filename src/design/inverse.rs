@@ -38,6 +38,7 @@ pub mod method;
 pub mod optimal;
 mod reconstruct;
 
+pub(crate) use filter::cascade_response_at_inverse;
 pub(crate) use filter::{c, noise_gain, unit, unwrap};
 pub use filter::{cascade_response, lowpass, model_response, to_sections, Zpk};
 #[cfg(test)]
@@ -250,6 +251,27 @@ pub(crate) fn numerator_after_delay<'m>(
 /// `stabilise` is off and `B` is not minimum phase, [`DesignError`] when `B(1) = 0` (the
 /// probe does not pass DC), [`crate::poly::PolyError`] when root finding fails.
 pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
+    Ok(design_core(model, fc, options)?.finish(model, fc, options))
+}
+
+/// The part of a [`design`] a corner search scores by: the cascade, its latency and pole
+/// margin, before the responses on a frequency grid and the noise gain that only the chosen
+/// corner's [`Design`] reports ([`Core::finish`]).
+pub(crate) struct Core {
+    pub(crate) gain: f64,
+    pub(crate) sections: Vec<[f64; 5]>,
+    pub(crate) latency: f64,
+    pub(crate) pole_margin: f64,
+    lp: Zpk,
+    reflected: Vec<String>,
+    pulled: Vec<String>,
+}
+
+/// [`design`] up to its [`Core`].
+///
+/// # Errors
+/// As [`design`] (the rest of it cannot fail).
+pub(crate) fn design_core(model: &Model, fc: f64, options: &Options) -> Result<Core> {
     let fs = model.fs;
     let (lead, b) = numerator_after_delay(model, "inverse")?;
     let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
@@ -314,85 +336,109 @@ pub fn design(model: &Model, fc: f64, options: &Options) -> Result<Design> {
     all.gain *= lp.gain;
     let (gain, sections) = to_sections(&all);
     let pole_margin = 1.0 - all.poles.iter().map(|p| p.norm()).fold(0.0, f64::max);
-
-    // Numbers on a frequency grid up to Nyquist.
-    let n = 4000;
-    let freqs: Vec<f64> = (1..=n).map(|i| 0.5 * fs * i as f64 / n as f64).collect();
-    let h: Vec<Complex> = freqs
-        .iter()
-        .map(|&f| model_response(model, unit(f, fs)))
-        .collect();
-    let cc: Vec<Complex> = freqs
-        .iter()
-        .map(|&f| cascade_response(gain, &sections, unit(f, fs)))
-        .collect();
-    let lpr: Vec<Complex> = freqs.iter().map(|&f| lp.eval(unit(f, fs))).collect();
-    let t: Vec<Complex> = h.iter().zip(&cc).map(|(a, b)| *a * *b).collect();
-    let phase_t = unwrap(&t);
     // Latency: `H C = z^-d (B / B_moved) LP`, so the model's delay (leading zeros of b
     // included) plus the group delay at DC of the moved zeros' ratio and of the low-pass. The
     // model's own slow dynamics (a leak's pole and zero next to z = 1) cancel in `H C` and
     // never enter it.
-    let f_ref = (fs * 1e-4).min(fc * 0.01);
     let latency = (model.delay + lead) as f64 + group_delay_at_dc(&moved, &lp);
-    let mut bandwidth = 0.5 * fs;
-    for ((f, tv), ph) in freqs.iter().zip(&t).zip(&phase_t) {
-        let mag_db = 20.0 * tv.norm().log10();
-        let ph_err = (ph + 2.0 * PI * f / fs * latency).to_degrees();
-        if mag_db.abs() > 1.0 || ph_err.abs() > 5.0 {
-            bandwidth = *f;
-            break;
-        }
-    }
-    // Error against the target LP (magnitude) and LP with the latency of model + all-pass.
-    let lp_latency = {
-        let v = lp.eval(unit(f_ref, fs));
-        -v.im.atan2(v.re) / (2.0 * PI * f_ref / fs)
-    };
-    let mut worst_db: f64 = 0.0;
-    let mut worst_deg: f64 = 0.0;
-    let ratio: Vec<Complex> = t.iter().zip(&lpr).map(|(a, b)| *a / *b).collect();
-    let phase_r = unwrap(&ratio);
-    for ((f, r), ph) in freqs.iter().zip(&ratio).zip(&phase_r) {
-        if *f > fc {
-            break;
-        }
-        worst_db = worst_db.max((20.0 * r.norm().log10()).abs());
-        let err = (ph + 2.0 * PI * f / fs * (latency - lp_latency)).to_degrees();
-        worst_deg = worst_deg.max(err.abs());
-    }
-    let method = if options.stabilise {
-        MethodKind::StableInverse
-    } else {
-        MethodKind::DirectInverse
-    };
-    Ok(Design {
-        method: DesignMethod::of(method),
-        lowpass: options.lowpass,
-        lowpass_order: options.lowpass_order,
-        lowpass_hz: fc,
-        bandwidth_selection: "given".into(),
+    Ok(Core {
         gain,
-        noise_gain: noise_gain(gain, &sections),
         sections,
-        latency_samples: latency,
-        latency_s: latency / fs,
-        corrected_bandwidth_hz: bandwidth,
-        in_band_magnitude_error_db: worst_db,
-        in_band_phase_error_deg: worst_deg,
+        latency,
         pole_margin,
-        reflected_zeros: reflected,
-        pulled_zeros: pulled,
-        candidates: Vec::new(),
-        reconstruction: Vec::new(),
-        fixed: None,
-        fixed_direct: None,
-        noise: None,
-        prior: None,
-        budget: None,
-        check: None,
-        model_sha256: None,
+        lp,
+        reflected,
+        pulled,
     })
+}
+
+impl Core {
+    /// The whole [`Design`] at the corner `fc` this core was made for.
+    pub(crate) fn finish(self, model: &Model, fc: f64, options: &Options) -> Design {
+        let Self {
+            gain,
+            sections,
+            latency,
+            pole_margin,
+            lp,
+            reflected,
+            pulled,
+        } = self;
+        let fs = model.fs;
+        // Numbers on a frequency grid up to Nyquist.
+        let n = 4000;
+        let freqs: Vec<f64> = (1..=n).map(|i| 0.5 * fs * i as f64 / n as f64).collect();
+        let h: Vec<Complex> = freqs
+            .iter()
+            .map(|&f| model_response(model, unit(f, fs)))
+            .collect();
+        let cc: Vec<Complex> = freqs
+            .iter()
+            .map(|&f| cascade_response(gain, &sections, unit(f, fs)))
+            .collect();
+        let lpr: Vec<Complex> = freqs.iter().map(|&f| lp.eval(unit(f, fs))).collect();
+        let t: Vec<Complex> = h.iter().zip(&cc).map(|(a, b)| *a * *b).collect();
+        let phase_t = unwrap(&t);
+        let f_ref = (fs * 1e-4).min(fc * 0.01);
+        let mut bandwidth = 0.5 * fs;
+        for ((f, tv), ph) in freqs.iter().zip(&t).zip(&phase_t) {
+            let mag_db = 20.0 * tv.norm().log10();
+            let ph_err = (ph + 2.0 * PI * f / fs * latency).to_degrees();
+            if mag_db.abs() > 1.0 || ph_err.abs() > 5.0 {
+                bandwidth = *f;
+                break;
+            }
+        }
+        // Error against the target LP (magnitude) and LP with the latency of model + all-pass.
+        let lp_latency = {
+            let v = lp.eval(unit(f_ref, fs));
+            -v.im.atan2(v.re) / (2.0 * PI * f_ref / fs)
+        };
+        let mut worst_db: f64 = 0.0;
+        let mut worst_deg: f64 = 0.0;
+        let ratio: Vec<Complex> = t.iter().zip(&lpr).map(|(a, b)| *a / *b).collect();
+        let phase_r = unwrap(&ratio);
+        for ((f, r), ph) in freqs.iter().zip(&ratio).zip(&phase_r) {
+            if *f > fc {
+                break;
+            }
+            worst_db = worst_db.max((20.0 * r.norm().log10()).abs());
+            let err = (ph + 2.0 * PI * f / fs * (latency - lp_latency)).to_degrees();
+            worst_deg = worst_deg.max(err.abs());
+        }
+        let method = if options.stabilise {
+            MethodKind::StableInverse
+        } else {
+            MethodKind::DirectInverse
+        };
+        Design {
+            method: DesignMethod::of(method),
+            lowpass: options.lowpass,
+            lowpass_order: options.lowpass_order,
+            lowpass_hz: fc,
+            bandwidth_selection: "given".into(),
+            gain,
+            noise_gain: noise_gain(gain, &sections),
+            sections,
+            latency_samples: latency,
+            latency_s: latency / fs,
+            corrected_bandwidth_hz: bandwidth,
+            in_band_magnitude_error_db: worst_db,
+            in_band_phase_error_deg: worst_deg,
+            pole_margin,
+            reflected_zeros: reflected,
+            pulled_zeros: pulled,
+            candidates: Vec::new(),
+            reconstruction: Vec::new(),
+            fixed: None,
+            fixed_direct: None,
+            noise: None,
+            prior: None,
+            budget: None,
+            check: None,
+            model_sha256: None,
+        }
+    }
 }
 
 impl<'a> From<&'a Design> for crate::design::quantise::Cascade<'a> {

@@ -118,8 +118,22 @@ pub fn fit(sets: &[Data<'_>], m: usize, d: usize) -> Result<Params> {
 /// # Errors
 /// As [`fit`].
 pub fn fit_nb(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> Result<Params> {
+    fit_nb_by(sets, m, nb, d, Reduction::General)
+}
+
+/// [`fit_nb`] with the blocks reduced by `reduction`.
+///
+/// # Errors
+/// As [`fit`].
+pub(crate) fn fit_nb_by(
+    sets: &[Data<'_>],
+    m: usize,
+    nb: usize,
+    d: usize,
+    reduction: Reduction,
+) -> Result<Params> {
     let cols = m + nb;
-    let (r, rows) = triangle(sets, m, nb, d);
+    let (r, rows) = triangle_by(sets, m, nb, d, reduction);
     if rows < cols {
         return Err(FitError::TooFewEquations {
             context: "arx".into(),
@@ -138,7 +152,8 @@ pub fn fit_nb(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> Result<Params
 
 /// One step of a blockwise QR: `R` of the triangle so far, `r_aug`, stacked on the `rows`
 /// rows below it in `block` (the triangle is written into `block`'s first rows here): `R` of
-/// all the rows so far, whatever their number, in one block's memory.
+/// all the rows so far, whatever their number, in one block's memory. faer's QR of the
+/// stacked matrix: what the fits' coefficients are computed with.
 pub(crate) fn fold(block: &mut Mat<f64>, r_aug: &Mat<f64>, rows: usize) -> Mat<f64> {
     let width = r_aug.nrows();
     for c in 0..width {
@@ -154,6 +169,88 @@ pub(crate) fn fold(block: &mut Mat<f64>, r_aug: &Mat<f64>, rows: usize) -> Mat<f
         .to_owned()
 }
 
+/// How a blockwise QR reduces each block.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Reduction {
+    /// [`fold`]: faer's QR of the stacked matrix, what the fitted coefficients come from.
+    General,
+    /// [`fold_structured`]: several times faster at the fits' shapes, the same `R` to
+    /// rounding; for the delay search, which ranks candidates by their loss and keeps none of
+    /// their coefficients.
+    Structured,
+}
+
+/// [`fold`] as the same step with the triangle's structure used: `R` of `r_aug` stacked on
+/// the `rows` rows of `block` below its first `r_aug.nrows()` (which it neither reads nor
+/// writes; the rows below are overwritten).
+///
+/// Householder reflections, one per column: reflection `j` touches row `j` of the triangle
+/// and the block's rows only, so a step costs `2 rows width^2` flops and no more, each
+/// reflection a pass of sums over contiguous columns (the block is column major). A general
+/// QR of the stacked matrix spends most of its time on packing and norm scaling at these
+/// shapes (a few to twenty columns). The same `R` up to rounding (and the signs of its rows).
+pub(crate) fn fold_structured(block: &mut Mat<f64>, r_aug: &Mat<f64>, rows: usize) -> Mat<f64> {
+    let width = r_aug.nrows();
+    let mut r = Mat::<f64>::zeros(width, width);
+    for c in 0..width {
+        for i in 0..=c {
+            r[(i, c)] = r_aug[(i, c)];
+        }
+    }
+    let rows = rows.min(block.nrows().saturating_sub(width));
+    let mut v = vec![0.0; rows];
+    for j in 0..width {
+        let Some(col) = block.col_mut(j).try_as_col_major_mut() else {
+            continue;
+        };
+        let Some(xj) = col.as_slice_mut().get(width..width + rows) else {
+            continue;
+        };
+        let sigma = dot(xj, xj);
+        if sigma == 0.0 {
+            // Nothing below the diagonal: the column is already reduced.
+            continue;
+        }
+        let alpha = r[(j, j)];
+        let norm = alpha.hypot(sigma.sqrt());
+        let beta = if alpha > 0.0 { -norm } else { norm };
+        // The reflection `I - tau w w^T`, `w = [1; x_j / (alpha - beta)]`.
+        let scale = 1.0 / (alpha - beta);
+        v.iter_mut()
+            .zip(xj.iter())
+            .for_each(|(o, x)| *o = x * scale);
+        let tau = (beta - alpha) / beta;
+        r[(j, j)] = beta;
+        for c in j + 1..width {
+            let Some(col) = block.col_mut(c).try_as_col_major_mut() else {
+                continue;
+            };
+            let Some(xc) = col.as_slice_mut().get_mut(width..width + rows) else {
+                continue;
+            };
+            let s = (r[(j, c)] + dot(&v, xc)) * tau;
+            r[(j, c)] -= s;
+            xc.iter_mut().zip(&v).for_each(|(x, w)| *x -= s * w);
+        }
+    }
+    r
+}
+
+/// `sum a[i] b[i]` in eight interleaved partial sums (independent chains the processor
+/// overlaps and vectorises).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for ((s, p), q) in acc.iter_mut().zip(x).zip(y) {
+            *s += p * q;
+        }
+    }
+    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7])) + tail
+}
+
 /// Rows of the regression reduced at a time: a block and the triangle so far stay in cache.
 const BLOCK_ROWS: usize = 2048;
 
@@ -163,6 +260,17 @@ const BLOCK_ROWS: usize = 2048;
 /// numbers, without the whole matrix.
 #[must_use]
 pub fn triangle(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> (Mat<f64>, usize) {
+    triangle_by(sets, m, nb, d, Reduction::General)
+}
+
+/// [`triangle`] with the blocks reduced by `reduction`.
+pub(crate) fn triangle_by(
+    sets: &[Data<'_>],
+    m: usize,
+    nb: usize,
+    d: usize,
+    reduction: Reduction,
+) -> (Mat<f64>, usize) {
     let start = m.max(nb.saturating_sub(1)) + d;
     let cols = m + nb;
     let width = cols + 1;
@@ -192,7 +300,10 @@ pub fn triangle(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> (Mat<f64>, 
                     dst.copy_from_slice(&data.y[k0..k1]);
                 }
             }
-            r_aug = fold(&mut block, &r_aug, n);
+            r_aug = match reduction {
+                Reduction::General => fold(&mut block, &r_aug, n),
+                Reduction::Structured => fold_structured(&mut block, &r_aug, n),
+            };
             rows += n;
             k0 = k1;
         }
@@ -219,6 +330,53 @@ mod tests {
         let (ah, bh) = fit(&[Data { u: &u, y: &y }], 2, 4).unwrap();
         for (x, t) in ah.iter().chain(&bh).zip(a.iter().chain(&b)) {
             assert!((x - t).abs() < 1e-10 * t.abs(), "{x} vs {t}");
+        }
+    }
+
+    /// The structured reduction gives the general one's triangle, up to the signs of its rows
+    /// and rounding, over several blocks and two data sets; and the same least squares.
+    #[test]
+    fn the_structured_reduction_gives_the_general_triangle() {
+        let (a, b) = (vec![-1.6, 0.7], vec![0.05, 0.03, 0.02]);
+        let u: Vec<f64> = (0..5000)
+            .map(|k| f64::from(u8::from(k >= 20)) + ((k * 7919) % 97) as f64 * 1e-3)
+            .collect();
+        let clean = filter(&b, &a, 4, &u);
+        let y: Vec<f64> = clean
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + ((k * 104_729) % 89) as f64 * 1e-4)
+            .collect();
+        let sets = [
+            Data { u: &u, y: &y },
+            Data {
+                u: &u[..3000],
+                y: &y[..3000],
+            },
+        ];
+        for (m, nb, d) in [(2, 3, 4), (4, 4, 0), (1, 1, 9)] {
+            let (general, rows) = triangle_by(&sets, m, nb, d, Reduction::General);
+            let (structured, rows_s) = triangle_by(&sets, m, nb, d, Reduction::Structured);
+            assert_eq!(rows, rows_s);
+            let w = m + nb + 1;
+            for i in 0..w {
+                let sign = general[(i, i)].signum() * structured[(i, i)].signum();
+                for c in 0..w {
+                    let (g, s) = (general[(i, c)], sign * structured[(i, c)]);
+                    let scale = general[(c, c)].abs().max(general[(i, i)].abs());
+                    assert!((g - s).abs() <= 1e-10 * scale, "({i}, {c}): {g} vs {s}");
+                }
+            }
+            let general = fit_nb_by(&sets, m, nb, d, Reduction::General).unwrap();
+            let structured = fit_nb_by(&sets, m, nb, d, Reduction::Structured).unwrap();
+            for (x, t) in structured
+                .0
+                .iter()
+                .chain(&structured.1)
+                .zip(general.0.iter().chain(&general.1))
+            {
+                assert!((x - t).abs() <= 1e-9 * t.abs().max(1e-3), "{x} vs {t}");
+            }
         }
     }
 

@@ -362,7 +362,7 @@ fn fit_at(sets: &[Data<'_>], m: usize, d: usize, method: Method) -> Result<(Vec<
 
 /// `f` of each item, in the items' order, on up to as many threads as the machine has cores
 /// (each item on one thread; the results do not depend on which).
-fn in_parallel<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+pub(crate) fn in_parallel<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
     let threads = std::thread::available_parallelism()
         .map_or(1, std::num::NonZeroUsize::get)
         .min(items.len());

@@ -19,7 +19,7 @@ use faer::Mat;
 use super::arx::{self, Data, Params};
 use crate::board::compensator::schur_stable;
 use crate::error::Result;
-use crate::fit::model::filter;
+use crate::fit::model::{allpole_pair, filter};
 
 /// `x / A(q)` with zero initial conditions: [`filter`] with numerator 1 (the same arithmetic).
 #[must_use]
@@ -85,7 +85,21 @@ pub fn steiglitz_mcbride_nb(
     d: usize,
     iterations: usize,
 ) -> Result<Params> {
-    let mut best = arx::fit_nb(sets, m, nb, d)?;
+    steiglitz_mcbride_by(sets, (m, nb, d), iterations, arx::Reduction::General)
+}
+
+/// [`steiglitz_mcbride_nb`] of order, numerator length and delay `(m, nb, d)`, its least
+/// squares reduced by `reduction`.
+///
+/// # Errors
+/// As [`arx::fit`].
+pub(crate) fn steiglitz_mcbride_by(
+    sets: &[Data<'_>],
+    (m, nb, d): (usize, usize, usize),
+    iterations: usize,
+    reduction: arx::Reduction,
+) -> Result<Params> {
+    let mut best = arx::fit_nb_by(sets, m, nb, d, reduction)?;
     let mut best_loss = if stable(&best.0) {
         loss(sets, (&best.0, &best.1), d)
     } else {
@@ -98,10 +112,10 @@ pub fn steiglitz_mcbride_nb(
         }
         let filtered: Vec<(Vec<f64>, Vec<f64>)> = sets
             .iter()
-            .map(|s| (allpole(&current.0, s.u), allpole(&current.0, s.y)))
+            .map(|s| allpole_pair(&current.0, s.u, s.y))
             .collect();
         let fsets: Vec<Data<'_>> = filtered.iter().map(|(u, y)| Data { u, y }).collect();
-        let Ok(next) = arx::fit_nb(&fsets, m, nb, d) else {
+        let Ok(next) = arx::fit_nb_by(&fsets, m, nb, d, reduction) else {
             break;
         };
         if stable(&next.0) {
@@ -280,9 +294,24 @@ impl<'p> Rows<'p> {
         for k in k0..k1 {
             let p = h + k - k0;
             let mut acc = 0.0;
-            for (i, bi) in b.iter().enumerate() {
-                if let Some(j) = k.checked_sub(i + d) {
-                    acc += bi * s.u.get(j).copied().unwrap_or(0.0);
+            // Past the record's first `nb + d - 1` samples every input term exists: the same
+            // sum over a slice.
+            match k.checked_sub(d).and_then(|last| {
+                (last + 1)
+                    .checked_sub(b.len())
+                    .and_then(|first| s.u.get(first..=last))
+            }) {
+                Some(us) => {
+                    for (bi, uj) in b.iter().zip(us.iter().rev()) {
+                        acc += bi * uj;
+                    }
+                }
+                None => {
+                    for (i, bi) in b.iter().enumerate() {
+                        if let Some(j) = k.checked_sub(i + d) {
+                            acc += bi * s.u.get(j).copied().unwrap_or(0.0);
+                        }
+                    }
                 }
             }
             for (i, ai) in a.iter().enumerate() {

@@ -196,7 +196,15 @@ pub fn to_sections(zpk: &Zpk) -> (f64, Vec<[f64; 5]>) {
 /// Response of a cascade at `z`.
 #[must_use]
 pub fn cascade_response(gain: f64, sections: &[[f64; 5]], z: Complex) -> Complex {
-    let zi = c(1.0) / z;
+    cascade_response_at_inverse(gain, sections, c(1.0) / z)
+}
+
+/// [`cascade_response`] at `z` given as `zi = 1 / z`.
+pub(crate) fn cascade_response_at_inverse(
+    gain: f64,
+    sections: &[[f64; 5]],
+    zi: Complex,
+) -> Complex {
     sections.iter().fold(c(gain), |acc, s| {
         let num = c(s[0]) + zi * (c(s[1]) + zi * c(s[2]));
         let den = c(1.0) + zi * (c(s[3]) + zi * c(s[4]));

@@ -47,6 +47,7 @@ mod smoother;
 mod spectra;
 
 pub use crate::fit::step::NoiseSource;
+use error_budget::BudgetGrid;
 pub use error_budget::{budget, offline, Budget};
 pub use on_run::{RunPressure, RunSpectrum};
 pub use smoother::Smoother;
@@ -108,24 +109,30 @@ fn best_band_limited(
         lowpass_order: options.lowpass_order,
         stabilise: true,
     };
-    let score = |fc: f64| -> Option<(f64, super::Design, Budget)> {
-        let d = super::design(model, fc, &inverse_options).ok()?;
-        if d.latency_samples > max_latency
-            || d.pole_margin < crate::board::compensator::MIN_POLE_MARGIN
-        {
+    // The model's response and the spectra on the budget's grid are the same at every corner:
+    // computed once. Each corner is scored by its cascade alone; only the chosen one is
+    // finished into a design (its responses on a grid and its noise gain).
+    let spectra = BudgetGrid::new(model, noise, prior);
+    let score = |fc: f64| -> Option<(f64, (f64, super::Core), Budget)> {
+        let d = super::design_core(model, fc, &inverse_options).ok()?;
+        if d.latency > max_latency || d.pole_margin < crate::board::compensator::MIN_POLE_MARGIN {
             return None;
         }
-        let b = budget(model, d.gain, &d.sections, d.latency_samples, noise, prior);
-        Some((b.total, d, b))
+        let b = spectra.budget(d.gain, &d.sections, d.latency);
+        Some((b.total, (fc, d), b))
     };
     let (lo, hi) = (fs / 2000.0, 0.45 * fs);
     let n = 36;
     let grid: Vec<f64> = (0..n)
         .map(|i| lo * (hi / lo).powf(i as f64 / (n - 1) as f64))
         .collect();
-    let mut best: Option<(f64, super::Design, Budget, usize)> = None;
-    for (i, &fc) in grid.iter().enumerate() {
-        if let Some((e, d, b)) = score(fc) {
+    let mut best: Option<(f64, (f64, super::Core), Budget, usize)> = None;
+    // The corners are scored on the cores there are and taken in order: the same choice.
+    for (i, scored) in crate::fit::in_parallel(&grid, |&fc| score(fc))
+        .into_iter()
+        .enumerate()
+    {
+        if let Some((e, d, b)) = scored {
             if best.as_ref().is_none_or(|x| e < x.0) {
                 best = Some((e, d, b, i));
             }
@@ -138,8 +145,9 @@ fn best_band_limited(
     for _ in 0..10 {
         let x1 = c - g * (c - a);
         let x2 = a + g * (c - a);
-        let s1 = score(x1.exp());
-        let s2 = score(x2.exp());
+        let [s1, s2]: [_; 2] = crate::fit::in_parallel(&[x1, x2], |x| score(x.exp()))
+            .try_into()
+            .ok()?;
         let e1 = s1.as_ref().map_or(f64::INFINITY, |x| x.0);
         let e2 = s2.as_ref().map_or(f64::INFINITY, |x| x.0);
         for cand in [s1, s2].into_iter().flatten() {
@@ -153,7 +161,8 @@ fn best_band_limited(
             a = x1;
         }
     }
-    Some((d, b))
+    let (fc, core) = d;
+    Some((core.finish(model, fc, &inverse_options), b))
 }
 
 /// Corrected bandwidth (where `H C` leaves +/-1 dB or +/-5 degrees of the pure delay

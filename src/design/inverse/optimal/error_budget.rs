@@ -6,7 +6,7 @@ use std::f64::consts::PI;
 use serde::{Deserialize, Serialize};
 
 use super::{NoiseModel, SignalPrior};
-use crate::design::inverse::{cascade_response, model_response};
+use crate::design::inverse::{cascade_response_at_inverse, model_response};
 use crate::error::Result;
 use crate::fit::model::Model;
 use crate::poly::Complex;
@@ -109,22 +109,68 @@ pub fn budget(
     noise: &NoiseModel,
     prior: &SignalPrior,
 ) -> Budget {
-    let (mut band, mut noise_var) = (0.0, 0.0);
-    for (w, dw) in grid(6000) {
-        let z = Complex::new(w.cos(), w.sin());
-        let c = cascade_response(gain, sections, z);
-        let g = model_response(model, z);
-        let target = Complex::new((w * latency).cos(), -(w * latency).sin());
-        band += (c * g - target).norm_sqr() * prior.psd(w) * dw;
-        noise_var += c.norm_sqr() * noise.probe_psd(w) * dw;
+    BudgetGrid::new(model, noise, prior).budget(gain, sections, latency)
+}
+
+/// One point of [`BudgetGrid`]: what the budget's integrand takes there that no compensator
+/// changes.
+struct Point {
+    w: f64,
+    dw: f64,
+    zi: Complex,
+    g: Complex,
+    signal_psd: f64,
+    noise_psd: f64,
+}
+
+/// The budget's frequency grid with the model's response and both spectra on it: computed
+/// once for a search that scores many compensators of one model ([`budget`] of each is the
+/// same number, to the bit).
+pub(crate) struct BudgetGrid {
+    points: Vec<Point>,
+    reference_std: f64,
+}
+
+impl BudgetGrid {
+    /// The grid for `model` under `noise` and `prior`.
+    pub(crate) fn new(model: &Model, noise: &NoiseModel, prior: &SignalPrior) -> Self {
+        let points = grid(6000)
+            .into_iter()
+            .map(|(w, dw)| {
+                let z = Complex::new(w.cos(), w.sin());
+                Point {
+                    w,
+                    dw,
+                    zi: Complex::new(1.0, 0.0) / z,
+                    g: model_response(model, z),
+                    signal_psd: prior.psd(w),
+                    noise_psd: noise.probe_psd(w),
+                }
+            })
+            .collect();
+        Self {
+            points,
+            reference_std: noise.reference_std,
+        }
     }
-    // (1/2pi) over (-pi, pi] = (1/pi) over (0, pi].
-    let band = (band / PI).sqrt();
-    let noise_part = (noise_var / PI).sqrt();
-    Budget {
-        noise: noise_part,
-        band_limit: band,
-        total: band.hypot(noise_part),
-        reference: noise.reference_std,
+
+    /// [`budget`] of the cascade `(gain, sections)` with `latency`.
+    pub(crate) fn budget(&self, gain: f64, sections: &[[f64; 5]], latency: f64) -> Budget {
+        let (mut band, mut noise_var) = (0.0, 0.0);
+        for p in &self.points {
+            let c = cascade_response_at_inverse(gain, sections, p.zi);
+            let target = Complex::new((p.w * latency).cos(), -(p.w * latency).sin());
+            band += (c * p.g - target).norm_sqr() * p.signal_psd * p.dw;
+            noise_var += c.norm_sqr() * p.noise_psd * p.dw;
+        }
+        // (1/2pi) over (-pi, pi] = (1/pi) over (0, pi].
+        let band = (band / PI).sqrt();
+        let noise_part = (noise_var / PI).sqrt();
+        Budget {
+            noise: noise_part,
+            band_limit: band,
+            total: band.hypot(noise_part),
+            reference: self.reference_std,
+        }
     }
 }

@@ -115,7 +115,7 @@ impl InverseArgs {
     /// The board the output model file is for: the arithmetic and the range given here, else
     /// those `stated` in the model file it replaces.
     #[must_use]
-    pub(crate) fn board(&self, stated: Board) -> Board {
+    pub fn board(&self, stated: Board) -> Board {
         Board {
             arithmetic: self.board.map_or(stated.arithmetic, Into::into),
             full_scale: self.full_scale.or(stated.full_scale),
@@ -129,12 +129,7 @@ impl InverseArgs {
     /// # Errors
     /// The runs' read errors; [`Error::InvalidArgument`] for a `--bandwidth`, `--max-band` or
     /// `--max-latency` that is not what it should be.
-    pub(crate) fn spec(
-        &self,
-        columns: &ColumnArgs,
-        fs: f64,
-        board: &Board,
-    ) -> Result<CompensatorSpec> {
+    pub fn spec(&self, columns: &ColumnArgs, fs: f64, board: &Board) -> Result<CompensatorSpec> {
         let band_limited = |bandwidth_hz| Shape::BandLimited {
             bandwidth_hz,
             stabilise: !self.direct,

@@ -88,12 +88,34 @@ pub enum NumberFormatArg {
 /// # Errors
 /// Flags that do not go together, the model file's errors, [`export::prepare`]'s, and writing.
 pub fn run_export(args: &ExportArgs) -> Result<()> {
-    let (format, name) = match args.format {
-        FormatArg::Rust => (Format::Rust, "rust"),
-        FormatArg::C => (Format::C, "c"),
-        FormatArg::Bin => (Format::Bin, "bin"),
+    let name = match args.format {
+        FormatArg::Rust => "rust",
+        FormatArg::C => "c",
+        FormatArg::Bin => "bin",
     };
     let file = crate::file::ModelFile::load(&args.model)?;
+    let exported = exported(args, &file)?;
+    crate::file::write_atomically(&args.output, &exported.bytes)?;
+    match &exported.summary {
+        ExportSummary::One(c) => print_one(args, name, c, file.board.unit),
+        ExportSummary::Bank(c) => print_bank(args, name, c),
+    }
+    Ok(())
+}
+
+/// What `unlag export` writes for the model file `file` (read from `args.model`), its flags
+/// checked as the command line checks them; nothing is written (the Python package returns
+/// the bytes).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for a `--full-scale` or `--fixed-form` without fixed point;
+/// [`export::prepare`]'s.
+pub fn exported(args: &ExportArgs, file: &crate::file::ModelFile) -> Result<export::Exported> {
+    let format = match args.format {
+        FormatArg::Rust => Format::Rust,
+        FormatArg::C => Format::C,
+        FormatArg::Bin => Format::Bin,
+    };
     // The board's arithmetic and range unless others are asked for.
     let asked = args.number_format.unwrap_or(match file.board.arithmetic {
         BoardArithmetic::F32 => NumberFormatArg::F32,
@@ -124,8 +146,8 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
             message: "only applies to --number-format fixed".into(),
         });
     }
-    let exported = export::prepare(&ExportRequest {
-        file: &file,
+    export::prepare(&ExportRequest {
+        file,
         model: &args.model,
         format,
         number_format,
@@ -137,13 +159,7 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
             },
         },
         force: args.force,
-    })?;
-    crate::file::write_atomically(&args.output, &exported.bytes)?;
-    match &exported.summary {
-        ExportSummary::One(c) => print_one(args, name, c, file.board.unit),
-        ExportSummary::Bank(c) => print_bank(args, name, c),
-    }
-    Ok(())
+    })
 }
 
 /// What `unlag export` wrote: one set.

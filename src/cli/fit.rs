@@ -87,8 +87,12 @@ pub struct FitArgs {
 }
 
 impl FitArgs {
-    /// Method, order and delay.
-    fn options(&self) -> Result<Options> {
+    /// Method, order and delay, checked as the command line checks them (the Python package
+    /// parses its keyword arguments into these same flags).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for an `--order` or `--max-order` out of range.
+    pub fn options(&self) -> Result<Options> {
         let order = if self.order == "auto" {
             Order::Auto {
                 max: self.max_order,

@@ -121,7 +121,7 @@ impl InverseArgs {
     /// The board the output model file is for: the arithmetic and the range given here, else
     /// those `stated` in the model file it replaces.
     #[must_use]
-    pub(crate) fn board(&self, stated: Board, columns: &ColumnArgs) -> Board {
+    pub fn board(&self, stated: Board, columns: &ColumnArgs) -> Board {
         let named = [&columns.input_column, &columns.output_column]
             .into_iter()
             .find_map(|c| crate::trace::PressureUnit::of_column(c));
@@ -139,12 +139,7 @@ impl InverseArgs {
     /// # Errors
     /// The runs' read errors; [`Error::InvalidArgument`] for a `--bandwidth`, `--max-band` or
     /// `--max-latency` that is not what it should be.
-    pub(crate) fn spec(
-        &self,
-        columns: &ColumnArgs,
-        fs: f64,
-        board: &Board,
-    ) -> Result<CompensatorSpec> {
+    pub fn spec(&self, columns: &ColumnArgs, fs: f64, board: &Board) -> Result<CompensatorSpec> {
         let band_limited = |bandwidth_hz| Shape::BandLimited {
             bandwidth_hz,
             stabilise: !self.direct,

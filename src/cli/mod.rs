@@ -130,7 +130,10 @@ fn parse_delimiter(text: &str) -> std::result::Result<u8, String> {
 }
 
 impl ColumnArgs {
-    pub(crate) fn columns(&self, require_input: bool) -> Columns {
+    /// The columns and dialect to read a CSV file with (the Python package reads files as the
+    /// command line does); `require_input`: the reference column must be there.
+    #[must_use]
+    pub fn columns(&self, require_input: bool) -> Columns {
         Columns {
             time: self.time_column.clone(),
             input: self.input_column.clone(),

@@ -247,8 +247,12 @@ fn print_history(file: &ModelFile) {
     }
 }
 
-/// The candidates as `--json` writes them, each `change` the command that makes it.
-fn candidates_json(candidates: &[Candidate]) -> Result<serde_json::Value> {
+/// The candidates as `--json` writes them, each `change` the command that makes it (the
+/// Python package reads its candidates from this too).
+///
+/// # Errors
+/// [`crate::Error::Serialise`] if a candidate cannot be written as JSON.
+pub fn candidates_json(candidates: &[Candidate]) -> Result<serde_json::Value> {
     let mut v = serde_json::to_value(candidates).map_err(json_err)?;
     if let Some(rows) = v.as_array_mut() {
         for (row, c) in rows.iter_mut().zip(candidates) {
@@ -258,7 +262,11 @@ fn candidates_json(candidates: &[Candidate]) -> Result<serde_json::Value> {
     Ok(v)
 }
 
-fn tests_json(evidence: &[TestEvidence]) -> Result<serde_json::Value> {
+/// The residual evidence of each test as `--json` writes it.
+///
+/// # Errors
+/// [`crate::Error::Serialise`] if the evidence cannot be written as JSON.
+pub fn tests_json(evidence: &[TestEvidence]) -> Result<serde_json::Value> {
     serde_json::to_value(evidence).map_err(json_err)
 }
 

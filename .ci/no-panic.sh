@@ -3,7 +3,7 @@
 # examples/bench_board.rs for thumbv7em-none-eabihf, disassembles the ELF, follows every
 # direct call and tail branch from the out-of-line per-sample functions (`call_unlag<K>`, one
 # sample with state by reference, and `block_unlag<K>`, a block, for K = 1, 2, 4 sections; mangled
-# names, one per instantiation), the same for the fixed-point compensator of issue 4
+# names, one per instantiation), the same for the fixed-point compensator
 # (`call_fixed<K>`, `block_fixed<K>`) and of its direct form (`call_direct<K>`,
 # `block_direct<K>`), the nonlinear-damping correction (`call_nonlinear`), the
 # temperature bank (`call_bank`, `bank_temperature`), from the Cortex-M assembly kernels of the f32 cascade

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Real poles of Bergh-Tijdeman lines in series, computed independently of the Rust crate.
 
-Investigation record for issue 14, item 5 (see src/physics/NOTES.md, "Lines in series: real
+An independent check (see src/physics/NOTES.md, "Lines in series: real
 poles"). Needs only mpmath (`pip install --user mpmath`); not part of the build or the tests.
 
 The response of tubes in series closed by an end volume V is p_end/p_in = 1/M11 of the ABCD

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The fit-speed benchmark's data and its baseline (issue 16, item 1), numpy/scipy only.
+"""The fit-speed benchmark's data and its baseline, numpy/scipy only.
 
     python bench/fit_baseline.py gen N DIR
         Writes DIR/est.csv (a step 0 -> 1) and DIR/val.csv (a falling step 1 -> 0.3 of another

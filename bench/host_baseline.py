@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Baseline of the host benchmark (issue 2): numpy's lstsq and scipy's lfilter on the data
+"""Baseline of the host benchmark: numpy's lstsq and scipy's lfilter on the data
 that `cargo run --release --example bench_host` wrote, in the same run.
 
     python bench/host_baseline.py DIR

@@ -143,7 +143,7 @@ def section(rust, rust_other, py, py_other, command, info):
             "rate",
         ),
     ]
-    out = [START, "", "## Host: fit time and compensation throughput (issue 2)", ""]
+    out = [START, "", "## Host: ARX fit time and compensation throughput", ""]
     out += [
         f"Data: a deterministic step test of N = {n:,} samples from a 4th-order probe model "
         "(10 kHz; modes 112 Hz / 0.32 and 362 Hz / 0.16; real zeros inside the unit circle; "

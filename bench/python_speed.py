@@ -1,4 +1,4 @@
-"""The Python package against the command line on the same work (issue 65, item 3): fit a
+"""The Python package against the command line on the same work: fit a
 1e6-sample step test and compensate a 1e6-sample run, from the CSV files, both ways.
 
     python bench/python_speed.py [UNLAG_BINARY] [N] [REPEATS]

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Fit speed at the sizes people record (issue 64) and at shock-tube scale (issue 16), in one run:
+# Fit speed at the sizes people record and at shock-tube scale, in one run:
 #
 # 1. `unlag fit examples/data/step_test_1.csv -o m.toml` (4,000 rows, default options, a fresh
 #    output file), wall time of the whole command (search, compensator design, file written):

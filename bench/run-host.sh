@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Host benchmarks of issue 2, in one run: the Rust example `bench_host` (fit time on 1e6
+# Host benchmarks, in one run: the Rust example `bench_host` (fit time on 1e6
 # samples, compensation throughput), then numpy's lstsq and scipy's lfilter on the same data
 # (bench/host_baseline.py), then the table in BENCHMARKS.md (bench/host_report.py), replacing
 # only the section between <!-- host-bench:start --> and <!-- host-bench:end -->.

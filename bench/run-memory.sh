@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Peak memory per sample at shock-tube scale (issue 16, item 2): each streaming command on a
+# Peak memory per sample at shock-tube scale: each streaming command on a
 # 5e6-row step test and a 5e6-row validation test (written by bench/fit_baseline.py gen, the
 # data of bench/run-fit.sh), wall time and peak resident memory by GNU time, as bytes per row of
 # one test and as a ratio against the 100 B a row asked for and the 16 B a row the two signals

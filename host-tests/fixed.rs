@@ -288,7 +288,7 @@ fn compensate_with_fixed_arithmetic_runs_the_planned_integers() {
     }
 }
 
-// ---- The direct form (issue 16 item 4): DF-I sections with first-order error feedback.
+// ---- The direct form: DF-I sections with first-order error feedback.
 
 use unlag::board::fixed::direct::{DirectCascade, DirectSection, DirectState};
 use unlag::design::quantise::DirectPlan;

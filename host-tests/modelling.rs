@@ -1231,7 +1231,7 @@ fn a_drift_goes_before_nonlinear_damping_read_from_its_trial_alone() {
 
 /// `coloured-noise` says which error falls (the one-step-ahead prediction error) and states the
 /// parameter uncertainty before and after: before from white noise, after from the noise its
-/// AR model whitens (issue 14, item 2).
+/// AR model whitens.
 #[test]
 fn coloured_noise_states_the_uncertainty_before_and_after() {
     let dir = std::env::temp_dir().join(format!("unlag-coloured-{}", std::process::id()));

@@ -1,4 +1,4 @@
-//! Integration tests of the physics module (issue 6): the Bergh-Tijdeman line model against
+//! Integration tests of the physics module: the Bergh-Tijdeman line model against
 //! the digitised 1965 curves and against its own limits, the pole finder, the lumped
 //! approximation, the time-domain simulation, and the VKI capillary observations.
 //!
@@ -241,7 +241,7 @@ fn bt_fig20_series_lines_radii() {
     check_figure(20);
 }
 
-/// The acceptance criterion of issue 6: median RMS over all curves ≤ 0.03 and ≤ 3°.
+/// The acceptance criterion: median RMS over all curves ≤ 0.03 and ≤ 3°.
 #[test]
 fn bt_all_curves_median_rms() {
     let mut ampl = Vec::new();
@@ -1632,7 +1632,7 @@ fn three_lines_in_series() -> (Line, Gas) {
 }
 
 /// Three lines in series ending in a small volume: real poles near -11 and -68 rad/s (a 90 ms
-/// creep) outlast the longest FFT at 32x oversampling (issue 14: `simulate-test` refused this
+/// creep) outlast the longest FFT at 32x oversampling (`simulate-test` once refused this
 /// case as "an undamped mode?"). The simulation lowers the oversampling, says so in the rate
 /// it reports, and creeps to the DC gain.
 #[test]
@@ -1653,7 +1653,7 @@ fn a_slow_real_pole_is_simulated_at_a_lower_oversampling() {
     assert!((at(0.79) - 1000.0).abs() < 1.0, "{}", at(0.79));
 }
 
-/// `predict` lists the slow real pole of lines in series (issue 14: it printed only the
+/// `predict` lists the slow real pole of lines in series (it once printed only the
 /// complex modes, while the real pole at -11.05 rad/s shapes the step response most), and
 /// says how far the real axis was searched.
 #[test]

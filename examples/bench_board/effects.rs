@@ -71,7 +71,7 @@ pub fn bench_nonlinear(x: &[f32; N], y: &mut [f32; N]) -> bool {
     pass
 }
 
-/// The temperature bank's per-sample call (issue 7's `temperature` on the board).
+/// The temperature bank's per-sample call (the `temperature` effect on the board).
 #[inline(never)]
 fn call_bank<const S: usize, const K: usize>(
     bank: &TemperatureBank<f32, S, K>,

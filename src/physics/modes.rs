@@ -309,7 +309,7 @@ mod tests {
         }
     }
 
-    /// Lines in series (issue 14): two independent Bergh-Tijdeman implementations find real
+    /// Lines in series: two independent Bergh-Tijdeman implementations find real
     /// poles at -11.05 and -67.93 rad/s; the second lies beyond the wide tube's thermal
     /// accumulation point (52.9 rad/s), where the search used to stop.
     #[test]
@@ -344,7 +344,7 @@ mod tests {
         }
     }
 
-    /// Two lines in series (issue 14): the real poles against an independent mpmath computation
+    /// Two lines in series: the real poles against an independent mpmath computation
     /// of the same chain (`bench/bt_series_real_poles.py`, 20 digits, a 0.01 rad/s scan with
     /// bisection). The issue's references, -11.55 and -11.25 rad/s, are the slow pole of two
     /// different configurations at the CLI's default 293.15 K — a rigid closed end (`V = 0`) and

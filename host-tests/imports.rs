@@ -210,16 +210,29 @@ fn item(prefix: &[String], text: &str) -> Vec<Module> {
     }
 }
 
-/// The module that defines the macro `name` (`macro_rules! name`).
+/// The module that defines the macro `name` (`macro_rules! name`), from every file of `src/`
+/// read once.
 fn macro_home(name: &str) -> Option<Module> {
-    let mut all = Vec::new();
-    files(&src(), &mut all);
-    all.into_iter().find_map(|f| {
-        let text = std::fs::read_to_string(&f).ok()?;
-        text.contains(&format!("macro_rules! {name} "))
-            .then(|| module_of(&f))
-            .flatten()
-    })
+    static HOMES: std::sync::OnceLock<BTreeMap<String, Module>> = std::sync::OnceLock::new();
+    HOMES
+        .get_or_init(|| {
+            let mut all = Vec::new();
+            files(&src(), &mut all);
+            let mut homes = BTreeMap::new();
+            for f in all {
+                let (Ok(text), Some(module)) = (std::fs::read_to_string(&f), module_of(&f)) else {
+                    continue;
+                };
+                for (k, _) in text.match_indices("macro_rules! ") {
+                    if let Some((name, _)) = ident(&text[k + "macro_rules! ".len()..]) {
+                        homes.insert(name.to_string(), module.clone());
+                    }
+                }
+            }
+            homes
+        })
+        .get(name)
+        .cloned()
 }
 
 /// Every import arrow between nodes: `(from, to)`, with the file that draws it.

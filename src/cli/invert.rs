@@ -373,27 +373,40 @@ pub(super) fn print_inverse(d: &inverse::Design, fs: f64, unit: Option<PressureU
         d.in_band_phase_error_deg,
         d.pole_margin
     );
+    // Both fixed-point forms: the same scaling and bound, told alike.
+    let plan_line = |form: &str,
+                     full_scale: f64,
+                     exponent: i32,
+                     l1: f64,
+                     headroom: f64,
+                     sections: String| {
+        crate::outln!(
+            "  fixed point{form}: inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{exponent}; L1 gain {}; headroom {} bits by the L1 bound (no overflow possible); {sections}",
+            p(full_scale),
+            p(full_scale),
+            console::significant(l1),
+            console::significant(headroom),
+        );
+    };
     if let Some(plan) = &d.fixed {
         let forms: Vec<&str> = plan.sections.iter().map(|s| s.form.as_str()).collect();
-        crate::outln!(
-            "  fixed point: inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {}; headroom {} bits by the L1 bound (no overflow possible); sections {}",
-            p(plan.full_scale),
-            p(plan.full_scale),
+        plan_line(
+            "",
+            plan.full_scale,
             plan.output_exponent,
-            console::significant(plan.l1_gain),
-            console::significant(plan.headroom_bits),
-            forms.join(", ")
+            plan.l1_gain,
+            plan.headroom_bits,
+            format!("sections {}", forms.join(", ")),
         );
     }
     if let Some(plan) = &d.fixed_direct {
-        crate::outln!(
-            "  fixed point (direct form with error feedback): inputs within +-{} (Q1.31), output Q1.31 of {} x 2^{}; L1 gain {}; headroom {} bits by the L1 bound (no overflow possible); {} sections",
-            p(plan.full_scale),
-            p(plan.full_scale),
+        plan_line(
+            " (direct form with error feedback)",
+            plan.full_scale,
             plan.output_exponent,
-            console::significant(plan.l1_gain),
-            console::significant(plan.headroom_bits),
-            plan.sections.len()
+            plan.l1_gain,
+            plan.headroom_bits,
+            format!("{} sections", plan.sections.len()),
         );
     }
     if let Some(b) = &d.budget {

@@ -208,21 +208,6 @@ for key, what in ((("nonlin", 4, "call", 1024), "unlag + nonlinear-damping corre
         n = res["default"][key] / 1024
         lines.append(f"| {what} | - | {n:.2f} | - |")
 lines.append("")
-lines.append("The baselines against unlag's kernel of the same number format, their instructions over")
-lines.append("unlag's in a block / per call (above 1: unlag runs fewer):")
-lines.append("")
-lines.append("| baseline / unlag | m = 2 | m = 4 | m = 8 |")
-lines.append("|---|---|---|---|")
-for base, ours in (("idsp", "unlag"), ("cmsis", "unlag"), ("cmsis1", "unlag"),
-                   ("idspq", "direct"), ("cmsisq", "direct"), ("cmsq64", "direct"), ("cmsq64", "fixed")):
-    if not has_cmsis and base.startswith("cms"):
-        continue
-    cells = []
-    for m in (2, 4, 8):
-        b, u = cols(res["default"], base, m), cols(res["default"], ours, m)
-        cells.append(f"{b[0] / u[0]:.2f} / {b[2] / u[2]:.2f}")
-    lines.append(f"| {base} / {ours} | " + " | ".join(cells) + " |")
-lines.append("")
 vm = {m: cols(res["vmla"], "idsp", m) for m in (2, 4, 8)}
 lines.append("With `-C target-feature=-slowfpvmlx` (LLVM may then emit VMLA, 3 cycles each on the M4)")
 lines.append("idsp's f32 rows become block " + " / ".join(f"{vm[m][0]:.2f}" for m in (2, 4, 8)) + ", call "
@@ -247,6 +232,15 @@ lines.append("  guarantees (pole accuracy near z = 1, no limit cycles, saturatio
 lines.append("  cost 9 multiplies, two truncations and a rounding with saturation tests per section: at")
 lines.append("  least 48 instructions for two sections before any load or store. The direct form trades")
 lines.append("  them for speed (see \"Fixed point: the two forms\").")
+# One paragraph (or bullet) a line, as the rest of BENCHMARKS.md: the lines above are joined.
+merged = []
+for l in lines:
+    prose = l and not l.startswith(("|", "#", "- "))
+    if prose and merged and merged[-1] and not merged[-1].startswith(("|", "#")):
+        merged[-1] += " " + l.strip()
+    else:
+        merged.append(l)
+lines = merged
 text = "\n".join(lines) + "\n"
 print(text)
 open(f"{out_dir}/table.md", "w").write(text)

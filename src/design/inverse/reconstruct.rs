@@ -69,6 +69,75 @@ pub fn aligned_error(
     best
 }
 
+/// [`aligned_error`] on a run streamed one sample at a time, its length `n` and its
+/// reference's range known beforehand (earlier passes over its file): each lag's sum of
+/// squares kept as the samples pass, the reference's last samples in a ring as long as the
+/// largest lag. The same sums in the same order as [`aligned_error`]'s direct search, so the
+/// same figures; on a long record where [`aligned_error`] searches by FFT, the same figure
+/// unless two lags tie within its rounding. Work: lags times samples.
+#[derive(Debug, Clone)]
+pub struct AlignedErrorStream {
+    lo: usize,
+    hi: usize,
+    n: usize,
+    range: f64,
+    sse: Vec<f64>,
+    ring: Vec<f64>,
+    k: usize,
+}
+
+impl AlignedErrorStream {
+    /// The search over `lags` on a run of `n` samples whose reference spans `range`.
+    #[must_use]
+    pub fn new(n: usize, lags: std::ops::RangeInclusive<usize>, range: f64) -> Self {
+        let hi = (*lags.end()).min(n.saturating_sub(2));
+        let lo = *lags.start();
+        let count = if lo <= hi { hi - lo + 1 } else { 0 };
+        Self {
+            lo,
+            hi,
+            n,
+            range,
+            sse: vec![-0.0; count],
+            ring: vec![0.0; hi + 1],
+            k: 0,
+        }
+    }
+
+    /// The next sample of the reference and of the estimate.
+    pub fn push(&mut self, reference: f64, estimate: f64) {
+        let k = self.k;
+        self.k += 1;
+        let len = self.ring.len();
+        if let Some(r) = self.ring.get_mut(k % len) {
+            *r = reference;
+        }
+        if k < self.hi || k >= self.n {
+            return;
+        }
+        for (i, sse) in self.sse.iter_mut().enumerate() {
+            let lag = self.lo + i;
+            let r = self.ring.get((k - lag) % len).copied().unwrap_or(0.0);
+            let e = estimate - r;
+            *sse += e * e;
+        }
+    }
+
+    /// `(nrmse, lag)` at the best alignment, as [`aligned_error`] gives it.
+    #[must_use]
+    pub fn finish(&self) -> (f64, usize) {
+        let count = self.n - self.hi;
+        let mut best = (f64::INFINITY, 0);
+        for (i, sse) in self.sse.iter().enumerate() {
+            let e = (sse / count as f64).sqrt() / self.range;
+            if e < best.0 {
+                best = (e, self.lo + i);
+            }
+        }
+        best
+    }
+}
+
 /// Above this many multiply-adds (lags times samples) [`aligned_error`] finds the best lag by
 /// FFT cross-correlation; below it, by direct sums.
 pub(crate) const FFT_ALIGNMENT_WORK: usize = 1 << 24;

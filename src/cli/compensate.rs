@@ -2,7 +2,7 @@
 //! its error against the recorded reference printed, and the warnings that keep a worse run or a
 //! clamped input from passing in silence.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
 use serde_json::json;
@@ -31,9 +31,9 @@ pub struct CompensateArgs {
     /// The model file.
     #[arg(value_name = "MODEL.toml")]
     pub model: PathBuf,
-    /// The probe recording (CSV). Read in passes, each row written as it is compensated, so
-    /// that memory does not grow with the recording: it must be a regular file (a pipe or a
-    /// device cannot be read twice and is refused).
+    /// The probe recording (CSV). A file is read in passes, each row written as it is
+    /// compensated, so that memory does not grow with the recording; a pipe or a device,
+    /// which cannot be read twice, is held in memory.
     #[arg(value_name = "FILE")]
     pub file: PathBuf,
     /// Output CSV: the input columns plus `u_hat`.
@@ -93,7 +93,7 @@ struct Run {
 }
 
 /// A write that returned without its result: never, since the write fills it or fails.
-fn unreachable_written(output: &std::path::Path) -> Result<pipeline::Compensated> {
+fn unreachable_written(output: &Path) -> Result<pipeline::Compensated> {
     Err(crate::error::Error::Io {
         path: output.to_path_buf(),
         action: "cannot write",
@@ -122,7 +122,10 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
         Compensation::Designed(arithmetic.into())
     };
     let columns = args.columns.columns(false);
-    let (run, c) = if pipeline::streams(compensation) {
+    // A regular file is read in passes; a pipe or a device, which cannot be read twice, is
+    // held (within the reader's limits), as the host-only compensators hold any run.
+    let rereadable = std::fs::metadata(&args.file).is_ok_and(|m| m.is_file());
+    let (run, c) = if pipeline::streams(compensation) && rereadable {
         // The run read in passes, each row written as it is compensated: memory does not
         // grow with the run.
         let prepared = pipeline::prepare(&pipeline::StreamRequest {
@@ -137,6 +140,11 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
             path: prepared.info().path.clone(),
             len: prepared.info().len,
         };
+        // An output that cannot be taken back gets nothing from a clipped run.
+        let output = &args.output;
+        if output == Path::new("-") || std::fs::metadata(output).is_ok_and(|m| !m.is_file()) {
+            prepared.check_clipping()?;
+        }
         let mut done = None;
         crate::file::write_atomically_with(&args.output, |out| {
             done = Some(prepared.write(out)?);
@@ -148,7 +156,7 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
         };
         (run, c)
     } else {
-        // The host-only compensators see the whole run at once.
+        // The host-only compensators see the whole run at once; so does a piped run.
         let trace = Trace::read(&args.file, &columns)?;
         check_rate(&file, &trace)?;
         let c = pipeline::compensate(&CompensateRequest {

@@ -397,6 +397,25 @@ fn clip_only(info: &RunInfo, columns: &Columns, checks: &mut RunChecks) -> Resul
 }
 
 impl Prepared {
+    /// The clipping checks alone, in a pass of their own, before anything is written: for an
+    /// output that cannot be taken back (standard output, a device), which would otherwise
+    /// have received the rows before a clipped channel is found at the end of the writing
+    /// pass.
+    ///
+    /// # Errors
+    /// [`crate::trace::TraceError::Clipped`], or the file changed.
+    pub fn check_clipping(&self) -> Result<()> {
+        let mut checks = self.checks.clone();
+        let mut again = rows::again(&self.info, &self.columns)?;
+        let mut k = 0;
+        while let Some(row) = again.next_row()? {
+            checks.third(&row);
+            k += 1;
+        }
+        rows::end_pass(&self.info, again, k)?;
+        Ok(checks.finish()?)
+    }
+
     /// The third pass: each row written to `out` with its `u_hat` after its own fields (the
     /// header first), the error against the reference summed as it goes. What it computed,
     /// `u_hat` left empty (it is in `out`).
@@ -539,6 +558,85 @@ mod tests {
                 assert!(batch.predicted.is_some());
             }
         }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A clipped channel, time that jitters or goes back, a file too short: the streamed run is
+    /// refused with the message the run read whole gets; a clipped one after its writing pass
+    /// (its output discarded by the caller), or before it when asked.
+    #[test]
+    fn a_bad_run_gets_the_message_of_the_run_read_whole() {
+        let dir = std::env::temp_dir().join(format!("unlag-stream-bad-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let columns = Columns {
+            require_input: false,
+            ..Columns::default()
+        };
+        let file = file_with_design();
+        fn request<'a>(
+            file: &'a ModelFile,
+            columns: &'a Columns,
+            run: &'a Path,
+        ) -> StreamRequest<'a> {
+            StreamRequest {
+                file,
+                model_path: Path::new("m.toml"),
+                run,
+                columns,
+                compensation: Compensation::Designed(Arithmetic::F32),
+                temperature_k: None,
+            }
+        }
+        let whole = |path: &Path| Error::from(Trace::read(path, &columns).unwrap_err()).to_string();
+        // The probe flat at a new largest value for 30 samples, entered by a jump; and the
+        // reference at its smallest for the last 40.
+        let (mut u, mut y) = step_test(1.0, 12);
+        y[2000..2030].iter_mut().for_each(|v| *v = 5.0);
+        let clipped = run_file(&dir, "clipped.csv", &u, &y);
+        let expected = whole(&clipped);
+        assert!(expected.contains("looks clipped"), "{expected}");
+        let prepared = prepare(&request(&file, &columns, &clipped)).unwrap();
+        assert_eq!(prepared.check_clipping().unwrap_err().to_string(), expected);
+        match prepared.write(&mut Vec::new()) {
+            Err(WriteFailure::Content(e)) => assert_eq!(e.to_string(), expected),
+            other => panic!("{:?}", other.map(|c| c.compensator)),
+        }
+        let n = u.len();
+        u[n - 40..].iter_mut().for_each(|v| *v = -3.0);
+        let (_, y) = step_test(1.0, 12);
+        let at_end = run_file(&dir, "clipped_end.csv", &u, &y);
+        let expected = whole(&at_end);
+        assert!(expected.contains("smallest"), "{expected}");
+        let prepared = prepare(&request(&file, &columns, &at_end)).unwrap();
+        assert_eq!(prepared.check_clipping().unwrap_err().to_string(), expected);
+
+        // Time that jitters at line 52, and also goes back at line 90 (told first); one row.
+        let mut text = String::from("t,u,y\n");
+        for k in 0..400 {
+            let t = k as f64 * 1e-4 + if k == 50 { 5e-6 } else { 0.0 };
+            text.push_str(&format!("{t:.7},0,{}\n", (k as f64 * 0.1).sin()));
+        }
+        let jitter = dir.join("jitter.csv");
+        std::fs::write(&jitter, &text).unwrap();
+        let back = dir.join("back.csv");
+        std::fs::write(&back, text.replace("0.0088000,", "0.0080000,")).unwrap();
+        let one = dir.join("one.csv");
+        std::fs::write(&one, "t,u,y\n0,0,0\n").unwrap();
+        let bad_cell = dir.join("cell.csv");
+        std::fs::write(&bad_cell, text.replace("0.0100000,0,", "0.0100000,x,")).unwrap();
+        for path in [&jitter, &back, &one, &bad_cell] {
+            let expected = whole(path);
+            let streamed = prepare(&request(&file, &columns, path))
+                .err()
+                .map(|e| e.to_string());
+            assert_eq!(streamed.as_deref(), Some(expected.as_str()));
+        }
+        assert!(whole(&jitter).contains(":52:1:"), "{}", whole(&jitter));
+        assert!(
+            whole(&back).contains("does not increase"),
+            "{}",
+            whole(&back)
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

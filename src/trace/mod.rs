@@ -154,10 +154,12 @@ enum Source {
     Bytes(std::sync::Arc<[u8]>),
 }
 
-/// A reader that hashes what passes through it.
+/// A reader that hashes what passes through it, and keeps it when asked (a pipe or a device,
+/// which cannot be read again to write the rows back).
 struct Hashing<R> {
     inner: R,
     hasher: Sha256,
+    kept: Option<Vec<u8>>,
 }
 
 impl Hashing<std::io::BufReader<std::fs::File>> {
@@ -176,6 +178,7 @@ impl Hashing<std::io::BufReader<std::fs::File>> {
         let reader = Self {
             inner: std::io::BufReader::with_capacity(1 << 16, file),
             hasher: Sha256::new(),
+            kept: (!meta.is_file()).then(Vec::new),
         };
         Ok((reader, meta.len()))
     }
@@ -184,7 +187,13 @@ impl Hashing<std::io::BufReader<std::fs::File>> {
 impl<R: Read> Read for Hashing<R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = self.inner.read(buf)?;
-        self.hasher.update(buf.get(..n).unwrap_or(&[]));
+        let read = buf.get(..n).unwrap_or(&[]);
+        self.hasher.update(read);
+        if let Some(kept) = &mut self.kept {
+            kept.try_reserve(n)
+                .map_err(|_| std::io::Error::from(std::io::ErrorKind::OutOfMemory))?;
+            kept.extend_from_slice(read);
+        }
         Ok(n)
     }
 }
@@ -556,11 +565,15 @@ impl Trace {
     ///
     /// # Errors
     /// [`TraceError`] naming the file, line and column of the first problem found.
+    /// A pipe or a device is read once, its bytes kept to write the rows back.
     pub fn read(path: &Path, columns: &Columns) -> Result<Self> {
         let (mut reader, size) = Hashing::open(path)?;
         let mut trace = Self::parse_reader(path, &mut reader, size, columns)?;
         trace.sha256 = hex(&reader.hasher.finalize());
-        trace.source = Source::File;
+        trace.source = match reader.kept {
+            Some(bytes) => Source::Bytes(bytes.into()),
+            None => Source::File,
+        };
         Ok(trace)
     }
 

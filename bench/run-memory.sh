@@ -6,6 +6,7 @@
 # take in f64.
 #
 #   bash bench/run-memory.sh          # N=5e6 by default; BENCH_MEMORY_ROWS=1e6 for a quick run
+#   BENCH_MEMORY_ONLY="compensate simulate" bash bench/run-memory.sh   # only these commands' rows
 #
 # Prints a Markdown table; BENCHMARKS.md holds the last one with this command.
 set -euo pipefail
@@ -20,6 +21,9 @@ echo "|---|---|---|---|---|---|"
 run() { # label, arguments...
   local label=$1
   shift
+  if [ -n "${BENCH_MEMORY_ONLY:-}" ] && [[ " $BENCH_MEMORY_ONLY " != *" $1 "* ]]; then
+    return
+  fi
   /usr/bin/time -f "%e %M" -o time.txt "$unlag" "$@" > run.log 2>&1
   read -r wall kb < time.txt
   python3 - "$label" "$wall" "$kb" "$rows" <<'PY'
@@ -30,6 +34,8 @@ print(f"| `{label}` | {wall:.1f} s | {kb / 1024:.0f} MB | {per:.0f} B | {per / 1
 PY
 }
 run "unlag fit est.csv -o m.toml" fit est.csv -o m.toml
+# The model the other rows use, fitted untimed when the fit's row is left out.
+[ -f m.toml ] || "$unlag" fit est.csv -o m.toml > /dev/null 2>&1
 run "unlag compensate m.toml val.csv -o out.csv" compensate m.toml val.csv -o out.csv
 run "unlag simulate m.toml val.csv -o sim.csv" simulate m.toml val.csv -o sim.csv
 run "unlag compare m.toml val.csv" compare m.toml val.csv

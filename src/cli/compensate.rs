@@ -2,7 +2,7 @@
 //! its error against the recorded reference printed, and the warnings that keep a worse run or a
 //! clamped input from passing in silence.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
 use serde_json::json;
@@ -31,7 +31,9 @@ pub struct CompensateArgs {
     /// The model file.
     #[arg(value_name = "MODEL.toml")]
     pub model: PathBuf,
-    /// The probe recording (CSV).
+    /// The probe recording (CSV). A file is read in passes, each row written as it is
+    /// compensated, so that memory does not grow with the recording; a pipe or a device,
+    /// which cannot be read twice, is held in memory.
     #[arg(value_name = "FILE")]
     pub file: PathBuf,
     /// Output CSV: the input columns plus `u_hat`.
@@ -50,14 +52,16 @@ pub struct CompensateArgs {
     pub direct: bool,
     /// Host only: the non-causal optimum on the whole recorded run (no latency, the least
     /// error a linear filter can reach), from the model and the noise and prior stored with
-    /// its optimal compensator. A board cannot run it.
+    /// its optimal compensator. A board cannot run it. Holds the whole recording in memory
+    /// (about 45 bytes a row).
     #[arg(long, conflicts_with_all = ["direct", "arithmetic", "adapt_to_run"])]
     pub offline: bool,
     /// Host only: when the run's own probe spectrum predicts the model file's compensator not
     /// to beat the raw probe, run in f64 the design predicted best for this run instead (the
     /// delay alone, the probe passed through, or the optimum under a quieter prior). A board
     /// given the model file runs the stored one; for a board, design with such runs: `unlag
-    /// invert MODEL TEST.csv --signal RUN.csv`.
+    /// invert MODEL TEST.csv --signal RUN.csv`. Holds the whole recording in memory (about 45
+    /// bytes a row).
     #[arg(long, conflicts_with_all = ["direct", "arithmetic"])]
     pub adapt_to_run: bool,
     /// Gas temperature of the recording (K): the model (with a `temperature` effect) is scaled
@@ -82,14 +86,27 @@ impl From<Arithmetic> for pipeline::Arithmetic {
     }
 }
 
+/// The run as the messages name it.
+struct Run {
+    path: PathBuf,
+    len: usize,
+}
+
+/// A write that returned without its result: never, since the write fills it or fails.
+fn unreachable_written(output: &Path) -> Result<pipeline::Compensated> {
+    Err(crate::error::Error::Io {
+        path: output.to_path_buf(),
+        action: "cannot write",
+        source: std::io::Error::other("the output was written without a result"),
+    })
+}
+
 /// `unlag compensate`.
 ///
 /// # Errors
 /// The model file's, the trace's and the compensator's errors.
 pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     let file = ModelFile::load(&args.model)?;
-    let trace = Trace::read(&args.file, &args.columns.columns(false))?;
-    check_rate(&file, &trace)?;
     // The board's arithmetic unless another is asked for.
     let arithmetic = args.arithmetic.unwrap_or(match file.board.arithmetic {
         BoardArithmetic::F32 => Arithmetic::F32,
@@ -104,21 +121,79 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     } else {
         Compensation::Designed(arithmetic.into())
     };
-    let c = pipeline::compensate(&CompensateRequest {
-        file: &file,
-        model_path: &args.model,
-        probe: &trace.y,
-        reference: trace.u.as_deref(),
-        compensation,
-        temperature_k: args.temperature,
-    })?;
+    let columns = args.columns.columns(false);
+    // A regular file is read in passes; a pipe or a device, which cannot be read twice, is
+    // held (within the reader's limits), as the host-only compensators hold any run.
+    let rereadable = std::fs::metadata(&args.file).is_ok_and(|m| m.is_file());
+    let (run, c) = if pipeline::streams(compensation) && rereadable {
+        // The run read in passes, each row written as it is compensated: memory does not
+        // grow with the run.
+        let prepared = pipeline::prepare(&pipeline::StreamRequest {
+            file: &file,
+            model_path: &args.model,
+            run: &args.file,
+            columns: &columns,
+            compensation,
+            temperature_k: args.temperature,
+        })?;
+        let run = Run {
+            path: prepared.info().path.clone(),
+            len: prepared.info().len,
+        };
+        // An output that cannot be taken back gets nothing from a clipped run.
+        let output = &args.output;
+        if output == Path::new("-") || std::fs::metadata(output).is_ok_and(|m| !m.is_file()) {
+            prepared.check_clipping()?;
+        }
+        let mut done = None;
+        crate::file::write_atomically_with(&args.output, |out| {
+            done = Some(prepared.write(out)?);
+            Ok(())
+        })?;
+        let c = match done {
+            Some(c) => c,
+            None => unreachable_written(&args.output)?,
+        };
+        (run, c)
+    } else {
+        // The host-only compensators see the whole run at once; so does a piped run.
+        let trace = Trace::read(&args.file, &columns)?;
+        check_rate(&file, &trace)?;
+        let c = pipeline::compensate(&CompensateRequest {
+            file: &file,
+            model_path: &args.model,
+            probe: &trace.y,
+            reference: trace.u.as_deref(),
+            compensation,
+            temperature_k: args.temperature,
+        })?;
+        // A host-only u_hat says so in the file itself, where it cannot be separated from it.
+        let metadata = c.host_only.then(|| {
+            format!(
+                "# unlag compensate: u_hat is from {} and is not what a board given {} computes\n",
+                c.compensator,
+                name(&args.model)
+            )
+        });
+        crate::file::write_atomically_with(&args.output, |out| {
+            if let Some(line) = &metadata {
+                out.write_all(line.as_bytes())?;
+            }
+            Ok(trace.write_csv_with(out, &[("u_hat", &c.u_hat)])?)
+        })?;
+        let run = Run {
+            path: trace.path.clone(),
+            len: trace.len(),
+        };
+        (run, c)
+    };
     // A clamped input or a saturation is never hidden.
     if let Some(f) = &c.fixed {
         if f.clamped_inputs > 0 {
             crate::errln!(
                 "warning: {} samples of {} lie outside the fixed-point full scale +-{} and were clamped",
                 f.clamped_inputs,
-                trace.path.display(),
+                run.path.display(),
                 console::pressure(f.full_scale, file.board.unit)
             );
         }
@@ -171,19 +246,6 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     }
     let (latency, what, error) = (c.latency_samples, c.compensator, c.error);
     let not_better = c.stored_not_better.as_ref().map(|m| m.short());
-    // A host-only u_hat says so in the file itself, where it cannot be separated from it.
-    let metadata = c.host_only.then(|| {
-        format!(
-            "# unlag compensate: u_hat is from {what} and is not what a board given {} computes\n",
-            name(&args.model)
-        )
-    });
-    crate::file::write_atomically_with(&args.output, |out| {
-        if let Some(line) = &metadata {
-            out.write_all(line.as_bytes())?;
-        }
-        Ok(trace.write_csv_with(out, &[("u_hat", &c.u_hat)])?)
-    })?;
     let arith = match arithmetic {
         _ if args.offline || c.host_only => "f64",
         Arithmetic::F32 => "f32",
@@ -194,7 +256,7 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     if args.json {
         let v = json!({
             "output": name(&args.output),
-            "samples": trace.len(),
+            "samples": run.len,
             "compensator": what,
             "latency_samples": latency,
             "latency_s": latency / fs,
@@ -218,8 +280,8 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     }
     crate::outln!(
         "compensated {} samples of {} with {what} ({arith}); u_hat lags the true pressure by {} samples ({})",
-        trace.len(),
-        trace.path.display(),
+        run.len,
+        run.path.display(),
         console::significant(latency),
         super::console::duration(latency / fs)
     );

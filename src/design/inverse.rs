@@ -43,7 +43,9 @@ pub(crate) use filter::{c, noise_gain, unit, unwrap};
 pub use filter::{cascade_response, lowpass, model_response, to_sections, Zpk};
 #[cfg(test)]
 use reconstruct::FFT_ALIGNMENT_WORK;
-pub use reconstruct::{aligned_error, comparison_lags, reconstruct, reconstruct_with};
+pub use reconstruct::{
+    aligned_error, comparison_lags, reconstruct, reconstruct_with, AlignedErrorStream,
+};
 
 pub use method::{DesignMethod, MethodKind};
 
@@ -198,6 +200,10 @@ pub struct Design {
 }
 
 /// `v` rounded to `T` and widened back: the coefficient a board given the exported set holds.
+/// A compensator run one sample at a time ([`Design::runner`]): a probe sample in, the
+/// reconstructed pressure out.
+pub type Runner = Box<dyn FnMut(f64) -> f64>;
+
 fn exported<T: Sample>(v: f64) -> f64 {
     T::from_f64(v).to_f64()
 }
@@ -476,24 +482,34 @@ impl Design {
     /// # Errors
     /// [`DesignError::Cascade`] when the sections do not validate (too many, or a pole too
     /// close to the unit circle).
-    pub fn run<T: Sample>(&self, y: &[f64]) -> Result<Vec<f64>> {
+    pub fn run<T: Sample + 'static>(&self, y: &[f64]) -> Result<Vec<f64>> {
+        let mut step = self.runner::<T>(y.first().copied().unwrap_or(0.0))?;
+        Ok(y.iter().map(|&v| step(v)).collect())
+    }
+
+    /// [`Design::run`] one sample at a time, for a run streamed from its file: the compensator
+    /// started in equilibrium with `first` (the run's first sample), each call one sample in
+    /// and one out.
+    ///
+    /// # Errors
+    /// As [`Design::run`].
+    pub fn runner<T: Sample + 'static>(&self, first: f64) -> Result<Runner> {
         match self.sections.len() {
-            0..=2 => self.run_with::<T, 2>(y),
-            3..=4 => self.run_with::<T, 4>(y),
-            5..=8 => self.run_with::<T, 8>(y),
-            _ => self.run_with::<T, 16>(y),
+            0..=2 => self.runner_with::<T, 2>(first),
+            3..=4 => self.runner_with::<T, 4>(first),
+            5..=8 => self.runner_with::<T, 8>(first),
+            _ => self.runner_with::<T, 16>(first),
         }
     }
 
-    fn run_with<T: Sample, const N: usize>(&self, y: &[f64]) -> Result<Vec<f64>> {
+    fn runner_with<T: Sample + 'static, const N: usize>(&self, first: f64) -> Result<Runner> {
         let (gain, sections) = as_exported::<T>(self.gain, &self.sections);
         let c = CascadeCoefficients::<T, N>::new(gain, &sections)
             .map_err(|error| DesignError::Cascade { error })?;
-        let mut st: CascadeState<T, N> =
-            c.equilibrium(T::from_f64(y.first().copied().unwrap_or(0.0)));
-        Ok(y.iter()
-            .map(|&v| c.process(&mut st, T::from_f64(v)).to_f64())
-            .collect())
+        let mut st: CascadeState<T, N> = c.equilibrium(T::from_f64(first));
+        Ok(Box::new(move |v| {
+            c.process(&mut st, T::from_f64(v)).to_f64()
+        }))
     }
 
     /// The design's own low-pass as `(gain, sections)`, which the board's
@@ -515,12 +531,27 @@ impl Design {
     /// # Errors
     /// As [`Design::lowpass_sections`]; [`DesignError::NonlinearCorrection`] when the
     /// correction's coefficients do not validate.
-    pub fn run_nonlinear_correction<T: Sample>(
+    pub fn run_nonlinear_correction<T: Sample + 'static>(
         &self,
         fs: f64,
         gain: f64,
         y: &[f64],
     ) -> Result<Vec<f64>> {
+        let mut step = self.nonlinear_runner::<T>(fs, gain, y.first().copied().unwrap_or(0.0))?;
+        Ok(y.iter().map(|&v| step(v)).collect())
+    }
+
+    /// [`Design::run_nonlinear_correction`] one sample at a time, started in equilibrium with
+    /// `first`.
+    ///
+    /// # Errors
+    /// As [`Design::run_nonlinear_correction`].
+    pub fn nonlinear_runner<T: Sample + 'static>(
+        &self,
+        fs: f64,
+        gain: f64,
+        first: f64,
+    ) -> Result<Runner> {
         let (lp_gain, lp) = self.lowpass_sections(fs)?;
         let (lp_gain, lp) = as_exported::<T>(lp_gain, &lp);
         let c = crate::board::compensator::NonlinearDampingCoefficients::<T, 4>::new(
@@ -529,10 +560,10 @@ impl Design {
             &lp,
         )
         .map_err(|error| DesignError::NonlinearCorrection { error })?;
-        let mut st = c.equilibrium(T::from_f64(y.first().copied().unwrap_or(0.0)));
-        Ok(y.iter()
-            .map(|&v| c.process(&mut st, T::from_f64(v)).to_f64())
-            .collect())
+        let mut st = c.equilibrium(T::from_f64(first));
+        Ok(Box::new(move |v| {
+            c.process(&mut st, T::from_f64(v)).to_f64()
+        }))
     }
 
     /// Whether the design passes the probe signal through unchanged but for its gain (every

@@ -432,35 +432,114 @@ impl FixedPlan {
     /// # Errors
     /// [`DesignError::FixedBoard`] when the plan does not validate.
     pub fn run(&self, y: &[f64]) -> Result<FixedRun> {
-        let sections = self.board_sections();
-        match sections.len() {
-            0..=2 => self.run_with::<2>(&sections, y),
-            3..=4 => self.run_with::<4>(&sections, y),
-            5..=8 => self.run_with::<8>(&sections, y),
-            _ => self.run_with::<16>(&sections, y),
-        }
+        let mut runner = self.runner(y.first().copied().unwrap_or(0.0))?;
+        let u_hat = y.iter().map(|&v| runner.step(v)).collect();
+        Ok(runner.finish(u_hat))
     }
 
-    fn run_with<const N: usize>(&self, sections: &[FixedSection], y: &[f64]) -> Result<FixedRun> {
+    /// [`FixedPlan::run`] one sample at a time, for a run streamed from its file: the board's
+    /// code started in equilibrium with `first` (the run's first sample).
+    ///
+    /// # Errors
+    /// As [`FixedPlan::run`].
+    pub fn runner(&self, first: f64) -> Result<FixedRunner> {
+        let sections = self.board_sections();
+        let (first, _) = self.to_code(first);
+        let cascade: Box<dyn FixedStep> = match sections.len() {
+            0..=2 => Box::new(Fixed::<2>::new(&sections, first)?),
+            3..=4 => Box::new(Fixed::<4>::new(&sections, first)?),
+            5..=8 => Box::new(Fixed::<8>::new(&sections, first)?),
+            _ => Box::new(Fixed::<16>::new(&sections, first)?),
+        };
+        Ok(FixedRunner::new(
+            cascade,
+            self.full_scale,
+            self.output_exponent,
+        ))
+    }
+}
+
+/// A board's integer cascade with its state: one code in, one code out.
+pub(crate) trait FixedStep {
+    /// One input code through the cascade.
+    fn step(&mut self, code: i32) -> i32;
+    /// Whether a state or the output saturated.
+    fn overflowed(&self) -> bool;
+}
+
+/// The normal form's cascade of `N` sections and its state.
+struct Fixed<const N: usize> {
+    cascade: FixedCascade<N>,
+    state: FixedState<N>,
+}
+
+impl<const N: usize> Fixed<N> {
+    fn new(sections: &[FixedSection], first: i32) -> Result<Self> {
         let cascade =
             FixedCascade::<N>::new(sections).map_err(|error| DesignError::FixedBoard { error })?;
         // Start in equilibrium with the first sample, as the f32 compensator does.
-        let mut state: FixedState<N> =
-            cascade.equilibrium(y.first().map_or(0, |&v| self.to_code(v).0));
-        let mut clipped_inputs = 0;
-        let u_hat = y
-            .iter()
-            .map(|&v| {
-                let (code, clipped) = self.to_code(v);
-                clipped_inputs += usize::from(clipped);
-                self.from_code(cascade.process(&mut state, code))
-            })
-            .collect();
-        Ok(FixedRun {
+        let state = cascade.equilibrium(first);
+        Ok(Self { cascade, state })
+    }
+}
+
+impl<const N: usize> FixedStep for Fixed<N> {
+    fn step(&mut self, code: i32) -> i32 {
+        self.cascade.process(&mut self.state, code)
+    }
+    fn overflowed(&self) -> bool {
+        self.state.overflowed()
+    }
+}
+
+/// A fixed-point compensator run one sample at a time ([`FixedPlan::runner`]): probe values
+/// clamped to the full scale and coded, the board's integers run, the output decoded; with the
+/// count of clamped inputs.
+pub struct FixedRunner {
+    cascade: Box<dyn FixedStep>,
+    full_scale: f64,
+    output_exponent: i32,
+    clipped_inputs: usize,
+}
+
+impl FixedRunner {
+    pub(crate) fn new(cascade: Box<dyn FixedStep>, full_scale: f64, output_exponent: i32) -> Self {
+        Self {
+            cascade,
+            full_scale,
+            output_exponent,
+            clipped_inputs: 0,
+        }
+    }
+
+    /// One probe sample in, the reconstructed pressure out.
+    pub fn step(&mut self, y: f64) -> f64 {
+        let (code, clipped) = code_of(y, self.full_scale);
+        self.clipped_inputs += usize::from(clipped);
+        let out = self.cascade.step(code);
+        f64::from(out) * 2f64.powi(self.output_exponent - 31) * self.full_scale
+    }
+
+    /// Samples clamped so far.
+    #[must_use]
+    pub fn clipped_inputs(&self) -> usize {
+        self.clipped_inputs
+    }
+
+    /// Whether a state or the output saturated so far.
+    #[must_use]
+    pub fn overflowed(&self) -> bool {
+        self.cascade.overflowed()
+    }
+
+    /// The run's summary with its output.
+    #[must_use]
+    pub fn finish(&self, u_hat: Vec<f64>) -> FixedRun {
+        FixedRun {
             u_hat,
-            clipped_inputs,
-            overflowed: state.overflowed(),
-        })
+            clipped_inputs: self.clipped_inputs,
+            overflowed: self.overflowed(),
+        }
     }
 }
 

@@ -269,13 +269,25 @@ impl Model {
     /// # Errors
     /// [`Error::UnstableInverse`] naming the zero when `B` has a zero on or outside the unit
     /// circle, or [`Error::InvalidArgument`] when the order exceeds [`MAX_ORDER`].
-    pub fn compensate<T: Sample>(&self, y: &[f64]) -> Result<Vec<f64>> {
+    pub fn compensate<T: Sample + 'static>(&self, y: &[f64]) -> Result<Vec<f64>> {
+        let mut step = self.compensator::<T>(y.first().copied().unwrap_or(0.0))?;
+        Ok(y.iter().map(|&v| step(v)).collect())
+    }
+
+    /// [`Model::compensate`] one sample at a time, started in equilibrium with `first`.
+    ///
+    /// # Errors
+    /// As [`Model::compensate`].
+    pub fn compensator<T: Sample + 'static>(
+        &self,
+        first: f64,
+    ) -> Result<Box<dyn FnMut(f64) -> f64>> {
         self.check_invertible("compensate")?;
         match self.order() {
-            0..=2 => self.compensate_with::<T, 2>(y),
-            3..=4 => self.compensate_with::<T, 4>(y),
-            5..=8 => self.compensate_with::<T, 8>(y),
-            9..=MAX_ORDER => self.compensate_with::<T, MAX_ORDER>(y),
+            0..=2 => self.compensator_with::<T, 2>(first),
+            3..=4 => self.compensator_with::<T, 4>(first),
+            5..=8 => self.compensator_with::<T, 8>(first),
+            9..=MAX_ORDER => self.compensator_with::<T, MAX_ORDER>(first),
             m => Err(Error::InvalidArgument {
                 what: "model order",
                 message: format!("order {m} exceeds the largest supported order {MAX_ORDER}"),
@@ -283,12 +295,14 @@ impl Model {
         }
     }
 
-    fn compensate_with<T: Sample, const M: usize>(&self, y: &[f64]) -> Result<Vec<f64>> {
+    fn compensator_with<T: Sample + 'static, const M: usize>(
+        &self,
+        first: f64,
+    ) -> Result<Box<dyn FnMut(f64) -> f64>> {
         let coefficients = InverseCoefficients::<T, M>::new(&self.b, &self.a)
             .map_err(|error| FitError::Compensator { error })?;
-        let y0 = T::from_f64(y.first().copied().unwrap_or(0.0));
-        let mut c = Compensator::from_coefficients(coefficients, y0);
-        Ok(y.iter().map(|&v| c.push(T::from_f64(v)).to_f64()).collect())
+        let mut c = Compensator::from_coefficients(coefficients, T::from_f64(first));
+        Ok(Box::new(move |v| c.push(T::from_f64(v)).to_f64()))
     }
 }
 

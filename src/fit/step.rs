@@ -109,6 +109,86 @@ pub fn excitation(x: &[f64]) -> f64 {
     }
 }
 
+/// [`excitation`] of a channel streamed twice (a run read in passes from its file): the mean
+/// and the third differences' median counted in the first pass, the spread about the mean and
+/// the median's second look in the second. The same figure as [`excitation`] (the median as
+/// [`crate::trace::stream::Median`] finds it).
+#[derive(Debug, Clone, Default)]
+pub struct ExcitationStream {
+    n: usize,
+    sum: f64,
+    mean: f64,
+    squares: f64,
+    last: [f64; 3],
+    seen: usize,
+    d3: crate::trace::stream::Median,
+}
+
+impl ExcitationStream {
+    /// Nothing yet.
+    #[must_use]
+    pub fn new() -> Self {
+        Self {
+            sum: -0.0,
+            squares: -0.0,
+            ..Self::default()
+        }
+    }
+
+    /// The next third difference's magnitude, once three samples came before `v`.
+    fn d3(&mut self, v: f64) -> Option<f64> {
+        let [a, b, c] = self.last;
+        let d = (self.seen >= 3).then(|| (v - 3.0 * c + 3.0 * b - a).abs());
+        self.last = [b, c, v];
+        self.seen += 1;
+        d
+    }
+
+    /// A sample of the first pass.
+    pub fn first(&mut self, v: f64) {
+        self.n += 1;
+        self.sum += v;
+        if let Some(d) = self.d3(v) {
+            self.d3.first(d);
+        }
+    }
+
+    /// Ends the first pass.
+    pub fn end_first(&mut self) {
+        self.mean = self.sum / self.n.max(1) as f64;
+        self.seen = 0;
+        self.d3.end_first();
+    }
+
+    /// A sample of the second pass.
+    pub fn second(&mut self, v: f64) {
+        self.squares += (v - self.mean).powi(2);
+        if let Some(d) = self.d3(v) {
+            self.d3.second(d);
+        }
+    }
+
+    /// The excitation, after the second pass.
+    #[must_use]
+    pub fn value(&self) -> f64 {
+        if self.n == 0 {
+            return 0.0;
+        }
+        let std = (self.squares / self.n as f64).sqrt();
+        let noise = self
+            .d3
+            .value()
+            .map_or(0.0, |m| m / (0.674_489_75 * 20f64.sqrt()));
+        if noise > 0.0 {
+            std / noise
+        } else if std > 0.0 {
+            f64::INFINITY
+        } else {
+            0.0
+        }
+    }
+}
+
 /// Least [`excitation`] of a test's reference: below it the test carries no step or other
 /// change above its noise and tells nothing about the probe.
 pub const MIN_EXCITATION: f64 = 3.0;

@@ -62,7 +62,8 @@ pub use predict::{
     innovation_std, judged_nrmse, noise_model, observed, predict, predict_with, prediction_error,
 };
 pub use prefilter::{
-    prefilter_delay, prefilter_hz, prefilter_sections, prefiltered, with_prefilter, PREFILTER_ORDER,
+    prefilter_delay, prefilter_hz, prefilter_sections, prefiltered, with_prefilter,
+    PrefilterStream, PREFILTER_ORDER,
 };
 use temperature::default_reference_k;
 pub use temperature::{

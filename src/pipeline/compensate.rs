@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use crate::design::inverse::{self, Design};
-use crate::design::quantise::{DirectPlan, FixedPlan};
+use crate::design::quantise::{DirectPlan, FixedPlan, FixedRunner};
 use crate::error::{Advice, Error, Result};
 use crate::file::ModelFile;
 use crate::fit;
@@ -335,18 +335,37 @@ fn run_fixed(
     model: &Path,
     y: &[f64],
 ) -> Result<(Vec<f64>, FixedRunSummary)> {
+    let (mut runner, full_scale) =
+        fixed_runner(d, stated, model, y.first().copied().unwrap_or(0.0))?;
+    let u_hat = y.iter().map(|&v| runner.step(v)).collect();
+    let summary = FixedRunSummary {
+        clamped_inputs: runner.clipped_inputs(),
+        full_scale,
+        overflowed: runner.overflowed(),
+    };
+    Ok((u_hat, summary))
+}
+
+/// [`run_fixed`]'s compensator, to run one sample at a time from `first` on; with its full
+/// scale.
+pub(super) fn fixed_runner(
+    d: &Design,
+    stated: Option<f64>,
+    model: &Path,
+    first: f64,
+) -> Result<(FixedRunner, f64)> {
     let other = |planned: f64| stated.filter(|&s| s != planned);
-    let (run, full_scale) = match (&d.fixed_direct, &d.fixed, stated) {
+    Ok(match (&d.fixed_direct, &d.fixed, stated) {
         (Some(plan), _, _) => match other(plan.full_scale) {
-            Some(fs) => (DirectPlan::new(d, fs)?.run(y)?, fs),
-            None => (plan.run(y)?, plan.full_scale),
+            Some(fs) => (DirectPlan::new(d, fs)?.runner(first)?, fs),
+            None => (plan.runner(first)?, plan.full_scale),
         },
         (None, Some(plan), _) => match other(plan.full_scale) {
-            Some(fs) => (FixedPlan::new(d, fs)?.run(y)?, fs),
-            None => (plan.run(y)?, plan.full_scale),
+            Some(fs) => (FixedPlan::new(d, fs)?.runner(first)?, fs),
+            None => (plan.runner(first)?, plan.full_scale),
         },
         // No plan stored, a range stated: planned for it, as the export plans it.
-        (None, None, Some(fs)) => (FixedPlan::new(d, fs)?.run(y)?, fs),
+        (None, None, Some(fs)) => (FixedPlan::new(d, fs)?.runner(first)?, fs),
         (None, None, None) => {
             return Err(Error::InvalidParameter {
                 parameter: crate::error::Parameter::Arithmetic,
@@ -356,13 +375,7 @@ fn run_fixed(
                 model: model.to_path_buf(),
             }))
         }
-    };
-    let summary = FixedRunSummary {
-        clamped_inputs: run.clipped_inputs,
-        full_scale,
-        overflowed: run.overflowed,
-    };
-    Ok((run.u_hat, summary))
+    })
 }
 
 #[cfg(test)]

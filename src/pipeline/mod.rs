@@ -5,12 +5,15 @@
 //! with a model file ([`compensate`]), a model file's probe simulated on a recording
 //! ([`simulate`]), a model file put at another sample rate ([`resample`]), a model file's
 //! analysis, frequency response and stability ([`inspect()`]), and a model file judged against
-//! its tests, the missing effects ranked ([`diagnose()`]).
+//! its tests, the missing effects ranked ([`diagnose()`]). A recording too long to hold is
+//! compensated in passes over its file ([`prepare`]), the one place here that reads a file
+//! (through the trace room's rows).
 //!
 //! Every compensator goes through one sequence: the design (checked on the tests against the
 //! raw probe, or a stored design's shape redone), the sensor-resonance prefilter put in front
 //! of it, then its fixed-point plans. The command line only parses its arguments into the
-//! requests here and prints what comes back; nothing here reads a file or prints.
+//! requests here and prints what comes back; nothing here prints, and nothing but [`prepare`]
+//! reads a file.
 
 mod compensate;
 mod design;
@@ -20,6 +23,7 @@ mod fit_design;
 mod inspect;
 mod resample;
 mod simulate;
+mod stream;
 
 pub use compensate::{
     compensate, Arithmetic, CompensateRequest, Compensated, Compensation, FixedRunSummary,
@@ -38,6 +42,7 @@ pub use fit_design::{fit_and_design, FitDesignRequest, FitDesigned, FitStage};
 pub use inspect::{inspect, InspectRequest, Inspected};
 pub use resample::{check_sample_rate, resample, ResampleRequest, Resampled};
 pub use simulate::{simulate, SimulateRequest, Simulated};
+pub use stream::{prepare, streams, Prepared, StreamRequest};
 
 /// The probe and step tests the pipeline's unit tests run on.
 #[cfg(test)]

@@ -284,6 +284,13 @@ pub enum TraceError {
         /// 1-based line of the last row.
         last: u64,
     },
+    /// A run read in passes (`compensate`) is not a regular file: a pipe or a device, which
+    /// cannot be read a second time.
+    #[error("{path}: not a regular file (a pipe or a device): a run is read twice, to check it and then to compensate it row by row without holding it in memory; save it to a file first")]
+    NotRereadable {
+        /// The run's path.
+        path: PathBuf,
+    },
     /// Columns written beside the trace do not fit it, or the file changed since it was read.
     #[error("{path}: {message}")]
     Mismatch {
@@ -374,6 +381,7 @@ impl TraceError {
             Self::TooShort { .. } => "too-short",
             Self::Clipped { .. } => "clipped",
             Self::Mismatch { .. } => "mismatch",
+            Self::NotRereadable { .. } => "not-rereadable",
             Self::LineTooLong { .. } => "line-too-long",
             Self::OutOfMemory { .. } => "out-of-memory",
             Self::WrongDelimiter { .. } => "wrong-delimiter",
@@ -428,9 +436,10 @@ impl TraceError {
                 (Some(path), Some(*line), None)
             }
             Self::MissingColumn { path, .. } => (Some(path), Some(1), None),
-            Self::Io { path, .. } | Self::TooShort { path, .. } | Self::Mismatch { path, .. } => {
-                (Some(path), None, None)
-            }
+            Self::Io { path, .. }
+            | Self::TooShort { path, .. }
+            | Self::Mismatch { path, .. }
+            | Self::NotRereadable { path } => (Some(path), None, None),
             Self::SampleRate { .. } | Self::NoSampleRate { .. } => (None, None, None),
         }
     }

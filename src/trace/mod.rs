@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use sha2::{Digest, Sha256};
 
 mod error;
+pub mod stream;
 pub mod unit;
 pub use error::{short, ColumnRole, CopyFailure, TraceError};
 pub use unit::{time_unit, PressureUnit};
@@ -153,10 +154,12 @@ enum Source {
     Bytes(std::sync::Arc<[u8]>),
 }
 
-/// A reader that hashes what passes through it.
+/// A reader that hashes what passes through it, and keeps it when asked (a pipe or a device,
+/// which cannot be read again to write the rows back).
 struct Hashing<R> {
     inner: R,
     hasher: Sha256,
+    kept: Option<Vec<u8>>,
 }
 
 impl Hashing<std::io::BufReader<std::fs::File>> {
@@ -175,6 +178,7 @@ impl Hashing<std::io::BufReader<std::fs::File>> {
         let reader = Self {
             inner: std::io::BufReader::with_capacity(1 << 16, file),
             hasher: Sha256::new(),
+            kept: (!meta.is_file()).then(Vec::new),
         };
         Ok((reader, meta.len()))
     }
@@ -183,7 +187,13 @@ impl Hashing<std::io::BufReader<std::fs::File>> {
 impl<R: Read> Read for Hashing<R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = self.inner.read(buf)?;
-        self.hasher.update(buf.get(..n).unwrap_or(&[]));
+        let read = buf.get(..n).unwrap_or(&[]);
+        self.hasher.update(read);
+        if let Some(kept) = &mut self.kept {
+            kept.try_reserve(n)
+                .map_err(|_| std::io::Error::from(std::io::ErrorKind::OutOfMemory))?;
+            kept.extend_from_slice(read);
+        }
         Ok(n)
     }
 }
@@ -344,47 +354,49 @@ fn other_delimiter(header: &csv::StringRecord, delimiter: u8) -> Option<u8> {
         })
 }
 
-impl Trace {
-    /// Reads and checks a trace.
-    ///
-    /// # Errors
-    /// [`TraceError`] naming the file, line and column of the first problem found.
-    pub fn read(path: &Path, columns: &Columns) -> Result<Self> {
-        let (mut reader, size) = Hashing::open(path)?;
-        let mut trace = Self::parse_reader(path, &mut reader, size, columns)?;
-        trace.sha256 = hex(&reader.hasher.finalize());
-        trace.source = Source::File;
-        Ok(trace)
+/// Checks the options a trace is read with, before its file is opened.
+fn check_columns(columns: &Columns) -> Result<()> {
+    if let Some(fs) = columns.sample_rate_hz {
+        if !(fs.is_finite() && fs > 0.0 && fs <= MAX_SAMPLE_RATE_HZ) {
+            return Err(TraceError::SampleRate {
+                given: fs,
+                max: MAX_SAMPLE_RATE_HZ,
+            });
+        }
     }
-
-    /// Parses a trace from bytes; `path` is used for messages and provenance.
-    ///
-    /// # Errors
-    /// As [`Trace::read`].
-    pub fn parse(path: &Path, bytes: &[u8], columns: &Columns) -> Result<Self> {
-        let mut trace = Self::parse_reader(path, bytes, bytes.len() as u64, columns)?;
-        trace.sha256 = hex(&Sha256::digest(bytes));
-        trace.source = Source::Bytes(bytes.into());
-        Ok(trace)
+    if columns.decimal_comma && columns.delimiter == b',' {
+        return Err(TraceError::DecimalCommaDelimiter);
     }
+    Ok(())
+}
 
-    /// Parses and checks a trace as it streams from `reader` (`size` bytes long, to size the
-    /// signals' buffers); the hash and the source are the caller's to set.
-    fn parse_reader<R: Read>(path: &Path, reader: R, size: u64, columns: &Columns) -> Result<Self> {
+/// Byte of the file where field `i` of `rec` (starting at byte `at`) starts, past its
+/// leading blanks.
+fn byte_of(rec: &csv::StringRecord, at: u64, i: usize) -> u64 {
+    let text = rec.get(i).unwrap_or("");
+    let lead = text.len() - text.trim_start().len();
+    at + rec.range(i).map_or(0, |r| r.start as u64) + i as u64 + lead as u64
+}
+
+/// A trace's header: the columns found in it, to read its rows by.
+struct Layout {
+    /// The header as read.
+    raw: csv::StringRecord,
+    /// The same, trimmed.
+    headers: csv::StringRecord,
+    /// Byte where the header starts.
+    header_at: u64,
+    t_idx: Option<usize>,
+    u_idx: Option<usize>,
+    y_idx: usize,
+}
+
+impl Layout {
+    /// Reads the header of `reader` and finds the columns of `columns` in it: a missing one is
+    /// an error that says whether the file has another delimiter (a few rows are read to see
+    /// whether its numbers have decimal commas).
+    fn read<R: Read>(path: &Path, reader: &mut csv::Reader<R>, columns: &Columns) -> Result<Self> {
         let p = || path.to_path_buf();
-        if let Some(fs) = columns.sample_rate_hz {
-            if !(fs.is_finite() && fs > 0.0 && fs <= MAX_SAMPLE_RATE_HZ) {
-                return Err(TraceError::SampleRate {
-                    given: fs,
-                    max: MAX_SAMPLE_RATE_HZ,
-                });
-            }
-        }
-        if columns.decimal_comma && columns.delimiter == b',' {
-            return Err(TraceError::DecimalCommaDelimiter);
-        }
-        // Not trimmed by the reader: a field's place in the record gives its byte in the file.
-        let mut reader = csv_reader(reader, columns.delimiter, csv::Trim::None);
         let raw = reader.headers().map_err(|e| csv_error(path, &e))?.clone();
         let mut headers = raw.clone();
         headers.trim();
@@ -396,12 +408,6 @@ impl Trace {
             });
         }
         let header_at = raw.position().map_or(0, csv::Position::byte);
-        let byte_of = |rec: &csv::StringRecord, at: u64, i: usize| {
-            let text = rec.get(i).unwrap_or("");
-            let lead = text.len() - text.trim_start().len();
-            at + rec.range(i).map_or(0, |r| r.start as u64) + i as u64 + lead as u64
-        };
-        let name_of = |i: usize| echo(headers.get(i).unwrap_or(""), byte_of(&raw, header_at, i));
         let find = |name: &str| headers.iter().position(|h| h == name);
         let mut missing = |column: &str, role: ColumnRole| {
             if let Some(found) = other_delimiter(&raw, columns.delimiter) {
@@ -456,6 +462,143 @@ impl Trace {
                 None => return Err(missing(&columns.time, ColumnRole::Time)),
             }
         };
+        Ok(Self {
+            raw,
+            headers,
+            header_at,
+            t_idx,
+            u_idx,
+            y_idx,
+        })
+    }
+
+    /// Column `i`'s name as messages echo it.
+    fn name_of(&self, i: usize) -> String {
+        echo(
+            self.headers.get(i).unwrap_or(""),
+            byte_of(&self.raw, self.header_at, i),
+        )
+    }
+
+    /// An error unless `rec` has as many fields as the header.
+    fn check_width(&self, path: &Path, rec: &csv::StringRecord, line: u64) -> Result<()> {
+        if rec.len() == self.raw.len() {
+            return Ok(());
+        }
+        Err(TraceError::Malformed {
+            path: path.to_path_buf(),
+            line,
+            message: format!(
+                "expected {} fields like the header, found {}",
+                self.raw.len(),
+                rec.len()
+            ),
+        })
+    }
+
+    /// The number in field `idx` of `rec`, checked: a number (with a decimal comma when
+    /// `columns` say so), finite, and no larger than [`MAX_MAGNITUDE`].
+    fn field(
+        &self,
+        path: &Path,
+        columns: &Columns,
+        rec: &csv::StringRecord,
+        idx: usize,
+    ) -> Result<f64> {
+        let p = || path.to_path_buf();
+        let line = rec.position().map_or(0, csv::Position::line);
+        let at = rec.position().map_or(0, csv::Position::byte);
+        let name_of = |i: usize| self.name_of(i);
+        let text = rec.get(idx).unwrap_or("").trim();
+        let value = || echo(text, byte_of(rec, at, idx));
+        let parsed = if columns.decimal_comma && text.contains(',') {
+            text.replace(',', ".").parse::<f64>()
+        } else {
+            text.parse::<f64>()
+        };
+        let Ok(v) = parsed else {
+            return Err(
+                if !columns.decimal_comma && columns.delimiter != b',' && has_decimal_comma(text) {
+                    TraceError::DecimalComma {
+                        path: p(),
+                        line,
+                        column: idx + 1,
+                        name: name_of(idx),
+                        value: value(),
+                    }
+                } else {
+                    TraceError::NotANumber {
+                        path: p(),
+                        line,
+                        column: idx + 1,
+                        name: name_of(idx),
+                        value: value(),
+                    }
+                },
+            );
+        };
+        if !v.is_finite() {
+            return Err(TraceError::NonFinite {
+                path: p(),
+                line,
+                column: idx + 1,
+                name: name_of(idx),
+                value: value(),
+            });
+        }
+        if v.abs() > MAX_MAGNITUDE {
+            return Err(TraceError::TooLarge {
+                path: p(),
+                line,
+                column: idx + 1,
+                name: name_of(idx),
+                value: value(),
+                max: MAX_MAGNITUDE,
+            });
+        }
+        Ok(v)
+    }
+}
+
+impl Trace {
+    /// Reads and checks a trace.
+    ///
+    /// # Errors
+    /// [`TraceError`] naming the file, line and column of the first problem found.
+    /// A pipe or a device is read once, its bytes kept to write the rows back.
+    pub fn read(path: &Path, columns: &Columns) -> Result<Self> {
+        let (mut reader, size) = Hashing::open(path)?;
+        let mut trace = Self::parse_reader(path, &mut reader, size, columns)?;
+        trace.sha256 = hex(&reader.hasher.finalize());
+        trace.source = match reader.kept {
+            Some(bytes) => Source::Bytes(bytes.into()),
+            None => Source::File,
+        };
+        Ok(trace)
+    }
+
+    /// Parses a trace from bytes; `path` is used for messages and provenance.
+    ///
+    /// # Errors
+    /// As [`Trace::read`].
+    pub fn parse(path: &Path, bytes: &[u8], columns: &Columns) -> Result<Self> {
+        let mut trace = Self::parse_reader(path, bytes, bytes.len() as u64, columns)?;
+        trace.sha256 = hex(&Sha256::digest(bytes));
+        trace.source = Source::Bytes(bytes.into());
+        Ok(trace)
+    }
+
+    /// Parses and checks a trace as it streams from `reader` (`size` bytes long, to size the
+    /// signals' buffers); the hash and the source are the caller's to set.
+    fn parse_reader<R: Read>(path: &Path, reader: R, size: u64, columns: &Columns) -> Result<Self> {
+        let p = || path.to_path_buf();
+        check_columns(columns)?;
+        // Not trimmed by the reader: a field's place in the record gives its byte in the file.
+        let mut reader = csv_reader(reader, columns.delimiter, csv::Trim::None);
+        let layout = Layout::read(path, &mut reader, columns)?;
+        let (t_idx, u_idx, y_idx) = (layout.t_idx, layout.u_idx, layout.y_idx);
+        let headers = layout.headers.clone();
+        let name_of = |i: usize| layout.name_of(i);
 
         let mut t = Vec::new();
         let mut u = Vec::new();
@@ -475,17 +618,7 @@ impl Trace {
                 line,
                 rows,
             };
-            if rec.len() != raw.len() {
-                return Err(TraceError::Malformed {
-                    path: p(),
-                    line,
-                    message: format!(
-                        "expected {} fields like the header, found {}",
-                        raw.len(),
-                        rec.len()
-                    ),
-                });
-            }
+            layout.check_width(path, &rec, line)?;
             if rows == SIZING_ROWS {
                 // The file's length over the bytes a row has taken so far: room for all the
                 // rows at once, instead of buffers doubling (and briefly tripling) as they grow.
@@ -499,60 +632,7 @@ impl Trace {
                 }
                 lines.try_reserve(more).map_err(|_| oom())?;
             }
-            let at = rec.position().map_or(0, csv::Position::byte);
-            let field = |idx: usize| -> Result<f64> {
-                let text = rec.get(idx).unwrap_or("").trim();
-                let value = || echo(text, byte_of(&rec, at, idx));
-                let parsed = if columns.decimal_comma && text.contains(',') {
-                    text.replace(',', ".").parse::<f64>()
-                } else {
-                    text.parse::<f64>()
-                };
-                let Ok(v) = parsed else {
-                    return Err(
-                        if !columns.decimal_comma
-                            && columns.delimiter != b','
-                            && has_decimal_comma(text)
-                        {
-                            TraceError::DecimalComma {
-                                path: p(),
-                                line,
-                                column: idx + 1,
-                                name: name_of(idx),
-                                value: value(),
-                            }
-                        } else {
-                            TraceError::NotANumber {
-                                path: p(),
-                                line,
-                                column: idx + 1,
-                                name: name_of(idx),
-                                value: value(),
-                            }
-                        },
-                    );
-                };
-                if !v.is_finite() {
-                    return Err(TraceError::NonFinite {
-                        path: p(),
-                        line,
-                        column: idx + 1,
-                        name: name_of(idx),
-                        value: value(),
-                    });
-                }
-                if v.abs() > MAX_MAGNITUDE {
-                    return Err(TraceError::TooLarge {
-                        path: p(),
-                        line,
-                        column: idx + 1,
-                        name: name_of(idx),
-                        value: value(),
-                        max: MAX_MAGNITUDE,
-                    });
-                }
-                Ok(v)
-            };
+            let field = |idx: usize| layout.field(path, columns, &rec, idx);
             if let Some(i) = t_idx {
                 grow(&mut t, field(i)?, oom)?;
             }

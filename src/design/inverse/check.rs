@@ -154,14 +154,29 @@ struct RunJudge<'a> {
 }
 
 impl<'a> RunJudge<'a> {
-    fn new(design: &Design, model: &'a Model, y: &[f64]) -> Option<Self> {
-        Self::with_noise(model, design.noise.as_ref()?, y, design.latency_samples)
+    fn new(
+        design: &Design,
+        model: &'a Model,
+        spectrum: impl FnOnce() -> Option<optimal::RunSpectrum>,
+    ) -> Option<Self> {
+        let noise = design.noise.as_ref()?;
+        Self::with_spectrum(model, noise, &spectrum()?, design.latency_samples)
     }
 
     /// The run `y` through `model` and `noise`, the raw probe aligned within the lags a design
     /// of `latency` samples is compared on.
     fn with_noise(model: &'a Model, noise: &NoiseModel, y: &[f64], latency: f64) -> Option<Self> {
-        let pressure = optimal::RunSpectrum::measure(y)?.pressure(model, noise);
+        Self::with_spectrum(model, noise, &optimal::RunSpectrum::measure(y)?, latency)
+    }
+
+    /// [`RunJudge::with_noise`] from the run's spectrum.
+    fn with_spectrum(
+        model: &'a Model,
+        noise: &NoiseModel,
+        spectrum: &optimal::RunSpectrum,
+        latency: f64,
+    ) -> Option<Self> {
+        let pressure = spectrum.pressure(model, noise);
         let latency = latency.round().max(0.0) as usize;
         let (_, raw_lags) = super::comparison_lags(None, latency, latency, model.delay);
         let raw = pressure.predicted(1.0, &[], raw_lags);
@@ -312,10 +327,34 @@ pub fn on_run(
     y: &[f64],
     candidates: RunCandidates,
 ) -> Option<RunJudgement> {
+    on_run_measured(
+        design,
+        model,
+        || optimal::RunSpectrum::measure(y),
+        candidates,
+    )
+}
+
+/// Whether [`on_run`] looks at the run's spectrum for `design`: not for a design without a
+/// noise model or one that passes the probe on (a streamed run then needs no spectrum).
+#[must_use]
+pub fn judges_runs(design: &Design) -> bool {
+    !design.passes_probe() && design.noise.is_some()
+}
+
+/// [`on_run`] with the run's spectrum measured by `spectrum` (a run streamed from its file:
+/// [`optimal::on_run::SpectrumStream`]), called only when [`judges_runs`].
+#[must_use]
+pub fn on_run_measured(
+    design: &Design,
+    model: &Model,
+    spectrum: impl FnOnce() -> Option<optimal::RunSpectrum>,
+    candidates: RunCandidates,
+) -> Option<RunJudgement> {
     if design.passes_probe() {
         return None;
     }
-    let judge = RunJudge::new(design, model, y)?;
+    let judge = RunJudge::new(design, model, spectrum)?;
     let stored = judge.judge(design);
     if stored.ratio() < RUN_MARGIN || candidates == RunCandidates::JudgeOnly {
         return Some(RunJudgement {

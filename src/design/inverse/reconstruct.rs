@@ -69,6 +69,81 @@ pub fn aligned_error(
     best
 }
 
+/// [`aligned_error`] on a run streamed one sample at a time, its length `n` and its
+/// reference's range known beforehand (earlier passes over its file): each lag's sum of
+/// squares kept as the samples pass, the reference's last samples in a ring as long as the
+/// largest lag. The same sums in the same order as [`aligned_error`]'s direct search, so the
+/// same figures; on a long record where [`aligned_error`] searches by FFT, the same figure
+/// unless two lags tie within its rounding. Work: lags times samples.
+#[derive(Debug, Clone)]
+pub struct AlignedErrorStream {
+    lo: usize,
+    hi: usize,
+    n: usize,
+    range: f64,
+    sse: Vec<f64>,
+    ring: Vec<f64>,
+    k: usize,
+}
+
+impl AlignedErrorStream {
+    /// The search over `lags` on a run of `n` samples whose reference spans `range`.
+    #[must_use]
+    pub fn new(n: usize, lags: std::ops::RangeInclusive<usize>, range: f64) -> Self {
+        let hi = (*lags.end()).min(n.saturating_sub(2));
+        let lo = *lags.start();
+        let count = if lo <= hi { hi - lo + 1 } else { 0 };
+        Self {
+            lo,
+            hi,
+            n,
+            range,
+            sse: vec![-0.0; count],
+            ring: vec![0.0; 2 * (hi + 1)],
+            k: 0,
+        }
+    }
+
+    /// The next sample of the reference and of the estimate.
+    pub fn push(&mut self, reference: f64, estimate: f64) {
+        let k = self.k;
+        self.k += 1;
+        // Each value is kept twice, `cap` apart, so that the last `cap` values always lie in
+        // one slice, oldest first: the reference `lag` samples back is at `pos + cap - lag`.
+        let cap = self.hi + 1;
+        let pos = k % cap;
+        for at in [pos, pos + cap] {
+            if let Some(r) = self.ring.get_mut(at) {
+                *r = reference;
+            }
+        }
+        if k < self.hi || k >= self.n || self.sse.is_empty() {
+            return;
+        }
+        let Some(window) = self.ring.get(pos + cap - self.hi..=pos + cap - self.lo) else {
+            return;
+        };
+        for (sse, r) in self.sse.iter_mut().zip(window.iter().rev()) {
+            let e = estimate - r;
+            *sse += e * e;
+        }
+    }
+
+    /// `(nrmse, lag)` at the best alignment, as [`aligned_error`] gives it.
+    #[must_use]
+    pub fn finish(&self) -> (f64, usize) {
+        let count = self.n - self.hi;
+        let mut best = (f64::INFINITY, 0);
+        for (i, sse) in self.sse.iter().enumerate() {
+            let e = (sse / count as f64).sqrt() / self.range;
+            if e < best.0 {
+                best = (e, self.lo + i);
+            }
+        }
+        best
+    }
+}
+
 /// Above this many multiply-adds (lags times samples) [`aligned_error`] finds the best lag by
 /// FFT cross-correlation; below it, by direct sums.
 pub(crate) const FFT_ALIGNMENT_WORK: usize = 1 << 24;
@@ -160,4 +235,42 @@ pub fn reconstruct_with(
         range: Some(range),
         model_part,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Streamed, the search gives the direct search's figure and lag, bit for bit, over lag
+    /// ranges that start at 0 or later, are cut by the record's length, or are empty.
+    #[test]
+    fn the_streamed_search_is_the_direct_one() {
+        let n = 3000;
+        let noise = crate::testing::gaussian(n, 6);
+        let reference: Vec<f64> = (0..n)
+            .map(|k| if (k / 700) % 2 == 0 { 0.0 } else { 1.0 } + 0.01 * noise[k])
+            .collect();
+        // The reference 7 samples late, smoothed a little, with its own noise.
+        let estimate: Vec<f64> = (0..n)
+            .map(|k| {
+                let r = |j: usize| reference.get(j).copied().unwrap_or(0.0);
+                let k = k.saturating_sub(7);
+                0.5 * r(k) + 0.25 * (r(k.saturating_sub(1)) + r(k + 1)) + 0.02 * noise[n - 1 - k]
+            })
+            .collect();
+        let (lo, hi) = reference
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(*v), h.max(*v))
+            });
+        for lags in [0..=40, 3..=11, 5..=5, 2990..=3100, 12..=4] {
+            let direct = aligned_error(&reference, &estimate, lags.clone());
+            let mut s = AlignedErrorStream::new(n, lags.clone(), hi - lo);
+            for (r, e) in reference.iter().zip(&estimate) {
+                s.push(*r, *e);
+            }
+            assert_eq!(s.finish(), direct, "{lags:?}");
+        }
+        assert_eq!(aligned_error(&reference, &estimate, 0..=40).1, 7);
+    }
 }

@@ -283,38 +283,53 @@ impl DirectPlan {
     /// # Errors
     /// [`DesignError::DirectBoard`] when the plan does not validate.
     pub fn run(&self, y: &[f64]) -> Result<super::FixedRun> {
-        let sections = self.board_sections();
-        match sections.len() {
-            0..=2 => self.run_with::<2>(&sections, y),
-            3..=4 => self.run_with::<4>(&sections, y),
-            5..=8 => self.run_with::<8>(&sections, y),
-            _ => self.run_with::<16>(&sections, y),
-        }
+        let mut runner = self.runner(y.first().copied().unwrap_or(0.0))?;
+        let u_hat = y.iter().map(|&v| runner.step(v)).collect();
+        Ok(runner.finish(u_hat))
     }
 
-    fn run_with<const N: usize>(
-        &self,
-        sections: &[DirectSection],
-        y: &[f64],
-    ) -> Result<super::FixedRun> {
+    /// [`DirectPlan::run`] one sample at a time, started in equilibrium with `first`.
+    ///
+    /// # Errors
+    /// As [`DirectPlan::run`].
+    pub fn runner(&self, first: f64) -> Result<super::FixedRunner> {
+        let sections = self.board_sections();
+        let (first, _) = self.to_code(first);
+        let cascade: Box<dyn super::FixedStep> = match sections.len() {
+            0..=2 => Box::new(Direct::<2>::new(&sections, first)?),
+            3..=4 => Box::new(Direct::<4>::new(&sections, first)?),
+            5..=8 => Box::new(Direct::<8>::new(&sections, first)?),
+            _ => Box::new(Direct::<16>::new(&sections, first)?),
+        };
+        Ok(super::FixedRunner::new(
+            cascade,
+            self.full_scale,
+            self.output_exponent,
+        ))
+    }
+}
+
+/// The direct form's cascade of `N` sections and its state.
+struct Direct<const N: usize> {
+    cascade: DirectCascade<N>,
+    state: DirectState<N>,
+}
+
+impl<const N: usize> Direct<N> {
+    fn new(sections: &[DirectSection], first: i32) -> Result<Self> {
         let cascade = DirectCascade::<N>::new(sections)
             .map_err(|error| DesignError::DirectBoard { error })?;
-        let mut state: DirectState<N> =
-            cascade.equilibrium(y.first().map_or(0, |&v| self.to_code(v).0));
-        let mut clipped_inputs = 0;
-        let u_hat = y
-            .iter()
-            .map(|&v| {
-                let (code, clipped) = self.to_code(v);
-                clipped_inputs += usize::from(clipped);
-                self.from_code(cascade.process(&mut state, code))
-            })
-            .collect();
-        Ok(super::FixedRun {
-            u_hat,
-            clipped_inputs,
-            overflowed: state.overflowed(),
-        })
+        let state = cascade.equilibrium(first);
+        Ok(Self { cascade, state })
+    }
+}
+
+impl<const N: usize> super::FixedStep for Direct<N> {
+    fn step(&mut self, code: i32) -> i32 {
+        self.cascade.process(&mut self.state, code)
+    }
+    fn overflowed(&self) -> bool {
+        self.state.overflowed()
     }
 }
 

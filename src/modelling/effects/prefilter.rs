@@ -51,6 +51,73 @@ pub fn prefiltered(effects: &[Effect], fs: f64, x: &[f64]) -> Vec<f64> {
     }
 }
 
+/// [`prefiltered`] one sample at a time, for a run streamed from its file: the same numbers.
+/// The resting level is taken from the signal's first samples (`head`, at least the first 64
+/// when the signal has them), as [`prefiltered`] takes it.
+#[derive(Debug, Clone)]
+pub struct PrefilterStream {
+    /// `(gain, sections, resting level)`; `None`: no prefilter, samples pass unchanged.
+    filter: Option<(f64, Vec<[f64; 5]>, f64)>,
+    /// Per section: its last two inputs and outputs.
+    state: Vec<[f64; 4]>,
+    k: usize,
+}
+
+impl PrefilterStream {
+    /// The prefilter of `effects` at `fs` for a signal starting with `head`.
+    #[must_use]
+    pub fn new(effects: &[Effect], fs: f64, head: &[f64]) -> Self {
+        let filter = prefilter_hz(effects)
+            .and_then(|fc| prefilter_sections(fc, fs).ok())
+            .map(|(gain, sections)| (gain, sections, crate::fit::model::resting_level(head)));
+        let state = vec![[0.0; 4]; filter.as_ref().map_or(0, |f| f.1.len())];
+        Self {
+            filter,
+            state,
+            k: 0,
+        }
+    }
+
+    /// The next sample through the prefilter.
+    pub fn step(&mut self, x: f64) -> f64 {
+        let Some((gain, sections, x0)) = &self.filter else {
+            return x;
+        };
+        let k = self.k;
+        self.k += 1;
+        let mut v = x - x0;
+        for (s, st) in sections.iter().zip(&mut self.state) {
+            let [x1, x2, y1, y2] = *st;
+            // As `filter` sums them: every term from the third sample on, the ones that exist
+            // before it.
+            let y = if k >= 3 {
+                let fir = 0.0 + s[0] * v + s[1] * x1 + s[2] * x2;
+                let tail = 0.0 + s[4] * y2;
+                (fir - tail) - s[3] * y1
+            } else {
+                let mut acc = 0.0;
+                acc += s[0] * v;
+                if k >= 1 {
+                    acc += s[1] * x1;
+                }
+                if k >= 2 {
+                    acc += s[2] * x2;
+                }
+                if k >= 1 {
+                    acc -= s[3] * y1;
+                }
+                if k >= 2 {
+                    acc -= s[4] * y2;
+                }
+                acc
+            };
+            *st = [v, x1, y, y1];
+            v = y;
+        }
+        gain * v + x0
+    }
+}
+
 /// The sensor-resonance prefilter's group delay at low frequency (samples), 0 without one.
 #[must_use]
 pub fn prefilter_delay(effects: &[Effect], fs: f64) -> f64 {
@@ -109,4 +176,25 @@ pub fn with_prefilter(
         "sensor-resonance prefilter (Butterworth order {PREFILTER_ORDER} at {fc:.1} Hz)"
     ));
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_streamed_prefilter_gives_the_same_numbers() {
+        let effects = [Effect::parse("sensor-resonance-prefilter=2000").unwrap()];
+        assert!(prefilter_hz(&effects).is_some());
+        let x: Vec<f64> = crate::testing::gaussian(500, 4)
+            .iter()
+            .enumerate()
+            .map(|(k, n)| if k > 100 { 1.0 } else { 0.0 } + 1e-3 * n)
+            .collect();
+        let batch = prefiltered(&effects, 10_000.0, &x);
+        let mut s = PrefilterStream::new(&effects, 10_000.0, &x[..64]);
+        let streamed: Vec<f64> = x.iter().map(|&v| s.step(v)).collect();
+        assert_eq!(streamed, batch);
+        assert_ne!(batch, x);
+    }
 }

@@ -57,70 +57,11 @@ impl RunSpectrum {
     /// The spectrum of `y`; `None` for a record shorter than [`MIN_SAMPLES`] or not finite.
     #[must_use]
     pub fn measure(y: &[f64]) -> Option<Self> {
-        if y.len() < MIN_SAMPLES || y.iter().any(|v| !v.is_finite()) {
-            return None;
+        let mut streamed = SpectrumStream::new(y.len())?;
+        for &v in y {
+            streamed.push(v);
         }
-        let parts = y.len().div_ceil(SEGMENT);
-        let len = y.len().div_ceil(parts);
-        // The bridge: long enough that its bend leaks nothing into the band, short enough that
-        // it adds little power of its own; rustfft takes any length.
-        let size = (len + (len / 32).max(64)).next_multiple_of(64);
-        let fft = rustfft::FftPlanner::<f64>::new().plan_fft_forward(size);
-        let mut buf = vec![Complex::new(0.0, 0.0); size];
-        let half = size / 2;
-        let mut psd = vec![0.0; half + 1];
-        let mut mean_square_level = 0.0;
-        let mut count = 0usize;
-        for part in y.chunks(len) {
-            let (Some(&first), Some(&last)) = (part.first(), part.last()) else {
-                continue;
-            };
-            // The level apart: its square is the DC bin's, and the bridge carries only the
-            // ends' departures from it.
-            let n = part.len() as f64;
-            let level = part.iter().sum::<f64>() / n;
-            let bridge = (size - part.len()) as f64 + 1.0;
-            for (i, c) in buf.iter_mut().enumerate() {
-                let v = match part.get(i) {
-                    Some(v) => *v,
-                    None => {
-                        let t = (i + 1 - part.len()) as f64 / bridge;
-                        last + (first - last) * 0.5 * (1.0 - (PI * t).cos())
-                    }
-                };
-                *c = Complex::new(v - level, 0.0);
-            }
-            fft.process(&mut buf);
-            for (p, c) in psd.iter_mut().zip(&buf) {
-                *p += c.norm_sqr() / n;
-            }
-            mean_square_level += level * level;
-            count += 1;
-        }
-        let parts = count.max(1) as f64;
-        psd.iter_mut().for_each(|p| *p /= parts);
-        // The DC bin holds the level, so that it weighs in the mean square as it does in the
-        // record (a DC gain's error on a run's level is most of a leak's).
-        if let Some(dc) = psd.first_mut() {
-            *dc = size as f64 * mean_square_level / parts;
-        }
-        // Zero padding makes neighbouring bins alike: smooth over enough of them to average
-        // about AVERAGED independent values.
-        let oversampling = size as f64 / len as f64;
-        let width = ((0.5 * AVERAGED * oversampling / parts).ceil() as usize).max(1);
-        let mut smoothed = moving_average(psd.get(1..).unwrap_or(&[]), width);
-        smoothed.insert(0, psd.first().copied().unwrap_or(0.0));
-        let averaged = (2 * width + 1) as f64 / oversampling * parts;
-        let omega = (0..=half)
-            .map(|k| 2.0 * PI * k as f64 / size as f64)
-            .collect();
-        Some(Self {
-            omega,
-            psd,
-            smoothed,
-            averaged,
-            size,
-        })
+        streamed.finish()
     }
 
     /// Weight of bin `k` in the mean square (the bins between DC and `pi` stand for two).
@@ -183,6 +124,148 @@ impl RunSpectrum {
             bins,
             size: self.size,
         }
+    }
+}
+
+/// [`RunSpectrum::measure`] on a run streamed one sample at a time, its length `n` known
+/// beforehand (the first pass over its file): the parts are transformed as they fill, so that
+/// memory holds one part (at most [`SEGMENT`] samples) whatever the run's length. The same
+/// figures as [`RunSpectrum::measure`] on the whole record, which is this over a slice.
+pub struct SpectrumStream {
+    fft: std::sync::Arc<dyn rustfft::Fft<f64>>,
+    buf: Vec<Complex>,
+    /// Samples a part has (the last may have fewer).
+    len: usize,
+    size: usize,
+    psd: Vec<f64>,
+    /// Samples of the current part so far, and their sum.
+    filled: usize,
+    sum: f64,
+    mean_square_level: f64,
+    count: usize,
+    finite: bool,
+    pushed: usize,
+    n: usize,
+}
+
+impl SpectrumStream {
+    /// A spectrum of a run of `n` samples; `None` when shorter than [`MIN_SAMPLES`].
+    #[must_use]
+    pub fn new(n: usize) -> Option<Self> {
+        Self::with_segment(n, SEGMENT)
+    }
+
+    /// [`SpectrumStream::new`] with parts of at most `segment` samples.
+    fn with_segment(n: usize, segment: usize) -> Option<Self> {
+        if n < MIN_SAMPLES {
+            return None;
+        }
+        let parts = n.div_ceil(segment);
+        let len = n.div_ceil(parts);
+        // The bridge: long enough that its bend leaks nothing into the band, short enough that
+        // it adds little power of its own; rustfft takes any length.
+        let size = (len + (len / 32).max(64)).next_multiple_of(64);
+        let fft = rustfft::FftPlanner::<f64>::new().plan_fft_forward(size);
+        Some(Self {
+            fft,
+            buf: vec![Complex::new(0.0, 0.0); size],
+            len,
+            size,
+            psd: vec![0.0; size / 2 + 1],
+            filled: 0,
+            sum: -0.0,
+            mean_square_level: 0.0,
+            count: 0,
+            finite: true,
+            pushed: 0,
+            n,
+        })
+    }
+
+    /// The next sample of the run.
+    pub fn push(&mut self, v: f64) {
+        self.finite &= v.is_finite();
+        self.pushed += 1;
+        if let Some(c) = self.buf.get_mut(self.filled) {
+            *c = Complex::new(v, 0.0);
+        }
+        self.filled += 1;
+        self.sum += v;
+        if self.filled == self.len {
+            self.part();
+        }
+    }
+
+    /// Transforms the part in the buffer.
+    fn part(&mut self) {
+        let m = self.filled;
+        let (Some(first), Some(last)) = (
+            self.buf.first(),
+            m.checked_sub(1).and_then(|i| self.buf.get(i)),
+        ) else {
+            return;
+        };
+        let (first, last) = (first.re, last.re);
+        // The level apart: its square is the DC bin's, and the bridge carries only the ends'
+        // departures from it.
+        let n = m as f64;
+        let level = self.sum / n;
+        let bridge = (self.size - m) as f64 + 1.0;
+        for (i, c) in self.buf.iter_mut().enumerate() {
+            let v = if i < m {
+                c.re
+            } else {
+                let t = (i + 1 - m) as f64 / bridge;
+                last + (first - last) * 0.5 * (1.0 - (PI * t).cos())
+            };
+            *c = Complex::new(v - level, 0.0);
+        }
+        self.fft.process(&mut self.buf);
+        for (p, c) in self.psd.iter_mut().zip(&self.buf) {
+            *p += c.norm_sqr() / n;
+        }
+        self.mean_square_level += level * level;
+        self.count += 1;
+        self.filled = 0;
+        self.sum = -0.0;
+    }
+
+    /// The spectrum; `None` when a sample was not finite or the run had fewer samples than
+    /// announced.
+    #[must_use]
+    pub fn finish(mut self) -> Option<RunSpectrum> {
+        if self.filled > 0 {
+            self.part();
+        }
+        if !self.finite || self.pushed != self.n {
+            return None;
+        }
+        let (size, len) = (self.size, self.len);
+        let mut psd = self.psd;
+        let parts = self.count.max(1) as f64;
+        psd.iter_mut().for_each(|p| *p /= parts);
+        // The DC bin holds the level, so that it weighs in the mean square as it does in the
+        // record (a DC gain's error on a run's level is most of a leak's).
+        if let Some(dc) = psd.first_mut() {
+            *dc = size as f64 * self.mean_square_level / parts;
+        }
+        // Zero padding makes neighbouring bins alike: smooth over enough of them to average
+        // about AVERAGED independent values.
+        let oversampling = size as f64 / len as f64;
+        let width = ((0.5 * AVERAGED * oversampling / parts).ceil() as usize).max(1);
+        let mut smoothed = moving_average(psd.get(1..).unwrap_or(&[]), width);
+        smoothed.insert(0, psd.first().copied().unwrap_or(0.0));
+        let averaged = (2 * width + 1) as f64 / oversampling * parts;
+        let omega = (0..=size / 2)
+            .map(|k| 2.0 * PI * k as f64 / size as f64)
+            .collect();
+        Some(RunSpectrum {
+            omega,
+            psd,
+            smoothed,
+            averaged,
+            size,
+        })
     }
 }
 
@@ -267,6 +350,80 @@ mod tests {
             reference_std: 0.0,
             source: NoiseSource::PreStep,
         }
+    }
+
+    /// The spectrum as it was measured on a whole record held in memory, parts of at most
+    /// `segment` samples: the reference the streamed one is held to.
+    fn measured_whole(y: &[f64], segment: usize) -> RunSpectrum {
+        let parts = y.len().div_ceil(segment);
+        let len = y.len().div_ceil(parts);
+        let size = (len + (len / 32).max(64)).next_multiple_of(64);
+        let fft = rustfft::FftPlanner::<f64>::new().plan_fft_forward(size);
+        let mut buf = vec![Complex::new(0.0, 0.0); size];
+        let half = size / 2;
+        let mut psd = vec![0.0; half + 1];
+        let mut mean_square_level = 0.0;
+        let mut count = 0usize;
+        for part in y.chunks(len) {
+            let (first, last) = (part[0], part[part.len() - 1]);
+            let n = part.len() as f64;
+            let level = part.iter().sum::<f64>() / n;
+            let bridge = (size - part.len()) as f64 + 1.0;
+            for (i, c) in buf.iter_mut().enumerate() {
+                let v = match part.get(i) {
+                    Some(v) => *v,
+                    None => {
+                        let t = (i + 1 - part.len()) as f64 / bridge;
+                        last + (first - last) * 0.5 * (1.0 - (PI * t).cos())
+                    }
+                };
+                *c = Complex::new(v - level, 0.0);
+            }
+            fft.process(&mut buf);
+            for (p, c) in psd.iter_mut().zip(&buf) {
+                *p += c.norm_sqr() / n;
+            }
+            mean_square_level += level * level;
+            count += 1;
+        }
+        let parts = count as f64;
+        psd.iter_mut().for_each(|p| *p /= parts);
+        psd[0] = size as f64 * mean_square_level / parts;
+        let oversampling = size as f64 / len as f64;
+        let width = ((0.5 * AVERAGED * oversampling / parts).ceil() as usize).max(1);
+        let mut smoothed = moving_average(&psd[1..], width);
+        smoothed.insert(0, psd[0]);
+        RunSpectrum {
+            omega: (0..=half)
+                .map(|k| 2.0 * PI * k as f64 / size as f64)
+                .collect(),
+            psd,
+            smoothed,
+            averaged: (2 * width + 1) as f64 / oversampling * parts,
+            size,
+        }
+    }
+
+    /// Streamed in parts (one, three of equal length, a shorter last one), the spectrum is
+    /// the one measured on the whole record, bit for bit.
+    #[test]
+    fn the_streamed_spectrum_is_the_whole_records() {
+        let y: Vec<f64> = crate::testing::gaussian(2000, 9)
+            .iter()
+            .enumerate()
+            .map(|(k, n)| 0.3 + (k as f64 * 0.01).sin() + 0.05 * n)
+            .collect();
+        for (n, segment) in [(1000, SEGMENT), (1500, 500), (1999, 700), (2000, 256)] {
+            let mut s = SpectrumStream::with_segment(n, segment).unwrap();
+            y[..n].iter().for_each(|&v| s.push(v));
+            let streamed = s.finish().unwrap();
+            assert_eq!(streamed, measured_whole(&y[..n], segment), "{n} {segment}");
+        }
+        // Fewer samples than announced, or one not finite: no spectrum.
+        let mut short = SpectrumStream::new(1000).unwrap();
+        y[..999].iter().for_each(|&v| short.push(v));
+        assert!(short.finish().is_none());
+        assert!(SpectrumStream::new(MIN_SAMPLES - 1).is_none());
     }
 
     #[test]

@@ -1,0 +1,740 @@
+//! A run read in passes over its file instead of held in memory: each pass reads the rows
+//! again, so that what a command keeps does not grow with the record.
+//!
+//! [`RunRows`] reads one pass: every row's numbers, checked as [`Trace::read`](super::Trace::read)
+//! checks them (the same messages with the file, line and column). [`scan`] is the first pass:
+//! the checks that need the whole record (time that increases uniformly, the sample rate) from
+//! running figures, and a [`RunChecks`] that finishes the clipping checks in the next passes.
+//! [`Median`] is the median of a streamed quantity in two passes, in fixed memory.
+//!
+//! A run is read from a regular file: a pipe or a device cannot be read twice, and is refused
+//! after its first pass ([`TraceError::NotRereadable`]).
+
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+
+use sha2::Digest;
+
+use super::{
+    check_columns, csv_error, csv_reader, hex, time_unit, Columns, Hashing, Layout, LineLimit,
+    Result, TimeColumn, TraceError, CLIP_MIN_RUN, CLIP_MIN_RUN_AT_END, MAX_JITTER,
+    MAX_SAMPLE_RATE_HZ, MIN_PLAUSIBLE_RATE_HZ,
+};
+
+/// One row of a run: its reference (when the file has one) and probe values, and its line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Row {
+    /// The time column's value, when it is read.
+    pub t: Option<f64>,
+    /// The reference.
+    pub u: Option<f64>,
+    /// The probe.
+    pub y: f64,
+    /// 1-based line of the file.
+    pub line: u64,
+}
+
+/// One pass over a run's rows.
+pub struct RunRows {
+    path: PathBuf,
+    columns: Columns,
+    reader: csv::Reader<LineLimit<Hashing<BufReader<std::fs::File>>>>,
+    layout: Layout,
+    rec: csv::StringRecord,
+    /// Whether the file is a regular file (which can be read again).
+    rereadable: bool,
+}
+
+impl RunRows {
+    /// Opens `path` for one pass and reads its header. `trim`: the fields as written back
+    /// ([`csv::Trim::All`]) or as checked ([`csv::Trim::None`], where a field's place gives
+    /// its byte in the file).
+    ///
+    /// # Errors
+    /// As [`Trace::read`](super::Trace::read) for the header.
+    pub fn open(path: &Path, columns: &Columns, trim: csv::Trim) -> Result<Self> {
+        check_columns(columns)?;
+        let (hashing, _) = Hashing::open(path)?;
+        let rereadable = std::fs::metadata(path).is_ok_and(|m| m.is_file());
+        let mut reader = csv_reader(hashing, columns.delimiter, trim);
+        let layout = Layout::read(path, &mut reader, columns)?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            columns: columns.clone(),
+            reader,
+            layout,
+            rec: csv::StringRecord::new(),
+            rereadable,
+        })
+    }
+
+    /// The next row, checked; `None` at the end of the file.
+    ///
+    /// # Errors
+    /// As [`Trace::read`](super::Trace::read) for a row.
+    pub fn next_row(&mut self) -> Result<Option<Row>> {
+        match self.reader.read_record(&mut self.rec) {
+            Ok(true) => {}
+            Ok(false) => return Ok(None),
+            Err(e) => return Err(csv_error(&self.path, &e)),
+        }
+        let line = self.rec.position().map_or(0, csv::Position::line);
+        let l = &self.layout;
+        l.check_width(&self.path, &self.rec, line)?;
+        let field = |i: usize| l.field(&self.path, &self.columns, &self.rec, i);
+        let t = l.t_idx.map(field).transpose()?;
+        let u = l.u_idx.map(field).transpose()?;
+        let y = field(l.y_idx)?;
+        Ok(Some(Row { t, u, y, line }))
+    }
+
+    /// The fields of the row last read, as the reader gave them.
+    #[must_use]
+    pub fn record(&self) -> &csv::StringRecord {
+        &self.rec
+    }
+
+    /// The header, trimmed.
+    #[must_use]
+    pub fn headers(&self) -> &csv::StringRecord {
+        &self.layout.headers
+    }
+
+    /// Whether the file has the reference column.
+    #[must_use]
+    pub fn has_reference(&self) -> bool {
+        self.layout.u_idx.is_some()
+    }
+
+    /// The SHA-256 of the bytes read so far (all of the file once [`RunRows::next_row`] has
+    /// given `None`), lower-case hex.
+    #[must_use]
+    pub fn sha256(self) -> String {
+        hex(&self.reader.into_inner().inner.hasher.finalize())
+    }
+}
+
+/// The median of a quantity streamed twice, in fixed memory: the first pass counts the values
+/// by their top 16 bits, the second by the next 16 within the bucket that holds the median,
+/// with each sub-bucket's least and greatest value. The median is exact when it is the least
+/// or greatest value of its sub-bucket, or the sub-bucket holds one value (a quantised signal);
+/// otherwise it is that sub-bucket's least value, within 2^-20 of it relative. Values must be
+/// positive (or zero) and finite; the median is the element at `count / 2` of the sorted values,
+/// as [`slice::select_nth_unstable`] gives it.
+#[derive(Debug, Clone)]
+pub struct Median {
+    coarse: Vec<u64>,
+    /// Top 16 bits of the median's bucket, and the values below it.
+    bucket: Option<(u64, u64)>,
+    fine: Vec<(u64, f64, f64)>,
+    count: u64,
+    second: u64,
+}
+
+impl Default for Median {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Median {
+    /// No values yet.
+    #[must_use]
+    pub fn new() -> Self {
+        Self {
+            coarse: Vec::new(),
+            bucket: None,
+            fine: Vec::new(),
+            count: 0,
+            second: 0,
+        }
+    }
+
+    /// A value of the first pass.
+    pub fn first(&mut self, v: f64) {
+        if self.coarse.is_empty() {
+            self.coarse = vec![0; 1 << 16];
+        }
+        let key = v.to_bits() >> 48;
+        if let Some(c) = self.coarse.get_mut(key as usize) {
+            *c += 1;
+        }
+        self.count += 1;
+    }
+
+    /// Ends the first pass.
+    pub fn end_first(&mut self) {
+        if self.count == 0 {
+            return;
+        }
+        let mid = self.count / 2;
+        let mut below = 0;
+        for (b, &c) in self.coarse.iter().enumerate() {
+            if below + c > mid {
+                self.bucket = Some((b as u64, below));
+                break;
+            }
+            below += c;
+        }
+        self.coarse = Vec::new();
+        self.fine = vec![(0, f64::INFINITY, f64::NEG_INFINITY); 1 << 16];
+    }
+
+    /// A value of the second pass (the same values in the same order as the first).
+    pub fn second(&mut self, v: f64) {
+        self.second += 1;
+        let bits = v.to_bits();
+        if self.bucket.map(|(b, _)| b) != Some(bits >> 48) {
+            return;
+        }
+        if let Some((c, lo, hi)) = self.fine.get_mut(((bits >> 32) & 0xffff) as usize) {
+            *c += 1;
+            *lo = lo.min(v);
+            *hi = hi.max(v);
+        }
+    }
+
+    /// The median after the second pass; `None` without values.
+    #[must_use]
+    pub fn value(&self) -> Option<f64> {
+        let (_, mut below) = self.bucket?;
+        let mid = self.count / 2;
+        for &(c, lo, hi) in &self.fine {
+            if below + c > mid {
+                return Some(if below + c - 1 == mid { hi } else { lo });
+            }
+            below += c;
+        }
+        None
+    }
+
+    /// Values counted.
+    #[must_use]
+    pub fn count(&self) -> u64 {
+        self.count
+    }
+}
+
+/// The clipping check of one channel ([`super::check_clipping`]) over three passes.
+#[derive(Debug, Clone)]
+struct ClipScan {
+    column: usize,
+    name: String,
+    n: usize,
+    max: f64,
+    min: f64,
+    repeats: usize,
+    diffs: Median,
+    prev: Option<f64>,
+    /// The typical change, once known; `None`: nothing to check.
+    typical: Option<f64>,
+    /// Per level (largest, smallest): the current run's start line, start index, length and
+    /// entry jump; the first clipped run found.
+    runs: [LevelRun; 2],
+    k: usize,
+}
+
+#[derive(Debug, Clone, Default)]
+struct LevelRun {
+    current: Option<(u64, usize, usize, f64)>,
+    found: Option<(u64, usize)>,
+}
+
+impl ClipScan {
+    fn new(column: usize, name: String) -> Self {
+        Self {
+            column,
+            name,
+            n: 0,
+            max: f64::NEG_INFINITY,
+            min: f64::INFINITY,
+            repeats: 0,
+            diffs: Median::new(),
+            prev: None,
+            typical: None,
+            runs: Default::default(),
+            k: 0,
+        }
+    }
+
+    fn first(&mut self, x: f64) {
+        if let Some(p) = self.prev {
+            if p == x {
+                self.repeats += 1;
+            } else {
+                self.diffs.first((x - p).abs());
+            }
+        }
+        self.prev = Some(x);
+        self.n += 1;
+        self.max = self.max.max(x);
+        self.min = self.min.min(x);
+    }
+
+    fn end_first(&mut self) {
+        self.prev = None;
+        self.diffs.end_first();
+    }
+
+    fn second(&mut self, x: f64) {
+        if let Some(p) = self.prev {
+            if p != x {
+                self.diffs.second((x - p).abs());
+            }
+        }
+        self.prev = Some(x);
+    }
+
+    fn end_second(&mut self) {
+        self.prev = None;
+        if self.n >= 4 * CLIP_MIN_RUN {
+            self.typical = self.diffs.value();
+        }
+        self.diffs = Median::new();
+    }
+
+    fn third(&mut self, x: f64, line: u64) {
+        let Some(typical) = self.typical else { return };
+        let k = self.k;
+        for (level, run) in [self.max, self.min].into_iter().zip(&mut self.runs) {
+            if x == level {
+                if run.current.is_none() {
+                    let jump = self.prev.map_or(0.0, |p| (level - p).abs());
+                    run.current = Some((line, k, 0, jump));
+                }
+                if let Some(c) = &mut run.current {
+                    c.2 += 1;
+                }
+            } else if let Some((start_line, _, length, jump)) = run.current.take() {
+                if run.found.is_none() && length >= CLIP_MIN_RUN && jump > 5.0 * typical {
+                    run.found = Some((start_line, length));
+                }
+            }
+        }
+        self.prev = Some(x);
+        self.k += 1;
+    }
+
+    fn end_third(&mut self, path: &Path) -> Result<()> {
+        let Some(typical) = self.typical else {
+            return Ok(());
+        };
+        let n = self.n;
+        for (level, run) in [self.max, self.min].into_iter().zip(&mut self.runs) {
+            if let Some((start_line, start, length, jump)) = run.current.take() {
+                // A run that lasts to the end of the record: clipping when the rest of the
+                // record is noisy (its samples rarely repeat) and the run is long. The pairs
+                // outside it are those before its entry; its own pairs all repeat.
+                let pairs = start.saturating_sub(1);
+                let repeats = self.repeats - (n - 1 - start);
+                let fraction = if pairs == 0 {
+                    1.0
+                } else {
+                    repeats as f64 / pairs as f64
+                };
+                if run.found.is_none()
+                    && length >= CLIP_MIN_RUN_AT_END
+                    && fraction < 0.2
+                    && jump > 5.0 * typical
+                {
+                    run.found = Some((start_line, length));
+                }
+            }
+            let _ = level;
+        }
+        for ((level, which), run) in [(self.max, "largest"), (self.min, "smallest")]
+            .into_iter()
+            .zip(&self.runs)
+        {
+            if let Some((line, run)) = run.found {
+                return Err(TraceError::Clipped {
+                    path: path.to_path_buf(),
+                    line,
+                    column: self.column,
+                    name: self.name.clone(),
+                    run,
+                    which,
+                    value: level,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What the first pass over a run found: its length and sample rate, its header and dialect.
+#[derive(Debug, Clone)]
+pub struct RunInfo {
+    /// The file.
+    pub path: PathBuf,
+    /// Rows.
+    pub len: usize,
+    /// Sample rate in Hz.
+    pub sample_rate_hz: f64,
+    /// Whether the file has the reference column.
+    pub has_reference: bool,
+    /// The header, trimmed, to write the columns back.
+    pub headers: csv::StringRecord,
+    /// SHA-256 of the file's bytes, lower-case hex.
+    pub sha256: String,
+    /// The reference's first samples (up to 64), for a filter's resting level.
+    pub reference_head: Vec<f64>,
+    /// The probe's first samples (up to 64).
+    pub probe_head: Vec<f64>,
+}
+
+/// The checks of a run that need more than its first pass: the clipping of its probe and
+/// reference channels. Give it every row of the second pass, then of the third, then call
+/// [`RunChecks::finish`].
+#[derive(Debug, Clone)]
+pub struct RunChecks {
+    path: PathBuf,
+    y: ClipScan,
+    u: Option<ClipScan>,
+}
+
+impl RunChecks {
+    /// A row of the second pass.
+    pub fn second(&mut self, row: &Row) {
+        self.y.second(row.y);
+        if let (Some(c), Some(u)) = (&mut self.u, row.u) {
+            c.second(u);
+        }
+    }
+
+    /// Ends the second pass.
+    pub fn end_second(&mut self) {
+        self.y.end_second();
+        if let Some(c) = &mut self.u {
+            c.end_second();
+        }
+    }
+
+    /// A row of the third pass.
+    pub fn third(&mut self, row: &Row) {
+        self.y.third(row.y, row.line);
+        if let (Some(c), Some(u)) = (&mut self.u, row.u) {
+            c.third(u, row.line);
+        }
+    }
+
+    /// Ends the third pass: the first clipped run, the probe's first.
+    ///
+    /// # Errors
+    /// [`TraceError::Clipped`].
+    pub fn finish(&mut self) -> Result<()> {
+        self.y.end_third(&self.path)?;
+        if let Some(c) = &mut self.u {
+            c.end_third(&self.path)?;
+        }
+        Ok(())
+    }
+}
+
+/// The first pass over a run (the reference not required, as `compensate` reads runs): every
+/// row checked, the time column's steps, the sample rate; with `each` called on every row (a
+/// caller's own running figures). The checks' order and messages are [`Trace::read`]'s: a bad
+/// cell first, then time that does not increase, then jitter (found by a second look at the
+/// file when the steps' extremes show there is some), then an implausible rate. A file that is
+/// not a regular file (a pipe, a device) is refused after this pass, which it passed: it
+/// cannot be read again.
+///
+/// # Errors
+/// As [`Trace::read`]; [`TraceError::NotRereadable`].
+///
+/// [`Trace::read`]: super::Trace::read
+pub fn scan(
+    path: &Path,
+    columns: &Columns,
+    mut each: impl FnMut(&Row),
+) -> Result<(RunInfo, RunChecks)> {
+    let mut rows = RunRows::open(path, columns, csv::Trim::None)?;
+    let layout_names = |i: usize| rows.layout.name_of(i);
+    let y_name = layout_names(rows.layout.y_idx);
+    let u_scan = rows
+        .layout
+        .u_idx
+        .map(|i| ClipScan::new(i + 1, layout_names(i)));
+    let y_scan = ClipScan::new(rows.layout.y_idx + 1, y_name);
+    let t_idx = rows.layout.t_idx;
+    let time_name = t_idx.map(|i| rows.layout.name_of(i));
+    let headers = rows.headers().clone();
+    let has_reference = rows.has_reference();
+    let rereadable = rows.rereadable;
+    let mut checks = RunChecks {
+        path: path.to_path_buf(),
+        y: y_scan,
+        u: u_scan,
+    };
+    let mut n = 0usize;
+    let (mut first_t, mut last_t) = (None, None);
+    let (mut min_step, mut max_step) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut not_increasing: Option<(u64, f64, f64)> = None;
+    let mut second_line = 0;
+    let (mut reference_head, mut probe_head) = (Vec::new(), Vec::new());
+    while let Some(row) = rows.next_row()? {
+        if let Some(t) = row.t {
+            if let Some(a) = last_t {
+                if t <= a && not_increasing.is_none() {
+                    not_increasing = Some((row.line, a, t));
+                }
+                let step = t - a;
+                min_step = min_step.min(step);
+                max_step = max_step.max(step);
+            }
+            first_t.get_or_insert(t);
+            last_t = Some(t);
+        }
+        if n == 1 {
+            second_line = row.line;
+        }
+        if probe_head.len() < 64 {
+            probe_head.push(row.y);
+            reference_head.extend(row.u);
+        }
+        checks.y.first(row.y);
+        if let (Some(c), Some(u)) = (&mut checks.u, row.u) {
+            c.first(u);
+        }
+        each(&row);
+        n += 1;
+    }
+    let sha256 = rows.sha256();
+    if n == 0 {
+        return Err(TraceError::Empty {
+            path: path.to_path_buf(),
+            line: 2,
+            what: "a header and no data rows",
+        });
+    }
+    let sample_rate_hz = match (columns.sample_rate_hz, t_idx, first_t, last_t) {
+        (Some(fs), _, _, _) => fs,
+        (None, Some(ti), Some(first), Some(last)) => {
+            let unit = time_unit(&columns.time);
+            let (symbol, seconds) = unit.unwrap_or(("s", 1.0));
+            let time = TimeColumn {
+                column: ti + 1,
+                name: time_name.unwrap_or_default(),
+                unit: symbol,
+            };
+            if n < 2 {
+                return Err(TraceError::TooShort {
+                    path: path.to_path_buf(),
+                    samples: n,
+                });
+            }
+            if let Some((line, previous, value)) = not_increasing {
+                return Err(TraceError::TimeNotIncreasing {
+                    path: path.to_path_buf(),
+                    line,
+                    column: time.column,
+                    name: time.name,
+                    previous,
+                    value,
+                });
+            }
+            let nominal = (last - first) / (n - 1) as f64;
+            let jitter = |step: f64| (step - nominal).abs() / nominal > MAX_JITTER;
+            if jitter(min_step) || jitter(max_step) {
+                return Err(first_jitter(path, columns, &time, nominal));
+            }
+            let per_unit = 1.0 / nominal;
+            let rate = per_unit / seconds;
+            if unit.is_none() && rate < MIN_PLAUSIBLE_RATE_HZ {
+                return Err(TraceError::ImplausibleTime {
+                    path: path.to_path_buf(),
+                    line: second_line,
+                    column: ti + 1,
+                    name: time.name,
+                    step: 1.0 / per_unit,
+                    rate_hz: rate,
+                    min: MIN_PLAUSIBLE_RATE_HZ,
+                });
+            }
+            rate
+        }
+        _ => {
+            return Err(TraceError::NoSampleRate {
+                path: path.to_path_buf(),
+            })
+        }
+    };
+    if sample_rate_hz.is_nan() || sample_rate_hz > MAX_SAMPLE_RATE_HZ {
+        return Err(TraceError::Malformed {
+            path: path.to_path_buf(),
+            line: 3,
+            message: format!(
+                "the time column's step gives a sample rate of {sample_rate_hz:e} Hz, above \
+                 the {:e} Hz a model may carry: is the time in seconds?",
+                MAX_SAMPLE_RATE_HZ
+            ),
+        });
+    }
+    if !rereadable {
+        return Err(TraceError::NotRereadable {
+            path: path.to_path_buf(),
+        });
+    }
+    checks.y.end_first();
+    if let Some(c) = &mut checks.u {
+        c.end_first();
+    }
+    Ok((
+        RunInfo {
+            path: path.to_path_buf(),
+            len: n,
+            sample_rate_hz,
+            has_reference,
+            headers,
+            sha256,
+            reference_head,
+            probe_head,
+        },
+        checks,
+    ))
+}
+
+/// The first time step of the run at `path` that jitters by more than [`MAX_JITTER`] around
+/// `nominal`, as [`Trace::read`](super::Trace::read) reports it: a second look at the file,
+/// made only when the first pass's extreme steps showed there is one.
+fn first_jitter(path: &Path, columns: &Columns, time: &TimeColumn, nominal: f64) -> TraceError {
+    let error = |line, step| TraceError::NonUniformTime {
+        path: path.to_path_buf(),
+        line,
+        column: time.column,
+        name: time.name.clone(),
+        step,
+        nominal,
+        percent: (step - nominal).abs() / nominal * 100.0,
+        unit: time.unit,
+    };
+    let mut rows = match RunRows::open(path, columns, csv::Trim::None) {
+        Ok(rows) => rows,
+        Err(e) => return e,
+    };
+    let mut last: Option<f64> = None;
+    loop {
+        let row = match rows.next_row() {
+            Ok(Some(row)) => row,
+            Ok(None) => break,
+            Err(e) => return e,
+        };
+        if let (Some(a), Some(b)) = (last, row.t) {
+            let step: f64 = b - a;
+            if (step - nominal).abs() / nominal > MAX_JITTER {
+                return error(row.line, step);
+            }
+        }
+        last = row.t;
+    }
+    changed(path)
+}
+
+/// The error of a run whose file changed between two passes.
+#[must_use]
+pub fn changed(path: &Path) -> TraceError {
+    TraceError::Mismatch {
+        path: path.to_path_buf(),
+        message: "the file changed while unlag was running; run again".into(),
+    }
+}
+
+/// Writes one row of a run back with `extra` values after its fields: the fields as `rows`
+/// read them (with [`csv::Trim::All`]), joined by the file's delimiter, each extra value as
+/// the shortest text that reads back to it (with a decimal comma when the file has them);
+/// `line` is a reused buffer. The same bytes as [`Trace::write_csv_with`](super::Trace::write_csv_with).
+pub fn write_row(record: &csv::StringRecord, extra: &[f64], columns: &Columns, line: &mut Vec<u8>) {
+    let delimiter = columns.delimiter;
+    line.clear();
+    for (i, f) in record.iter().enumerate() {
+        if i > 0 {
+            line.push(delimiter);
+        }
+        line.extend_from_slice(f.as_bytes());
+    }
+    for v in extra {
+        let text = v.to_string();
+        line.push(delimiter);
+        if columns.decimal_comma {
+            line.extend_from_slice(text.replace('.', ",").as_bytes());
+        } else {
+            line.extend_from_slice(text.as_bytes());
+        }
+    }
+    line.push(b'\n');
+}
+
+/// The header line of a run written back with `extra` columns after its own.
+#[must_use]
+pub fn header_line(headers: &csv::StringRecord, extra: &[&str], columns: &Columns) -> String {
+    let sep = char::from(columns.delimiter);
+    let mut header = headers.iter().collect::<Vec<_>>().join(&sep.to_string());
+    for name in extra {
+        header.push(sep);
+        header.push_str(name);
+    }
+    header.push('\n');
+    header
+}
+
+/// Reads the run at `path` again from its start, to the end of the file, checking each row
+/// against the first pass: the same number of rows and the same bytes.
+///
+/// # Errors
+/// As [`RunRows::open`].
+pub fn again(info: &RunInfo, columns: &Columns) -> Result<RunRows> {
+    RunRows::open(&info.path, columns, csv::Trim::All)
+}
+
+/// Ends a pass opened by [`again`]: an error unless it read as many rows as the first pass
+/// (`rows`) and the same bytes.
+///
+/// # Errors
+/// [`TraceError::Mismatch`] when the file changed.
+pub fn end_pass(info: &RunInfo, rows: RunRows, read: usize) -> Result<()> {
+    if read == info.len && rows.sha256() == info.sha256 {
+        Ok(())
+    } else {
+        Err(changed(&info.path))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn exact_median(v: &[f64]) -> f64 {
+        let mut s = v.to_vec();
+        let mid = s.len() / 2;
+        s.select_nth_unstable_by(mid, f64::total_cmp);
+        s[mid]
+    }
+
+    fn streamed_median(v: &[f64]) -> Option<f64> {
+        let mut m = Median::new();
+        v.iter().for_each(|&x| m.first(x));
+        m.end_first();
+        v.iter().for_each(|&x| m.second(x));
+        m.value()
+    }
+
+    #[test]
+    fn the_streamed_median_is_the_selected_element() {
+        // Noise-like values, quantised values (many equal), and a few values.
+        let noise: Vec<f64> = crate::testing::gaussian(10_001, 5)
+            .iter()
+            .map(|v| v.abs())
+            .collect();
+        let quantised: Vec<f64> = noise.iter().map(|v| (v * 8.0).round() / 8.0).collect();
+        for v in [
+            &noise[..],
+            &quantised[..],
+            &noise[..3],
+            &noise[..2],
+            &noise[..1],
+        ] {
+            assert_eq!(streamed_median(v), Some(exact_median(v)), "{}", v.len());
+        }
+        assert_eq!(streamed_median(&[]), None);
+    }
+}

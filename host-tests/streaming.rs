@@ -4,6 +4,8 @@
 //! limit (`ulimit -v`, Linux) far below what holding it takes, which the command that holds
 //! the run (`--adapt-to-run`) cannot pass.
 
+#![allow(clippy::unwrap_used)]
+
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

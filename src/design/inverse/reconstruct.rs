@@ -240,6 +240,7 @@ pub fn reconstruct_with(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::ops::RangeInclusive;
 
     /// Streamed, the search gives the direct search's figure and lag, bit for bit, over lag
     /// ranges that start at 0 or later, are cut by the record's length, or are empty.
@@ -263,7 +264,13 @@ mod tests {
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
                 (l.min(*v), h.max(*v))
             });
-        for lags in [0..=40, 3..=11, 5..=5, 2990..=3100, 12..=4] {
+        for lags in [
+            0..=40,
+            3..=11,
+            5..=5,
+            2990..=3100,
+            RangeInclusive::new(12, 4),
+        ] {
             let direct = aligned_error(&reference, &estimate, lags.clone());
             let mut s = AlignedErrorStream::new(n, lags.clone(), hi - lo);
             for (r, e) in reference.iter().zip(&estimate) {

@@ -269,9 +269,31 @@ impl Model {
     /// # Errors
     /// [`Error::UnstableInverse`] naming the zero when `B` has a zero on or outside the unit
     /// circle, or [`Error::InvalidArgument`] when the order exceeds [`MAX_ORDER`].
-    pub fn compensate<T: Sample + 'static>(&self, y: &[f64]) -> Result<Vec<f64>> {
-        let mut step = self.compensator::<T>(y.first().copied().unwrap_or(0.0))?;
-        Ok(y.iter().map(|&v| step(v)).collect())
+    pub fn compensate<T: Sample>(&self, y: &[f64]) -> Result<Vec<f64>> {
+        self.check_invertible("compensate")?;
+        match self.order() {
+            0..=2 => self.compensate_with::<T, 2>(y),
+            3..=4 => self.compensate_with::<T, 4>(y),
+            5..=8 => self.compensate_with::<T, 8>(y),
+            9..=MAX_ORDER => self.compensate_with::<T, MAX_ORDER>(y),
+            m => Err(Self::too_high(m)),
+        }
+    }
+
+    /// The whole record through one compensator, without a call through a pointer per sample.
+    fn compensate_with<T: Sample, const M: usize>(&self, y: &[f64]) -> Result<Vec<f64>> {
+        let coefficients = InverseCoefficients::<T, M>::new(&self.b, &self.a)
+            .map_err(|error| FitError::Compensator { error })?;
+        let y0 = T::from_f64(y.first().copied().unwrap_or(0.0));
+        let mut c = Compensator::from_coefficients(coefficients, y0);
+        Ok(y.iter().map(|&v| c.push(T::from_f64(v)).to_f64()).collect())
+    }
+
+    fn too_high(m: usize) -> Error {
+        Error::InvalidArgument {
+            what: "model order",
+            message: format!("order {m} exceeds the largest supported order {MAX_ORDER}"),
+        }
     }
 
     /// [`Model::compensate`] one sample at a time, started in equilibrium with `first`.
@@ -288,10 +310,7 @@ impl Model {
             3..=4 => self.compensator_with::<T, 4>(first),
             5..=8 => self.compensator_with::<T, 8>(first),
             9..=MAX_ORDER => self.compensator_with::<T, MAX_ORDER>(first),
-            m => Err(Error::InvalidArgument {
-                what: "model order",
-                message: format!("order {m} exceeds the largest supported order {MAX_ORDER}"),
-            }),
+            m => Err(Self::too_high(m)),
         }
     }
 

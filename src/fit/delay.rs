@@ -173,7 +173,7 @@ mod tests {
 
     #[test]
     fn a_long_range_finds_the_best_and_the_edge_of_a_flat_valley_from_a_grid() {
-        // The shape of a slow capillary's curve (bank seed 142, case 074: 1209 candidates,
+        // The shape of a slow capillary's curve (1209 candidates,
         // 0.462 % at delay 0, flat at 0.438 % from 55 to 73, rising to 0.51 % by 150 and on):
         // a valley whose floor is flat within a part in 1e4 over 19 delays.
         let hi = 1209;

@@ -166,9 +166,9 @@ impl Model {
     /// segment), with the free response that best explains `y` added
     /// ([`Model::add_free_response`]). A simulation from rest cannot know where the probe was
     /// when such a record began: a slow probe misses its first tenths of a second by far more
-    /// than its noise (bank seed 30, case 023: a capillary 180 Pa off at the start of a
-    /// traverse, within its noise after 0.3 s). Estimating the initial state is what
-    /// MATLAB's `compare` does by default.
+    /// than its noise (a capillary caught mid-traverse can start hundreds of pascals off and
+    /// come within its noise only after some tenths of a second). Estimating the initial
+    /// state is what MATLAB's `compare` does by default.
     #[must_use]
     pub fn simulate_matched(&self, u: &[f64], y: &[f64]) -> Vec<f64> {
         self.simulate_matched_from(u, y, crate::fit::step::quiet_until(u) != 0)
@@ -217,10 +217,9 @@ impl Model {
     /// The free response is that of the modes that end within the record (a pole whose motion
     /// falls below [`FREE_RESPONSE_ENDS`] of its start by the last sample; a complex pair
     /// gives two columns): a mode slower than that is, over the record, a level or a ramp, and
-    /// would take a drift or an offset as its initial state (bank seed 31, case 074: a
-    /// capillary's slowest pole took a drift of 480 units per second off a traverse). `None`,
-    /// with `ym` as it was, for a model with a pole on or outside the unit circle, or a record
-    /// that does not determine the fit.
+    /// would take a drift or an offset as its initial state (a capillary's slowest pole can
+    /// take a traverse's drift off it). `None`, with `ym` as it was, for a model with a pole
+    /// on or outside the unit circle, or a record that does not determine the fit.
     pub fn fit_free_response(
         &self,
         ym: &mut [f64],

@@ -326,7 +326,7 @@ pub(crate) fn propagate(
 mod both_channels {
     use crate::fit::{fit, Method, NoiseOrigin, Options, Order, Test};
 
-    /// A 40 Hz probe of damping 0.15 (bank case 108) behind a noisy reference, over 16 noise
+    /// A 40 Hz probe of damping 0.15 behind a noisy reference, over 16 noise
     /// draws: the stated deviation of the damping is its spread within the sampling error of
     /// 16 draws, with the reference's noise ringing through the probe (where the whitened
     /// residual taken for white stated 3.8x too narrow), three times that noise, and a

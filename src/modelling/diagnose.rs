@@ -144,13 +144,13 @@ pub fn evidence(current: &Current<'_>, tests: &[Test<'_>]) -> Vec<TestEvidence> 
 ///
 /// 1. the trials again with the delay searched in each, as `unlag fit --add` will (unless the
 ///    model file fixes the delay): a slow pole an effect adds trades with the delay (a
-///    capillary's leak, bank seed 65, case 019: the plain model's delay is 54 samples, the
-///    leak's 46);
+///    capillary's leak: its slow pole takes up part of the lag the plain model's longer delay
+///    stood for);
 /// 2. a temperature read from its trial alone on a model with no resonance short of critical
 ///    damping ([`TRIAL_ALONE_DAMPING_BELOW`] keeps losses from it while another effect is
 ///    offered), where no loss could have moved the time scale that way ([`loss_could_move`]):
 ///    an overdamped capillary validated by a smaller traverse at another gas temperature, which
-///    runs slower (bank seed 65, case 026: 3.87 % to 1.55 %, the floor 1.56 %).
+///    runs slower, which a loss cannot make a smaller test do.
 ///
 /// Where the first candidate's effect alone leaves the model short of its own estimation
 /// test, and a mode beside it lowers that test's error and the held-out error further, its

@@ -6,11 +6,10 @@
 //! cavity have modes above the first, so that start leaves its own step test above the noise
 //! floor, and a held-out test at another temperature, or with a leak, shows a second deficit on
 //! top of it. The diagnosis names the second (the effect a test of another kind reveals), and
-//! its change alone leaves the first: bank seed 79, case 089, a temperature, takes the wake
-//! traverse from 6.64 % to 4.17 % against a floor of 0.28 %, and the estimation test stays at
-//! 0.93 % against its floor of 0.25 %. The next round of the loop names the mode (1.24 %). Where
-//! the mode's trial beside the first change shows that already, the first change carries it,
-//! and says why.
+//! its change alone leaves the first: a temperature takes a wake traverse down by a third,
+//! still far above its floor, and the estimation test stays near four times its own. The next
+//! round of the loop names the mode. Where the mode's trial beside the first change shows
+//! that already, the first change carries it, and says why.
 
 use serde::Serialize;
 
@@ -75,8 +74,8 @@ impl Beside {
 /// that adds one effect other than a delay, without `--also`, to a model with no mode yet,
 /// and only with a held-out test: on the estimation test alone, more poles always fit better.
 /// A mode gets a second mode beside it the same way: a probe whose line and cavity have two
-/// modes above the model's (bank seed 83, case 113: one mode leaves the estimation test at
-/// 3.0x its floor, a second takes the valve test from 0.957 % to 0.703 %).
+/// modes above the model's (one mode leaves the estimation test well above its floor, and a
+/// second lowers the held-out error further).
 pub(super) fn mode_beside(
     current: &Current<'_>,
     tests: &[Test<'_>],
@@ -180,7 +179,7 @@ pub(super) fn mode_beside(
 mod tests {
     use super::*;
 
-    /// Bank seed 79, case 089's figures: a temperature alone leaves the estimation test at
+    /// A temperature beside a mode: a temperature alone leaves the estimation test at
     /// 3.8x its floor; a mode beside it takes that test to 0.300 % and the traverse from
     /// 4.172 % to 1.653 %.
     fn case_089() -> Beside {

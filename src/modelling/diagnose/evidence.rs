@@ -402,9 +402,9 @@ impl JointLoss {
     /// Whether the loss is offered: it lowers the tests' RMS error by
     /// [`MIN_IMPROVEMENT`](super::MIN_IMPROVEMENT) against the best single linear model, and
     /// leaves less over them than the current model does (`now`, its RMS error over the same
-    /// tests). A joint linear fit that broke down lends any loss a fall: on bank seed 82's case
-    /// 047 (a capillary drift) it left 88.9 % on a traverse the plain model leaves at 10.4 %,
-    /// and a loss 5.8x below it left both tests worse than the plain model.
+    /// tests). A joint linear fit that broke down lends any loss a fall: on a drifting
+    /// capillary it can leave a traverse far worse than the plain model does, and a loss
+    /// well below it still leave both tests worse than the plain model.
     #[must_use]
     pub fn offered_against(&self, now: f64) -> bool {
         self.fall >= super::MIN_IMPROVEMENT && self.rms() < now
@@ -443,11 +443,11 @@ mod tests {
 
     #[test]
     fn a_joint_loss_is_offered_only_where_it_beats_the_linear_fit_and_the_current_model() {
-        // Bank seed 71, case 026: 1.63x below the linear fit, and far below the current
+        // A sound loss: 1.63x below the linear fit, and far below the current
         // model, which leaves 0.317 % and 2.544 %.
         let healthy = joint([0.00882, 0.00596], [0.00454, 0.00468]);
         assert!(healthy.offered_against(rms(&[0.00317, 0.02544])));
-        // Seed 82, case 047: 5.8x below a linear fit that broke down, but worse than the
+        // A loss 5.8x below a linear fit that broke down, but worse than the
         // current model on both tests (0.352 % and 10.441 %).
         let broken = joint([0.30836, 0.88875], [0.03456, 0.15737]);
         assert!(broken.fall > 5.0);

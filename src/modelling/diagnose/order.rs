@@ -16,12 +16,11 @@ pub const LEAK_DC_GAIN_BELOW: f64 = 0.998;
 
 /// A residual peak this far above the floor (dB), and narrow ([`NARROW_PEAK_Q`]) or above the
 /// natural frequency of the model's slowest pole, is a resonance, which a slow creep does not
-/// leave: a creep's broad low-frequency hump can stand as far out (bank seed 14, case 019: a
-/// leak's creep read as a peak at 2 Hz, 31 dB out, Q about 1), but not above the probe's own
-/// time scales. A creep adds a time scale slower than the probe's, and what it leaves of a
-/// step falls off above its corner; a mode of the line lies above the probe's slowest pole
-/// (seed 122, case 077: a capillary's hidden mode read as a peak at 28 Hz, 42 dB out, Q about
-/// 2, the model's slowest pole at 2.9 Hz).
+/// leave: a creep's broad low-frequency hump can stand as far out (30 dB, Q about 1), but not
+/// above the probe's own time scales. A creep adds a time scale slower than the probe's, and
+/// what it leaves of a step falls off above its corner; a mode of the line lies above the
+/// probe's slowest pole (a capillary's hidden mode can read as a broad peak 40 dB out, but
+/// ten times above that pole).
 pub const MODE_PEAK_OVER_CREEP_DB: f64 = 20.0;
 
 /// A residual slope before the step this many standard errors from a drift's fitted rate, and
@@ -44,11 +43,9 @@ pub fn unseen_leak(c: &Candidate, dc_gain: f64) -> bool {
 /// Whether the residual's slope before the step (`pre`, standard error `pre_se`, per second)
 /// contradicts a drift at `rate` per second: a sensor's drift runs in time, before the step as
 /// after it, so its slope there is the rate; one [`DRIFT_CONTRADICTED_STANDARD_ERRORS`] away
-/// that does not share its sign may be a ramp the dynamics leave after the step (bank case
-/// 025: `-31 +/- 22` per second before the step against a rate of `+103`). The reading says
-/// so; the order does not rank on it: on the 51 drawn banks of seeds 107 to 157 it
-/// contradicted three hidden drifts that scored best, and put two of them behind another
-/// candidate.
+/// that does not share its sign may be a ramp the dynamics leave after the step. The reading
+/// says so; the order does not rank on it: it can contradict real drifts that score best,
+/// and would put them behind another candidate.
 #[must_use]
 pub fn drift_contradicted(pre: f64, pre_se: f64, rate: f64) -> bool {
     pre_se.is_finite()
@@ -110,11 +107,10 @@ pub const CREEP_SETTLED_BELOW: f64 = 0.5;
 /// How much of the slope of a straight line through a test's whole residual, `seconds` long,
 /// its slope over the last 30 % of the record keeps (`None` where either slope is not finite
 /// or the line is flat: its rise over the record within the standard error of the late
-/// segment's mean, where a ratio to it is noise over noise; seed 72's case 020 read
-/// -5.5e13 once a drift was fitted). A leak's creep settles: on the estimation tests of banks 36 to 49, -0.10 to 0.17
-/// for the leaks a mode tied with, whose volume had filled before the record ended. A
-/// sensor's drift runs on to the end: 1.38 to 6.84 for every drift whose DC gain and creep
-/// read as a leak's on the same banks (above 1 where the fit took part of the ramp into its
+/// segment's mean, where a ratio to it is noise over noise and can read -5e13 once a drift
+/// is fitted). A leak's creep settles: near 0 (-0.1 to 0.2) for a leak whose volume fills
+/// before the record ends. A sensor's drift runs on to the end: 1.4 to 6.8 for drifts whose
+/// DC gain and creep read as a leak's (above 1 where the fit took part of the ramp into its
 /// dynamics).
 #[must_use]
 pub fn slope_kept(trend: &Trend, seconds: f64) -> Option<f64> {
@@ -265,15 +261,11 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64, slowest_pole_hz: f64
     // A leak shows as a DC gain below 1 (a leaking volume) or as a creep after the step (a
     // thermal creep). With neither, its trial only lends a pole and a zero to something else:
     // it goes after a mode or the transducers' resonance, at any margin. Whose peak was seen
-    // (bank case 032: a line's second mode 7 dB out at 584 Hz, the leak's trial 0.34 ahead with
-    // the DC gain at 1 and the creep 1 standard error out), whose rise towards the band's edge
-    // was (seed 83, case 081: a pneumatic probe with no hidden effect, its own modes beyond
-    // second order leaving the step test at 5.5x its floor, the response 4.4 dB above the
-    // model's towards 179 Hz, the leak's trial 0.06 ahead with the DC gain at 1 and no creep at
-    // all), or that only its trial shows (seed 112, case 032: a pneumatic probe's hidden mode
-    // validated by a wake, the leak's trial 0.06 ahead, the gain at 1 and the creep 0.8
-    // standard errors out). Of the 33 leak candidates with neither signature on seeds 107 to
-    // 114, none was a hidden leak (the bank's leaks lower the gain 2 % to 10 %).
+    // (a line's second mode a few dB out, the leak's trial ahead with the DC gain at 1 and no
+    // creep beyond the noise), whose rise towards the band's edge was (a pneumatic probe's
+    // own modes beyond second order, the response above the model's towards the band's edge),
+    // or that only its trial shows (a pneumatic probe's hidden mode validated by a wake). A
+    // real leak lowers the gain by a few percent, which the DC gain shows.
     yield_first_within(
         out,
         OrderRule::ResonanceBeforeUnseenLeak,
@@ -289,10 +281,9 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64, slowest_pole_hz: f64
     // a creep after the step, goes before a mode that ties with it when the creep has settled
     // by the end of the estimation test: the mode's two poles and zeros can take a slow pole's
     // shape, but a line's acoustic mode lowers no static gain. A sensor's drift lowers the
-    // fitted DC gain and leaves a creep too, but runs on to the end of the record (bank seed
-    // 46, case 029: the slope over the last 30 % 3.2 times the line's), so a creep that keeps
-    // its rate is no leak's (seed 38, case 028: the mode 0.11 ahead, the DC gain 0.948, the
-    // creep 47 standard errors out and 0.04 of the line's slope left at the end).
+    // fitted DC gain and leaves a creep too, but runs on to the end of the record (its slope
+    // over the last 30 % several times the line's), so a creep that keeps its rate is no leak's,
+    // and one with a small fraction of the line's slope left at the end is.
     yield_first(
         out,
         OrderRule::SettledLeakBeforeMode,
@@ -328,9 +319,8 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64, slowest_pole_hz: f64
     // one free time scale to each held-out test: any effect that differs between the tests
     // can lend it a fall. A nonlinear damping whose signature the tests show (the damping
     // rising with the step, or one model with a loss explaining the tests together) is such an
-    // effect, and goes before it at any margin (bank seed 36, case 097: a flush probe's
-    // quadratic loss, a traverse's time scale 1.165 times the model's, 3.04x against the loss's
-    // 2.21x fitted on both tests).
+    // effect, and goes before it at any margin (a flush probe's quadratic loss can lend a
+    // traverse's free time scale a larger fall than the loss's own fit on both tests).
     yield_first_within(
         out,
         OrderRule::LossBeforeTemperatureTrial,
@@ -355,8 +345,8 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64, slowest_pole_hz: f64
 /// [`TemperatureShift::joint_rms`](super::TemperatureShift::joint_rms)) goes before the other
 /// at any margin. Against the trial alone, whose dynamics keep the estimation test's, the
 /// loss's refit of the dynamics on every test decided where the plain model misses the
-/// probe's own dynamics (bank seed 46, case 008: a temperature, 0.60 % against the loss's
-/// 0.53 %; fitted on both tests, 0.45 %).
+/// probe's own dynamics (a temperature's trial can leave more than the loss, and less once
+/// fitted on both tests).
 fn temperature_or_loss(out: &mut Vec<Candidate>) {
     // The first temperature (`true`) or loss with its RMS over all the tests, and where it is.
     let find = |temperature: bool| {
@@ -544,8 +534,8 @@ mod tests {
         let mut out = make(7.0, 1.48);
         order(&mut out, 1.004, f64::INFINITY);
         assert_eq!(kinds(&out), leak_first);
-        // Nor is a broad hump, however far out (seed 14's case 019: a creep read as a peak at
-        // 2 Hz, 31 dB out, Q about 1).
+        // Nor is a broad hump, however far out (a creep read as a peak at 2 Hz, 31 dB out, Q
+        // about 1).
         let mut out = vec![
             candidate(
                 EffectKind::Mode,
@@ -562,9 +552,9 @@ mod tests {
         ];
         order(&mut out, 1.004, f64::INFINITY);
         assert_eq!(kinds(&out), leak_first);
-        // Unless it lies well above the model's slowest pole, where no creep's hump is (seed
-        // 122's case 077: a capillary's hidden mode read as a peak at 28 Hz, 42 dB out, Q about
-        // 2, the model's slowest pole at 2.9 Hz) ...
+        // Unless it lies well above the model's slowest pole, where no creep's hump is (a
+        // capillary's hidden mode read as a peak at 28 Hz, 42 dB out, Q about 2, the model's
+        // slowest pole at 2.9 Hz) ...
         let broad = |frequency_hz: f64| {
             vec![
                 candidate(
@@ -625,7 +615,7 @@ mod tests {
 
     #[test]
     fn a_leak_with_neither_signature_goes_after_a_mode_at_any_margin() {
-        // Bank case 032: the leak's trial 0.34 ahead of a mode whose peak stands 7 dB out, the
+        // A line's mode: the leak's trial 0.34 ahead of a mode whose peak stands 7 dB out, the
         // DC gain at 1 and no creep beyond the noise.
         let first = |z: f64, dc_gain: f64, mode: Evidence| {
             let mut out = vec![
@@ -641,8 +631,8 @@ mod tests {
         // A creep seen (a thermal creep), or a leaking volume's gain: the leak keeps its place.
         assert_eq!(first(-4.0, 1.0, peak(7.4)), leak);
         assert_eq!(first(1.0, 0.95, peak(7.4)), leak);
-        // A mode its trial alone shows goes first too (seed 112, case 032: the leak 0.06
-        // ahead), but not before a leak with a signature.
+        // A mode its trial alone shows goes first too (the leak 0.06 ahead), but not before
+        // a leak with a signature.
         assert_eq!(
             first(1.0, 1.0, Evidence::Mode(ModeEvidence::TrialOnly)),
             mode
@@ -651,8 +641,8 @@ mod tests {
             first(-4.0, 1.0, Evidence::Mode(ModeEvidence::TrialOnly)),
             leak
         );
-        // The response rising above the model's towards the band's edge is (seed 83, case 081:
-        // 4.4 dB towards 179 Hz, no creep, the gain at 1).
+        // The response rising above the model's towards the band's edge is (4.4 dB towards
+        // 179 Hz, no creep, the gain at 1).
         let edge = || {
             Evidence::Mode(ModeEvidence::BandEdge {
                 rise_db: 4.4,
@@ -667,8 +657,8 @@ mod tests {
 
     #[test]
     fn a_leak_whose_creep_settles_goes_before_a_mode_it_ties_with_and_a_drift_does_not() {
-        // Bank seed 38, case 028: the mode 0.11 ahead, the DC gain 0.948, the creep 47
-        // standard errors out, 0.04 of the line's slope left at the end of the record.
+        // A settled creep: the mode 0.11 ahead, the DC gain 0.948, the creep 47 standard
+        // errors out, 0.04 of the line's slope left at the end of the record.
         let first = |dc_gain: f64, z: f64, kept: Option<f64>, leak_score: f64| {
             let mut out = vec![
                 candidate(EffectKind::Mode, 1.30, peak(37.0)),
@@ -690,8 +680,8 @@ mod tests {
         let leak = Finding::Missing(EffectKind::Leak);
         assert_eq!(first(0.948, -46.7, Some(0.04), 1.19), leak);
         assert_eq!(first(0.948, -46.7, Some(-0.3), 1.19), leak);
-        // A creep that runs on at its rate is a drift's (seed 46, case 029: 3.2 times the
-        // line's slope at the end), or one whose shape is unknown: the mode keeps its place.
+        // A creep that runs on at its rate is a drift's (3.2 times the line's slope at the
+        // end), or one whose shape is unknown: the mode keeps its place.
         assert_eq!(first(0.948, -46.7, Some(3.17), 1.19), mode);
         assert_eq!(first(0.948, -46.7, Some(0.6), 1.19), mode);
         assert_eq!(first(0.948, -46.7, None, 1.19), mode);
@@ -754,7 +744,7 @@ mod tests {
 
     #[test]
     fn a_ringing_reference_puts_the_transducers_before_a_mode_they_tie_with() {
-        // Seed 15's case 033: the reference rings at 2.3 kHz in both tests, the probe shows
+        // The reference rings at 2.3 kHz in both tests, the probe shows
         // no peak there, and the mode's trial (two free poles and zeros) scores as the
         // transducers' does.
         let sensor = |probe: Option<f64>| {
@@ -791,7 +781,7 @@ mod tests {
 
     #[test]
     fn a_leak_goes_after_a_clear_transducer_resonance_it_ties_with() {
-        // Bank case 096: a flush hole whose transducers ring near 290 kHz (the reference at
+        // A flush hole whose transducers ring near 290 kHz (the reference at
         // 291.5 kHz, the probe's residual 24 dB out at 272 kHz); the leak's trial scores 0.07
         // more, with the model's DC gain at 1.
         let sensor = |probe_db: f64| {
@@ -894,7 +884,7 @@ mod tests {
         let loss = |joint: Option<crate::modelling::diagnose::JointLoss>| {
             Evidence::NonlinearDamping(NonlinearDamping::of(None, false, 2e-15, joint))
         };
-        // Bank seed 36, case 097: the temperature 1.08, the loss 0.76, beyond the close margin.
+        // A flush probe's loss: the temperature 1.08, the loss 0.76, beyond the close margin.
         for (signature, joint, first) in [
             (false, Some(joint.clone()), EffectKind::NonlinearDamping),
             // The tests showed the temperature: the scores decide.
@@ -968,7 +958,7 @@ mod tests {
             Finding::Missing(EffectKind::TemperatureViscous),
             Finding::Missing(EffectKind::NonlinearDamping),
         );
-        // Bank seed 46, case 008, scores swapped: the trial leaves 0.60 % over both tests, the
+        // A temperature, scores swapped: the trial leaves 0.60 % over both tests, the
         // loss 0.53 %, but fitted on both tests the temperature leaves 0.45 %.
         let (trial, joint, lossy) = ([0.0049, 0.0070], [0.00495, 0.00394], [0.00541, 0.00511]);
         assert_eq!(
@@ -983,7 +973,7 @@ mod tests {
             first((0.16, temperature(true, trial, None)), (0.41, loss(lossy))),
             l_first
         );
-        // Seed 37, case 097: the loss leaves 0.39 % over both tests, the temperature 0.55 %
+        // The loss leaves 0.39 % over both tests, the temperature 0.55 %
         // either way; it goes first though it scores less.
         let (trial, joint, lossy) = ([0.0036, 0.0069], [0.0040, 0.0067], [0.0030, 0.0046]);
         assert_eq!(
@@ -993,7 +983,7 @@ mod tests {
             ),
             l_first
         );
-        // Seed 39, case 089: a temperature from its trial alone, which yields to a loss fitted
+        // A temperature from its trial alone, which yields to a loss fitted
         // on the tests together at any margin, leaves less (0.28 % against 0.35 %) and goes
         // first again: the lesser of its trial's and its fit on all the tests counts.
         let (trial, joint, lossy) = ([0.0015, 0.0036], [0.0030, 0.0042], [0.0029, 0.0040]);
@@ -1034,17 +1024,16 @@ mod tests {
 
     #[test]
     fn a_drift_keeps_its_place_where_the_slope_before_the_step_contradicts_it() {
-        // Bank case 025: -31 +/- 22 per second before the step, the trial's rate +103.
+        // A ramp the dynamics leave: -31 +/- 22 per second before the step, the rate +103.
         assert!(drift_contradicted(-31.0, 22.0, 103.0));
         // A real drift: the slope before the step is its rate, within the noise, or of its
-        // sign (case 047: 101 +/- 13 against 125).
+        // sign (101 +/- 13 against 125).
         assert!(!drift_contradicted(101.0, 13.0, 125.0));
         assert!(!drift_contradicted(20.0, 1.0, 125.0));
         // No segment before the step: nothing to contradict.
         assert!(!drift_contradicted(0.0, f64::INFINITY, 125.0));
-        // The slope before the step is said, not ranked on: it put hidden drifts that scored
-        // best behind a mode and an offset (bank seeds 135 and 154, case 101) and moved no
-        // other first name on the 51 drawn banks of seeds 107 to 157.
+        // The slope before the step is said, not ranked on: ranked on, it put hidden drifts
+        // that scored best behind a mode and an offset, and moved no other first name.
         let drift = |pre: f64| Evidence::Drift {
             pre_step_slope_per_s: pre,
             pre_step_slope_se_per_s: 22.0,

@@ -215,10 +215,9 @@ pub(super) fn rank_at(
     }
 
     // drift: a ramp through the residual that runs on to the end of the record. A ramp whose
-    // level comes back by then is a hump the dynamics leave after the step (bank seed 22,
-    // case 025: a capillary's tail after a valve step of another size, 92 units low a tenth of
-    // a second after the step and back to its level before it at the end), which a line only
-    // halves: it is not offered.
+    // level comes back by then is a hump the dynamics leave after the step (a capillary's
+    // slow tail after a valve step of another size: low a tenth of a second after the step,
+    // back to its level before it at the end), which a line only halves: it is not offered.
     let (drift, strongest) = evidence
         .iter()
         .map(|e| {
@@ -324,9 +323,8 @@ pub(super) fn rank_at(
             remedy: effects::SensorRemedy::Modes,
         };
         // The transducers' modes move the step's apparent onset: a second-order model has
-        // taken its delay short to meet their rise (bank seed 20, case 087: 12 samples where
-        // the probe's is 19), so the trial searches the delay again as well and keeps the
-        // better of the two.
+        // taken its delay short to meet their rise (well short of the probe's), so the trial
+        // searches the delay again as well and keeps the better of the two.
         let searched = Options {
             delay: None,
             ..base
@@ -406,8 +404,8 @@ pub(super) fn rank_at(
 
     // nonlinear damping from the tests fitted together: one model with a quadratic loss
     // explains tests of different sizes where no single linear model does. One step cannot
-    // identify the loss (bank case 052: a capillary's step explained to 0.370 % with it or
-    // without, a traverse missed by 2.9 %), so its remedy fits on the tests together.
+    // identify the loss (a capillary's step is explained as well with it or without, where
+    // a traverse is missed by several percent), so its remedy fits on the tests together.
     let joint_from = offered.get();
     if !at_floor && !have.nonlinear && !nonlinear_tried {
         let trials: Vec<Test<'_>> = std::iter::once(*estimation)
@@ -610,9 +608,9 @@ pub(super) fn rank_at(
     //
     // A leak with neither of its signatures (the DC gain at 1, no creep after the step) that
     // nothing yields to ([`super::order`]) is no leak: its pole and zero stand for dynamics the
-    // model lacks, and the diagnosis says so before it (seeds 109's case 081 and 113's case
-    // 009: probes with no hidden effect whose own dynamics beyond second order leave the
-    // tests at 1.27x and 4.87x what their true models leave, named `leak` alone).
+    // model lacks, and the diagnosis says so before it (a probe with no hidden effect whose
+    // own dynamics beyond second order leave the tests above what its true model leaves is
+    // otherwise named `leak` alone).
     let lone_leak = out
         .first()
         .filter(|c| unseen_leak(c, current.model.dc_gain()))

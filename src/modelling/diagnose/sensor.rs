@@ -20,17 +20,15 @@ pub(super) struct Signature {
 ///
 /// The estimation step's reference must ring: a step is the sharpest edge a transducer meets,
 /// and its diaphragm rings in it. A reference that rings only in another test rings with the
-/// pressure itself (a valve's chamber), which the probe's model must follow: over nine banks,
-/// seeds 13 to 21, the reference rang in another test but not in the step in 85 cases, and
-/// none of them hid a sensor resonance (bank seed 20, case 002: a drift, validated on a valve
-/// whose chamber rings at 248 Hz, was named a sensor resonance).
+/// pressure itself (a valve's chamber), which the probe's model must follow: such ringing
+/// hides no sensor resonance, and taken for one it named a drift, validated on a valve whose
+/// chamber rings at a few hundred Hz, a sensor resonance.
 ///
 /// Then, as a line or cavity mode never shows in the reference, that ringing is the
 /// transducers' where either the probe peaks near it in some test, or, where the probe shows
 /// no peak there (the line before its transducer filters its diaphragm out), every other test
-/// whose reference rings does so at the same frequency: one transducer, one diaphragm (bank
-/// seed 15, cases 033 and 087: the reference rings at 2.3 and 1.8 kHz in both tests, and the
-/// probe shows nothing there).
+/// whose reference rings does so at the same frequency: one transducer, one diaphragm (the
+/// reference ringing at one kHz frequency in both tests, the probe showing nothing there).
 pub(super) fn signature(evidence: &[TestEvidence]) -> Option<Signature> {
     let step = evidence.first()?.reference_ringing?;
     let near_step = |f: f64| (f / step.frequency_hz - 1.0).abs() < SAME_FREQUENCY;

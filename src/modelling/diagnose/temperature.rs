@@ -17,9 +17,9 @@ use crate::modelling::evidence::TestEvidence;
 ///
 /// The floor matters here. A free time scale fitted to each held-out test can pass less of
 /// the reference's noise through a light resonance and beat the true model on the test it
-/// is fitted to (errors in variables): on a drawn flush probe with nothing hidden (bank seed
-/// 34, case 036), a scale lowered a traverse's error from 3.07 % to 1.94 % where both
-/// channels' noise leaves 3.63 %. Counted to the floor, that is no fall at all.
+/// is fitted to (errors in variables): on a flush probe with nothing hidden, a scale can
+/// lower a traverse's error well below what both channels' noise leaves. Counted to the
+/// floor, that is no fall at all.
 pub const TRIAL_ALONE_FALL: f64 = MIN_IMPROVEMENT * MIN_IMPROVEMENT;
 
 /// A temperature read from its trial alone needs a model resonance damped below this. A pair
@@ -43,12 +43,10 @@ pub const TRIAL_ALONE_DAMPING_BELOW: f64 = 0.93;
 ///
 /// This is what a temperature read from its trial alone on a model with no resonance short of
 /// [`TRIAL_ALONE_DAMPING_BELOW`] (the last resort before `unexplained`) must show. How far one
-/// time scale fitted to the held-out test brings its error down does not tell them apart: on
-/// bank seeds 60, 62, 65 and 66 it took hidden losses' to 1.02x to 1.96x the floor and hidden
-/// temperatures' to 0.99x to 2.09x. The direction does: all six hidden losses it would have
-/// named there (validated on steps, a valve and traverses, each smaller than the estimation
-/// step), and the capillary loss of seed 39's case 079, ran faster (1.05 to 1.14); two of the
-/// four temperatures ran slower (0.87 and 0.93).
+/// time scale fitted to the held-out test brings its error down does not tell them apart: it
+/// takes hidden losses' and hidden temperatures' alike to between the floor and twice it.
+/// The direction does: a loss validated on a test smaller than the estimation step (a step,
+/// a valve or a traverse), a capillary's too, runs faster; a temperature can run slower.
 #[must_use]
 pub fn loss_could_move(k: f64, swing_ratio: f64) -> bool {
     (k > 1.0) == (swing_ratio < 1.0)
@@ -58,12 +56,10 @@ pub fn loss_could_move(k: f64, swing_ratio: f64) -> bool {
 /// other side of 1 from the signature's `ratio` (that test's natural frequencies fitted alone
 /// over the model's). With the damping kept (the law of a lightly damped probe), a gas
 /// temperature moves every natural frequency by the one factor the trial fits, so the two
-/// agree; a signature its own trial contradicts is not a temperature's. On bank seeds 79 to
-/// 94 all 64 hidden temperatures named first under this law agreed; the 9 temperature
-/// candidates of this law that disagreed were a nonlinear damping (6, four of them named first,
-/// their frequencies fitted alone 0.75x to 0.91x the model's and their trials 1.06x to 1.23x), a
-/// mode, a leak and a sensor resonance. Under the viscous law four hidden temperatures
-/// disagreed, so it is not asked there.
+/// agree; a signature its own trial contradicts is not a temperature's, but may be a
+/// nonlinear damping's (its frequencies fitted alone below the model's, its trial's time
+/// scale above 1), a mode's, a leak's or a sensor resonance's. Under the viscous law hidden
+/// temperatures too can disagree, so it is not asked there.
 fn trial_contradicts(estimated: &[ScaleEstimate], file: &str, ratio: f64) -> bool {
     estimated
         .iter()
@@ -103,10 +99,9 @@ pub(super) enum TrialAlone {
     /// direction a loss could have moved it is not asked: a traverse has no step to fit
     /// alone, so no test can show a temperature's signature, and its rates, not its swing,
     /// set what a loss damps. On overdamped capillaries validated by a traverse in a colder
-    /// gas (bank seed 71, cases 026 and 053; seed 72, case 053; seed 70, case 107), the loss
-    /// was offered alone and named, where the temperature fitted on both tests leaves less.
-    /// A test with a step keeps the direction's test: a capillary's loss validated by a
-    /// valve (seed 70, case 025) ran slower, as a loss moves a larger test, and was named a
+    /// gas, the loss was offered alone and named, where the temperature fitted on both tests
+    /// leaves less. A test with a step keeps the direction's test: a capillary's loss
+    /// validated by a valve ran slower, as a loss moves a larger test, and was named a
     /// temperature without it.
     BesideJointLoss,
 }
@@ -342,7 +337,7 @@ mod tests {
             temperature_k: 293.15 * scale * scale,
             test: "val.csv".to_string(),
         };
-        // Seed 91's case 043: frequencies fitted alone 0.79x, the trial 1.06x.
+        // Frequencies fitted alone 0.79x, the trial 1.06x: on either side of 1.
         assert!(trial_contradicts(&[at(1.055)], "val.csv", 0.788));
         assert!(trial_contradicts(&[at(0.9)], "val.csv", 1.1));
         // A temperature: both the same way.

@@ -107,9 +107,9 @@ fn judged<T>(tests: &[T]) -> &[T] {
 }
 
 /// The first change as the user will make it. `unlag fit --add KIND` searches the delay
-/// again, which the trials did not (bar a sensor resonance's): bank seed 50, case 001, a
-/// leak's trial at 6 samples takes the wake traverse from 0.963 % to 0.711 %; searched again,
-/// the delay moves to 8 and the traverse rises to 1.100 %.
+/// again, which the trials did not (bar a sensor resonance's): a leak's trial at the model's
+/// delay can lower the held-out error where, searched again, the slow pole trades with the
+/// delay, which moves, and the error rises above the plain model's.
 ///
 /// Where the first candidate adds an effect whose refit with the delay searched again moves
 /// the delay and raises the held-out error over what the candidate says ([`error_rose`]), and
@@ -219,7 +219,7 @@ mod tests {
 
     #[test]
     fn a_first_change_keeps_the_delay_only_where_searching_it_raises_the_held_out_error() {
-        // Bank seed 50, case 001: searched again, the delay moves to 8 and the error rises.
+        // A leak: searched again, the delay moves to 8 and the error rises.
         let mut c = leak();
         keep_delay_if_search_raises(&mut c, 6, trials((0.011, 8), 0.00711));
         assert_eq!(

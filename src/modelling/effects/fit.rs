@@ -340,8 +340,8 @@ fn fit_loss_jointly(fitted: &mut Fitted, gain: f64, tests: &[Test<'_>]) -> f64 {
 
 /// The fit of a model with a leak, whose static gain the leak lowers: the DC gain found is
 /// kept ([`crate::fit::fit_as_found`]) where [`crate::fit::fit`] would take it as 1, and the note
-/// says so. Taken as 1, a leak's fitted gain of 0.96 left a bank probe's step 1.9 % off where
-/// the fit had left 0.34 % (seed 50, case 118).
+/// says so. A leak that lowers the gain by a few percent, its gain taken as 1, leaves the
+/// step off by about as much, several times what the fit leaves.
 fn fit_with_leak(
     est: &Test<'_>,
     validation: &[Test<'_>],

@@ -4,8 +4,8 @@
 //!
 //! One step cannot identify quadratic losses: a linear model with more damping (or, for an
 //! overdamped probe, other corners) explains a single step to the noise, and then misses a
-//! test whose rates are another size (bank case 052: a capillary's step to 0.370 % with the
-//! loss or without, a wake traverse at 2.9 % without it and 0.68 % with it). Two tests of
+//! test whose rates are another size (a capillary's step is explained as well with the loss
+//! or without, where a wake traverse is missed four times worse without it). Two tests of
 //! different amplitude do identify it: one linear model cannot explain both, the loss can.
 //! [`joint_loss`] fits both on all the tests given and compares them. [`joint_linear`] is the
 //! linear fit alone: one model from several runs of the same probe (shots of a shock tube,
@@ -73,9 +73,8 @@ pub fn rms(nrmse: &[f64]) -> f64 {
 /// The tests whose error the loss raises over the best single linear model's by more than a
 /// refit's warning ([`crate::modelling::error_rose`]), said for a note or a reading: `None` where
 /// it raises none. A loss the tests fitted together agree on lowers each test's error, or
-/// leaves it; bank seed 152's case 043 (a light loss, 1.16x in all) took est.csv from
-/// 0.306 % to 0.220 % and val.csv from 0.247 % to 0.258 %, and a further run held out rose
-/// from 0.283 % to 0.294 %.
+/// leaves it; a light loss fitted over them all can still trade a clear fall on one test
+/// for a small rise on another, and on a further run held out.
 #[must_use]
 pub fn rises_with_loss(names: &[&str], linear: &[f64], joint: &[f64]) -> Option<String> {
     let risen: Vec<String> = names
@@ -121,8 +120,8 @@ pub fn joint_loss(start: &Model, tests: &[Test<'_>]) -> Option<(JointFit, JointF
     let linear = least(linear)?;
     let best = least(best);
     // The linear fit again from the loss fit's linear part: one Levenberg-Marquardt run can
-    // stop short, and the loss is judged against the best linear model found (bank seed 72,
-    // case 020: a loss fit that ended at zero loss left 1.34x less than the linear fit).
+    // stop short, and the loss is judged against the best linear model found (a loss fit
+    // that ends at zero loss can leave clearly less than the linear fit did).
     let linear = match best.as_ref().and_then(|b| joint_linear(&b.model, tests)) {
         Some(l) if l.rms() < linear.rms() => l,
         _ => linear,
@@ -160,8 +159,8 @@ fn least(fits: impl IntoIterator<Item = Option<JointFit>>) -> Option<JointFit> {
 /// signal the linear `start` model simulates for it: the unit of the loss's search. The rate
 /// is the model's, not the measurement's: a sample-to-sample difference of the measured probe
 /// is its noise times the sample rate, which on a slow probe sampled fast is several times
-/// the signal's own peak rate (bank seed 70, case 007: a 19 Hz probe of damping 0.87 at
-/// 8836 Hz, 11 Pa of noise on a 2748 Pa step), so that the search ended below the loss.
+/// the signal's own peak rate (a heavily damped probe sampled hundreds of times its natural
+/// frequency, its noise 0.4 % of its step), so that the search ended below the loss.
 fn loss_scale(start: &Model, test: &Test<'_>) -> Option<f64> {
     let q_max = peak_rate(start, test.u);
     let s = crate::fit::range(test.u) / q_max;
@@ -630,7 +629,7 @@ mod tests {
 
     #[test]
     fn a_loss_that_raises_one_tests_error_over_the_linear_models_is_said() {
-        // Bank seed 152's case 043.
+        // A light loss: est.csv falls, val.csv rises a little.
         let said = rises_with_loss(
             &["est.csv", "val.csv"],
             &[0.00306, 0.00247],
@@ -671,8 +670,8 @@ mod tests {
         ]
     }
 
-    /// A slow, heavily damped probe sampled fast (bank seed 70, case 007: 19 Hz, damping
-    /// 0.87, 8836 Hz, 11 Pa of noise on a 2748 Pa step): the probe's sample-to-sample
+    /// A slow, heavily damped probe sampled fast (19 Hz, damping 0.87, 8836 Hz, 11 Pa of
+    /// noise on a 2748 Pa step): the probe's sample-to-sample
     /// differences are mostly noise, several times its own peak rate. The loss's search is
     /// scaled by the model's rate, so it reaches the probe's loss (scaled by the measured
     /// rate, the search ended below it and found a quarter of it).
@@ -820,7 +819,7 @@ mod tests {
         }
     }
 
-    /// Two runs of a 40 Hz probe of damping 0.15 (bank case 108) behind a noisy reference,
+    /// Two runs of a 40 Hz probe of damping 0.15 behind a noisy reference,
     /// fitted together, over 16 noise draws: the stated deviation of the damping is its spread
     /// within the sampling error of 16 draws (the residual's AR(4) whitening, which this
     /// replaced, stated it 2.3 times too narrow here).
@@ -926,7 +925,7 @@ mod tests {
         assert!((m - zeta).abs() < 3.0 * sd, "{m} against {zeta}");
     }
 
-    /// A 40 Hz probe of damping 0.15 (bank case 108) with a quadratic loss, a big and a small
+    /// A 40 Hz probe of damping 0.15 with a quadratic loss, a big and a small
     /// step fitted together, over 16 noise draws of the probe alone and of both channels: the
     /// stated deviations of the loss, the damping and the DC gain are their spreads within the
     /// sampling error of 16 draws. With the reference's noise the residual's AR(4) whitening,
@@ -977,7 +976,7 @@ mod tests {
         }
     }
 
-    /// An overdamped capillary (bank seed 109, case 025: damping 3, 2.6 Hz and 20 Hz corners
+    /// An overdamped capillary (damping 3, 2.6 Hz and 20 Hz corners
     /// at 4070 Hz) with a quadratic loss, a step up and a larger step down fitted together
     /// from the one-step fit, which takes the loss in as damping. Searched in `a` and `b`, the
     /// fit stops at a fraction of the loss, well above the noise; in `w = z - 1` it reaches

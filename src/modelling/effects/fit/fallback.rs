@@ -31,8 +31,8 @@ pub fn fit_with_also_reading_creep(
     let Err(crate::error::Error::UnstableModel { pole, .. }) = &fitted else {
         return fitted;
     };
-    // Bank seed 142, case 074: a drifting capillary's second-order fit put a pole at 1.000000,
-    // and the loop could not start; with the drift read it is at its floor on both tests.
+    // A drifting capillary's second-order fit can put a pole on z = 1, the drift taken for an
+    // integrator, and the loop could not start; with the drift read it fits to its floor.
     if effects
         .iter()
         .any(|e| matches!(e, Effect::Leak | Effect::Drift { .. }))
@@ -174,9 +174,9 @@ pub(super) fn second_looks(first: First<'_>, refit: Refit<'_>) -> Result<(Fitted
     if let Some(tau) = slow {
         // The slow pole can be a spare one, all but cancelled by a zero beside it: a probe
         // whose record shows one corner after its delay spends its second pole on the creep
-        // or the coloured noise, and the pair's DC gain is then theirs, not the probe's (bank
-        // seed 131, case 047: a pole 7e-11 and a zero 1e-6 from z = 1, a DC gain of -53616,
-        // which a held-out test's level turned into an error of 1.4e7 %). One order fewer
+        // or the coloured noise, and the pair's DC gain is then theirs, not the probe's (a pole
+        // and a zero a hair from z = 1 can set a DC gain of tens of thousands, which a held-out
+        // test's level turns into an absurd error). One order fewer
         // (the delay searched again unless the user gave it), with the offset the fit reads
         // itself, is kept when it explains the estimation test as well, within 10 %, as the
         // order asked for with its own offset (which comes back here through the refit above).
@@ -220,11 +220,11 @@ fn scalable(
 ) -> Option<(Fitted, Vec<Effect>)> {
     // A temperature scales the model through its continuous-time equivalent, which a pole on
     // the negative real axis does not have: it rings at Nyquist, a sampling artefact where a
-    // searched delay took one sample too many from a fast corner (bank case 053, a capillary:
-    // delays 5 to 7 within 0.3 % of each other, the largest taken). The next smaller delays
-    // are tried, then lower orders (below), and the first whose model has one is kept when it
-    // explains the estimation test as well (within 10 %); otherwise the fit says that the
-    // temperature cannot scale it.
+    // searched delay took one sample too many from a fast corner (on a capillary, neighbouring
+    // delays can fit within a fraction of a percent, and the largest is taken). The next
+    // smaller delays are tried, then lower orders (below), and the first whose model has one
+    // is kept when it explains the estimation test as well (within 10 %); otherwise the fit
+    // says that the temperature cannot scale it.
     if Continuous::from_model(&fitted.model).is_ok() {
         return None;
     }
@@ -242,11 +242,10 @@ fn scalable(
         (o, kept)
     });
     // The pole on the negative real axis can be a spare one: an overdamped probe whose
-    // record shows one corner (a capillary, bank case 080 of seed 83: poles 0.9994 and
-    // -0.33 at order 2, both orders 0.182 % on the estimation test) spends the second
-    // pole on the noise. One order fewer, the delay searched again, then explains the
-    // test as well and can be scaled (that case's held-out error fell from 1.62 % to its
-    // floor, 0.30 %).
+    // record shows one corner (a capillary) spends the second pole on the noise, and the
+    // lower order explains the estimation test just as well. One order fewer, the delay
+    // searched again, then explains the test as well and can be scaled (and the held-out
+    // error falls to its floor).
     let asked = fitted.model.order().saturating_sub(extra_order);
     let orders = (1..asked).rev().map(|fewer| {
         let o = Options {

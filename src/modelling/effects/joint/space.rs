@@ -10,11 +10,10 @@ use crate::fit::Model;
 /// gain and the slow corner, are small differences of numbers near 1, so that moving one pole
 /// far is a long curved path through them. The same polynomials in `w = z - 1` (the delta
 /// operator's, Middleton and Goodwin, unscaled) have coefficients of the poles' and zeros'
-/// own size, and there the path is short. On an overdamped capillary with a quadratic loss
-/// (bank seed 109, case 025: damping 3 at 4070 Hz), the search in `a` and `b` stopped at a
-/// loss 13 times too small, its linear part still the one that had taken the loss in as
-/// damping (0.244 % and 0.196 % left); in `w` it reached the floor (0.107 %, 0.086 %) with
-/// the loss drawn. Neither is better everywhere, so each fit is made in both
+/// own size, and there the path is short. On an overdamped capillary with a quadratic loss,
+/// the search in `a` and `b` can stop at a loss many times too small, its linear part still
+/// the one that had taken the loss in as damping, where in `w` it reaches the noise floor
+/// with the loss drawn. Neither is better everywhere, so each fit is made in both
 /// ([`Coordinates::BOTH`]) and the one that leaves less is kept.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Coordinates {

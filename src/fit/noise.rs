@@ -17,9 +17,9 @@ pub const MAX_NOISE_ORDER: usize = 4;
 /// [`MAX_NOISE_ORDER`]). With noise on the reference, `v` carries that noise through the
 /// probe, and its spectrum `S_y + |G|^2 S_u` has a narrow peak at each of a resonant probe's
 /// modes: whitening it takes an order of about twice the modes' count beside the probe
-/// noise's own. Akaike's criterion picks the order below this. On seeds 79 to 90 of the bank,
-/// an order of 4 left the one-step-ahead prediction error of 12 of 168 coloured noises 1.15x
-/// to 1.67x its floor; 32 leaves 8 there, at most 1.48x.
+/// noise's own. Akaike's criterion picks the order below this. Over the coloured noises the
+/// bench draws, an order of 4 left the one-step-ahead prediction error of 7 % of them 1.15x to
+/// 1.67x above its floor; 32 leaves 5 % there, at most 1.48x.
 pub const MAX_RESIDUAL_ORDER: usize = 32;
 
 /// Highest order of the AR model of what colour a whitened residual keeps, for the
@@ -583,7 +583,7 @@ mod tests {
         let p = predictability(&slow, slow.len()).unwrap_or(0.0);
         assert!((p / 2.29 - 1.0).abs() < 0.05, "{p}");
         // White noise on the 200 samples a quiet segment often has: below the diagnosis'
-        // threshold of 1.15 for every draw, as the bank's white probes are (1.00 to 1.05).
+        // threshold of 1.15 for every draw, as a white probe noise is (1.00 to 1.05).
         for seed in 0..40 {
             let w = white(200, 100 + seed);
             let p = predictability(&w, w.len()).unwrap_or(f64::INFINITY);

@@ -18,8 +18,9 @@ use crate::fit::Test;
 
 /// A design is kept only when its error is below this fraction of the raw probe's on every
 /// test; otherwise the probe passes unchanged. A gain of a few per cent on one run is within
-/// the scatter between runs of the same kind: on the drawn bank, given a held-out run, designs
-/// that won by less than that on it lost on another run as often as they won (BENCHMARKS.md).
+/// the scatter between runs of the same kind: on the bench's drawn probes, given a held-out
+/// run, designs that won by less than that on it lost on another run as often as they won
+/// (BENCHMARKS.md).
 pub const MARGIN: f64 = 0.95;
 
 /// What the check found.

@@ -65,9 +65,9 @@ pub const RAMP_KEPT_BELOW: f64 = 0.25;
 /// channels leave. The test is `samples` long with its step at `onset`, sampled at `fs`.
 ///
 /// A sensor's drift runs on to the end of the record: about 1, less where the fit took part of
-/// it into its dynamics (0.34 to 1.27 over the drifts of banks 13 to 25). A hump the dynamics
-/// leave after a step returns to the level before it (-0.18 to 0.22 where a capillary's tail
-/// after a step of another size or temperature was named `drift` on the same banks), though
+/// it into its dynamics (0.34 to 1.27 over the drifting probes the bench draws). A hump the
+/// dynamics leave after a step returns to the level before it (-0.18 to 0.22 where a
+/// capillary's tail after a step of another size or temperature reads as a drift), though
 /// the line through it climbs. `None` without a segment before the step, or a line that does
 /// not rise.
 #[must_use]

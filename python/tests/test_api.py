@@ -104,6 +104,16 @@ def test_loads_reads_the_text_of_a_model_file(model):
     assert unlag.loads(model.to_toml()).to_toml() == model.to_toml()
 
 
+def test_a_model_pickles_and_copies_as_its_model_file(model, tests):
+    import copy
+    import pickle
+
+    for again in (pickle.loads(pickle.dumps(model)), copy.deepcopy(model), copy.copy(model)):
+        assert isinstance(again, unlag.Model)
+        assert again.to_toml() == model.to_toml()
+        assert np.array_equal(again.compensate(tests[1].y), model.compensate(tests[1].y))
+
+
 def test_a_broken_model_file_is_the_command_lines_error(tmp_path, cli):
     path = tmp_path / "broken.toml"
     path.write_text("[model]\nfs = 'fast'\n")

@@ -379,6 +379,12 @@ class Model:
         """Write the model file (TOML), as ``unlag fit -o`` does: the command line reads it."""
         self._native.save(os.fspath(path))
 
+    def __reduce__(self) -> Tuple[Any, Tuple[str]]:
+        """Pickled (and copied) as the text of its model file, which :func:`loads` reads back:
+        a model sent to another process (``multiprocessing``, ``concurrent.futures``) is the
+        same model, its compensator included."""
+        return (loads, (self.to_toml(),))
+
     def compensate(
         self,
         y: Any,

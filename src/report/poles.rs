@@ -8,7 +8,7 @@ use super::plot::{self, colour, Panel, Series, Style};
 use super::{escape, push_figure, Inputs};
 use crate::error::Result;
 use crate::fit::analysis::{self, Analysis, ModeKind};
-use crate::fit::model::{quoted, two_digits};
+use crate::fit::model::{quoted, two_digits, ResonanceUncertainty, Uncertainty};
 
 /// Between a value and its deviation.
 const PLUS_MINUS: &str = " &plusmn; ";
@@ -26,6 +26,18 @@ pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
             return Ok(());
         }
     };
+    pole_zero_map(h, &a)?;
+    let stated = inputs
+        .file
+        .fit
+        .as_ref()
+        .and_then(|f| f.uncertainty.as_ref());
+    mode_table(h, &a, stated);
+    Ok(())
+}
+
+/// The pole-zero map in the z plane, with the stability and minimum-phase margins.
+fn pole_zero_map(h: &mut String, a: &Analysis) -> Result<()> {
     let view = 1.6f64;
     let inside = |r: &&analysis::Root| r.magnitude <= view;
     let circle: Vec<(f64, f64)> = (0..=240)
@@ -92,11 +104,12 @@ pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
             }
         ),
     );
-    let stated = inputs
-        .file
-        .fit
-        .as_ref()
-        .and_then(|f| f.uncertainty.as_ref());
+    Ok(())
+}
+
+/// The table of the model's modes, each resonance with its stated deviations where the fit
+/// states them.
+fn mode_table(h: &mut String, a: &Analysis, stated: Option<&Uncertainty>) {
     // A resonance's stated deviations: the fit's entry at the same natural frequency.
     let deviation = |f_hz: f64| {
         stated?
@@ -115,42 +128,7 @@ pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
             ModeKind::Nyquist { .. } => "alternating (negative real pole)",
             ModeKind::Origin => "pole at the origin",
         };
-        let (f, z, tau) = match &m.kind {
-            ModeKind::Resonance {
-                natural_frequency_hz,
-                damping,
-                ..
-            } => {
-                let (f, z) = match deviation(*natural_frequency_hz) {
-                    Some(d) => (
-                        quoted(
-                            *natural_frequency_hz,
-                            d.natural_frequency_std_hz,
-                            PLUS_MINUS,
-                        ),
-                        quoted(*damping, d.damping_std, PLUS_MINUS),
-                    ),
-                    None => (
-                        format!("{natural_frequency_hz:.1}"),
-                        format!("{damping:.3}"),
-                    ),
-                };
-                (format!("{f} Hz"), z, "&ndash;".to_string())
-            }
-            ModeKind::Real {
-                time_constant_s, ..
-            } => (
-                "&ndash;".into(),
-                "&ndash;".into(),
-                time_constant_s.map_or("&infin;".into(), |t| format!("{:.4} ms", 1e3 * t)),
-            ),
-            ModeKind::Nyquist { frequency_hz, .. } => (
-                format!("{frequency_hz:.1} Hz (Nyquist)"),
-                "&ndash;".into(),
-                "&ndash;".into(),
-            ),
-            ModeKind::Origin => ("&ndash;".into(), "&ndash;".into(), "&ndash;".into()),
-        };
+        let (f, z, tau) = mode_cells(&m.kind, deviation);
         let _ = writeln!(
             h,
             "<tr><td>{}</td><td class=\"num\">{f}</td><td class=\"num\">{z}</td>\
@@ -168,5 +146,47 @@ pub(super) fn poles(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
             two_digits(u.dc_gain_std)
         );
     }
-    Ok(())
+}
+
+/// A mode's natural frequency, damping and time constant as the table prints them.
+fn mode_cells<'a>(
+    kind: &ModeKind,
+    deviation: impl Fn(f64) -> Option<&'a ResonanceUncertainty>,
+) -> (String, String, String) {
+    match kind {
+        ModeKind::Resonance {
+            natural_frequency_hz,
+            damping,
+            ..
+        } => {
+            let (f, z) = match deviation(*natural_frequency_hz) {
+                Some(d) => (
+                    quoted(
+                        *natural_frequency_hz,
+                        d.natural_frequency_std_hz,
+                        PLUS_MINUS,
+                    ),
+                    quoted(*damping, d.damping_std, PLUS_MINUS),
+                ),
+                None => (
+                    format!("{natural_frequency_hz:.1}"),
+                    format!("{damping:.3}"),
+                ),
+            };
+            (format!("{f} Hz"), z, "&ndash;".to_string())
+        }
+        ModeKind::Real {
+            time_constant_s, ..
+        } => (
+            "&ndash;".into(),
+            "&ndash;".into(),
+            time_constant_s.map_or("&infin;".into(), |t| format!("{:.4} ms", 1e3 * t)),
+        ),
+        ModeKind::Nyquist { frequency_hz, .. } => (
+            format!("{frequency_hz:.1} Hz (Nyquist)"),
+            "&ndash;".into(),
+            "&ndash;".into(),
+        ),
+        ModeKind::Origin => ("&ndash;".into(), "&ndash;".into(), "&ndash;".into()),
+    }
 }

@@ -10,8 +10,8 @@ use serde_json::json;
 use super::{check_rate, console, name, pct, ColumnArgs};
 use crate::error::Result;
 use crate::file::{BoardArithmetic, ModelFile};
-use crate::pipeline::{self, CompensateRequest, Compensation, ReferenceError};
-use crate::trace::Trace;
+use crate::pipeline::{self, CompensateRequest, Compensated, Compensation, ReferenceError};
+use crate::trace::{Columns, Trace};
 
 /// Arithmetic of the compensator run on the host.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -107,6 +107,23 @@ fn unreachable_written(output: &Path) -> Result<pipeline::Compensated> {
 /// The model file's, the trace's and the compensator's errors.
 pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     let file = ModelFile::load(&args.model)?;
+    let (arithmetic, compensation) = compensation_asked(args, &file);
+    let columns = args.columns.columns(false);
+    // A regular file is read in passes; a pipe or a device, which cannot be read twice, is
+    // held (within the reader's limits), as the host-only compensators hold any run.
+    let rereadable = std::fs::metadata(&args.file).is_ok_and(|m| m.is_file());
+    let (run, c) = if pipeline::streams(compensation) && rereadable {
+        compensate_streaming(args, &file, &columns, compensation)?
+    } else {
+        compensate_whole(args, &file, &columns, compensation)?
+    };
+    warn_about_run(args, &file, &run, &c);
+    print_compensated(args, &file, arithmetic, &run, &c);
+    Ok(())
+}
+
+/// The arithmetic and the compensator asked for: the board's arithmetic unless another is given.
+fn compensation_asked(args: &CompensateArgs, file: &ModelFile) -> (Arithmetic, Compensation) {
     // The board's arithmetic unless another is asked for.
     let arithmetic = args.arithmetic.unwrap_or(match file.board.arithmetic {
         BoardArithmetic::F32 => Arithmetic::F32,
@@ -121,72 +138,88 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     } else {
         Compensation::Designed(arithmetic.into())
     };
-    let columns = args.columns.columns(false);
-    // A regular file is read in passes; a pipe or a device, which cannot be read twice, is
-    // held (within the reader's limits), as the host-only compensators hold any run.
-    let rereadable = std::fs::metadata(&args.file).is_ok_and(|m| m.is_file());
-    let (run, c) = if pipeline::streams(compensation) && rereadable {
-        // The run read in passes, each row written as it is compensated: memory does not
-        // grow with the run.
-        let prepared = pipeline::prepare(&pipeline::StreamRequest {
-            file: &file,
-            model_path: &args.model,
-            run: &args.file,
-            columns: &columns,
-            compensation,
-            temperature_k: args.temperature,
-        })?;
-        let run = Run {
-            path: prepared.info().path.clone(),
-            len: prepared.info().len,
-        };
-        // An output that cannot be taken back gets nothing from a clipped run.
-        let output = &args.output;
-        if output == Path::new("-") || std::fs::metadata(output).is_ok_and(|m| !m.is_file()) {
-            prepared.check_clipping()?;
-        }
-        let mut done = None;
-        crate::file::write_atomically_with(&args.output, |out| {
-            done = Some(prepared.write(out)?);
-            Ok(())
-        })?;
-        let c = match done {
-            Some(c) => c,
-            None => unreachable_written(&args.output)?,
-        };
-        (run, c)
-    } else {
-        // The host-only compensators see the whole run at once; so does a piped run.
-        let trace = Trace::read(&args.file, &columns)?;
-        check_rate(&file, &trace)?;
-        let c = pipeline::compensate(&CompensateRequest {
-            file: &file,
-            model_path: &args.model,
-            probe: &trace.y,
-            reference: trace.u.as_deref(),
-            compensation,
-            temperature_k: args.temperature,
-        })?;
-        // A host-only u_hat says so in the file itself, where it cannot be separated from it.
-        let metadata = c.host_only.then(|| {
-            format!(
-                "# unlag compensate: u_hat is from {} and is not what a board given {} computes\n",
-                c.compensator,
-                name(&args.model)
-            )
-        });
-        crate::file::write_atomically_with(&args.output, |out| {
-            if let Some(line) = &metadata {
-                out.write_all(line.as_bytes())?;
-            }
-            Ok(trace.write_csv_with(out, &[("u_hat", &c.u_hat)])?)
-        })?;
-        let run = Run {
-            path: trace.path.clone(),
-            len: trace.len(),
-        };
-        (run, c)
+    (arithmetic, compensation)
+}
+
+/// A regular file compensated in passes, each row written as it is compensated.
+fn compensate_streaming(
+    args: &CompensateArgs,
+    file: &ModelFile,
+    columns: &Columns,
+    compensation: Compensation,
+) -> Result<(Run, Compensated)> {
+    // The run read in passes, each row written as it is compensated: memory does not
+    // grow with the run.
+    let prepared = pipeline::prepare(&pipeline::StreamRequest {
+        file,
+        model_path: &args.model,
+        run: &args.file,
+        columns,
+        compensation,
+        temperature_k: args.temperature,
+    })?;
+    let run = Run {
+        path: prepared.info().path.clone(),
+        len: prepared.info().len,
     };
+    // An output that cannot be taken back gets nothing from a clipped run.
+    let output = &args.output;
+    if output == Path::new("-") || std::fs::metadata(output).is_ok_and(|m| !m.is_file()) {
+        prepared.check_clipping()?;
+    }
+    let mut done = None;
+    crate::file::write_atomically_with(&args.output, |out| {
+        done = Some(prepared.write(out)?);
+        Ok(())
+    })?;
+    let c = match done {
+        Some(c) => c,
+        None => unreachable_written(&args.output)?,
+    };
+    Ok((run, c))
+}
+
+/// The whole run read at once (the host-only compensators, a pipe), compensated and written.
+fn compensate_whole(
+    args: &CompensateArgs,
+    file: &ModelFile,
+    columns: &Columns,
+    compensation: Compensation,
+) -> Result<(Run, Compensated)> {
+    // The host-only compensators see the whole run at once; so does a piped run.
+    let trace = Trace::read(&args.file, columns)?;
+    check_rate(file, &trace)?;
+    let c = pipeline::compensate(&CompensateRequest {
+        file,
+        model_path: &args.model,
+        probe: &trace.y,
+        reference: trace.u.as_deref(),
+        compensation,
+        temperature_k: args.temperature,
+    })?;
+    // A host-only u_hat says so in the file itself, where it cannot be separated from it.
+    let metadata = c.host_only.then(|| {
+        format!(
+            "# unlag compensate: u_hat is from {} and is not what a board given {} computes\n",
+            c.compensator,
+            name(&args.model)
+        )
+    });
+    crate::file::write_atomically_with(&args.output, |out| {
+        if let Some(line) = &metadata {
+            out.write_all(line.as_bytes())?;
+        }
+        Ok(trace.write_csv_with(out, &[("u_hat", &c.u_hat)])?)
+    })?;
+    let run = Run {
+        path: trace.path.clone(),
+        len: trace.len(),
+    };
+    Ok((run, c))
+}
+
+/// The run's warnings and notes: clamps and saturation, a still reference, a fall-back, a predicted loss.
+fn warn_about_run(args: &CompensateArgs, file: &ModelFile, run: &Run, c: &Compensated) {
     // A clamped input or a saturation is never hidden.
     if let Some(f) = &c.fixed {
         if f.clamped_inputs > 0 {
@@ -244,6 +277,16 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
             args.file.display()
         );
     }
+}
+
+/// The result, as JSON or as text, and the warning when u_hat is worse than the raw probe.
+fn print_compensated(
+    args: &CompensateArgs,
+    file: &ModelFile,
+    arithmetic: Arithmetic,
+    run: &Run,
+    c: &Compensated,
+) {
     let (latency, what, error) = (c.latency_samples, c.compensator, c.error);
     let not_better = c.stored_not_better.as_ref().map(|m| m.short());
     let arith = match arithmetic {
@@ -276,7 +319,7 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
         });
         crate::outln!("{v}");
         warn_if_worse(args, not_better, error);
-        return Ok(());
+        return;
     }
     crate::outln!(
         "compensated {} samples of {} with {what} ({arith}); u_hat lags the true pressure by {} samples ({})",
@@ -295,7 +338,6 @@ pub fn run_compensate(args: &CompensateArgs) -> Result<()> {
     }
     crate::outln!("wrote {}", args.output.display());
     warn_if_worse(args, not_better, error);
-    Ok(())
 }
 
 /// A compensated run further from its recorded reference than the raw probe is never passed

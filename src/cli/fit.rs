@@ -10,9 +10,12 @@ use super::invert::{full_scale_json, print_board, print_inverse, warn_unplanned,
 use super::{as_tests, console, json_err, name, number, pct, read_test, report, ColumnArgs};
 use crate::error::{Error, Result};
 use crate::file::{Board, HeldOutChange, HistoryRow, ModelFile};
+use crate::fit::model::{FitReport, Model};
+use crate::fit::Test;
 use crate::fit::{Method, Options, Order};
-use crate::pipeline::{self, FitDesignRequest, FitDesigned, FitStage};
-use crate::trace::Trace;
+use crate::modelling::effects::EffectKind;
+use crate::pipeline::{self, FitDesignRequest, FitDesigned, FitStage, FullScale};
+use crate::trace::{Columns, Trace};
 
 /// Identification method on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -195,38 +198,8 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
         },
     );
     progress.step("reading the tests");
-    // The estimation test, the ones fitted together with it, then the held-out ones.
-    let traces = args
-        .files
-        .iter()
-        .take(1)
-        .chain(&args.also)
-        .chain(args.files.iter().skip(1))
-        .map(|f| read_test(f, &columns))
-        .collect::<Result<Vec<_>>>()?;
-    let Some((est, _)) = traces.split_first() else {
-        return Err(Error::InvalidArgument {
-            what: "FILE",
-            message: "give at least one step test".into(),
-        });
-    };
-    let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
-    let rates: Vec<f64> = traces.iter().map(|t| t.sample_rate_hz).collect();
-    // Refused before the model file and the effects are looked at.
-    pipeline::check_same_rate(
-        &names
-            .iter()
-            .map(String::as_str)
-            .zip(rates.iter().copied())
-            .collect::<Vec<_>>(),
-    )?;
-    // The `--signal` runs are read again when the compensator is designed, after the fit: a
-    // bad run is refused here, before minutes of fitting.
-    if args.inverse.bandwidth.is_none() && !args.inverse.direct {
-        for run in &args.inverse.signal {
-            Trace::read(run, &args.columns.columns(false))?;
-        }
-    }
+    let (traces, names, rates) = read_tests(args, &columns)?;
+    let est = estimation_test(&traces)?;
     let tests = as_tests(&traces, &names)?;
     // The modelling loop: the output file's effects and history carry over.
     let previous = args.previous()?;
@@ -247,26 +220,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
             kept,
             history_rows,
             dropped_modes,
-        } => {
-            let kept: Vec<&str> = kept.iter().map(|k| k.as_str()).collect();
-            let msg = format!(
-                "continuing {}: keeping its effects [{}] and {history_rows} history row(s){} \
-                 (--fresh starts over)",
-                args.output.display(),
-                kept.join(", "),
-                match (dropped_modes, named_again) {
-                    (0, _) => String::new(),
-                    (d, again) if again >= d => {
-                        format!("; {d} mode effect(s) dropped because --order is given")
-                    }
-                    (d, _) => format!(
-                        "; {d} mode effect(s) dropped because --order is given (each \
-                         `--add mode` names one again)"
-                    ),
-                }
-            );
-            console::note(args.json, &msg);
-        }
+        } => continuing_note(args, &kept, history_rows, dropped_modes, named_again),
         FitStage::Fitting => progress.step("fitting (orders on a window, then the whole record)"),
         FitStage::Designing => progress.step("designing the compensator"),
     };
@@ -299,32 +253,10 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     let changes = file.held_out_changes();
     let rises: Vec<&HeldOutChange> = changes.iter().filter(|c| c.rose()).collect();
     warn_error_rises(&rises, &file);
-    let report_bytes = match &args.report {
-        Some(path) => {
-            let diagnosis = report::diagnosis(&file, &tests, false, &progress)?;
-            Some(report::write_report(
-                path,
-                &name(&args.output),
-                &file,
-                &tests,
-                &diagnosis,
-                &progress,
-            )?)
-        }
-        None => None,
-    };
+    let report_bytes = write_report_if_asked(args, &file, &tests, &progress)?;
     progress.finish();
     if args.json {
-        let mut v = serde_json::to_value(&file).map_err(json_err)?;
-        v["output"] = json!(name(&args.output));
-        v["dc_gain"] = json!(file.model.dc_gain());
-        v["full_scale"] = full_scale_json(&full_scale);
-        v["error_rises"] = json!(rises);
-        if let Some(path) = &args.report {
-            v["report"] = json!(name(path));
-        }
-        crate::outln!("{v}");
-        return Ok(());
+        return print_fit_json(args, &file, &full_scale, &rises);
     }
     print_fit(&file, est);
     print_held_out_changes(&changes, &file);
@@ -340,6 +272,119 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
             bytes as f64 / 1e3
         );
     }
+    Ok(())
+}
+
+/// The tests read (estimation, fitted together, held out), their rates checked alike and the `--signal` runs checked readable; with their names and rates.
+fn read_tests(args: &FitArgs, columns: &Columns) -> Result<(Vec<Trace>, Vec<String>, Vec<f64>)> {
+    // The estimation test, the ones fitted together with it, then the held-out ones.
+    let traces = args
+        .files
+        .iter()
+        .take(1)
+        .chain(&args.also)
+        .chain(args.files.iter().skip(1))
+        .map(|f| read_test(f, columns))
+        .collect::<Result<Vec<_>>>()?;
+    estimation_test(&traces)?;
+    let names: Vec<String> = traces.iter().map(|t| name(&t.path)).collect();
+    let rates: Vec<f64> = traces.iter().map(|t| t.sample_rate_hz).collect();
+    // Refused before the model file and the effects are looked at.
+    pipeline::check_same_rate(
+        &names
+            .iter()
+            .map(String::as_str)
+            .zip(rates.iter().copied())
+            .collect::<Vec<_>>(),
+    )?;
+    // The `--signal` runs are read again when the compensator is designed, after the fit: a
+    // bad run is refused here, before minutes of fitting.
+    if args.inverse.bandwidth.is_none() && !args.inverse.direct {
+        for run in &args.inverse.signal {
+            Trace::read(run, &args.columns.columns(false))?;
+        }
+    }
+    Ok((traces, names, rates))
+}
+
+/// The estimation test: the first one read, refused when there is none.
+fn estimation_test(traces: &[Trace]) -> Result<&Trace> {
+    let Some((est, _)) = traces.split_first() else {
+        return Err(Error::InvalidArgument {
+            what: "FILE",
+            message: "give at least one step test".into(),
+        });
+    };
+    Ok(est)
+}
+
+/// The note that the fit continues an existing model file: the effects and history it keeps, the modes it drops.
+fn continuing_note(
+    args: &FitArgs,
+    kept: &[EffectKind],
+    history_rows: usize,
+    dropped_modes: usize,
+    named_again: usize,
+) {
+    let kept: Vec<&str> = kept.iter().map(|k| k.as_str()).collect();
+    let msg = format!(
+        "continuing {}: keeping its effects [{}] and {history_rows} history row(s){} \
+         (--fresh starts over)",
+        args.output.display(),
+        kept.join(", "),
+        match (dropped_modes, named_again) {
+            (0, _) => String::new(),
+            (d, again) if again >= d => {
+                format!("; {d} mode effect(s) dropped because --order is given")
+            }
+            (d, _) => format!(
+                "; {d} mode effect(s) dropped because --order is given (each \
+                 `--add mode` names one again)"
+            ),
+        }
+    );
+    console::note(args.json, &msg);
+}
+
+/// The HTML report when `--report` asks for one: its size in bytes.
+fn write_report_if_asked(
+    args: &FitArgs,
+    file: &ModelFile,
+    tests: &[Test<'_>],
+    progress: &report::Progress,
+) -> Result<Option<usize>> {
+    Ok(match &args.report {
+        Some(path) => {
+            let diagnosis = report::diagnosis(file, tests, false, progress)?;
+            Some(report::write_report(
+                path,
+                &name(&args.output),
+                file,
+                tests,
+                &diagnosis,
+                progress,
+            )?)
+        }
+        None => None,
+    })
+}
+
+/// The fitted model file as one JSON object, with the output's name, DC gain, full scale, error rises and report.
+fn print_fit_json(
+    args: &FitArgs,
+    file: &ModelFile,
+    full_scale: &FullScale,
+    rises: &[&HeldOutChange],
+) -> Result<()> {
+    let mut v = serde_json::to_value(file).map_err(json_err)?;
+    v["output"] = json!(name(&args.output));
+    v["dc_gain"] = json!(file.model.dc_gain());
+    v["full_scale"] = full_scale_json(full_scale);
+    v["error_rises"] = json!(rises);
+    if let Some(path) = &args.report {
+        v["report"] = json!(name(path));
+    }
+    crate::outln!("{v}");
     Ok(())
 }
 
@@ -435,6 +480,14 @@ fn print_fit(file: &ModelFile, est: &Trace) {
     for note in &r.notes {
         crate::outln!("note: {note}");
     }
+    print_delay_search(r, m);
+    print_order_selection(r, m);
+    print_model(r, m);
+    print_errors(file);
+}
+
+/// The delay search's table: the simulation error per candidate delay, the chosen one marked.
+fn print_delay_search(r: &FitReport, m: &Model) {
     if !r.delay_candidates.is_empty() {
         crate::outln!(
             "delay search, simulation nrmse per candidate delay ({}):",
@@ -451,6 +504,10 @@ fn print_fit(file: &ModelFile, est: &Trace) {
             crate::outln!("  {}", cells.join("  "));
         }
     }
+}
+
+/// The order selection's table: each order's delay, error, criterion and stability, the chosen one marked.
+fn print_order_selection(r: &FitReport, m: &Model) {
     crate::outln!("order selection ({}):", r.order_selection);
     crate::outln!(
         "  {:>5} {:>6} {:>14} {:>14} {:>7}",
@@ -480,6 +537,10 @@ fn print_fit(file: &ModelFile, est: &Trace) {
             if o.stable { "yes" } else { "no" }
         );
     }
+}
+
+/// The model: order, delay, coefficients, DC gain, uncertainty and a zero outside the unit circle.
+fn print_model(r: &FitReport, m: &Model) {
     crate::outln!(
         "model: order {}, delay {} samples ({}), method {}",
         m.order(),
@@ -508,6 +569,10 @@ fn print_fit(file: &ModelFile, est: &Trace) {
             }
         }
     }
+}
+
+/// The errors per test against their noise floors, under the noise model beside the dynamics if any.
+fn print_errors(file: &ModelFile) {
     match file.effects.iter().find_map(|e| match e {
         crate::modelling::effects::Effect::ColouredNoise { ar, innovation_std } => {
             Some((ar, innovation_std))

@@ -301,8 +301,22 @@ pub struct InvertArgs {
 /// The design as `unlag fit` and `unlag invert` print it: its method, band, noise, latency,
 /// fixed-point plans, error budget, reconstructions and the check's verdict.
 pub(super) fn print_inverse(d: &inverse::Design, fs: f64, unit: Option<PressureUnit>) {
-    let p = |v: f64| console::pressure(v, unit);
     crate::outln!("compensator: {}", d.method);
+    print_structure(d);
+    print_band(d);
+    print_fixed_plans(d, unit);
+    print_error_sources(d, fs, unit);
+    crate::outln!(
+        "  realised as {} sections: about {} multiply-adds per sample",
+        d.sections.len(),
+        5 * d.sections.len() + 1
+    );
+    print_reconstruction(d);
+    warn_check(d);
+}
+
+/// The design's structure: the zeros of B moved to make it invertible, and the bandwidth search's table.
+fn print_structure(d: &inverse::Design) {
     if !d.reflected_zeros.is_empty() {
         crate::outln!(
             "  zeros of B reflected into the unit circle: {}",
@@ -338,6 +352,10 @@ pub(super) fn print_inverse(d: &inverse::Design, fs: f64, unit: Option<PressureU
             crate::outln!("   {}", cells.join(" "));
         }
     }
+}
+
+/// The band: the low-pass (or the smoother's -3 dB band), the corrected bandwidth, noise gain, latency and in-band errors.
+fn print_band(d: &inverse::Design) {
     // The smoother has no low-pass of its own: its band is where H C falls by 3 dB.
     let smoother = d.is_smoother();
     if smoother {
@@ -373,6 +391,11 @@ pub(super) fn print_inverse(d: &inverse::Design, fs: f64, unit: Option<PressureU
         d.in_band_phase_error_deg,
         d.pole_margin
     );
+}
+
+/// The fixed-point plans of both forms: input range, output scaling, L1 gain and headroom.
+fn print_fixed_plans(d: &inverse::Design, unit: Option<PressureUnit>) {
+    let p = |v: f64| console::pressure(v, unit);
     // Both fixed-point forms: the same scaling and bound, told alike.
     let plan_line = |form: &str,
                      full_scale: f64,
@@ -409,6 +432,11 @@ pub(super) fn print_inverse(d: &inverse::Design, fs: f64, unit: Option<PressureU
             format!("{} sections", plan.sections.len()),
         );
     }
+}
+
+/// What the error is made of: the predicted error budget, the noise and the signal prior.
+fn print_error_sources(d: &inverse::Design, fs: f64, unit: Option<PressureUnit>) {
+    let p = |v: f64| console::pressure(v, unit);
     if let Some(b) = &d.budget {
         crate::outln!(
             "  predicted error of u_hat (RMS): {} = noise {} + band limit {} (in quadrature); a noisy reference adds {}",
@@ -457,11 +485,10 @@ pub(super) fn print_inverse(d: &inverse::Design, fs: f64, unit: Option<PressureU
             );
         }
     }
-    crate::outln!(
-        "  realised as {} sections: about {} multiply-adds per sample",
-        d.sections.len(),
-        5 * d.sections.len() + 1
-    );
+}
+
+/// The reconstruction of each test against its reference, with the error the budget expects.
+fn print_reconstruction(d: &inverse::Design) {
     for r in &d.reconstruction {
         let expected = match (&d.budget, r.range) {
             (Some(b), Some(range)) if range > 0.0 => format!(
@@ -482,6 +509,10 @@ pub(super) fn print_inverse(d: &inverse::Design, fs: f64, unit: Option<PressureU
             r.nrmse_raw / r.nrmse_u_hat
         );
     }
+}
+
+/// The check's verdict on stderr when the design fell back or beat nothing.
+fn warn_check(d: &inverse::Design) {
     if let Some(c) = &d.check {
         match c.verdict {
             inverse::check::Verdict::Better | inverse::check::Verdict::Unchecked => {}

@@ -13,6 +13,7 @@ use crate::physics::helmholtz::EndKind;
 use crate::physics::sensor::{Butterworth, Diaphragm};
 use crate::physics::simulate::{
     simulate, Acquisition, Adc, Excitation, Facility, FacilitySettings, Probe, Quantisation,
+    SimulatedTest,
 };
 use crate::physics::system::{ProbeSpec, ProbeSystem};
 
@@ -260,7 +261,27 @@ fn excitation_of(args: &SimulateTestArgs) -> Result<Excitation> {
 pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
     let sys = args.system.build()?;
     let excitation = excitation_of(args)?;
-    let anti_alias = match &args.anti_alias {
+    let anti_alias = anti_alias_of(args)?;
+    let reference_sensor = reference_sensor_of(args)?;
+    let probe = Probe {
+        line: sys.line.clone(),
+        gas: sys.gas,
+        diaphragm: sys.diaphragm,
+        anti_alias,
+        skew_s: args.skew,
+    };
+    let acquisition = acquisition_of(args, reference_sensor)?;
+    let mut test = simulate(&probe, &excitation, &acquisition)?;
+    warn_simulation_limits(&test, &probe, &acquisition);
+    let adc = quantise_as_asked(args, &mut test)?;
+    crate::file::write_atomically_with(&args.output, |out| Ok(test.write_csv(out)?))?;
+    print_simulated(args, &sys, &test, adc);
+    Ok(())
+}
+
+/// The `--anti-alias HZ,ORDER` filter, its order a whole number the filter accepts.
+fn anti_alias_of(args: &SimulateTestArgs) -> Result<Option<Butterworth>> {
+    Ok(match &args.anti_alias {
         Some(text) => {
             let (f, n) = pair(text, "--anti-alias", "HZ,ORDER")?;
             // A whole number is parsed here; its range is the filter's.
@@ -282,8 +303,12 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             Some(filter)
         }
         None => None,
-    };
-    let reference_sensor = match &args.reference_sensor {
+    })
+}
+
+/// The `--reference-sensor FN,ZETA` resonance of the reference transducer.
+fn reference_sensor_of(args: &SimulateTestArgs) -> Result<Option<Diaphragm>> {
+    Ok(match &args.reference_sensor {
         Some(text) => {
             let (f, z) = pair(text, "--reference-sensor", "FN,ZETA (Hz, -)")?;
             Some(Diaphragm {
@@ -292,19 +317,19 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             })
         }
         None => None,
-    };
-    let probe = Probe {
-        line: sys.line.clone(),
-        gas: sys.gas,
-        diaphragm: sys.diaphragm,
-        anti_alias,
-        skew_s: args.skew,
-    };
+    })
+}
+
+/// The acquisition: rate, record, event time, noise, reference sensor, gain error, hum and drift.
+fn acquisition_of(
+    args: &SimulateTestArgs,
+    reference_sensor: Option<Diaphragm>,
+) -> Result<Acquisition> {
     let (hum_pa, hum_hz) = match &args.hum {
         Some(text) => pair(text, "--hum", "PA,HZ")?,
         None => Acquisition::NO_HUM,
     };
-    let acquisition = Acquisition {
+    Ok(Acquisition {
         sample_rate_hz: args.fs,
         duration_s: args.duration,
         event_time_s: args
@@ -320,9 +345,12 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         hum_pa,
         hum_hz,
         drift_pa_per_s: args.drift,
-    };
-    let mut test = simulate(&probe, &excitation, &acquisition)?;
-    if let Some(r) = test.reduced_rate(&acquisition) {
+    })
+}
+
+/// Notes on stderr where the simulation fell short of what was asked: a reduced rate, a resonance above the band.
+fn warn_simulation_limits(test: &SimulatedTest, probe: &Probe, acquisition: &Acquisition) {
+    if let Some(r) = test.reduced_rate(acquisition) {
         crate::errln!(
             "note: the response outlasts the longest FFT at {}x oversampling (a slow real pole); simulated at {:.0}x ({:.0} Hz), content above {:.0} Hz tapered off",
             r.asked,
@@ -331,14 +359,17 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             r.taper_start_hz
         );
     }
-    if let Some(r) = test.resonance_above_band(&probe) {
+    if let Some(r) = test.resonance_above_band(probe) {
         crate::errln!(
             "warning: the diaphragm resonance at {} Hz is above the simulated band (taper from {:.0} Hz) and is filtered out: raise --oversample to see it",
             r.natural_frequency_hz, r.taper_start_hz
         );
     }
-    // The ADC is asked for after the simulation, as the range may come from its signals.
-    let adc = match args.adc_bits {
+}
+
+/// The ADC asked for (`--adc-bits`, `--adc-range`), applied after the simulation as its range may come from the signals.
+fn quantise_as_asked(args: &SimulateTestArgs, test: &mut SimulatedTest) -> Result<Option<Adc>> {
+    Ok(match args.adc_bits {
         Some(bits) => Some(test.quantise(match &args.adc_range {
             Some(text) => {
                 let (min_pa, max_pa) = pair(text, "--adc-range", "MIN,MAX in Pa")?;
@@ -359,8 +390,16 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             }
             None
         }
-    };
-    crate::file::write_atomically_with(&args.output, |out| Ok(test.write_csv(out)?))?;
+    })
+}
+
+/// The simulated test's summary, as JSON or as text.
+fn print_simulated(
+    args: &SimulateTestArgs,
+    sys: &ProbeSystem,
+    test: &SimulatedTest,
+    adc: Option<Adc>,
+) {
     let ir = &test.impulse;
     if args.json {
         let v = json!({
@@ -381,7 +420,7 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
             },
         });
         crate::outln!("{v}");
-        return Ok(());
+        return;
     }
     crate::outln!(
         "simulated {} samples at {} Hz ({:?}); front delay {:.6} s, DC gain {:.6}",
@@ -416,5 +455,4 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
         );
     }
     crate::outln!("wrote {}", args.output.display());
-    Ok(())
 }

@@ -11,7 +11,7 @@ use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::physics::system::ProbeSystem;
 use crate::physics::{
-    check_mode_count, predict_and_compare, PredictRequest, Predicted, Prediction,
+    check_mode_count, predict_and_compare, Comparison, PredictRequest, Predicted, Prediction,
 };
 
 /// Arguments of `unlag predict`.
@@ -88,16 +88,34 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
         model: file.as_ref().map(|f| &f.model),
     })?;
     if args.json {
-        let mut v = prediction_json(&sys, &p);
-        if let Some(c) = &comparison {
-            v["comparison"] = serde_json::to_value(c).map_err(|e| Error::Serialise {
-                what: "JSON output",
-                message: e.to_string(),
-            })?;
-        }
-        crate::outln!("{v}");
-        return Ok(());
+        return print_prediction_json(&sys, &p, comparison.as_ref());
     }
+    print_prediction(args, &sys, &p);
+    if let Some(c) = &comparison {
+        print_comparison(c);
+    }
+    Ok(())
+}
+
+/// The prediction as one JSON object, with the comparison when a model was given.
+fn print_prediction_json(
+    sys: &ProbeSystem,
+    p: &Prediction,
+    comparison: Option<&Comparison>,
+) -> Result<()> {
+    let mut v = prediction_json(sys, p);
+    if let Some(c) = comparison {
+        v["comparison"] = serde_json::to_value(c).map_err(|e| Error::Serialise {
+            what: "JSON output",
+            message: e.to_string(),
+        })?;
+    }
+    crate::outln!("{v}");
+    Ok(())
+}
+
+/// The prediction as text: the gas, the exact modes and real poles, the front delay, the lumped approximation and the probe's parts.
+fn print_prediction(args: &PredictArgs, sys: &ProbeSystem, p: &Prediction) {
     let g = &sys.gas;
     crate::outln!(
         "air at {:.2} K, {:.0} Pa: speed of sound {:.2} m/s, kinematic viscosity {:.4e} m^2/s",
@@ -175,26 +193,27 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
             args.system.amplitude
         );
     }
-    if let Some(c) = &comparison {
-        crate::outln!(
-            "fitted model against the prediction: natural frequency ratio {:.4} ({:.3} / {:.3} Hz), damping ratio {:.4} ({:.4} / {:.4}), delay difference {:+.6} s ({:.6} - {:.6} s), DC gain ratio {:.5}",
-            c.natural_frequency_ratio,
-            c.fitted.natural_frequency_hz,
-            c.predicted.natural_frequency_hz,
-            c.damping_ratio,
-            c.fitted.damping,
-            c.predicted.damping,
-            c.delay_difference_s,
-            c.fitted_delay_s,
-            c.predicted_delay_s,
-            c.dc_gain_ratio
-        );
-        if c.findings.is_empty() {
-            crate::outln!("  agrees within 5 % in frequency, 15 % in damping, one sample in delay");
-        }
-        for f in &c.findings {
-            crate::outln!("  {f}");
-        }
+}
+
+/// The fitted model against the prediction: the ratios and differences, and what disagrees.
+fn print_comparison(c: &Comparison) {
+    crate::outln!(
+        "fitted model against the prediction: natural frequency ratio {:.4} ({:.3} / {:.3} Hz), damping ratio {:.4} ({:.4} / {:.4}), delay difference {:+.6} s ({:.6} - {:.6} s), DC gain ratio {:.5}",
+        c.natural_frequency_ratio,
+        c.fitted.natural_frequency_hz,
+        c.predicted.natural_frequency_hz,
+        c.damping_ratio,
+        c.fitted.damping,
+        c.predicted.damping,
+        c.delay_difference_s,
+        c.fitted_delay_s,
+        c.predicted_delay_s,
+        c.dc_gain_ratio
+    );
+    if c.findings.is_empty() {
+        crate::outln!("  agrees within 5 % in frequency, 15 % in damping, one sample in delay");
     }
-    Ok(())
+    for f in &c.findings {
+        crate::outln!("  {f}");
+    }
 }

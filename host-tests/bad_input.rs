@@ -915,15 +915,16 @@ fn a_closed_standard_output_is_one_line_saying_what_was_written() {
     let out = tmp("closed_stdout.csv");
     let _ = std::fs::remove_file(&out);
     let run = |args: &[&str]| {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_unlag"))
+        // The reader is gone before the command starts (`| head -c 0`): closed here, before the
+        // spawn, so that no print can reach the pipe while it is still open.
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        Command::new(env!("CARGO_BIN_EXE_unlag"))
             .args(args)
-            .stdout(std::process::Stdio::piped())
+            .stdout(writer)
             .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        // The reader is gone before the command prints (`| head -c 0`).
-        drop(child.stdout.take());
-        child.wait_with_output().unwrap()
+            .output()
+            .unwrap()
     };
     let o = run(&["compensate", m, &csv, "-o", &out]);
     let stderr = String::from_utf8_lossy(&o.stderr);

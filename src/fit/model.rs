@@ -281,11 +281,18 @@ impl Model {
 
     /// The whole record through one compensator, without a call through a pointer per sample.
     fn compensate_with<T: Sample, const M: usize>(&self, y: &[f64]) -> Result<Vec<f64>> {
+        let mut c = self.started::<T, M>(y.first().copied().unwrap_or(0.0))?;
+        Ok(y.iter().map(|&v| c.push(T::from_f64(v)).to_f64()).collect())
+    }
+
+    /// The board's compensator for this model, started in equilibrium with `first`.
+    fn started<T: Sample, const M: usize>(&self, first: f64) -> Result<Compensator<T, M>> {
         let coefficients = InverseCoefficients::<T, M>::new(&self.b, &self.a)
             .map_err(|error| FitError::Compensator { error })?;
-        let y0 = T::from_f64(y.first().copied().unwrap_or(0.0));
-        let mut c = Compensator::from_coefficients(coefficients, y0);
-        Ok(y.iter().map(|&v| c.push(T::from_f64(v)).to_f64()).collect())
+        Ok(Compensator::from_coefficients(
+            coefficients,
+            T::from_f64(first),
+        ))
     }
 
     fn too_high(m: usize) -> Error {
@@ -317,9 +324,7 @@ impl Model {
         &self,
         first: f64,
     ) -> Result<Box<dyn FnMut(f64) -> f64>> {
-        let coefficients = InverseCoefficients::<T, M>::new(&self.b, &self.a)
-            .map_err(|error| FitError::Compensator { error })?;
-        let mut c = Compensator::from_coefficients(coefficients, T::from_f64(first));
+        let mut c = self.started::<T, M>(first)?;
         Ok(Box::new(move |v| c.push(T::from_f64(v)).to_f64()))
     }
 }

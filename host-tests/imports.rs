@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 /// The rooms of `src/` in the order the data flows through them (as `lib.rs` states): each may
 /// import only rooms before it. `testing` holds the unit tests' fixtures and may import any.
-const ORDER: [&str; 14] = [
+const ORDER: [&str; 16] = [
     "board",
     "trace",
     "error",
@@ -19,8 +19,10 @@ const ORDER: [&str; 14] = [
     "fit",
     "physics",
     "design",
-    "modelling",
+    "evidence",
+    "effects",
     "file",
+    "modelling",
     "pipeline",
     "export",
     "report",

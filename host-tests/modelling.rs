@@ -121,9 +121,9 @@ fn physical_limits_show_what_the_physics_predicts() {
 /// trial's held-out error with it is at least 3x below the plain model's.
 #[test]
 fn the_diagnosis_offers_the_damping_law_the_physics_has() {
+    use unlag::effects;
     use unlag::fit::Test;
     use unlag::modelling::diagnose::{self, Current};
-    use unlag::modelling::effects;
     let wanted = [
         ("temperature: validation at 343 K", "temperature"),
         (
@@ -290,9 +290,9 @@ fn a_delay_named_by_the_diagnosis_is_added_with_add_delay() {
 /// the signature.
 #[test]
 fn nonlinear_damping_is_named_from_its_amplitude_signature() {
+    use unlag::effects::{self, Effect};
     use unlag::fit::Test;
     use unlag::modelling::diagnose::{self, Current};
-    use unlag::modelling::effects::{self, Effect};
     for case in cases() {
         let data = case.tests(5);
         let tests: Vec<Test<'_>> = data.iter().map(|(u, y)| Test { name: "t", u, y }).collect();
@@ -352,7 +352,7 @@ fn nonlinear_damping_is_named_from_its_amplitude_signature() {
         let first = &candidates[0];
         assert_eq!(
             first.kind,
-            unlag::modelling::effects::EffectKind::NonlinearDamping,
+            unlag::effects::EffectKind::NonlinearDamping,
             "{candidates:#?}"
         );
         let diagnose::Evidence::NonlinearDamping(nl) = &first.evidence else {
@@ -361,7 +361,7 @@ fn nonlinear_damping_is_named_from_its_amplitude_signature() {
         assert!(nl.residual_exponent > 1.4, "{first:?}");
         assert_eq!(
             first.change.kind(),
-            Some(unlag::modelling::effects::EffectKind::NonlinearDamping)
+            Some(unlag::effects::EffectKind::NonlinearDamping)
         );
     }
 }
@@ -468,7 +468,7 @@ fn nonlinear_damping_through_the_cli_down_to_the_board() {
     );
     run(&args.iter().map(String::as_str).collect::<Vec<_>>());
     let file = unlag::file::ModelFile::load(std::path::Path::new(&model)).unwrap();
-    let gain = unlag::modelling::effects::nonlinear_gain(&file.effects);
+    let gain = unlag::effects::nonlinear_gain(&file.effects);
     let w = 2.0 * std::f64::consts::PI * case.mode.0;
     assert!((gain * w * w / k - 1.0).abs() < 0.25, "gain {gain}");
     let args = with(&["compare", &model], &["--json"]);
@@ -1716,7 +1716,7 @@ fn a_temperature_steps_back_from_a_delay_whose_model_cannot_be_scaled() {
     );
     let balloon = &d["tests"][1];
     let level = |key: &str| balloon["trend"][key].as_f64().unwrap_or(f64::INFINITY);
-    let trend = unlag::modelling::evidence::Trend {
+    let trend = unlag::evidence::Trend {
         pre_mean: level("pre_mean"),
         pre_slope_per_s: level("pre_slope_per_s"),
         pre_slope_se_per_s: level("pre_slope_se_per_s"),

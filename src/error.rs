@@ -20,7 +20,7 @@ pub enum Error {
     Trace(#[from] crate::trace::TraceError),
     /// A stage's own error: fitting (`fit::FitError`), designing (`design::DesignError`),
     /// physics (`physics::PhysicsError`), polynomial roots (`poly::PolyError`), the
-    /// effects (`modelling::ModellingError`) or export (`export::ExportError`). Each stage
+    /// effects (`effects::EffectError`) or export (`export::ExportError`). Each stage
     /// converts its enum into this one, so the stages import this module and never the
     /// reverse; [`Error::stage`] gets the stage's error back.
     #[error("{0}")]

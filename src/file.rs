@@ -4,7 +4,7 @@
 //! [`ModelFile`] is what `unlag fit` writes and every later command reads. It sits above the
 //! stages it composes: the fit stage's [`Model`] and [`FitReport`], the design stage's
 //! [`Design`], the modelling loop's
-//! [`Effect`](crate::modelling::effects::Effect)s; and it says the state a diagnosis of it starts
+//! [`Effect`](crate::effects::Effect)s; and it says the state a diagnosis of it starts
 //! from ([`ModelFile::current`]).
 
 mod write;
@@ -22,7 +22,6 @@ use crate::design::quantise::{DirectPlan, FixedPlan};
 use crate::error::{number, Error, Result};
 use crate::fit::model::{FitReport, Model, Source, Uncertainty, MAX_ORDER};
 use crate::fit::{Method, TestRole};
-use crate::modelling::diagnose::Current;
 use crate::trace::MAX_SAMPLE_RATE_HZ;
 
 /// Model file format version written by this crate.
@@ -47,7 +46,7 @@ pub struct ModelFile {
     pub inverse: Option<crate::design::inverse::Design>,
     /// Physical effects added in the modelling loop (`unlag fit --add KIND`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub effects: Vec<crate::modelling::effects::Effect>,
+    pub effects: Vec<crate::effects::Effect>,
     /// Every fit of this file, with its errors per test: the error falling as effects are
     /// added.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -141,7 +140,7 @@ struct RawModelFile {
     #[serde(default)]
     inverse: Option<crate::design::inverse::Design>,
     #[serde(default)]
-    effects: Vec<crate::modelling::effects::Effect>,
+    effects: Vec<crate::effects::Effect>,
     #[serde(default)]
     history: Vec<HistoryRow>,
     #[serde(default)]
@@ -208,7 +207,7 @@ fn default_pressure_pa() -> f64 {
 pub struct HistoryRow {
     /// The effects the fit had (kinds), in the order added; stored by name (`mode`,
     /// `coloured-noise`, ...), an unknown name refused when the file is read.
-    pub effects: Vec<crate::modelling::effects::EffectKind>,
+    pub effects: Vec<crate::effects::EffectKind>,
     /// Model order.
     pub order: usize,
     /// Delay (samples).
@@ -244,15 +243,30 @@ pub struct HeldOutChange {
 }
 
 impl HeldOutChange {
-    /// Whether the error rose by more than [`ERROR_RISE_NOTED`]: the change made the model
+    /// Whether the error rose by more than [`ERROR_RISE_NOTED`](crate::fit::ERROR_RISE_NOTED): the change made the model
     /// worse on data it was not fitted to.
     #[must_use]
     pub fn rose(&self) -> bool {
-        error_rose(self.before, self.after)
+        crate::fit::error_rose(self.before, self.after)
     }
 }
 
-pub use crate::modelling::{error_rose, ERROR_RISE_NOTED};
+/// The current state of a model file that a diagnosis starts from.
+#[derive(Debug, Clone)]
+pub struct Current<'a> {
+    /// The model.
+    pub model: &'a Model,
+    /// Its effects.
+    pub effects: &'a [crate::effects::Effect],
+    /// The method it was fitted with.
+    pub method: Method,
+    /// Its stated uncertainty (the fit report's), if any.
+    pub uncertainty: Option<&'a Uncertainty>,
+    /// Whether its order was given (`--order N`) rather than chosen. A refit with an order
+    /// given drops the modes the model carries, so a change names them again
+    /// ([`crate::modelling::diagnose::Remedy::KeepingModes`]).
+    pub order_given: bool,
+}
 
 /// One test's error in a history row.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -1209,7 +1223,7 @@ mod tests {
     /// round-trips to the same bytes, an unknown one is refused with its name.
     #[test]
     fn history_effects_are_kinds_by_name_and_an_unknown_one_is_refused() {
-        use crate::modelling::effects::EffectKind;
+        use crate::effects::EffectKind;
         let shipped = include_str!("../examples/data/board_model.toml");
         let path = Path::new("board_model.toml");
         let mut f = ModelFile::parse(path, shipped).unwrap();

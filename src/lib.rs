@@ -31,11 +31,15 @@
 //! 5. [`board`] runs it per sample: [`board::compensator`], [`board::fixed`], [`board::blob`], and
 //!    [`board::process`], which makes the compensators `dsp_process` processors.
 //!
-//! Beside the flow: [`modelling`] finds the physical effect a model misses (the modelling
-//! loop), [`physics`] predicts a probe from its geometry and simulates step tests,
-//! [`file`](mod@crate::file) reads and writes the model file, [`pipeline`] runs the stages in order for the command line,
-//! [`report`] writes the HTML report, [`cli`] is the command line, [`poly`] holds the
-//! polynomial arithmetic and [`error`] the host's error type ([`Error`]).
+//! Beside the flow, the modelling loop: [`evidence`] measures where a model fails on a test
+//! (the residual's correlations, spectrum, level and trend), [`effects`] holds the physical
+//! effects a model can carry (a mode, a leak, a temperature law, a quadratic loss, ...) and
+//! fits a model with them, and [`modelling`] names the effect a model misses, ranked, with the
+//! change that adds it. [`physics`] predicts a probe from its geometry and simulates step
+//! tests. [`file`](mod@crate::file) reads and writes the model file, [`pipeline`] runs the
+//! stages in order for the command line (its plain fit goes to [`effects`] and [`fit`], never
+//! through [`modelling`]), [`report`] writes the HTML report, [`cli`] is the command line,
+//! [`poly`] holds the polynomial arithmetic and [`error`] the host's error type ([`Error`]).
 //!
 //! # Example: the per-sample call on the board
 //!
@@ -70,19 +74,20 @@
 #![cfg_attr(docsrs, feature(doc_cfg))]
 #![warn(missing_docs)]
 
-// Data flow, one room per stage: trace -> fit -> design -> export -> board. The modelling loop
-// reads what fit and design produce; `file` composes the stage outputs into the model file;
-// `pipeline` runs the stages in order (fit a probe, design its compensator, retarget it,
-// compensate a record), resamples a model and diagnoses one against its tests; export and
-// the report read them; the CLI parses, asks the pipeline and prints. Imports go in the order
-// board, trace, error, poly, fit, physics, design, modelling, file, pipeline, export, report,
-// cli, each room importing only rooms before it, and no two modules of a room importing
-// each other round a circle (host-tests/imports.rs reads the code and fails on an upward
-// arrow or a circle). The board's modules are reached through `board`: the crate root
-// re-exports none of them. Errors: trace, fit, design,
-// physics, modelling and export each have their own enum, which `error::Error` carries (as
-// `Error::Trace` or `Error::Stage`) without importing the stages; the CLI adds the flag that
-// fixes a problem (`cli::describe`).
+// Data flow, one room per stage: trace -> fit -> design -> export -> board. Beside it the
+// modelling loop: `evidence` measures a model's residual, `effects` fits a model with the
+// physical effects it carries (the plain fit is its case of no effect), `modelling` diagnoses
+// the missing one; `file` composes the stage outputs into the model file; `pipeline` runs the
+// stages in order (fit a probe, design its compensator, retarget it, compensate a record),
+// resamples a model and diagnoses one against its tests; export and the report read them; the
+// CLI parses, asks the pipeline and prints. Imports go in the order board, trace, error, poly,
+// fit, physics, design, evidence, effects, file, modelling, pipeline, export, report, cli,
+// each room importing only rooms before it, and no two modules of a room importing each other
+// round a circle (host-tests/imports.rs reads the code and fails on an upward arrow or a
+// circle). The board's modules are reached through `board`: the crate root re-exports none of
+// them. Errors: trace, fit, design, physics, effects and export each have their own enum,
+// which `error::Error` carries (as `Error::Trace` or `Error::Stage`) without importing the
+// stages; the CLI adds the flag that fixes a problem (`cli::describe`).
 // Everything but `board` is host side, behind the `std` feature.
 
 pub mod board;
@@ -95,7 +100,13 @@ pub mod cli;
 pub mod design;
 #[cfg(feature = "std")]
 #[cfg_attr(docsrs, doc(cfg(feature = "std")))]
+pub mod effects;
+#[cfg(feature = "std")]
+#[cfg_attr(docsrs, doc(cfg(feature = "std")))]
 pub mod error;
+#[cfg(feature = "std")]
+#[cfg_attr(docsrs, doc(cfg(feature = "std")))]
+pub mod evidence;
 #[cfg(feature = "std")]
 #[cfg_attr(docsrs, doc(cfg(feature = "std")))]
 pub mod export;

@@ -100,7 +100,7 @@ pub(crate) fn two_step_sizes() -> (crate::fit::model::Model, Vec<f64>, Vec<f64>,
             .collect()
     };
     let (big, small) = (step(1000.0), step(150.0));
-    let q = crate::modelling::effects::quadratic_rate(&truth.simulate(&big), truth.fs);
+    let q = crate::effects::quadratic_rate(&truth.simulate(&big), truth.fs);
     let gain = 0.5 * 1000.0 / q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     (truth, big, small, gain)
 }

@@ -163,7 +163,7 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
         .iter()
         .filter_map(|(c, o)| {
             let (before, after) = judged(o)?;
-            unlag::file::error_rose(before, after).then(|| {
+            unlag::fit::error_rose(before, after).then(|| {
                 format!(
                     "case-{:03} ({} named {}, {:.3} % -> {:.3} %)",
                     c.id,
@@ -178,7 +178,7 @@ pub fn report(rows: &[(Case, LoopOutcome)]) -> String {
     let _ = writeln!(
         r,
         "- the first name's change raised the held-out error (by more than {:.0} %, what `unlag fit` warns of when it continues a model file): {}/{}{}",
-        100.0 * unlag::file::ERROR_RISE_NOTED,
+        100.0 * unlag::fit::ERROR_RISE_NOTED,
         raised.len(),
         changed.len(),
         if raised.is_empty() {

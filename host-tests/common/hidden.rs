@@ -839,7 +839,7 @@ pub struct Outcome {
     /// each alone).
     pub signature: Option<unlag::modelling::diagnose::AmplitudeSignature>,
     /// The effects the plain fit found by itself (a clear offset before the step).
-    pub found: Vec<unlag::modelling::effects::EffectKind>,
+    pub found: Vec<unlag::effects::EffectKind>,
 }
 
 impl Outcome {
@@ -851,8 +851,8 @@ impl Outcome {
     /// When `kind` names nothing a diagnosis can name.
     #[must_use]
     pub fn passed(&self, kind: &str) -> bool {
+        use unlag::effects::EffectKind;
         use unlag::modelling::diagnose::Finding;
-        use unlag::modelling::effects::EffectKind;
         let kind: Finding = kind.parse().expect("a kind a diagnosis names");
         let first = self.named.first().copied();
         // An effect the plain fit already found and removed (an offset the quiet segment
@@ -878,9 +878,9 @@ impl Outcome {
 /// When the plain fit fails (a broken case).
 #[must_use]
 pub fn run(case: &Case, seed: u64) -> Outcome {
+    use unlag::effects::{self, Effect, EffectKind};
     use unlag::fit::Test;
     use unlag::modelling::diagnose::{self, Current, Finding};
-    use unlag::modelling::effects::{self, Effect, EffectKind};
     let data = case.tests(seed);
     let names = ["estimation", "validation", "validation 2", "validation 3"];
     let tests: Vec<Test<'_>> = data

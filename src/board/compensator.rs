@@ -29,7 +29,7 @@
 //! samples; [`Compensator`] bundles the two for the common one-channel case.
 //!
 //! A board that measures the gas temperature runs a table of cascades, one per temperature,
-//! through [`bank::TemperatureBank`] (the `temperature` effect of `unlag::modelling::effects` (host)).
+//! through [`bank::TemperatureBank`] (the `temperature` effect of `unlag::effects` (host)).
 //!
 //! # Capacity
 //!

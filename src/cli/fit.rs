@@ -8,12 +8,12 @@ use serde_json::json;
 
 use super::invert::{full_scale_json, print_board, print_inverse, warn_unplanned, InverseArgs};
 use super::{as_tests, console, json_err, name, number, pct, read_test, report, ColumnArgs};
+use crate::effects::EffectKind;
 use crate::error::{Error, Result};
 use crate::file::{Board, HeldOutChange, HistoryRow, ModelFile};
 use crate::fit::model::{FitReport, Model};
 use crate::fit::Test;
 use crate::fit::{Method, Options, Order};
-use crate::modelling::effects::EffectKind;
 use crate::pipeline::{self, FitDesignRequest, FitDesigned, FitStage, FullScale};
 use crate::trace::{Columns, Trace};
 
@@ -213,7 +213,7 @@ pub fn run_fit(args: &FitArgs) -> Result<()> {
     let named_again = args
         .add
         .iter()
-        .filter(|a| a.parse() == Ok(crate::modelling::effects::EffectKind::Mode))
+        .filter(|a| a.parse() == Ok(crate::effects::EffectKind::Mode))
         .count();
     let on_stage = |stage: FitStage| match stage {
         FitStage::Continuing {
@@ -444,7 +444,7 @@ fn print_held_out_changes(changes: &[HeldOutChange], file: &ModelFile) {
             let ratio = c.before / c.after;
             let verdict = if c.rose() {
                 "rose".to_string()
-            } else if ratio > 1.0 + crate::file::ERROR_RISE_NOTED {
+            } else if ratio > 1.0 + crate::fit::ERROR_RISE_NOTED {
                 format!("{ratio:.2}x lower")
             } else {
                 "about the same".to_string()
@@ -574,9 +574,7 @@ fn print_model(r: &FitReport, m: &Model) {
 /// The errors per test against their noise floors, under the noise model beside the dynamics if any.
 fn print_errors(file: &ModelFile) {
     match file.effects.iter().find_map(|e| match e {
-        crate::modelling::effects::Effect::ColouredNoise { ar, innovation_std } => {
-            Some((ar, innovation_std))
-        }
+        crate::effects::Effect::ColouredNoise { ar, innovation_std } => Some((ar, innovation_std)),
         _ => None,
     }) {
         Some((ar, innovation)) => {

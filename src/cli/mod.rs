@@ -212,7 +212,7 @@ pub fn describe(e: &Error) -> String {
             crate::physics::MAX_MODES
         );
     }
-    if let Some(crate::modelling::ModellingError::NoSensorResonance) = e.stage() {
+    if let Some(crate::effects::EffectError::NoSensorResonance) = e.stage() {
         return "invalid sensor-resonance: the estimation test's reference shows no resonance to \
                 filter below; give the transducer's natural frequency: --add sensor-resonance=HZ"
             .into();

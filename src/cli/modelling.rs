@@ -6,12 +6,12 @@ use clap::Args;
 use serde_json::json;
 
 use super::{json_err, name, pct, ColumnArgs};
+use crate::effects::EffectKind;
 use crate::error::Result;
+use crate::evidence::TestEvidence;
 use crate::file::ModelFile;
 use crate::fit::Test;
 use crate::modelling::diagnose::{self, AmplitudeSignature, Candidate, Remedy};
-use crate::modelling::effects::EffectKind;
-use crate::modelling::evidence::TestEvidence;
 use crate::pipeline::{self, DiagnoseRequest, Diagnosis};
 use crate::trace::Trace;
 
@@ -129,7 +129,7 @@ fn print_evidence(evidence: &[TestEvidence]) {
         if e.spectrum.peaks.is_empty() {
             crate::outln!(
                 "  residual spectrum after the step: no peak {} dB above the floor",
-                crate::modelling::evidence::PEAK_DB
+                crate::evidence::PEAK_DB
             );
         } else {
             let peaks: Vec<String> = e
@@ -441,7 +441,7 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
 
 /// With a noise model: each test's one-step-ahead prediction error, the error the model is
 /// judged by, against that error's floor.
-fn prediction_lines(evidence: &[crate::modelling::evidence::TestEvidence]) {
+fn prediction_lines(evidence: &[crate::evidence::TestEvidence]) {
     for e in evidence {
         if let Some(p) = &e.prediction {
             crate::outln!(

@@ -524,7 +524,7 @@ impl Design {
     }
 
     /// The nonlinear-damping correction `gain fs^2 lowpass(|dy| dy)` for the probe signal `y`
-    /// (quadratic loss `gain` in s^2 per probe unit, see [`crate::modelling::effects`]), in arithmetic
+    /// (quadratic loss `gain` in s^2 per probe unit, see [`crate::effects`]), in arithmetic
     /// `T` with the board's code, starting in equilibrium with `y[0]`: what the board adds to
     /// [`Design::run`]'s output.
     ///

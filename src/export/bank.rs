@@ -140,7 +140,7 @@ impl BoardBank {
         path: &Path,
         range: &TemperatureRange,
     ) -> Result<Self> {
-        let Some(reference) = crate::modelling::effects::reference_k(&file.effects) else {
+        let Some(reference) = crate::effects::reference_k(&file.effects) else {
             return Err(bad_range(
                 "the model file has no temperature effect, so no reference temperature to scale \
                  from"
@@ -148,7 +148,7 @@ impl BoardBank {
             )
             .advised(crate::error::Advice::AddTemperature { by_hand: false }));
         };
-        if crate::modelling::effects::nonlinear_gain(&file.effects) != 0.0 {
+        if crate::effects::nonlinear_gain(&file.effects) != 0.0 {
             return Err(Error::UnsupportedOnBoard {
                 path: path.to_path_buf(),
                 effect: "nonlinear damping",

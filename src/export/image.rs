@@ -358,7 +358,7 @@ impl BoardCoefficients {
                 format!("the compensator rounded to f32 is not valid: {e}"),
             )
         })?;
-        let loss = crate::modelling::effects::nonlinear_gain(&file.effects);
+        let loss = crate::effects::nonlinear_gain(&file.effects);
         let nonlinear = if loss == 0.0 {
             None
         } else {
@@ -457,7 +457,7 @@ fn fixed_parts<S: FixedForm>(
     full_scale: Option<f64>,
 ) -> Result<FixedParts<S>> {
     // The nonlinear-damping correction is f32 only.
-    if crate::modelling::effects::nonlinear_gain(&file.effects) != 0.0 {
+    if crate::effects::nonlinear_gain(&file.effects) != 0.0 {
         return Err(Error::UnsupportedOnBoard {
             path: path.to_path_buf(),
             effect: "nonlinear damping",

@@ -630,6 +630,17 @@ pub fn fit_as_found(
     })
 }
 
+/// Whether a held-out error went from `before` to `after` by a rise of more than
+/// [`ERROR_RISE_NOTED`]: the change made the model worse on data it was not fitted to.
+#[must_use]
+pub fn error_rose(before: f64, after: f64) -> bool {
+    after > before * (1.0 + ERROR_RISE_NOTED)
+}
+
+/// A held-out error that rises by more than this share has risen ([`error_rose`]): a refit of
+/// the same model on the same data moves it by far less.
+pub const ERROR_RISE_NOTED: f64 = 0.01;
+
 #[cfg(test)]
 mod tests {
     use super::*;

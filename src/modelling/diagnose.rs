@@ -4,7 +4,7 @@
 //! effects ([`Candidate`]), each with the numbers behind it, a physical reading, and the exact
 //! change that adds it. Two kinds of evidence are combined:
 //!
-//! 1. the residual's signature on each test ([`crate::modelling::evidence`]): a narrow spectral peak for
+//! 1. the residual's signature on each test ([`crate::evidence`]): a narrow spectral peak for
 //!    a mode, a level before the step for an offset, a ramp for a drift, a slow creep after
 //!    the step for a leak, correlation in time for coloured noise where the probe's own noise
 //!    before the step is coloured (without a quiet segment: no cause in the input), a peak in
@@ -16,12 +16,12 @@
 //!    the tests fitted alone that all move by one common factor against the model's, with the
 //!    damping about the same, for a temperature ([`temperature_evidence`]; where no test
 //!    fitted alone can show it, its trial alone, counted down to the noise floor; both damping laws
-//!    of [`crate::modelling::effects::TemperatureDamping`] are tried and the better offered, its `change`
+//!    of [`crate::effects::TemperatureDamping`] are tried and the better offered, its `change`
 //!    adding `temperature`, `temperature-viscous` or `temperature-diffusive`); and across tests
 //!    ([`amplitude_signature`]), a damping that rises with the step's amplitude and a residual
 //!    that grows faster than the step, for nonlinear damping;
 //! 2. a trial: the model is refitted on the estimation test with the effect added
-//!    ([`crate::modelling::effects::fit_with`]) and judged on the held-out tests. A candidate whose
+//!    ([`crate::effects::fit_with`]) and judged on the held-out tests. A candidate whose
 //!    signature is present but whose trial does not lower the held-out error is not offered.
 //!
 //! The score is `ln(error before / error after)` on the held-out tests (the estimation test
@@ -31,11 +31,11 @@
 //! searched again, and a temperature read from its trial alone on any model, where no loss
 //! could have moved the time scale that way.
 
+use crate::effects::{self, EffectKind, FitChanges};
 use crate::error::Result;
-use crate::fit::model::{Model, Uncertainty};
-use crate::fit::{Method, Test, TestRole};
-use crate::modelling::effects::{self, Effect, EffectKind, FitChanges};
-use crate::modelling::evidence::TestEvidence;
+use crate::evidence::TestEvidence;
+pub use crate::file::Current;
+use crate::fit::{Test, TestRole};
 
 mod across;
 mod beside;
@@ -75,23 +75,6 @@ pub use rank::{FLOOR_OVERRULED, MIN_IMPROVEMENT, PARAMETER_PENALTY, SAME_FREQUEN
 pub use remedy::Remedy;
 pub use temperature::{loss_could_move, TRIAL_ALONE_DAMPING_BELOW, TRIAL_ALONE_FALL};
 pub use trial::TRIAL_WINDOW;
-
-/// The current state of a model file that a diagnosis starts from.
-#[derive(Debug, Clone)]
-pub struct Current<'a> {
-    /// The model.
-    pub model: &'a Model,
-    /// Its effects.
-    pub effects: &'a [Effect],
-    /// The method it was fitted with.
-    pub method: Method,
-    /// Its stated uncertainty (the fit report's), if any.
-    pub uncertainty: Option<&'a Uncertainty>,
-    /// Whether its order was given (`--order N`) rather than chosen. A refit with an order
-    /// given drops the modes the model carries, so a change names them again
-    /// ([`Remedy::KeepingModes`]).
-    pub order_given: bool,
-}
 
 fn mean(x: impl Iterator<Item = f64>) -> f64 {
     let (s, n) = x.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));

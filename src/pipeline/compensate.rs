@@ -6,10 +6,10 @@ use std::path::Path;
 
 use crate::design::inverse::{self, Design};
 use crate::design::quantise::{DirectPlan, FixedPlan, FixedRunner};
+use crate::effects;
 use crate::error::{Advice, Error, Result};
 use crate::file::ModelFile;
 use crate::fit;
-use crate::modelling::effects;
 
 /// Arithmetic of a compensator run on the host.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -382,8 +382,8 @@ pub(super) fn fixed_runner(
 mod tests {
     use super::super::testing::{probe, step_test};
     use super::*;
+    use crate::effects::Effect;
     use crate::file::FORMAT_VERSION;
-    use crate::modelling::effects::Effect;
     use crate::trace::{Columns, Trace};
 
     /// A recording of `u` and `y` at 10 kHz, as read from a CSV file.

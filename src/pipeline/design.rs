@@ -7,11 +7,11 @@ use crate::design::inverse::check::{self, Request};
 use crate::design::inverse::optimal::{self, NoiseModel, OptimalOptions, SignalPrior};
 use crate::design::inverse::{self, Design, LowpassKind};
 use crate::design::quantise::{DirectPlan, FixedForm, FixedPlan};
+use crate::effects::{self, Effect};
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::fit::model::Model;
 use crate::fit::{self, Test};
-use crate::modelling::effects::{self, Effect};
 use crate::trace::Trace;
 
 /// The shape of compensator asked for.

@@ -4,10 +4,10 @@
 //! refits ([`diagnose()`]). `unlag compare`, `unlag diagnose` and the report all ask here.
 
 use crate::error::{Error, Result};
+use crate::evidence::TestEvidence;
 use crate::file::ModelFile;
 use crate::fit::Test;
 use crate::modelling::diagnose::{self, AmplitudeSignature, Candidate, PerTest};
-use crate::modelling::evidence::TestEvidence;
 
 /// The stages of a [`diagnose()`] that may take long, as [`DiagnoseRequest::on_stage`] hears
 /// them.

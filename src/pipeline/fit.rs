@@ -4,11 +4,11 @@
 
 use std::path::Path;
 
+use crate::effects::{self, Effect, EffectKind};
 use crate::error::{Error, Result};
 use crate::file::{HistoryRow, HistoryTest, ModelFile, ProbeGeometry, FORMAT_VERSION};
 use crate::fit::model::Source;
 use crate::fit::{self, step, Options, Order, Test, TestRole};
-use crate::modelling::effects::{self, Effect, EffectKind};
 
 /// A fit of the probe's model to its step tests (`unlag fit`).
 #[derive(Debug, Clone)]

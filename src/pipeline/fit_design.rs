@@ -7,10 +7,10 @@ use super::{
     add_effects, carried_effects, design_compensator, fit_probe, CompensatorRequest,
     CompensatorSpec, FitRequest, Roles,
 };
+use crate::effects::{Effect, EffectKind};
 use crate::error::{Error, Result};
 use crate::file::ModelFile;
 use crate::fit::{Options, Test};
-use crate::modelling::effects::{Effect, EffectKind};
 
 /// The stages of a [`fit_and_design`], as [`FitDesignRequest::on_stage`] hears them, in this
 /// order.

@@ -2,9 +2,9 @@
 //! or drift estimated on the recording, the time scale of a temperature), and its error
 //! against the recorded probe.
 
+use crate::effects;
 use crate::error::{Advice, Error, Parameter, Result};
 use crate::file::ModelFile;
-use crate::modelling::effects;
 
 /// A recording to simulate a model file on.
 #[derive(Debug, Clone, Copy)]

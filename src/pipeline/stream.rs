@@ -22,10 +22,10 @@ use super::FixedRunSummary;
 use crate::design::inverse::optimal::on_run::SpectrumStream;
 use crate::design::inverse::{self, AlignedErrorStream, Design, Runner};
 use crate::design::quantise::FixedRunner;
+use crate::effects::{self, Additive, PrefilterStream};
 use crate::error::{Advice, Error, Result};
 use crate::file::{ModelFile, WriteFailure};
 use crate::fit::step::{ExcitationStream, MIN_EXCITATION};
-use crate::modelling::effects::{self, Additive, PrefilterStream};
 use crate::trace::stream::{self as rows, Row, RunChecks, RunInfo};
 use crate::trace::Columns;
 
@@ -492,7 +492,7 @@ mod tests {
             fit: None,
             sources: Vec::new(),
             inverse: Some(d),
-            effects: vec![crate::modelling::effects::Effect::Offset { value: 0.01 }],
+            effects: vec![crate::effects::Effect::Offset { value: 0.01 }],
             history: Vec::new(),
             probe: None,
             board: Default::default(),

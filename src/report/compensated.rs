@@ -8,9 +8,9 @@ use plotters::prelude::SeriesLabelPosition;
 
 use super::plot::{colour, figure, Panel, Series};
 use super::{escape, pct, points, push_figure, time_unit, Inputs};
+use crate::effects;
 use crate::error::{Error, Result};
 use crate::fit::Test;
-use crate::modelling::effects;
 use crate::pipeline::{
     self, Arithmetic, CompensateRequest, Compensated, Compensation, ReferenceError,
 };
@@ -185,9 +185,9 @@ pub(super) fn compensated(
 mod tests {
     use super::*;
     use crate::design::inverse;
+    use crate::effects::Effect;
     use crate::file::{ModelFile, FORMAT_VERSION};
     use crate::fit::model::Model;
-    use crate::modelling::effects::Effect;
 
     /// `model` observed with noise 1e-3 (seeded) and `offset` added.
     fn probe_signal(model: &Model, u: &[f64], seed: u64, offset: f64) -> Vec<f64> {

@@ -9,10 +9,10 @@ use plotters::prelude::SeriesLabelPosition;
 use super::compensated::compensated;
 use super::plot::{colour, figure, Marker, Panel, Series, Style};
 use super::{escape, num, p_value, pct, points, push_figure, time_unit, top_effect, Inputs};
+use crate::effects;
 use crate::error::Result;
+use crate::evidence::TestEvidence;
 use crate::fit::Test;
-use crate::modelling::effects;
-use crate::modelling::evidence::TestEvidence;
 use crate::pipeline::ReferenceError;
 
 /// The samples around the step where the probe's answer happens: from a little before the
@@ -182,7 +182,7 @@ fn spectrum(h: &mut String, inputs: &Inputs<'_>, number: usize, ev: &TestEvidenc
             .map(|(i, v)| (i as f64 * s.resolution_hz, v + shift))
             .collect()
     };
-    let (expected, significance) = (along(0.0), along(crate::modelling::evidence::PEAK_DB));
+    let (expected, significance) = (along(0.0), along(crate::evidence::PEAK_DB));
     let top = top_effect(inputs).map(|c| c.kind);
     let effect = top.map_or("not diagnosed", crate::modelling::diagnose::Finding::as_str);
     let label_of = |f: f64| {
@@ -205,10 +205,7 @@ fn spectrum(h: &mut String, inputs: &Inputs<'_>, number: usize, ev: &TestEvidenc
                 1,
             ),
             Series::line(
-                &format!(
-                    "significance: {} dB above it",
-                    crate::modelling::evidence::PEAK_DB
-                ),
+                &format!("significance: {} dB above it", crate::evidence::PEAK_DB),
                 &significance,
                 colour::GUIDE,
                 1,
@@ -246,7 +243,7 @@ fn spectrum(h: &mut String, inputs: &Inputs<'_>, number: usize, ev: &TestEvidenc
     let peaks = if s.peaks.is_empty() {
         format!(
             "no peak stands {} dB above the floor",
-            crate::modelling::evidence::PEAK_DB
+            crate::evidence::PEAK_DB
         )
     } else {
         s.peaks

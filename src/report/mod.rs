@@ -8,7 +8,7 @@
 //! input cross-correlation with their 99 % bands, the Bode plot of the model, the compensator
 //! and their product (with the physical prediction when the model file has a `[probe]`
 //! geometry), the pole-zero map, the modes table, the error history and the ranked candidates.
-//! It presents; the numbers come from [`crate::modelling::evidence`], [`crate::modelling::diagnose`],
+//! It presents; the numbers come from [`crate::evidence`], [`crate::modelling::diagnose`],
 //! [`crate::fit::analysis`], [`crate::design::inverse`] and [`crate::pipeline`] (the compensated
 //! signal, as `unlag compensate` gives it). The charts are in [`plot`].
 
@@ -16,10 +16,10 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::error::Result;
+use crate::evidence::TestEvidence;
 use crate::file::ModelFile;
 use crate::fit::Test;
 use crate::modelling::diagnose::{Candidate, Remedy};
-use crate::modelling::evidence::TestEvidence;
 
 mod compensated;
 mod each_test;
@@ -399,9 +399,7 @@ mod tests {
         let c = Candidate {
             margin: 0.5,
             ..Candidate::new(
-                crate::modelling::diagnose::Finding::Missing(
-                    crate::modelling::effects::EffectKind::Leak,
-                ),
+                crate::modelling::diagnose::Finding::Missing(crate::effects::EffectKind::Leak),
                 0.5,
                 (
                     crate::modelling::diagnose::Evidence::Leak {
@@ -412,7 +410,7 @@ mod tests {
                     },
                     "a slow creep & more".into(),
                 ),
-                Remedy::Add(crate::modelling::effects::Effect::Leak),
+                Remedy::Add(crate::effects::Effect::Leak),
                 (0.0123, 0.00456),
             )
         };

@@ -6,7 +6,7 @@
 //! around the middle between two sets does not swap back and forth) and the handover of a
 //! running channel ([`BankChannel`]) from one set to the next without a jump. The sets are
 //! designed on the host (`unlag export MODEL --temperatures FROM:TO:STEP`, see
-//! `unlag::modelling::effects` (host)): a board cannot redesign the inverse itself.
+//! `unlag::effects` (host)): a board cannot redesign the inverse itself.
 //!
 //! # Selection
 //!

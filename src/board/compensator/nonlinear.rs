@@ -3,7 +3,7 @@
 
 use super::{CascadeCoefficients, CascadeState, InverseError, Sample};
 
-/// The board's share of the `nonlinear-damping` effect (see `unlag::modelling::effects` (host)): the
+/// The board's share of the `nonlinear-damping` effect (see `unlag::effects` (host)): the
 /// correction `gain * lowpass(|dy| dy)`, `dy = y[k] - y[k-1]`, to add to the linear
 /// compensator's output ([`CascadeCoefficients`]) for the same sample.
 ///

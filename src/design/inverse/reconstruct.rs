@@ -200,7 +200,7 @@ pub fn reconstruct(design: &Design, model: &Model, test: &Test<'_>) -> Result<Re
 
 /// [`reconstruct`] for a model with the `nonlinear-damping` effect: the compensator's output
 /// plus the board's correction for the quadratic loss `nonlinear_gain` (s^2 per probe unit,
-/// see [`crate::modelling::effects`]); with `nonlinear_gain = 0` exactly [`reconstruct`].
+/// see [`crate::effects`]); with `nonlinear_gain = 0` exactly [`reconstruct`].
 ///
 /// # Errors
 /// As [`Design::run`] and [`Design::run_nonlinear_correction`].

@@ -5,9 +5,9 @@
 use serde::Serialize;
 
 use super::Current;
+use crate::effects::{Effect, FitChanges, TemperatureDamping};
+use crate::evidence::TestEvidence;
 use crate::fit::{Options, Order, Test};
-use crate::modelling::effects::{Effect, FitChanges, TemperatureDamping};
-use crate::modelling::evidence::TestEvidence;
 
 use super::JointLoss;
 
@@ -441,7 +441,7 @@ pub fn temperature_reading(
 }
 
 /// One model fitted to all `tests` at once, with a quadratic loss and without, from the
-/// current model ([`crate::modelling::effects::joint_loss`]); `None` with one test, or a model
+/// current model ([`crate::effects::joint_loss`]); `None` with one test, or a model
 /// that has a quadratic loss already or effects that change each test differently (a sensor
 /// resonance's prefilter, a temperature's scale). An offset or a drift in the model is left in
 /// both fits' errors alike.
@@ -458,7 +458,7 @@ pub fn joint_loss_evidence(current: &Current<'_>, tests: &[Test<'_>]) -> Option<
     if tests.len() < 2 || changed {
         return None;
     }
-    let (linear, joint) = crate::modelling::effects::joint_loss(current.model, tests)?;
+    let (linear, joint) = crate::effects::joint_loss(current.model, tests)?;
     Some(JointLoss {
         tests: tests.iter().map(|t| t.name.to_string()).collect(),
         fall: linear.rms() / joint.rms(),
@@ -489,7 +489,7 @@ impl JointLoss {
             self.gain_s2_per_unit,
             pct(&self.linear_nrmse),
             self.fall,
-            crate::modelling::effects::rises_with_loss(
+            crate::effects::rises_with_loss(
                 &self.tests.iter().map(String::as_str).collect::<Vec<_>>(),
                 &self.linear_nrmse,
                 &self.nrmse
@@ -614,7 +614,7 @@ mod tests {
     fn both_time_scales_move_by_the_factor_that_scales_time() {
         let model = crate::testing::overdamped(4.0, 100.0, 3000.0, 20);
         for k in [0.8, 1.15] {
-            let scaled = crate::modelling::effects::scaled(&model, k).unwrap();
+            let scaled = crate::effects::scaled(&model, k).unwrap();
             let (a, b) = (time_scales(&model), time_scales(&scaled));
             assert_eq!((a.len(), b.len()), (2, 2));
             for (x, y) in a.iter().zip(&b) {

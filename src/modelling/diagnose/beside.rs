@@ -15,10 +15,10 @@ use serde::Serialize;
 
 use super::trial::{adding, options, trial_window, Tried};
 use super::{Candidate, Current, Remedy, MIN_IMPROVEMENT};
+use crate::effects::{self, Effect, EffectKind, FitChanges};
+use crate::evidence::TestEvidence;
+use crate::fit::error_rose;
 use crate::fit::Test;
-use crate::modelling::effects::{self, Effect, EffectKind, FitChanges};
-use crate::modelling::error_rose;
-use crate::modelling::evidence::TestEvidence;
 
 /// The effect added beside a candidate's own, with what its trial left.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -6,7 +6,7 @@ use serde::ser::SerializeStruct;
 use serde::{Serialize, Serializer};
 
 use super::TemperatureRow;
-use crate::modelling::effects::{rms, EffectKind, TemperatureDamping};
+use crate::effects::{rms, EffectKind, TemperatureDamping};
 
 /// What a coloured-noise trial fits, and the error it then reports
 /// ([`Evidence::ColouredNoise`]'s `fit`).
@@ -375,7 +375,7 @@ impl NonlinearDamping {
 }
 
 /// One model fitted to all the tests at once, with a quadratic loss and without
-/// ([`crate::modelling::effects::joint_loss`]): one step cannot tell the loss from a linear
+/// ([`crate::effects::joint_loss`]): one step cannot tell the loss from a linear
 /// damping, but no single linear model explains steps of different sizes when the probe has
 /// it.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -6,8 +6,8 @@ use serde::Serialize;
 #[cfg(doc)]
 use super::PARAMETER_PENALTY;
 use super::{Beside, Evidence, OrderRule, Remedy};
+use crate::effects::{self, EffectKind};
 use crate::fit::model::Uncertainty;
-use crate::modelling::effects::{self, EffectKind};
 
 /// What a diagnosis names: a missing effect, nothing missing, or something missing that no
 /// effect of the catalogue explains. Its text is the candidate's `kind` in `--json`: the
@@ -17,7 +17,7 @@ use crate::modelling::effects::{self, EffectKind};
 ///
 /// ```
 /// use unlag::modelling::diagnose::Finding;
-/// use unlag::modelling::effects::EffectKind;
+/// use unlag::effects::EffectKind;
 ///
 /// assert_eq!(Finding::Missing(EffectKind::Leak).to_string(), "leak");
 /// assert_eq!(Finding::Nothing.to_string(), "none");
@@ -264,7 +264,7 @@ impl TestToRecord {
 ///
 /// ```
 /// use unlag::modelling::diagnose::{separating_test, Finding, TestToRecord};
-/// use unlag::modelling::effects::EffectKind;
+/// use unlag::effects::EffectKind;
 ///
 /// let t = separating_test(
 ///     Finding::Missing(EffectKind::Temperature),

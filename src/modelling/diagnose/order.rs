@@ -4,8 +4,8 @@
 use serde::Serialize;
 
 use super::{separating_test, Candidate, Evidence, ModeEvidence, NonlinearDamping, CLOSE_MARGIN};
-use crate::modelling::effects::EffectKind;
-use crate::modelling::evidence::{Trend, NARROW_PEAK_Q};
+use crate::effects::EffectKind;
+use crate::evidence::{Trend, NARROW_PEAK_Q};
 
 /// A leak lowers the probe's static gain (`1 / (1 + R G)` for a leaking cavity, below 1 for a
 /// leaking side volume too); a thermal creep, the other slow pole the `leak` effect models,
@@ -861,7 +861,7 @@ mod tests {
             Evidence::Temperature(crate::modelling::diagnose::TemperatureShift {
                 add: EffectKind::Temperature,
                 common_ratio: 1.165,
-                damping: crate::modelling::effects::TemperatureDamping::Constant,
+                damping: crate::effects::TemperatureDamping::Constant,
                 damping_ratio: 1.0,
                 estimated_scale: Vec::new(),
                 per_test: Vec::new(),
@@ -912,7 +912,7 @@ mod tests {
             Evidence::Temperature(crate::modelling::diagnose::TemperatureShift {
                 add: EffectKind::TemperatureViscous,
                 common_ratio: 0.86,
-                damping: crate::modelling::effects::TemperatureDamping::Viscous,
+                damping: crate::effects::TemperatureDamping::Viscous,
                 damping_ratio: 1.0,
                 estimated_scale: Vec::new(),
                 per_test: Vec::new(),
@@ -1006,7 +1006,7 @@ mod tests {
             temperature(false, trial, Some(joint)),
         );
         let l = candidate(EffectKind::NonlinearDamping, 0.28, loss(lossy));
-        let ratio = crate::modelling::effects::rms(&lossy) / crate::modelling::effects::rms(&trial);
+        let ratio = crate::effects::rms(&lossy) / crate::effects::rms(&trial);
         assert!((margin(&t, Some(&l)) - ratio.ln()).abs() < 1e-12);
         assert!((margin(&l, Some(&t)) + ratio.ln()).abs() < 1e-12);
         // Until both are fitted so, and for any other pair, the scores' difference; the last
@@ -1054,7 +1054,7 @@ mod tests {
 
     /// A capillary's probe (8 kHz, corners 4 and 60 Hz) after a step at sample 1000, with white
     /// noise on the probe and `extra` added to its output: the evidence the diagnosis reads.
-    fn residual_evidence(extra: impl Fn(f64) -> f64) -> crate::modelling::evidence::TestEvidence {
+    fn residual_evidence(extra: impl Fn(f64) -> f64) -> crate::evidence::TestEvidence {
         let fs = 8000.0;
         let model = crate::testing::overdamped(4.0, 60.0, fs, 3);
         let u: Vec<f64> = (0..8000)
@@ -1066,7 +1066,7 @@ mod tests {
             .enumerate()
             .map(|(k, v)| v + extra(k as f64 / fs))
             .collect();
-        crate::modelling::evidence::TestEvidence::measure(
+        crate::evidence::TestEvidence::measure(
             "t",
             crate::fit::TestRole::Validation,
             &model,
@@ -1077,7 +1077,7 @@ mod tests {
 
     #[test]
     fn a_drift_keeps_its_ramp_to_the_end_and_a_hump_after_the_step_does_not() {
-        let kept = |e: &crate::modelling::evidence::TestEvidence| {
+        let kept = |e: &crate::evidence::TestEvidence| {
             ramp_kept(&e.trend, e.samples, e.step_onset, 8000.0)
         };
         // A sensor drifting at 20 units per second, from the record's start.

@@ -10,11 +10,11 @@ use super::{
     Candidate, Current, Evidence, Finding, ModeEvidence, NonlinearDamping, Remedy, Spectrum,
     COLOURED_NOISE_FIT, CREEP_SETTLED_BELOW, LEAK_DC_GAIN_BELOW,
 };
+use crate::effects::{self, Effect, EffectKind, FitChanges};
 use crate::error::Result;
+use crate::evidence::TestEvidence;
 use crate::fit::model::Uncertainty;
 use crate::fit::{Method, Options, Test, TestRole};
-use crate::modelling::effects::{self, Effect, EffectKind, FitChanges};
-use crate::modelling::evidence::TestEvidence;
 
 /// A trial must lower the held-out error by at least this factor to be offered.
 pub const MIN_IMPROVEMENT: f64 = 1.15;
@@ -110,7 +110,7 @@ pub(super) fn rank_at(
         .iter()
         .filter_map(|e| {
             let last = e.model_error.db.last().copied()?;
-            (last > crate::modelling::evidence::MODEL_ERROR_PEAK_DB).then_some((e, last))
+            (last > crate::evidence::MODEL_ERROR_PEAK_DB).then_some((e, last))
         })
         .max_by(|a, b| a.1.total_cmp(&b.1));
     let residual_peak = evidence

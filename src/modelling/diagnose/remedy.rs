@@ -6,15 +6,13 @@
 
 use serde::{Serialize, Serializer};
 
-use crate::modelling::effects::{
-    Effect, EffectKind, SensorRemedy, TemperatureDamping, DEFAULT_REFERENCE_K,
-};
+use crate::effects::{Effect, EffectKind, SensorRemedy, TemperatureDamping, DEFAULT_REFERENCE_K};
 
 /// The change that adds what a candidate names.
 ///
 /// ```
 /// use unlag::modelling::diagnose::Remedy;
-/// use unlag::modelling::effects::Effect;
+/// use unlag::effects::Effect;
 ///
 /// let r = Remedy::Add(Effect::Mode { near_hz: Some(120.2) });
 /// assert_eq!(

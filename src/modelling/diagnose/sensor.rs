@@ -2,7 +2,7 @@
 //! the probe's peak beside it where the probe shows one.
 
 use super::{ProbePeak, SensorResonance, Spectrum, SAME_FREQUENCY, SENSOR_RESONANCE_REMEDY};
-use crate::modelling::evidence::{Peak, TestEvidence};
+use crate::evidence::{Peak, TestEvidence};
 
 /// What says the transducers ring: the reference's ringing, the test it rings most in, and
 /// the probe's peak near it, if any.

@@ -7,9 +7,9 @@ use super::{
     temperature_evidence, temperature_reading, temperature_shift, Current, Evidence, Remedy,
     ScaleEstimate, TemperatureShift, MIN_IMPROVEMENT,
 };
+use crate::effects::{self, Effect, EffectKind, TemperatureDamping};
+use crate::evidence::TestEvidence;
 use crate::fit::{Options, Test};
-use crate::modelling::effects::{self, Effect, EffectKind, TemperatureDamping};
-use crate::modelling::evidence::TestEvidence;
 
 /// A temperature read from its trial alone must lower the held-out error by this much,
 /// counted down to the floor both channels' noise leaves and no further: the square of the
@@ -311,9 +311,9 @@ pub(super) fn candidate(
 
 #[cfg(test)]
 mod tests {
+    use crate::effects::EffectKind;
     use crate::fit::{Method, Test};
     use crate::modelling::diagnose::{self, Candidate, Current, Evidence, Finding};
-    use crate::modelling::effects::EffectKind;
     use crate::testing::{second_order, traverse, with_noise};
 
     #[test]
@@ -370,7 +370,7 @@ mod tests {
             with_noise(&step, 0.05, 1),
             with_noise(&model.simulate(&step), 0.05, 2),
         );
-        let probe = crate::modelling::effects::scaled(model, hot).unwrap();
+        let probe = crate::effects::scaled(model, hot).unwrap();
         // The record starts in the middle of the traverse: 2000 samples came before it.
         let lead = 2000;
         let pressure: Vec<f64> = traverse(fs, 300.0, lead, 12_000)

@@ -2,11 +2,11 @@
 //! with effects is judged by, and the first change made as the user's fit will make it.
 
 use super::{mean, Candidate, Current, Remedy};
+use crate::effects::{self, Effect, FitChanges};
+use crate::evidence::TestEvidence;
+use crate::fit::error_rose;
 use crate::fit::model::Model;
 use crate::fit::{Options, Order, Test};
-use crate::modelling::effects::{self, Effect, FitChanges};
-use crate::modelling::error_rose;
-use crate::modelling::evidence::TestEvidence;
 
 /// A trial on a record longer than this refits on this many samples from just before the step
 /// (the held-out error is still judged on the whole records): ranking the candidates needs
@@ -63,7 +63,7 @@ pub(super) struct Tried {
     pub nrmse: Vec<f64>,
     pub delay: usize,
     /// The model the trial fitted (its order can be lower than the one it started from:
-    /// [`crate::modelling::effects::fit_with`] steps down where a temperature cannot scale it).
+    /// [`crate::effects::fit_with`] steps down where a temperature cannot scale it).
     pub model: Model,
 }
 
@@ -155,8 +155,8 @@ pub(super) fn keep_delay_if_search_raises(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::effects::EffectKind;
     use crate::modelling::diagnose::{Evidence, Finding};
-    use crate::modelling::effects::EffectKind;
 
     /// A leak's candidate whose trial (at the model's delay) leaves 0.711 %.
     fn leak() -> Candidate {

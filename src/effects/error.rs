@@ -1,11 +1,11 @@
-//! What can go wrong in the modelling room (the effects' fits and their scalings), in its
-//! own words (no command-line flags).
+//! What can go wrong in the effects' fits and their scalings, in their own words (no
+//! command-line flags).
 
-/// What the modelling room owns of the host's errors: a numerical step of an effect's fit or
+/// What the effects own of the host's errors: a numerical step of an effect's fit or
 /// scaling that failed, and an effect that cannot be resolved from the tests without a value.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
-pub enum ModellingError {
+pub enum EffectError {
     /// A fit was asked for without an estimation test.
     #[error("fit: no estimation test")]
     NoEstimationTest,
@@ -28,7 +28,7 @@ pub enum ModellingError {
     NoSensorResonance,
 }
 
-impl ModellingError {
+impl EffectError {
     /// The kind of problem, one stable kebab-case word per variant (as
     /// [`crate::error::Error::kind`]): `numerical`, or `invalid-argument` for a value that
     /// must be given.
@@ -41,12 +41,12 @@ impl ModellingError {
     }
 }
 
-impl crate::error::StageError for ModellingError {
+impl crate::error::StageError for EffectError {
     fn kind(&self) -> &'static str {
-        ModellingError::kind(self)
+        EffectError::kind(self)
     }
 }
-crate::error::stage_error!(ModellingError);
+crate::error::stage_error!(EffectError);
 
 #[cfg(test)]
 mod tests {
@@ -55,11 +55,11 @@ mod tests {
 
     #[test]
     fn the_text_and_kind_are_those_of_before() {
-        let e: Error = ModellingError::NoEstimationTest.into();
+        let e: Error = EffectError::NoEstimationTest.into();
         assert_eq!(e.to_string(), "fit: no estimation test");
         assert_eq!(e.kind(), "numerical");
         assert_eq!(e.location(), (None, None, None));
-        let e: Error = ModellingError::NoSensorResonance.into();
+        let e: Error = EffectError::NoSensorResonance.into();
         assert_eq!(e.kind(), "invalid-argument");
         assert_eq!(
             e.to_string(),

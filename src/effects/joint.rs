@@ -71,7 +71,7 @@ pub fn rms(nrmse: &[f64]) -> f64 {
 }
 
 /// The tests whose error the loss raises over the best single linear model's by more than a
-/// refit's warning ([`crate::modelling::error_rose`]), said for a note or a reading: `None` where
+/// refit's warning ([`crate::fit::error_rose`]), said for a note or a reading: `None` where
 /// it raises none. A loss the tests fitted together agree on lowers each test's error, or
 /// leaves it; a light loss fitted over them all can still trade a clear fall on one test
 /// for a small rise on another, and on a further run held out.
@@ -80,7 +80,7 @@ pub fn rises_with_loss(names: &[&str], linear: &[f64], joint: &[f64]) -> Option<
     let risen: Vec<String> = names
         .iter()
         .zip(linear.iter().zip(joint))
-        .filter(|(_, (l, j))| crate::modelling::error_rose(**l, **j))
+        .filter(|(_, (l, j))| crate::fit::error_rose(**l, **j))
         .map(|(n, (l, j))| format!("{n} ({:.3} % -> {:.3} %)", 100.0 * l, 100.0 * j))
         .collect();
     (!risen.is_empty()).then(|| {
@@ -625,7 +625,7 @@ fn fold_test(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::modelling::effects::simulate_nonlinear;
+    use crate::effects::simulate_nonlinear;
 
     #[test]
     fn a_loss_that_raises_one_tests_error_over_the_linear_models_is_said() {
@@ -689,7 +689,7 @@ mod tests {
         let y_big = crate::testing::with_noise(&simulate_nonlinear(&truth, gain, &u_big), 11.2, 41);
         let y_small =
             crate::testing::with_noise(&simulate_nonlinear(&truth, gain, &u_small), 11.2, 42);
-        let measured = crate::modelling::effects::quadratic_rate(&y_big, truth.fs)
+        let measured = crate::effects::quadratic_rate(&y_big, truth.fs)
             .iter()
             .fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(measured > 4.0 * rate, "{measured} against {rate}");

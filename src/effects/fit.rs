@@ -10,10 +10,10 @@ use super::{
     estimate_additive, prefilter_sections, prefiltered, scale_for, simulate_nonlinear, Additive,
     Effect, FitChanges, SensorRemedy,
 };
+use crate::effects::EffectError;
 use crate::error::Result;
 use crate::fit::model::Model;
 use crate::fit::{Fitted, Options, Order, Test};
-use crate::modelling::ModellingError;
 
 mod fallback;
 pub use fallback::fit_with_also_reading_creep;
@@ -23,7 +23,7 @@ pub use fallback::fit_with_also_reading_creep;
 /// half of it.
 ///
 /// # Errors
-/// [`ModellingError::NoSensorResonance`] when the reference shows no resonance to filter
+/// [`EffectError::NoSensorResonance`] when the reference shows no resonance to filter
 /// below; [`crate::error::Error::InvalidArgument`] when the prefilter's corner is not below
 /// half the sample rate.
 pub fn resolve(effects: &[Effect], u: &[f64], fs: f64) -> Result<Vec<Effect>> {
@@ -38,9 +38,9 @@ pub fn resolve(effects: &[Effect], u: &[f64], fs: f64) -> Result<Vec<Effect>> {
                 let f = if *natural_frequency_hz > 0.0 {
                     *natural_frequency_hz
                 } else {
-                    crate::modelling::evidence::reference_ringing(u, fs)
+                    crate::evidence::reference_ringing(u, fs)
                         .map(|p| p.frequency_hz)
-                        .ok_or(ModellingError::NoSensorResonance)?
+                        .ok_or(EffectError::NoSensorResonance)?
                 };
                 if *remedy == SensorRemedy::Modes {
                     if f >= 0.5 * fs {
@@ -151,7 +151,7 @@ pub fn fit_with_also(
         .zip(std::iter::once(estimation).chain(also).chain(validation))
         .map(|((u, y), t)| Test { name: t.name, u, y });
     let Some(estimation) = tests.next() else {
-        return Err(ModellingError::NoEstimationTest.into());
+        return Err(EffectError::NoEstimationTest.into());
     };
     let also: Vec<Test<'_>> = tests.by_ref().take(also.len()).collect();
     let validation: Vec<Test<'_>> = tests.collect();
@@ -206,7 +206,7 @@ pub fn fit_with_also(
             })
             .collect();
         let Some(est) = cleaned.first().copied() else {
-            return Err(ModellingError::NoEstimationTest.into());
+            return Err(EffectError::NoEstimationTest.into());
         };
         let together = cleaned.len() > 1;
         let f = if changes.nonlinear {
@@ -246,7 +246,7 @@ pub fn fit_with_also(
         fitted = Some(f);
     }
     let additive = additive.first().copied().unwrap_or_default();
-    let fitted = fitted.ok_or(ModellingError::NoFit)?;
+    let fitted = fitted.ok_or(EffectError::NoFit)?;
     let out: Vec<Effect> = effects
         .iter()
         .map(|e| match e {

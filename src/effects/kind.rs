@@ -20,7 +20,7 @@ use super::{Effect, SensorRemedy, TemperatureDamping};
 /// serde's) are the same strings everywhere: model files, `--json` output, `--add`.
 ///
 /// ```
-/// use unlag::modelling::effects::EffectKind;
+/// use unlag::effects::EffectKind;
 ///
 /// let k: EffectKind = "temperature-viscous".parse().unwrap();
 /// assert_eq!(k, EffectKind::TemperatureViscous);

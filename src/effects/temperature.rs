@@ -292,7 +292,7 @@ fn scale_continuous(ct: &Continuous, k: f64, damping_factor: f64, fs: f64) -> Re
         .iter()
         .any(|r| !(r.re.is_finite() && r.im.is_finite()))
     {
-        return Err(crate::modelling::ModellingError::CoincidentPoles { damping_factor }.into());
+        return Err(crate::effects::EffectError::CoincidentPoles { damping_factor }.into());
     }
     out.poles = new
         .into_iter()
@@ -325,7 +325,7 @@ pub fn scaled(model: &Model, k: f64) -> Result<Model> {
 /// any) is multiplied by the product of the new poles over the old.
 ///
 /// # Errors
-/// As [`scaled`]; [`crate::modelling::ModellingError::CoincidentPoles`] when two moved poles coincide.
+/// As [`scaled`]; [`crate::effects::EffectError::CoincidentPoles`] when two moved poles coincide.
 pub fn scaled_with(model: &Model, k: f64, damping_factor: f64) -> Result<Model> {
     let ct = Continuous::from_model(model)?;
     scale_continuous(&ct, k, damping_factor, model.fs)

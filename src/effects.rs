@@ -3,7 +3,7 @@
 //! This module owns [`Effect`] (stored in the model file as `effects = [...]`), how a fit
 //! honours each effect ([`FitChanges`]), and how the model's prediction and the compensator's
 //! input are corrected for the additive ones ([`Additive`]). Finding which effect is missing is
-//! [`crate::modelling::diagnose`]'s job; measuring the residual is [`crate::modelling::evidence`]'s.
+//! [`crate::modelling::diagnose`]'s job; measuring the residual is [`crate::evidence`]'s.
 //!
 //! | kind | change to the model | on the board |
 //! |---|---|---|
@@ -43,6 +43,7 @@ use serde::{Deserialize, Serialize};
 use crate::fit::Method;
 
 mod additive;
+mod error;
 mod fit;
 mod joint;
 mod kind;
@@ -52,6 +53,7 @@ mod prefilter;
 mod temperature;
 
 pub use additive::{estimate_additive, Additive};
+pub use error::EffectError;
 pub use fit::{fit_with, fit_with_also, fit_with_also_reading_creep, resolve};
 pub use joint::{joint_linear, joint_loss, rises_with_loss, rms, JointFit, MAX_LOSS_SCALES};
 pub use kind::{EffectKind, UnknownKind, KINDS};

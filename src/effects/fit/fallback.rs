@@ -422,7 +422,7 @@ mod tests {
         );
         let warm = [Effect::Temperature {
             reference_k: 293.15,
-            damping: crate::modelling::effects::TemperatureDamping::Diffusive,
+            damping: crate::effects::TemperatureDamping::Diffusive,
         }];
         let (fitted, _) = fit_with(&est, &[], fs, &options, &warm).unwrap();
         assert_eq!(fitted.model.order(), 1);

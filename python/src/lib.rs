@@ -13,7 +13,10 @@ use pyo3::types::PyBytes;
 use sha2::{Digest, Sha256};
 
 use unlag::cli::export::ExportArgs;
-use unlag::cli::{ColumnArgs, FitArgs};
+use unlag::cli::inspect::ResampleArgs;
+use unlag::cli::physics::SimulateTestArgs;
+use unlag::cli::predict::PredictArgs;
+use unlag::cli::{ColumnArgs, FitArgs, InvertArgs};
 use unlag::file::{BoardArithmetic, ModelFile};
 use unlag::fit::Test;
 use unlag::pipeline::{self, Arithmetic, CompensateRequest, Compensation};
@@ -78,6 +81,43 @@ struct ColumnsCli {
 struct ExportCli {
     #[command(flatten)]
     export: ExportArgs,
+}
+
+/// `unlag invert`'s arguments.
+#[derive(Parser)]
+struct InvertCli {
+    #[command(flatten)]
+    invert: InvertArgs,
+}
+
+/// `unlag resample`'s arguments.
+#[derive(Parser)]
+struct ResampleCli {
+    #[command(flatten)]
+    resample: ResampleArgs,
+}
+
+/// `unlag simulate-test`'s arguments.
+#[derive(Parser)]
+struct SimulateTestCli {
+    #[command(flatten)]
+    simulate: SimulateTestArgs,
+}
+
+/// `unlag predict`'s arguments.
+#[derive(Parser)]
+struct PredictCli {
+    #[command(flatten)]
+    predict: PredictArgs,
+}
+
+/// `argv` of the command `program` (its name first): `head`, then `flags`.
+fn argv(program: &str, head: &[&str], flags: Vec<String>) -> Vec<String> {
+    std::iter::once(program)
+        .chain(head.iter().copied())
+        .map(String::from)
+        .chain(flags)
+        .collect()
 }
 
 /// A float64 array returned to Python (the vector moved into it, not copied).
@@ -277,6 +317,58 @@ fn diagnose(
             unlag::cli::modelling::candidates_json(&d.candidates)?.to_string(),
             unlag::cli::modelling::tests_json(&d.evidence)?.to_string(),
         ))
+    };
+    py.detach(run).map_err(|e| py_err(&e))
+}
+
+/// `unlag simulate-test` with `flags` (the CLI's, less `-o`): the columns of the CSV file it
+/// writes, `(t, u, y)`, and the lines it prints on stderr where the simulation fell short.
+#[pyfunction]
+fn simulate_test<'py>(
+    py: Python<'py>,
+    flags: Vec<String>,
+) -> PyResult<(Array<'py>, Array<'py>, Array<'py>, Vec<String>)> {
+    let args = parse::<SimulateTestCli>(argv("unlag simulate-test", &["-o", "-"], flags))?.simulate;
+    let (test, notes) = py
+        .detach(|| {
+            let mut notes = Vec::new();
+            let (test, _system, _adc) =
+                unlag::cli::physics::simulated_test(&args, &mut |line| notes.push(line))?;
+            Ok::<_, unlag::Error>((test, notes))
+        })
+        .map_err(|e| py_err(&e))?;
+    Ok((
+        test.t.into_pyarray(py),
+        test.reference.into_pyarray(py),
+        test.probe.into_pyarray(py),
+        notes,
+    ))
+}
+
+/// `unlag predict --json` with `flags` (the CLI's, less `--model` and `--json`), compared
+/// with `model` when given: its JSON object.
+#[pyfunction]
+#[pyo3(signature = (flags, model=None))]
+fn predict(
+    py: Python<'_>,
+    flags: Vec<String>,
+    model: Option<PyRef<'_, NativeModel>>,
+) -> PyResult<String> {
+    let args = parse::<PredictCli>(argv("unlag predict", &[], flags))?.predict;
+    let fitted = model.as_ref().map(|m| &m.file.model);
+    let run = || -> unlag::error::Result<String> {
+        // A wrong count is told before the probe is built, as the command line does.
+        unlag::physics::check_mode_count(args.modes).map_err(unlag::Error::from)?;
+        let system = args.system.build()?;
+        let p = unlag::physics::predict_and_compare(&unlag::physics::PredictRequest {
+            line: &system.line,
+            gas: &system.gas,
+            modes: args.modes,
+            model: fitted,
+        })?;
+        let v =
+            unlag::cli::predict::prediction_json(&system, &p.prediction, p.comparison.as_ref())?;
+        Ok(v.to_string())
     };
     py.detach(run).map_err(|e| py_err(&e))
 }
@@ -508,6 +600,87 @@ impl NativeModel {
         unlag::fit::analysis::default_frequencies(self.file.model.fs).into_pyarray(py)
     }
 
+    /// The model with its compensator designed anew on `tests` (each at its rate in `rates`),
+    /// as `unlag invert` with `flags` (the compensator's and the column flags). Returns the
+    /// model and the warnings.
+    fn invert(
+        &self,
+        py: Python<'_>,
+        tests: Vec<PyTest<'_>>,
+        rates: Vec<f64>,
+        flags: Vec<String>,
+    ) -> PyResult<(NativeModel, Vec<String>)> {
+        let path = self.path.display().to_string();
+        let args = parse::<InvertCli>(argv("unlag invert", &[&path, "-o", "-"], flags))?.invert;
+        let tests = slices(&tests)?;
+        let file = &self.file;
+        let run = || -> unlag::error::Result<(ModelFile, Vec<String>)> {
+            // As the command line: each test's step as it is read, then each one's rate.
+            check_steps(&tests)?;
+            for (t, &fs) in tests.iter().zip(&rates) {
+                pipeline::check_model_rate(file, Path::new(t.name), fs)?;
+            }
+            let board = args.inverse.board(file.board, &args.columns);
+            let spec = args.inverse.spec(&args.columns, file.model.fs, &board)?;
+            let compensator = pipeline::design_compensator(&pipeline::CompensatorRequest {
+                model: &file.model,
+                effects: &file.effects,
+                tests: &tests,
+                roles: pipeline::Roles::Alike,
+                stored: file.inverse.as_ref(),
+                spec: &spec,
+                exportable: true,
+            })?;
+            let design = compensator.design?;
+            let warnings = compensator
+                .unplanned
+                .iter()
+                .map(|e| format!("no fixed-point compensator: {e}"))
+                .collect();
+            let out = ModelFile {
+                inverse: Some(design),
+                board,
+                ..file.clone()
+            };
+            Ok((out, warnings))
+        };
+        let (file, warnings) = py.detach(run).map_err(|e| py_err(&e))?;
+        Ok((
+            NativeModel {
+                file,
+                path: self.path.clone(),
+            },
+            warnings,
+        ))
+    }
+
+    /// The model at the sample rate `fs` (the text of a number, as `--fs` takes it), as
+    /// `unlag resample`: without a compensator. Returns the model and the warnings.
+    fn resample(&self, py: Python<'_>, fs: String) -> PyResult<(NativeModel, Vec<String>)> {
+        let path = self.path.display().to_string();
+        let args = parse::<ResampleCli>(argv(
+            "unlag resample",
+            &[&path, "--fs", &fs, "-o", "-"],
+            vec![],
+        ))?
+        .resample;
+        let run = || {
+            pipeline::resample(&pipeline::ResampleRequest {
+                file: &self.file,
+                model_path: &self.path,
+                sample_rate_hz: args.fs,
+            })
+        };
+        let r = py.detach(run).map_err(|e| py_err(&e))?;
+        Ok((
+            NativeModel {
+                file: r.file,
+                path: self.path.clone(),
+            },
+            r.discretised.warnings,
+        ))
+    }
+
     /// What `unlag export` writes for the model with `flags` (`--format` and the rest).
     fn export<'py>(&self, py: Python<'py>, flags: Vec<String>) -> PyResult<Bound<'py, PyBytes>> {
         let argv = [
@@ -537,6 +710,8 @@ fn _unlag(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(loads, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(compare, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate_test, m)?)?;
+    m.add_function(wrap_pyfunction!(predict, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -325,3 +325,103 @@ def test_the_examples_run(script, says):
     )
     assert p.returncode == 0, p.stderr
     assert says in p.stdout, p.stdout
+
+
+# --- invert, resample, simulate-test, predict ----------------------------------------------
+
+
+def test_invert_is_the_command_lines(cli, cli_model, tests, tmp_path):
+    """The compensator designed anew: the same model file as `unlag invert` writes."""
+    out = tmp_path / "inverted.toml"
+    p = cli("invert", cli_model, "step_test_2.csv", "--bandwidth", "auto", "-o", out, cwd=DATA)
+    assert p.returncode == 0, p.stderr
+    model = unlag.load(cli_model)
+    got = model.invert([tests[1]], names=["step_test_2.csv"], bandwidth="auto")
+    assert isinstance(got, unlag.Model)
+    assert got.to_toml() == out.read_text()
+    assert model.to_toml() == unlag.load(cli_model).to_toml()  # the model itself unchanged
+
+
+def test_invert_refuses_what_the_command_line_refuses(cli, cli_model, tests, tmp_path):
+    with pytest.raises(unlag.InvalidArgumentError) as e:
+        unlag.load(cli_model).invert([tests[1]], bandwidth="fast")
+    p = cli("invert", cli_model, DATA / "step_test_2.csv", "--bandwidth", "fast", "-o", tmp_path / "x.toml")
+    assert str(e.value) == cli_error(p)
+    # A test at another rate than the model's.
+    val = tests[1]
+    with pytest.raises(unlag.DataError):
+        unlag.load(cli_model).invert([(val.u, val.y, 20_000.0)])
+
+
+def test_resample_is_the_command_lines(cli, cli_model, tmp_path):
+    out = tmp_path / "resampled.toml"
+    p = cli("resample", cli_model, "--fs", "20000", "-o", out)
+    assert p.returncode == 0, p.stderr
+    got = unlag.load(cli_model).resample(20_000)
+    assert got.to_toml() == out.read_text()
+    assert got.fs == 20_000.0 and got.latency is None
+
+
+def test_resample_refuses_what_the_command_line_refuses(cli, cli_model, tmp_path):
+    with pytest.raises(unlag.InvalidArgumentError) as e:
+        unlag.load(cli_model).resample(-1)
+    p = cli("resample", cli_model, "--fs", "-1", "-o", tmp_path / "x.toml")
+    assert str(e.value) == cli_error(p)
+
+
+SIMULATED = dict(fs=20_000, excitation="shock", volume=2e-7, line=[(0.3, 1e-3)], duration=0.02, noise=0.5, seed=7)
+
+
+def test_simulate_test_is_the_command_lines(cli, tmp_path):
+    out = tmp_path / "sim.csv"
+    p = cli(
+        "simulate-test", "--fs", "20000", "--excitation", "shock", "--volume", "2e-7",
+        "--line", "0.3,0.001", "--duration", "0.02", "--noise", "0.5", "--seed", "7", "-o", out,
+    )
+    assert p.returncode == 0, p.stderr
+    with open(out, newline="") as f:
+        rows = list(csv.DictReader(f))
+    t, u, y = unlag.simulate_test(**SIMULATED)
+    assert t.dtype == u.dtype == y.dtype == np.float64 and t.shape == u.shape == y.shape == (len(rows),)
+    # u and y are written as the shortest text that reads back to them, t to the nanosecond.
+    assert np.array_equal(u, [float(r["u"]) for r in rows])
+    assert np.array_equal(y, [float(r["y"]) for r in rows])
+    assert [f"{x:.9f}" for x in t] == [r["t"] for r in rows]
+
+
+def test_simulate_test_refuses_what_the_command_line_refuses(cli, tmp_path):
+    bad = {**SIMULATED, "line": "0.3"}
+    with pytest.raises(unlag.InvalidArgumentError) as e:
+        unlag.simulate_test(**bad)
+    p = cli("simulate-test", "--fs", "20000", "--excitation", "shock", "--volume", "2e-7", "--line", "0.3", "-o", tmp_path / "x.csv")
+    assert str(e.value) == cli_error(p)
+    with pytest.raises(unlag.InvalidArgumentError, match="--gremlins"):
+        unlag.simulate_test(**SIMULATED, gremlins=1)
+
+
+def test_predict_is_the_command_lines(cli):
+    import json
+
+    p = cli("predict", "--line", "0.3,0.001", "--volume", "2e-7", "--modes", "2", "--json")
+    assert p.returncode == 0, p.stderr
+    expected = json.loads(p.stdout)
+    got = unlag.predict(line=[(0.3, 1e-3)], volume=2e-7, modes=2)
+    assert got["modes"] == expected["modes"] and len(got["modes"]) == 2
+    assert got == expected
+
+
+def test_predict_compares_with_a_model_as_the_command_line(cli, cli_model):
+    import json
+
+    p = cli("predict", "--line", "0.3,0.001", "--volume", "2e-7", "--model", cli_model, "--json")
+    assert p.returncode == 0, p.stderr
+    expected = json.loads(p.stdout)["comparison"]
+    assert unlag.predict(line=[(0.3, 1e-3)], volume=2e-7, model=unlag.load(cli_model))["comparison"] == expected
+    assert unlag.predict(line=[(0.3, 1e-3)], volume=2e-7, model=cli_model)["comparison"] == expected
+
+
+def test_predict_refuses_what_the_command_line_refuses(cli):
+    with pytest.raises(unlag.InvalidArgumentError) as e:
+        unlag.predict(line=[(0.3, 1e-3)], volume=2e-7, modes=0)
+    p = cli("predict", "--line", "0.3,0.001", "--volume", "2e-7", "--modes", "0")
+    assert str(e.value) == cli_error(p)

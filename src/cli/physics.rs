@@ -90,7 +90,10 @@ fn pair(text: &str, what: &'static str, form: &str) -> Result<(f64, f64)> {
 
 impl SystemArgs {
     /// The probe described, its arguments parsed; the library checks and assembles it.
-    pub(super) fn build(&self) -> Result<ProbeSystem> {
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a pair that is not two numbers; the library's checks.
+    pub fn build(&self) -> Result<ProbeSystem> {
         let hole = match &self.hole {
             Some(h) => Some(pair(h, "--hole", "LENGTH,DIAMETER in m")?),
             None => None,
@@ -259,6 +262,22 @@ fn excitation_of(args: &SimulateTestArgs) -> Result<Excitation> {
 /// # Errors
 /// Invalid arguments, numerical failures of the simulation, the output file.
 pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
+    let (test, sys, adc) = simulated_test(args, &mut |line| crate::errln!("{line}"))?;
+    crate::file::write_atomically_with(&args.output, |out| Ok(test.write_csv(out)?))?;
+    print_simulated(args, &sys, &test, adc);
+    Ok(())
+}
+
+/// The step test `unlag simulate-test` writes (before it is written), the probe simulated and
+/// the ADC applied; `note` is given each line the command prints on stderr where the
+/// simulation fell short of what was asked (as it is found: before the ADC is applied).
+///
+/// # Errors
+/// Invalid arguments, numerical failures of the simulation.
+pub fn simulated_test(
+    args: &SimulateTestArgs,
+    note: &mut dyn FnMut(String),
+) -> Result<(SimulatedTest, ProbeSystem, Option<Adc>)> {
     let sys = args.system.build()?;
     let excitation = excitation_of(args)?;
     let anti_alias = anti_alias_of(args)?;
@@ -272,11 +291,9 @@ pub fn run_simulate_test(args: &SimulateTestArgs) -> Result<()> {
     };
     let acquisition = acquisition_of(args, reference_sensor)?;
     let mut test = simulate(&probe, &excitation, &acquisition)?;
-    warn_simulation_limits(&test, &probe, &acquisition);
+    simulation_limits(&test, &probe, &acquisition, note);
     let adc = quantise_as_asked(args, &mut test)?;
-    crate::file::write_atomically_with(&args.output, |out| Ok(test.write_csv(out)?))?;
-    print_simulated(args, &sys, &test, adc);
-    Ok(())
+    Ok((test, sys, adc))
 }
 
 /// The `--anti-alias HZ,ORDER` filter, its order a whole number the filter accepts.
@@ -348,22 +365,28 @@ fn acquisition_of(
     })
 }
 
-/// Notes on stderr where the simulation fell short of what was asked: a reduced rate, a resonance above the band.
-fn warn_simulation_limits(test: &SimulatedTest, probe: &Probe, acquisition: &Acquisition) {
+/// Notes (for stderr) where the simulation fell short of what was asked: a reduced rate, a
+/// resonance above the band.
+fn simulation_limits(
+    test: &SimulatedTest,
+    probe: &Probe,
+    acquisition: &Acquisition,
+    note: &mut dyn FnMut(String),
+) {
     if let Some(r) = test.reduced_rate(acquisition) {
-        crate::errln!(
+        note(format!(
             "note: the response outlasts the longest FFT at {}x oversampling (a slow real pole); simulated at {:.0}x ({:.0} Hz), content above {:.0} Hz tapered off",
             r.asked,
             r.achieved,
             r.rate_hz,
             r.taper_start_hz
-        );
+        ));
     }
     if let Some(r) = test.resonance_above_band(probe) {
-        crate::errln!(
+        note(format!(
             "warning: the diaphragm resonance at {} Hz is above the simulated band (taper from {:.0} Hz) and is filtered out: raise --oversample to see it",
             r.natural_frequency_hz, r.taper_start_hz
-        );
+        ));
     }
 }
 

@@ -31,8 +31,17 @@ pub struct PredictArgs {
     pub json: bool,
 }
 
-fn prediction_json(sys: &ProbeSystem, p: &Prediction) -> Value {
-    json!({
+/// The prediction as `unlag predict --json` prints it, with the comparison when a model was
+/// given.
+///
+/// # Errors
+/// [`Error::Serialise`] when the comparison cannot be written as JSON.
+pub fn prediction_json(
+    sys: &ProbeSystem,
+    p: &Prediction,
+    comparison: Option<&Comparison>,
+) -> Result<Value> {
+    let mut v = json!({
         "modes": p.modes.iter().map(|m| json!({
             "natural_frequency_hz": m.natural_frequency_hz,
             "damping": m.damping,
@@ -66,7 +75,14 @@ fn prediction_json(sys: &ProbeSystem, p: &Prediction) -> Value {
             "damping": d.damping,
         })),
         "minor_loss_resistance_pa_s_per_m3": sys.minor_loss_resistance,
-    })
+    });
+    if let Some(c) = comparison {
+        v["comparison"] = serde_json::to_value(c).map_err(|e| Error::Serialise {
+            what: "JSON output",
+            message: e.to_string(),
+        })?;
+    }
+    Ok(v)
 }
 
 /// Runs `unlag predict`.
@@ -88,29 +104,13 @@ pub fn run_predict(args: &PredictArgs) -> Result<()> {
         model: file.as_ref().map(|f| &f.model),
     })?;
     if args.json {
-        return print_prediction_json(&sys, &p, comparison.as_ref());
+        crate::outln!("{}", prediction_json(&sys, &p, comparison.as_ref())?);
+        return Ok(());
     }
     print_prediction(args, &sys, &p);
     if let Some(c) = &comparison {
         print_comparison(c);
     }
-    Ok(())
-}
-
-/// The prediction as one JSON object, with the comparison when a model was given.
-fn print_prediction_json(
-    sys: &ProbeSystem,
-    p: &Prediction,
-    comparison: Option<&Comparison>,
-) -> Result<()> {
-    let mut v = prediction_json(sys, p);
-    if let Some(c) = comparison {
-        v["comparison"] = serde_json::to_value(c).map_err(|e| Error::Serialise {
-            what: "JSON output",
-            message: e.to_string(),
-        })?;
-    }
-    crate::outln!("{v}");
     Ok(())
 }
 

@@ -49,13 +49,16 @@ __all__ = [
     "Model",
     "ModelFileError",
     "Recording",
+    "SimulatedTest",
     "UnstableError",
     "compare",
     "diagnose",
     "fit",
     "load",
     "loads",
+    "predict",
     "read_csv",
+    "simulate_test",
 ]
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -70,6 +73,18 @@ class Recording(NamedTuple):
     """The probe output."""
     fs: float
     """The sample rate in Hz."""
+
+
+class SimulatedTest(NamedTuple):
+    """A step test simulated by :func:`simulate_test`: unpacks as ``t, u, y``, the columns of
+    the CSV file ``unlag simulate-test`` writes."""
+
+    t: np.ndarray
+    """The sample times in s from the record's start."""
+    u: np.ndarray
+    """The reference channel in Pa (relative to the level before the event)."""
+    y: np.ndarray
+    """The probe channel in Pa."""
 
 
 def _vector(x: Any, name: str) -> np.ndarray:
@@ -128,6 +143,48 @@ def _flag(flags: List[str], name: str, value: Any) -> None:
         flags.append(f"--{name}")
         if value is not True:
             flags.append(str(value))
+
+
+def _text(x: Any) -> str:
+    """A flag's value as the command line reads it: a float as the shortest text that reads
+    back to it, anything else as its text."""
+    if isinstance(x, (bool, np.bool_)):
+        return str(x).lower()
+    if isinstance(x, (int, np.integer)):
+        return str(int(x))
+    if isinstance(x, (float, np.floating)):
+        return repr(float(x))
+    return os.fspath(x) if isinstance(x, os.PathLike) else str(x)
+
+
+def _options(options: Dict[str, Any]) -> List[str]:
+    """The command line's flags for keyword arguments: ``name=value`` is ``--name value``
+    (``_`` read as ``-``), ``True`` the bare flag, ``None`` and ``False`` nothing; a pair
+    such as ``(0.5, 1e-3)`` is ``0.5,0.001``, and a list of values (strings or pairs) repeats
+    the flag."""
+    flags: List[str] = []
+    for key, value in options.items():
+        name = "--" + key.replace("_", "-")
+        if value is None or value is False:
+            continue
+        if value is True:
+            flags.append(name)
+            continue
+        if isinstance(value, (str, os.PathLike)) or not isinstance(value, Iterable):
+            values = [value]
+        else:
+            items = list(value)
+            scalar = lambda v: not isinstance(v, Iterable) or isinstance(v, (str, os.PathLike))
+            # A list of numbers is one pair; a list of pairs or strings, one flag each.
+            if items and all(scalar(v) and not isinstance(v, str) for v in items):
+                values = [items]
+            else:
+                values = items
+        for v in values:
+            if not isinstance(v, (str, os.PathLike)) and isinstance(v, Iterable):
+                v = ",".join(_text(x) for x in v)
+            flags += [name, _text(v)]
+    return flags
 
 
 def _warn(messages: Iterable[str]) -> None:
@@ -504,6 +561,132 @@ class Model:
         magnitude, phase = self._native.response(f)
         return f, magnitude * np.exp(1j * phase)
 
+    def invert(
+        self,
+        tests: Sequence[Any] = (),
+        *,
+        names: Optional[Sequence[str]] = None,
+        bandwidth: Union[None, float, str] = None,
+        max_latency: Union[None, int, str] = None,
+        max_band: Optional[float] = None,
+        signal: Sequence[PathLike] = (),
+        lowpass: str = "bessel",
+        lowpass_order: int = 4,
+        direct: bool = False,
+        full_scale: Optional[float] = None,
+        unit: Optional[str] = None,
+        board: Optional[str] = None,
+        fixed_form: str = "normal",
+    ) -> "Model":
+        """The model with its compensator designed anew (``unlag invert``).
+
+        The model, its effects and its history are kept; the compensator is replaced. The
+        options are :func:`fit`'s compensator options.
+
+        Parameters
+        ----------
+        tests : sequence of (u, y) or (u, y, fs)
+            Step tests at the model's rate, to choose the bandwidth on and to judge the
+            compensator on (the CLI's ``TEST.csv`` files).
+        names : sequence of str, optional
+            What the model file's report calls each test (default ``tests[0]``, ...; the
+            command line names them by their paths).
+        bandwidth : float or "auto", optional
+            Instead of the noise-aware optimum, a stable inverse times a low-pass at this corner
+            (Hz), or ``"auto"`` for the corner that reconstructs the tests best.
+        max_latency : int or str, optional
+            The longest latency the optimum may take: samples, or ``"3ms"``, ``"250us"``.
+        max_band : float, optional
+            The largest -3 dB band (Hz) the optimum may take.
+        signal : sequence of paths
+            CSV runs of the kind the board will compensate (the prior is learnt from them).
+        lowpass : {"bessel", "butterworth"}
+            The band limit's low-pass family; ``lowpass_order`` its order.
+        direct : bool
+            The paper's direct inverse A/B instead of the stable one.
+        full_scale : float, optional
+            The ADC's range in the probe's units (the fixed-point plan is made for it).
+        unit : str, optional
+            The probe's pressure unit (``"Pa"``, ``"kPa"``, ``"mbar"``, ...), stored in the
+            model.
+        board : {"f32", "fixed"}, optional
+            The board's arithmetic, stored in the model. Default: the model's.
+        fixed_form : {"normal", "direct"}
+            The fixed-point form.
+
+        Returns
+        -------
+        Model
+            A new model (this one is unchanged). A fixed-point plan that cannot be made is a
+            ``RuntimeWarning`` (the f32 compensator stands).
+
+        Raises
+        ------
+        InvalidArgumentError
+            An option out of range (the command line's message), or arrays that are not 1-D
+            finite numbers of equal length.
+        DataError
+            A test without a step, or at another rate than the model's.
+        Error
+            No compensator can be designed for the model (an :class:`UnstableError` for a
+            direct inverse of a non-minimum-phase model).
+        """
+        named, rates = [], []
+        if names is not None and len(names) != len(tests):
+            raise InvalidArgumentError(
+                f"give one name a test: {len(names)} names for {len(tests)} tests",
+                "invalid-argument",
+            )
+        for k, t in enumerate(tests):
+            name = f"tests[{k}]" if names is None else str(names[k])
+            u, y, fs = _pair(t, name)
+            named.append((name, u, y))
+            rates.append(self.fs if fs is None else fs)
+        flags: List[str] = []
+        _flag(flags, "bandwidth", bandwidth)
+        _flag(flags, "max-latency", max_latency)
+        _flag(flags, "max-band", max_band)
+        for path in [signal] if isinstance(signal, (str, os.PathLike)) else signal:
+            flags += ["--signal", os.fspath(path)]
+        flags += ["--lowpass", str(lowpass), "--lowpass-order", str(lowpass_order)]
+        _flag(flags, "direct", direct)
+        _flag(flags, "full-scale", full_scale)
+        _flag(flags, "unit", unit)
+        _flag(flags, "board", board)
+        flags += ["--fixed-form", str(fixed_form)]
+        native, warns = self._native.invert(named, rates, flags)
+        _warn(warns)
+        return Model(native)
+
+    def resample(self, fs: float) -> "Model":
+        """The model at another sample rate (``unlag resample``).
+
+        The model is re-discretised step invariant through its continuous-time equivalent, the
+        delay included; its effects, fit report and history are kept.
+
+        Parameters
+        ----------
+        fs : float
+            The new sample rate in Hz.
+
+        Returns
+        -------
+        Model
+            A new model, without a compensator (the old one's coefficients belong to the old
+            rate): design one with :meth:`invert`. What the new rate cannot hold (a resonance
+            above its Nyquist frequency) is a ``RuntimeWarning``.
+
+        Raises
+        ------
+        InvalidArgumentError
+            ``fs`` not a sample rate (the command line's message).
+        ModelFileError
+            A model without a continuous-time equivalent (the pole named).
+        """
+        native, warns = self._native.resample(_text(fs))
+        _warn(warns)
+        return Model(native)
+
     def export(
         self,
         format: str = "c",
@@ -630,3 +813,86 @@ def compare(model: Model, tests: Sequence[Any]) -> Dict[str, Any]:
     """
     named, rates = _loop_tests(model, tests)
     return json.loads(_unlag.compare(model._native, named, rates))
+
+
+def simulate_test(fs: float, excitation: str, *, volume: float, **options: Any) -> SimulatedTest:
+    """A step test of a physical probe, simulated (``unlag simulate-test``).
+
+    The keyword arguments are the command line's flags: ``name=value`` is ``--name value``
+    (``_`` for ``-``), ``True`` a bare flag, a pair ``(a, b)`` the CLI's ``A,B`` and a list of
+    pairs a repeated flag. The same arguments give the same samples as the CSV file the
+    command line writes.
+
+    Parameters
+    ----------
+    fs : float
+        The acquisition's sample rate in Hz.
+    excitation : {"shock", "balloon", "valve", "wake"}
+        The facility.
+    volume : float
+        The volume at the closed end (transducer volume or sensor cavity) in m^3.
+    **options
+        The probe (lengths and diameters in m, temperature in K, pressures in Pa):
+        ``line=[(L, D), ...]`` the tubes in series from the measuring point on,
+        ``hole=(L, D)`` a recessed hole, ``hole_end``, ``temperature``, ``pressure``,
+        ``sigma``, ``cavity_k``, ``cavity_radius``, ``leak``, ``minor_loss``, ``amplitude``
+        (the step in Pa), ``diaphragm=(FN, ZETA)``. The test: ``duration`` (s),
+        ``event_at`` (s), ``rise`` (s), ``chamber=(HZ, FRACTION)``, ``wake_hz``,
+        ``wake_width``, ``tunnel_hz``, ``tunnel_amplitude``, ``noise`` and
+        ``reference_noise`` (Pa), ``adc_bits``, ``adc_range=(MIN, MAX)``, ``skew`` (s),
+        ``reference_sensor=(FN, ZETA)``, ``anti_alias=(HZ, ORDER)``, ``oversample``,
+        ``seed``, ``gain_error``, ``hum=(PA, HZ)``, ``drift`` (Pa/s). ``unlag simulate-test
+        --help`` says each.
+
+    Returns
+    -------
+    SimulatedTest
+        ``(t, u, y)``: float64 arrays of the sample times (s), the reference and the probe
+        (Pa). ``unlag.fit(u, y, fs)`` fits them. Where the simulation fell short of what was
+        asked (a reduced internal rate, a resonance above the simulated band) is a
+        ``RuntimeWarning``.
+
+    Raises
+    ------
+    InvalidArgumentError
+        A flag unknown or out of range (the command line's message).
+    """
+    flags = _options({"fs": fs, "excitation": excitation, "volume": volume, **options})
+    t, u, y, notes = _unlag.simulate_test(flags)
+    _warn(notes)
+    return SimulatedTest(t, u, y)
+
+
+def predict(*, volume: float, model: Union[None, Model, PathLike] = None, **options: Any) -> Dict[str, Any]:
+    """What a physical probe's geometry predicts (``unlag predict --json``): its exact first
+    modes, front delay, lumped approximation and DC gain, compared with a fitted model when
+    given.
+
+    Parameters
+    ----------
+    volume : float
+        The volume at the closed end in m^3.
+    model : Model or path, optional
+        A fitted model to compare the prediction with (the CLI's ``--model``).
+    **options
+        The probe, as :func:`simulate_test` takes it (``line=[(L, D), ...]``, ``hole=(L, D)``,
+        ``temperature``, ``diaphragm=(FN, ZETA)``, ...), and ``modes``, the number of exact
+        modes to report (default 3).
+
+    Returns
+    -------
+    dict
+        The object ``unlag predict --json`` prints: ``modes`` (each ``natural_frequency_hz``,
+        ``damping``, ``damped_frequency_hz``, ``overdamped``), ``real_poles_rad_s``,
+        ``delay_s``, ``lumped``, ``dc_gain``, ``gas``, ``helmholtz``, ``diaphragm``,
+        ``minor_loss_resistance_pa_s_per_m3``, and with a model ``comparison``.
+
+    Raises
+    ------
+    InvalidArgumentError
+        A flag unknown or out of range (the command line's message).
+    """
+    if model is not None and not isinstance(model, Model):
+        model = load(model)
+    flags = _options({"volume": volume, **options})
+    return json.loads(_unlag.predict(flags, None if model is None else model._native))

@@ -450,7 +450,7 @@ impl NativeModel {
         how: &str,
         temperature: Option<f64>,
         reference: Option<PyReadonlyArray1<'py, f64>>,
-    ) -> PyResult<(Array<'py>, f64, Vec<String>)> {
+    ) -> PyResult<(Array<'py>, f64, Vec<String>, Option<(f64, f64, usize)>)> {
         let arithmetic = match arithmetic {
             Some("f32") => Arithmetic::F32,
             Some("f64") => Arithmetic::F64,
@@ -511,7 +511,14 @@ impl NativeModel {
                 warnings.push("the fixed-point compensator saturated (overflow flag set)".into());
             }
         }
-        Ok((c.u_hat.into_pyarray(py), c.latency_samples, warnings))
+        if c.still_reference {
+            warnings.push(
+                "the reference does not move above its noise: no error against it is reported"
+                    .into(),
+            );
+        }
+        let error = c.error.map(|e| (e.u_hat, e.raw, e.lag));
+        Ok((c.u_hat.into_pyarray(py), c.latency_samples, warnings, error))
     }
 
     /// The model's probe output for the reference `u` (its effects estimated on the recorded

@@ -2,6 +2,7 @@
 same model files and the same messages; and bad input refused with an exception."""
 
 import csv
+import json
 import threading
 
 import numpy as np
@@ -77,6 +78,24 @@ def test_compensate_brings_the_probe_closer_to_the_reference(model, tests):
     err = lambda x: np.sqrt(np.mean((x[lag:] - val.u[: val.u.size - lag]) ** 2))
     raw = lambda x: min(np.sqrt(np.mean((x[d:] - val.u[: val.u.size - d]) ** 2)) for d in range(0, 60))
     assert err(u_hat) < raw(val.y)
+
+
+@pytest.mark.parametrize("arithmetic", ["f32", "fixed"])
+def test_reference_error_is_the_command_lines(cli, cli_model, tests, tmp_path, arithmetic):
+    out = tmp_path / "u_hat.csv"
+    p = cli("compensate", cli_model, DATA / "step_test_2.csv", "--arithmetic", arithmetic, "-o", out, "--json")
+    assert p.returncode == 0, p.stderr
+    expected = json.loads(p.stdout)
+    got = unlag.load(cli_model).reference_error(tests[1].u, tests[1].y, arithmetic)
+    assert got.u_hat == expected["nrmse_u_hat"]
+    assert got.raw == expected["nrmse_raw"]
+    assert got.lag == expected["alignment_samples"]
+    assert got.improvement > 1.0
+
+
+def test_reference_error_refuses_a_reference_of_another_length(model, tests):
+    with pytest.raises(unlag.InvalidArgumentError, match="same length"):
+        model.reference_error(tests[1].u[:-1], tests[1].y)
 
 
 def test_the_default_arithmetic_is_the_boards(model, tests):

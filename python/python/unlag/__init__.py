@@ -49,6 +49,7 @@ __all__ = [
     "Model",
     "ModelFileError",
     "Recording",
+    "ReferenceError",
     "SimulatedTest",
     "UnstableError",
     "compare",
@@ -85,6 +86,24 @@ class SimulatedTest(NamedTuple):
     """The reference channel in Pa (relative to the level before the event)."""
     y: np.ndarray
     """The probe channel in Pa."""
+
+
+class ReferenceError(NamedTuple):
+    """The error of a compensated signal against a recorded reference, beside the raw
+    probe's (:meth:`Model.reference_error`): RMS over the reference's range (0.01 is 1 %),
+    each at its best whole-sample alignment."""
+
+    u_hat: float
+    """``u_hat``'s error."""
+    raw: float
+    """The raw probe's error."""
+    lag: int
+    """The lag of ``u_hat`` behind the reference at its best alignment (samples)."""
+
+    @property
+    def improvement(self) -> float:
+        """How many times smaller ``u_hat``'s error is than the raw probe's (above 1: better)."""
+        return self.raw / self.u_hat if self.u_hat > 0 else float("inf")
 
 
 def _vector(x: Any, name: str) -> np.ndarray:
@@ -478,6 +497,58 @@ class Model:
             ``u_hat``, one sample per sample of ``y``; it lags the pressure by
             :attr:`latency` samples.
         """
+        u_hat, _error = self._compensate(y, None, arithmetic, direct, offline, adapt_to_run, temperature)
+        return u_hat
+
+    def reference_error(
+        self,
+        u: Any,
+        y: Any,
+        arithmetic: Optional[str] = None,
+        *,
+        direct: bool = False,
+        offline: bool = False,
+        adapt_to_run: bool = False,
+        temperature: Optional[float] = None,
+    ) -> Optional["ReferenceError"]:
+        """The error of :meth:`compensate`'s ``u_hat`` against a recorded reference ``u``,
+        beside the raw probe's, as ``unlag compensate`` reports it for a file with a reference
+        column (its ``nrmse_u_hat``, ``nrmse_raw`` and ``alignment_samples``).
+
+        Parameters
+        ----------
+        u : array_like
+            The recorded reference pressure, one sample per sample of ``y``.
+        y : array_like
+            The probe output, sampled at :attr:`fs`.
+        arithmetic, direct, offline, adapt_to_run, temperature
+            As for :meth:`compensate`.
+
+        Returns
+        -------
+        ReferenceError or None
+            Each RMS error over the reference's range at its own best alignment, or None (with
+            a ``RuntimeWarning``) when the reference does not move above its noise.
+        """
+        u = _vector(u, "u")
+        if u.size != np.size(y):
+            raise InvalidArgumentError(
+                f"u and y must have the same length, got {u.size} and {np.size(y)}", "invalid-argument"
+            )
+        _u_hat, error = self._compensate(y, u, arithmetic, direct, offline, adapt_to_run, temperature)
+        return None if error is None else ReferenceError(*error)
+
+    def _compensate(
+        self,
+        y: Any,
+        reference: Optional[np.ndarray],
+        arithmetic: Optional[str],
+        direct: bool,
+        offline: bool,
+        adapt_to_run: bool,
+        temperature: Optional[float],
+    ) -> Tuple[np.ndarray, Optional[Tuple[float, float, int]]]:
+        """:meth:`compensate`, and the error against ``reference`` when one is given."""
         y = _vector(y, "y")
         if sum(map(bool, (direct, offline, adapt_to_run))) > 1:
             raise InvalidArgumentError(
@@ -489,9 +560,9 @@ class Model:
                 "invalid-argument",
             )
         how = "direct" if direct else "offline" if offline else "adapt" if adapt_to_run else "designed"
-        u_hat, _latency, warns = self._native.compensate(y, arithmetic, how, temperature)
+        u_hat, _latency, warns, error = self._native.compensate(y, arithmetic, how, temperature, reference)
         _warn(warns)
-        return u_hat
+        return u_hat, error
 
     def simulate(self, u: Any, y: Any = None, *, temperature: Optional[float] = None) -> np.ndarray:
         """The probe's output for the reference ``u`` (``unlag simulate``): the model's

@@ -37,7 +37,7 @@ pub use model::{Method, Model, NoiseOrigin, TestRole};
 pub use selection::{OrderRule, OrderSelection, UnknownOrderSelection};
 
 use crate::error::{Error, Result};
-use crate::fit::model::{FitReport, OrderRow};
+use crate::fit::model::{DelayRow, FitReport, OrderRow};
 use arx::Data;
 
 /// How to choose the order.
@@ -445,69 +445,31 @@ pub fn fit_as_found(
     };
     // Each order's delay search and fit are independent: they run on the cores there are,
     // and are taken in order, so the choice is the same as one after the other.
-    let results = in_parallel(&orders, |&m| -> std::result::Result<_, (Error, bool)> {
-        if m == 0 || m > crate::fit::model::MAX_ORDER {
-            return Err((
-                Error::InvalidParameter {
-                    parameter: crate::error::Parameter::Order,
-                    message: format!(
-                        "the order must be 1..={}, not {m}",
-                        crate::fit::model::MAX_ORDER
-                    ),
-                },
-                true,
-            ));
-        }
-        let (d, rows) = match options.delay {
-            Some(d) => (d, Vec::new()),
-            None => {
-                delay::search(&p.u, &p.y, p.onset, m, orders.len() == 1).map_err(|e| (e, true))?
-            }
-        };
-        let needed = 2 * (2 * m + 1) + m + d + 1;
-        if p.y.len() < needed {
-            let e = Error::TooShort {
-                path: estimation.name.into(),
-                samples: p.y.len(),
-                order: m,
-                delay: d,
-                needed,
-            };
-            return Err((e, matches!(options.order, Order::Fixed(_))));
-        }
-        let (a, b) = fit_at(&data, m, d, options.method).map_err(|e| (e, false))?;
-        let model = Model {
-            fs: sample_rate_hz,
-            delay: d,
-            a,
-            b,
-        };
-        Ok((m, model, rows))
+    let results = in_parallel(&orders, |&m| {
+        fit_order(
+            &p,
+            &data,
+            m,
+            orders.len() == 1,
+            estimation.name,
+            sample_rate_hz,
+            options,
+        )
     });
     let mut candidates = Vec::new();
     let mut first_error = None;
     for result in results {
         match result {
             Ok((m, model, rows)) => {
-                // On the whole records, one order at a time (the threads above only touch the
-                // window, so they add little memory).
-                let stable = model.check_stable("fit").is_ok();
-                let est = nrmse(&model, estimation.u, estimation.y);
-                let val: Vec<f64> = validation.iter().map(|t| nrmse(&model, t.u, t.y)).collect();
-                let criterion = if val.is_empty() {
-                    // BIC on the simulation residual; with a noise model (Box-Jenkins), on the
-                    // one-step-ahead prediction error, the noise model's parameters counted.
-                    let n = data[0].y.len() as f64;
-                    let (rss, extra) = if options.method == Method::Bj {
-                        prediction_loss(&data, &model)
-                    } else {
-                        (oe::loss(&data, (&model.a, &model.b), model.delay), 0)
-                    };
-                    n * (rss.max(1e-300) / n).ln() + (2 * m + 2 + extra) as f64 * n.ln()
-                } else {
-                    val.iter().sum::<f64>() / val.len() as f64
-                };
-                candidates.push((m, model, rows, est, val, criterion, stable));
+                candidates.push(judge_order(
+                    m,
+                    model,
+                    rows,
+                    &data,
+                    estimation,
+                    validation,
+                    options.method,
+                ));
             }
             Err((e, true)) => return Err(e),
             Err((e, false)) => {
@@ -518,66 +480,30 @@ pub fn fit_as_found(
     let held_out = !validation.is_empty();
     let table: Vec<OrderRow> = candidates
         .iter()
-        .map(|(m, model, _, est, _, crit, stable)| OrderRow {
-            order: *m,
-            delay: model.delay,
-            nrmse_estimation: *est,
-            criterion: *crit,
-            stable: *stable,
+        .map(|c| OrderRow {
+            order: c.order,
+            delay: c.model.delay,
+            nrmse_estimation: c.est,
+            criterion: c.criterion,
+            stable: c.stable,
         })
         .collect();
-    let usable: Vec<_> = candidates
+    let usable: Vec<&OrderFit> = candidates
         .iter()
-        .filter(|c| c.6 && c.5.is_finite())
+        .filter(|c| c.stable && c.criterion.is_finite())
         .collect();
-    let Some(best_crit) = usable.iter().map(|c| c.5).reduce(f64::min) else {
-        if let Some(c) = candidates.first() {
-            // What the record held of the response: an unstable fit of a probe (a passive,
-            // stable system) most often saw too little of it after the step.
-            let after = p.y.len().saturating_sub(p.onset);
-            c.1.check_stable(estimation.name).map_err(|e| match e {
-                Error::UnstableModel {
-                    context,
-                    pole,
-                    radius,
-                    ..
-                } => Error::UnstableModel {
-                    context,
-                    pole,
-                    radius,
-                    note: format!(
-                        "; the record ends {after} samples ({} s) after the step: a probe is \
-                         stable, so an unstable fit most often means the record holds too little \
-                         of its response; record until the probe has settled",
-                        crate::error::number(after as f64 / c.1.fs)
-                    ),
-                },
-                e => e,
-            })?;
-        }
-        return Err(first_error.unwrap_or_else(|| {
-            FitError::NoUsableOrder {
-                test: estimation.name.into(),
-            }
-            .into()
-        }));
+    let Some(best_crit) = usable.iter().map(|c| c.criterion).reduce(f64::min) else {
+        return Err(no_usable_order(&p, estimation, &candidates, first_error));
     };
-    // Parsimony: the smallest order whose held-out error is within 5 % of the best; with BIC
-    // the criterion already penalises parameters.
-    let chosen = usable
-        .iter()
-        .find(|c| {
-            if held_out {
-                c.5 <= best_crit * 1.05
-            } else {
-                c.5 <= best_crit
-            }
-        })
-        .copied()
-        .ok_or_else(|| FitError::OrderSelectionFailed {
-            test: estimation.name.into(),
-        })?;
-    let (m, mut model, rows, mut est, mut val, _, _) = chosen.clone();
+    let chosen = choose(&usable, best_crit, held_out, estimation.name)?;
+    let OrderFit {
+        order: m,
+        mut model,
+        rows,
+        mut est,
+        mut val,
+        ..
+    } = chosen.clone();
     if window.is_some() {
         let refined = refine(&whole, &model, options.method)?;
         let candidate = Model {
@@ -593,18 +519,7 @@ pub fn fit_as_found(
     }
     let report = FitReport {
         method: options.method,
-        order_selection: match options.order {
-            Order::Fixed(_) => OrderSelection::Fixed,
-            Order::Auto { max } => OrderSelection::Auto {
-                max,
-                rule: if held_out {
-                    OrderRule::HeldOut
-                } else {
-                    OrderRule::Bic
-                },
-                window: window.map(|_| SELECTION_WINDOW),
-            },
-        },
+        order_selection: order_selection(options.order, held_out, window.is_some()),
         orders: table,
         delay_selection: if options.delay.is_some() {
             "given".into()
@@ -627,6 +542,184 @@ pub fn fit_as_found(
         report,
         nrmse_estimation: est,
         nrmse_validation: val,
+    })
+}
+
+/// Parsimony: the smallest usable order whose held-out error is within 5 % of the best
+/// (`best_crit`); with BIC, whose criterion already penalises parameters, the best.
+fn choose<'a>(
+    usable: &[&'a OrderFit],
+    best_crit: f64,
+    held_out: bool,
+    name: &str,
+) -> Result<&'a OrderFit> {
+    usable
+        .iter()
+        .find(|c| {
+            if held_out {
+                c.criterion <= best_crit * 1.05
+            } else {
+                c.criterion <= best_crit
+            }
+        })
+        .copied()
+        .ok_or_else(|| FitError::OrderSelectionFailed { test: name.into() }.into())
+}
+
+/// How the order was chosen, for the report.
+fn order_selection(order: Order, held_out: bool, windowed: bool) -> OrderSelection {
+    match order {
+        Order::Fixed(_) => OrderSelection::Fixed,
+        Order::Auto { max } => OrderSelection::Auto {
+            max,
+            rule: if held_out {
+                OrderRule::HeldOut
+            } else {
+                OrderRule::Bic
+            },
+            window: windowed.then_some(SELECTION_WINDOW),
+        },
+    }
+}
+
+/// One order's fit, judged: its errors on the whole records and its selection criterion.
+#[derive(Debug, Clone)]
+struct OrderFit {
+    order: usize,
+    model: Model,
+    rows: Vec<DelayRow>,
+    est: f64,
+    val: Vec<f64>,
+    criterion: f64,
+    stable: bool,
+}
+
+/// The delay search and the fit at order `m` on `data` (the selection window), with the
+/// delay's candidates; an error with `true` ends the whole fit (an order out of range, a
+/// failed search, a record too short for an order given), with `false` only this order.
+fn fit_order(
+    p: &Prepared,
+    data: &[Data<'_>; 1],
+    m: usize,
+    alone: bool,
+    name: &str,
+    sample_rate_hz: f64,
+    options: &Options,
+) -> std::result::Result<(usize, Model, Vec<DelayRow>), (Error, bool)> {
+    if m == 0 || m > crate::fit::model::MAX_ORDER {
+        return Err((
+            Error::InvalidParameter {
+                parameter: crate::error::Parameter::Order,
+                message: format!(
+                    "the order must be 1..={}, not {m}",
+                    crate::fit::model::MAX_ORDER
+                ),
+            },
+            true,
+        ));
+    }
+    let (d, rows) = match options.delay {
+        Some(d) => (d, Vec::new()),
+        None => delay::search(&p.u, &p.y, p.onset, m, alone).map_err(|e| (e, true))?,
+    };
+    let needed = 2 * (2 * m + 1) + m + d + 1;
+    if p.y.len() < needed {
+        let e = Error::TooShort {
+            path: name.into(),
+            samples: p.y.len(),
+            order: m,
+            delay: d,
+            needed,
+        };
+        return Err((e, matches!(options.order, Order::Fixed(_))));
+    }
+    let (a, b) = fit_at(data, m, d, options.method).map_err(|e| (e, false))?;
+    let model = Model {
+        fs: sample_rate_hz,
+        delay: d,
+        a,
+        b,
+    };
+    Ok((m, model, rows))
+}
+
+/// Order `m`'s fit judged on the whole records, one order at a time (the threads of the
+/// search only touch the window, so they add little memory): its errors, stability and
+/// criterion, the mean held-out error, or without held-out tests BIC on the simulation
+/// residual (with a noise model, Box-Jenkins, on the one-step-ahead prediction error, the
+/// noise model's parameters counted).
+fn judge_order(
+    m: usize,
+    model: Model,
+    rows: Vec<DelayRow>,
+    data: &[Data<'_>; 1],
+    estimation: &Test<'_>,
+    validation: &[Test<'_>],
+    method: Method,
+) -> OrderFit {
+    let stable = model.check_stable("fit").is_ok();
+    let est = nrmse(&model, estimation.u, estimation.y);
+    let val: Vec<f64> = validation.iter().map(|t| nrmse(&model, t.u, t.y)).collect();
+    let criterion = if val.is_empty() {
+        let n = data[0].y.len() as f64;
+        let (rss, extra) = if method == Method::Bj {
+            prediction_loss(data, &model)
+        } else {
+            (oe::loss(data, (&model.a, &model.b), model.delay), 0)
+        };
+        n * (rss.max(1e-300) / n).ln() + (2 * m + 2 + extra) as f64 * n.ln()
+    } else {
+        val.iter().sum::<f64>() / val.len() as f64
+    };
+    OrderFit {
+        order: m,
+        model,
+        rows,
+        est,
+        val,
+        criterion,
+        stable,
+    }
+}
+
+/// Why no order could be chosen: the first candidate's instability, with what the record held
+/// of the response (an unstable fit of a probe, a passive and stable system, most often saw
+/// too little of it after the step); else the first order's error, or no usable order.
+fn no_usable_order(
+    p: &Prepared,
+    estimation: &Test<'_>,
+    candidates: &[OrderFit],
+    first_error: Option<Error>,
+) -> Error {
+    if let Some(c) = candidates.first() {
+        let after = p.y.len().saturating_sub(p.onset);
+        if let Err(e) = c.model.check_stable(estimation.name) {
+            return match e {
+                Error::UnstableModel {
+                    context,
+                    pole,
+                    radius,
+                    ..
+                } => Error::UnstableModel {
+                    context,
+                    pole,
+                    radius,
+                    note: format!(
+                        "; the record ends {after} samples ({} s) after the step: a probe is \
+                         stable, so an unstable fit most often means the record holds too little \
+                         of its response; record until the probe has settled",
+                        crate::error::number(after as f64 / c.model.fs)
+                    ),
+                },
+                e => e,
+            };
+        }
+    }
+    first_error.unwrap_or_else(|| {
+        FitError::NoUsableOrder {
+            test: estimation.name.into(),
+        }
+        .into()
     })
 }
 

@@ -197,53 +197,15 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
         .map(|(d, _)| d.method.clone());
     let design = fall_back.as_ref().map(|f| &f.design).or(design);
     let mut fixed = None;
-    let (mut u_hat, latency, compensator) = match design {
-        Some(d) if offline => {
-            let (Some(noise), Some(prior)) = (&d.noise, &d.prior) else {
-                return Err(Error::InvalidParameter {
-                    parameter: crate::error::Parameter::Offline,
-                    message: format!("{} has no stored noise and prior", model_path.display()),
-                }
-                .advised(Advice::DesignOptimal));
-            };
-            let y_in = effects::prefiltered(&file.effects, m.fs, &y_probe);
-            (
-                inverse::optimal::offline(m, noise, prior, &y_in)?,
-                effects::prefilter_delay(&file.effects, m.fs),
-                "the non-causal optimum (offline, host only)",
-            )
-        }
+    let (u_hat, latency, compensator) = match design {
+        Some(d) if offline => (
+            run_offline(d, file, model_path, &y_probe)?,
+            effects::prefilter_delay(&file.effects, m.fs),
+            "the non-causal optimum (offline, host only)",
+        ),
         Some(d) => {
-            d.check_exportable()?;
-            let mut u_hat = match arithmetic {
-                Arithmetic::F32 => d.run::<f32>(&y_probe)?,
-                Arithmetic::F64 => d.run::<f64>(&y_probe)?,
-                Arithmetic::Fixed if nonlinear != 0.0 => {
-                    return Err(Error::UnsupportedOnBoard {
-                        path: model_path.to_path_buf(),
-                        effect: "nonlinear damping",
-                        arithmetic: "fixed-point",
-                    }
-                    .advised(Advice::UseF32))
-                }
-                Arithmetic::Fixed => {
-                    let (u_hat, summary) =
-                        run_fixed(d, file.board.full_scale, model_path, &y_probe)?;
-                    fixed = Some(summary);
-                    u_hat
-                }
-            };
-            if nonlinear != 0.0 {
-                let correction = match arithmetic {
-                    Arithmetic::F64 => {
-                        d.run_nonlinear_correction::<f64>(m.fs, nonlinear, &y_probe)?
-                    }
-                    _ => d.run_nonlinear_correction::<f32>(m.fs, nonlinear, &y_probe)?,
-                };
-                for (u, c) in u_hat.iter_mut().zip(correction) {
-                    *u += c;
-                }
-            }
+            let (u_hat, summary) = run_designed(d, file, model_path, arithmetic, &y_probe)?;
+            fixed = summary;
             let what = if fall_back.is_some() {
                 "a compensator chosen for this run (host only: a board runs the model file's)"
             } else {
@@ -251,66 +213,20 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
             };
             (u_hat, d.latency_samples, what)
         }
-        None => {
-            m.check_invertible(&model_path.display().to_string())?;
-            // The direct inverse of a model fitted below a sensor resonance gets the prefilter.
-            let y_probe = effects::prefiltered(&file.effects, m.fs, &y_probe);
-            let u_hat = match arithmetic {
-                Arithmetic::F32 => m.compensate::<f32>(&y_probe)?,
-                Arithmetic::F64 => m.compensate::<f64>(&y_probe)?,
-                Arithmetic::Fixed => {
-                    return Err(Error::InvalidParameter {
-                        parameter: crate::error::Parameter::Arithmetic,
-                        message: "fixed point runs the designed compensator in sections, not \
-                                  the paper's direct inverse"
-                            .into(),
-                    }
-                    .advised(Advice::DesignSections))
-                }
-            };
-            (u_hat, m.delay as f64, "the paper's direct inverse (eq. 7)")
-        }
+        None => (
+            run_direct(file, model_path, arithmetic, &y_probe)?,
+            m.delay as f64,
+            "the paper's direct inverse (eq. 7)",
+        ),
     };
-    if design.is_none() && nonlinear != 0.0 {
-        // The direct inverse has no band limit: the correction is not filtered either.
-        let c = crate::board::compensator::NonlinearDampingCoefficients::<f64, 1>::new(
-            nonlinear * m.fs * m.fs,
-            1.0,
-            &[],
-        )
-        .map_err(|e| Error::BoardRefused {
-            during: "nonlinear-damping correction",
-            refusal: e.into(),
-        })?;
-        let mut st = c.equilibrium(y_probe.first().copied().unwrap_or(0.0));
-        for (u, y) in u_hat.iter_mut().zip(&y_probe) {
-            *u += c.process(&mut st, *y);
-        }
-    }
     // A reference that does not move above its noise says nothing about u_hat: no error, no
     // verdict (a run without a step is compensated all the same).
     let still_reference = reference
         .filter(|u| fit::step::excitation(u) < fit::step::MIN_EXCITATION)
         .is_some();
-    let error = reference.filter(|_| !still_reference).map(|u| {
-        let u = &effects::observed(&file.effects, m.fs, u);
-        let prefilter = if design.is_some() {
-            effects::prefilter_delay(&file.effects, m.fs)
-        } else {
-            0.0
-        };
-        let nominal = (latency - prefilter).round().max(0.0) as usize;
-        // The raw probe is searched over the same lags whatever the compensator's latency
-        // (the offline optimum has none), so that its error does not depend on it.
-        let causal = design
-            .map_or(latency, |d| d.latency_samples)
-            .round()
-            .max(0.0) as usize;
-        let (lags, raw_lags) = inverse::comparison_lags(design, nominal, causal, m.delay);
-        let (e, lag) = inverse::aligned_error(u, &u_hat, lags);
-        let (raw, _) = inverse::aligned_error(u, probe, raw_lags);
-        ReferenceError { u_hat: e, raw, lag }
-    });
+    let error = reference
+        .filter(|_| !still_reference)
+        .map(|u| reference_error(file, design, latency, u, probe, &u_hat));
     Ok(Compensated {
         host_only: offline || fall_back.is_some(),
         predicted,
@@ -324,6 +240,144 @@ pub fn compensate(request: &CompensateRequest<'_>) -> Result<Compensated> {
         still_reference,
         fixed,
     })
+}
+
+/// The offline optimum of design `d`'s stored noise and prior on the probe signal `y_probe`
+/// (prefiltered as the model's effects say), on the host.
+fn run_offline(
+    d: &Design,
+    file: &ModelFile,
+    model_path: &Path,
+    y_probe: &[f64],
+) -> Result<Vec<f64>> {
+    let (Some(noise), Some(prior)) = (&d.noise, &d.prior) else {
+        return Err(Error::InvalidParameter {
+            parameter: crate::error::Parameter::Offline,
+            message: format!("{} has no stored noise and prior", model_path.display()),
+        }
+        .advised(Advice::DesignOptimal));
+    };
+    let m = &file.model;
+    let y_in = effects::prefiltered(&file.effects, m.fs, y_probe);
+    Ok(inverse::optimal::offline(m, noise, prior, &y_in)?)
+}
+
+/// The designed compensator `d` on `y_probe` as the board runs it in `arithmetic`, with the
+/// nonlinear damping's correction added (f32 or f64 only), and the fixed-point run's clamps.
+fn run_designed(
+    d: &Design,
+    file: &ModelFile,
+    model_path: &Path,
+    arithmetic: Arithmetic,
+    y_probe: &[f64],
+) -> Result<(Vec<f64>, Option<FixedRunSummary>)> {
+    d.check_exportable()?;
+    let m = &file.model;
+    // Quadratic losses: the board adds gain * lowpass(|dy| dy) to the linear inverse.
+    let nonlinear = effects::nonlinear_gain(&file.effects);
+    let mut fixed = None;
+    let mut u_hat = match arithmetic {
+        Arithmetic::F32 => d.run::<f32>(y_probe)?,
+        Arithmetic::F64 => d.run::<f64>(y_probe)?,
+        Arithmetic::Fixed if nonlinear != 0.0 => {
+            return Err(Error::UnsupportedOnBoard {
+                path: model_path.to_path_buf(),
+                effect: "nonlinear damping",
+                arithmetic: "fixed-point",
+            }
+            .advised(Advice::UseF32))
+        }
+        Arithmetic::Fixed => {
+            let (u_hat, summary) = run_fixed(d, file.board.full_scale, model_path, y_probe)?;
+            fixed = Some(summary);
+            u_hat
+        }
+    };
+    if nonlinear != 0.0 {
+        let correction = match arithmetic {
+            Arithmetic::F64 => d.run_nonlinear_correction::<f64>(m.fs, nonlinear, y_probe)?,
+            _ => d.run_nonlinear_correction::<f32>(m.fs, nonlinear, y_probe)?,
+        };
+        for (u, c) in u_hat.iter_mut().zip(correction) {
+            *u += c;
+        }
+    }
+    Ok((u_hat, fixed))
+}
+
+/// The paper's direct inverse of the model on `y_probe` (prefiltered for a model fitted below
+/// a sensor resonance), with the nonlinear damping's correction unfiltered (the direct
+/// inverse has no band limit); not in fixed point.
+fn run_direct(
+    file: &ModelFile,
+    model_path: &Path,
+    arithmetic: Arithmetic,
+    y_probe: &[f64],
+) -> Result<Vec<f64>> {
+    let m = &file.model;
+    m.check_invertible(&model_path.display().to_string())?;
+    let y_in = effects::prefiltered(&file.effects, m.fs, y_probe);
+    let mut u_hat = match arithmetic {
+        Arithmetic::F32 => m.compensate::<f32>(&y_in)?,
+        Arithmetic::F64 => m.compensate::<f64>(&y_in)?,
+        Arithmetic::Fixed => {
+            return Err(Error::InvalidParameter {
+                parameter: crate::error::Parameter::Arithmetic,
+                message: "fixed point runs the designed compensator in sections, not \
+                          the paper's direct inverse"
+                    .into(),
+            }
+            .advised(Advice::DesignSections))
+        }
+    };
+    let nonlinear = effects::nonlinear_gain(&file.effects);
+    if nonlinear != 0.0 {
+        let c = crate::board::compensator::NonlinearDampingCoefficients::<f64, 1>::new(
+            nonlinear * m.fs * m.fs,
+            1.0,
+            &[],
+        )
+        .map_err(|e| Error::BoardRefused {
+            during: "nonlinear-damping correction",
+            refusal: e.into(),
+        })?;
+        let mut st = c.equilibrium(y_probe.first().copied().unwrap_or(0.0));
+        for (u, y) in u_hat.iter_mut().zip(y_probe) {
+            *u += c.process(&mut st, *y);
+        }
+    }
+    Ok(u_hat)
+}
+
+/// The error of `u_hat` (from `design`, or the direct inverse without one, `latency` samples
+/// late) against the recorded reference `u`, beside the raw `probe`'s, each at its best
+/// alignment.
+fn reference_error(
+    file: &ModelFile,
+    design: Option<&Design>,
+    latency: f64,
+    u: &[f64],
+    probe: &[f64],
+    u_hat: &[f64],
+) -> ReferenceError {
+    let m = &file.model;
+    let u = &effects::observed(&file.effects, m.fs, u);
+    let prefilter = if design.is_some() {
+        effects::prefilter_delay(&file.effects, m.fs)
+    } else {
+        0.0
+    };
+    let nominal = (latency - prefilter).round().max(0.0) as usize;
+    // The raw probe is searched over the same lags whatever the compensator's latency
+    // (the offline optimum has none), so that its error does not depend on it.
+    let causal = design
+        .map_or(latency, |d| d.latency_samples)
+        .round()
+        .max(0.0) as usize;
+    let (lags, raw_lags) = inverse::comparison_lags(design, nominal, causal, m.delay);
+    let (e, lag) = inverse::aligned_error(u, u_hat, lags);
+    let (raw, _) = inverse::aligned_error(u, probe, raw_lags);
+    ReferenceError { u_hat: e, raw, lag }
 }
 
 /// The fixed-point compensator (the direct form's plan if the design has one, else the normal

@@ -259,7 +259,7 @@ fn run_offline(
     };
     let m = &file.model;
     let y_in = effects::prefiltered(&file.effects, m.fs, y_probe);
-    Ok(inverse::optimal::offline(m, noise, prior, &y_in)?)
+    inverse::optimal::offline(m, noise, prior, &y_in)
 }
 
 /// The designed compensator `d` on `y_probe` as the board runs it in `arithmetic`, with the

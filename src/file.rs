@@ -3,7 +3,7 @@
 //!
 //! [`ModelFile`] is what `unlag fit` writes and every later command reads. It sits above the
 //! stages it composes: the fit stage's [`Model`] and [`FitReport`], the design stage's
-//! [`Design`], the modelling loop's
+//! [`Design`](crate::design::inverse::Design), the modelling loop's
 //! [`Effect`](crate::effects::Effect)s; and it says the state a diagnosis of it starts
 //! from ([`ModelFile::current`]).
 

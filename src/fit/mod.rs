@@ -34,6 +34,7 @@ pub(crate) mod uncertainty;
 pub use calibration::{CALIBRATED_SIGMAS, CALIBRATION_MAX_STD};
 pub use error::{ContinuousError, FitError};
 pub use model::{Method, Model, NoiseOrigin, TestRole};
+use selection::{choose, judge_order, order_selection, OrderFit};
 pub use selection::{OrderRule, OrderSelection, UnknownOrderSelection};
 
 use crate::error::{Error, Result};
@@ -545,55 +546,6 @@ pub fn fit_as_found(
     })
 }
 
-/// Parsimony: the smallest usable order whose held-out error is within 5 % of the best
-/// (`best_crit`); with BIC, whose criterion already penalises parameters, the best.
-fn choose<'a>(
-    usable: &[&'a OrderFit],
-    best_crit: f64,
-    held_out: bool,
-    name: &str,
-) -> Result<&'a OrderFit> {
-    usable
-        .iter()
-        .find(|c| {
-            if held_out {
-                c.criterion <= best_crit * 1.05
-            } else {
-                c.criterion <= best_crit
-            }
-        })
-        .copied()
-        .ok_or_else(|| FitError::OrderSelectionFailed { test: name.into() }.into())
-}
-
-/// How the order was chosen, for the report.
-fn order_selection(order: Order, held_out: bool, windowed: bool) -> OrderSelection {
-    match order {
-        Order::Fixed(_) => OrderSelection::Fixed,
-        Order::Auto { max } => OrderSelection::Auto {
-            max,
-            rule: if held_out {
-                OrderRule::HeldOut
-            } else {
-                OrderRule::Bic
-            },
-            window: windowed.then_some(SELECTION_WINDOW),
-        },
-    }
-}
-
-/// One order's fit, judged: its errors on the whole records and its selection criterion.
-#[derive(Debug, Clone)]
-struct OrderFit {
-    order: usize,
-    model: Model,
-    rows: Vec<DelayRow>,
-    est: f64,
-    val: Vec<f64>,
-    criterion: f64,
-    stable: bool,
-}
-
 /// The delay search and the fit at order `m` on `data` (the selection window), with the
 /// delay's candidates; an error with `true` ends the whole fit (an order out of range, a
 /// failed search, a record too short for an order given), with `false` only this order.
@@ -641,45 +593,6 @@ fn fit_order(
         b,
     };
     Ok((m, model, rows))
-}
-
-/// Order `m`'s fit judged on the whole records, one order at a time (the threads of the
-/// search only touch the window, so they add little memory): its errors, stability and
-/// criterion, the mean held-out error, or without held-out tests BIC on the simulation
-/// residual (with a noise model, Box-Jenkins, on the one-step-ahead prediction error, the
-/// noise model's parameters counted).
-fn judge_order(
-    m: usize,
-    model: Model,
-    rows: Vec<DelayRow>,
-    data: &[Data<'_>; 1],
-    estimation: &Test<'_>,
-    validation: &[Test<'_>],
-    method: Method,
-) -> OrderFit {
-    let stable = model.check_stable("fit").is_ok();
-    let est = nrmse(&model, estimation.u, estimation.y);
-    let val: Vec<f64> = validation.iter().map(|t| nrmse(&model, t.u, t.y)).collect();
-    let criterion = if val.is_empty() {
-        let n = data[0].y.len() as f64;
-        let (rss, extra) = if method == Method::Bj {
-            prediction_loss(data, &model)
-        } else {
-            (oe::loss(data, (&model.a, &model.b), model.delay), 0)
-        };
-        n * (rss.max(1e-300) / n).ln() + (2 * m + 2 + extra) as f64 * n.ln()
-    } else {
-        val.iter().sum::<f64>() / val.len() as f64
-    };
-    OrderFit {
-        order: m,
-        model,
-        rows,
-        est,
-        val,
-        criterion,
-        stable,
-    }
 }
 
 /// Why no order could be chosen: the first candidate's instability, with what the record held

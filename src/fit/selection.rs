@@ -13,6 +13,11 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::arx::Data;
+use super::model::{DelayRow, Method, Model};
+use super::{nrmse, oe, prediction_loss, FitError, Order, Test, SELECTION_WINDOW};
+use crate::error::Result;
+
 /// What an automatic order choice compared the orders by.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum OrderRule {
@@ -165,6 +170,94 @@ impl<'de> Deserialize<'de> for OrderSelection {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> core::result::Result<Self, D::Error> {
         let s = std::borrow::Cow::<'de, str>::deserialize(d)?;
         s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// Parsimony: the smallest usable order whose held-out error is within 5 % of the best
+/// (`best_crit`); with BIC, whose criterion already penalises parameters, the best.
+pub(super) fn choose<'a>(
+    usable: &[&'a OrderFit],
+    best_crit: f64,
+    held_out: bool,
+    name: &str,
+) -> Result<&'a OrderFit> {
+    usable
+        .iter()
+        .find(|c| {
+            if held_out {
+                c.criterion <= best_crit * 1.05
+            } else {
+                c.criterion <= best_crit
+            }
+        })
+        .copied()
+        .ok_or_else(|| FitError::OrderSelectionFailed { test: name.into() }.into())
+}
+
+/// How the order was chosen, for the report.
+pub(super) fn order_selection(order: Order, held_out: bool, windowed: bool) -> OrderSelection {
+    match order {
+        Order::Fixed(_) => OrderSelection::Fixed,
+        Order::Auto { max } => OrderSelection::Auto {
+            max,
+            rule: if held_out {
+                OrderRule::HeldOut
+            } else {
+                OrderRule::Bic
+            },
+            window: windowed.then_some(SELECTION_WINDOW),
+        },
+    }
+}
+
+/// One order's fit, judged: its errors on the whole records and its selection criterion.
+#[derive(Debug, Clone)]
+pub(super) struct OrderFit {
+    pub(super) order: usize,
+    pub(super) model: Model,
+    pub(super) rows: Vec<DelayRow>,
+    pub(super) est: f64,
+    pub(super) val: Vec<f64>,
+    pub(super) criterion: f64,
+    pub(super) stable: bool,
+}
+
+/// Order `m`'s fit judged on the whole records, one order at a time (the threads of the
+/// search only touch the window, so they add little memory): its errors, stability and
+/// criterion, the mean held-out error, or without held-out tests BIC on the simulation
+/// residual (with a noise model, Box-Jenkins, on the one-step-ahead prediction error, the
+/// noise model's parameters counted).
+pub(super) fn judge_order(
+    m: usize,
+    model: Model,
+    rows: Vec<DelayRow>,
+    data: &[Data<'_>; 1],
+    estimation: &Test<'_>,
+    validation: &[Test<'_>],
+    method: Method,
+) -> OrderFit {
+    let stable = model.check_stable("fit").is_ok();
+    let est = nrmse(&model, estimation.u, estimation.y);
+    let val: Vec<f64> = validation.iter().map(|t| nrmse(&model, t.u, t.y)).collect();
+    let criterion = if val.is_empty() {
+        let n = data[0].y.len() as f64;
+        let (rss, extra) = if method == Method::Bj {
+            prediction_loss(data, &model)
+        } else {
+            (oe::loss(data, (&model.a, &model.b), model.delay), 0)
+        };
+        n * (rss.max(1e-300) / n).ln() + (2 * m + 2 + extra) as f64 * n.ln()
+    } else {
+        val.iter().sum::<f64>() / val.len() as f64
+    };
+    OrderFit {
+        order: m,
+        model,
+        rows,
+        est,
+        val,
+        criterion,
+        stable,
     }
 }
 

@@ -123,17 +123,7 @@ pub fn fit_with_also(
         fit_with_also(estimation, also, validation, fs, options, effects)
     };
     let changes = FitChanges::of(effects);
-    let order = match options.order {
-        Order::Fixed(m) => Order::Fixed(m + changes.extra_order),
-        Order::Auto { max } => Order::Auto {
-            max: max + changes.extra_order,
-        },
-    };
-    let opts = Options {
-        method: changes.method.unwrap_or(options.method),
-        order,
-        delay: changes.delay.or(options.delay),
-    };
+    let opts = changed_options(&changes, options);
     // A sensor resonance: both channels of every test prefiltered below it.
     let effects = resolve(effects, estimation.u, fs)?;
     let filtered: Vec<(Vec<f64>, Vec<f64>)> = std::iter::once(estimation)
@@ -205,29 +195,8 @@ pub fn fit_with_also(
                 y,
             })
             .collect();
-        let Some(est) = cleaned.first().copied() else {
-            return Err(EffectError::NoEstimationTest.into());
-        };
-        let together = cleaned.len() > 1;
-        let f = if changes.nonlinear {
-            let (mut f, g) = fit_nonlinear(&est, validation, fs, &opts)?;
-            gain = g;
-            if together {
-                gain = fit_loss_jointly(&mut f, gain, &cleaned);
-            }
-            f
-        } else {
-            // A leak lowers the static gain: its model keeps the gain found.
-            let mut f = if changes.leak {
-                fit_with_leak(&est, validation, fs, &opts)?
-            } else {
-                crate::fit::fit(&est, validation, fs, &opts)?
-            };
-            if together {
-                fit_linear_jointly(&mut f, &cleaned, validation, !changes.leak);
-            }
-            f
-        };
+        let (f, g) = fit_dynamics(&changes, &cleaned, validation, fs, &opts)?;
+        gain = g;
         // Only an offset or a drift is estimated from what the dynamics leave.
         if changes.offset || changes.drift {
             additive = fitted_tests
@@ -247,21 +216,11 @@ pub fn fit_with_also(
     }
     let additive = additive.first().copied().unwrap_or_default();
     let fitted = fitted.ok_or(EffectError::NoFit)?;
-    let out: Vec<Effect> = effects
-        .iter()
-        .map(|e| match e {
-            Effect::Offset { .. } => Effect::Offset {
-                value: additive.offset,
-            },
-            Effect::Drift { .. } => Effect::Drift {
-                value: additive.offset,
-                rate_per_s: additive.rate_per_s,
-            },
-            Effect::NonlinearDamping { .. } => Effect::NonlinearDamping { gain },
-            other => other.clone(),
-        })
-        .collect();
-    let out = with_noise_model(&fitted.model, out, estimation_raw);
+    let out = with_noise_model(
+        &fitted.model,
+        with_fitted_values(&effects, additive, gain),
+        estimation_raw,
+    );
     fallback::second_looks(
         fallback::First {
             fitted,
@@ -276,6 +235,76 @@ pub fn fit_with_also(
         },
         &refit,
     )
+}
+
+/// The options a fit with `changes` runs with: the order raised by the modes and leaks, the
+/// method and delay they impose.
+fn changed_options(changes: &FitChanges, options: &Options) -> Options {
+    let order = match options.order {
+        Order::Fixed(m) => Order::Fixed(m + changes.extra_order),
+        Order::Auto { max } => Order::Auto {
+            max: max + changes.extra_order,
+        },
+    };
+    Options {
+        method: changes.method.unwrap_or(options.method),
+        order,
+        delay: changes.delay.or(options.delay),
+    }
+}
+
+/// One fit of the dynamics to the `cleaned` tests (their offset or drift removed; the first is
+/// the estimation test, any others are fitted together with it): with a quadratic loss, the
+/// linear part and the loss together, else the linear model (keeping the static gain found
+/// for a leak, which lowers it). Returns the fit and the loss's gain (0 without one).
+fn fit_dynamics(
+    changes: &FitChanges,
+    cleaned: &[Test<'_>],
+    validation: &[Test<'_>],
+    fs: f64,
+    opts: &Options,
+) -> Result<(Fitted, f64)> {
+    let Some(est) = cleaned.first().copied() else {
+        return Err(EffectError::NoEstimationTest.into());
+    };
+    let together = cleaned.len() > 1;
+    if changes.nonlinear {
+        let (mut f, mut gain) = fit_nonlinear(&est, validation, fs, opts)?;
+        if together {
+            gain = fit_loss_jointly(&mut f, gain, cleaned);
+        }
+        Ok((f, gain))
+    } else {
+        // A leak lowers the static gain: its model keeps the gain found.
+        let mut f = if changes.leak {
+            fit_with_leak(&est, validation, fs, opts)?
+        } else {
+            crate::fit::fit(&est, validation, fs, opts)?
+        };
+        if together {
+            fit_linear_jointly(&mut f, cleaned, validation, !changes.leak);
+        }
+        Ok((f, 0.0))
+    }
+}
+
+/// The `effects` with the values the fit found: the estimation test's offset or drift and the
+/// loss's gain.
+fn with_fitted_values(effects: &[Effect], additive: Additive, gain: f64) -> Vec<Effect> {
+    effects
+        .iter()
+        .map(|e| match e {
+            Effect::Offset { .. } => Effect::Offset {
+                value: additive.offset,
+            },
+            Effect::Drift { .. } => Effect::Drift {
+                value: additive.offset,
+                rate_per_s: additive.rate_per_s,
+            },
+            Effect::NonlinearDamping { .. } => Effect::NonlinearDamping { gain },
+            other => other.clone(),
+        })
+        .collect()
 }
 
 /// The tests' names, `a.csv and b.csv`, for a note.

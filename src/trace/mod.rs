@@ -12,7 +12,7 @@
 //! without ever leaving a half-written file). Problems are [`TraceError`]s, in this room's
 //! own words: the trace room imports nothing of the rooms after it.
 
-use std::io::{Read, Write};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use sha2::{Digest, Sha256};
@@ -23,12 +23,13 @@ mod rows;
 pub mod stream;
 mod timing;
 pub mod unit;
+mod write;
 pub use clip::{CLIP_MIN_RUN, CLIP_MIN_RUN_AT_END};
 pub use error::{short, ColumnRole, CopyFailure, TraceError};
 pub use unit::{time_unit, PressureUnit};
 
 use clip::check_clipping;
-use rows::{check_columns, csv_reader, hex, Hashing, Rows};
+use rows::{check_columns, hex, Hashing, Rows};
 use timing::{jitters, Steps};
 
 /// The trace room's result.
@@ -333,101 +334,6 @@ impl Trace {
             role: ColumnRole::Reference,
             needed: true,
         })
-    }
-
-    /// Writes this trace as CSV with extra columns appended, row by row: the rows are read
-    /// again from the file (which must not have changed since it was read: its hash is
-    /// checked at the end) and written with the new values beside them.
-    ///
-    /// # Errors
-    /// [`CopyFailure::Trace`] with [`TraceError::Mismatch`] when a column's length differs from
-    /// the trace's or the file changed, [`CopyFailure::Output`] when `out` fails.
-    pub fn write_csv_with(
-        &self,
-        out: &mut dyn Write,
-        extra: &[(&str, &[f64])],
-    ) -> std::result::Result<(), CopyFailure> {
-        for (name, col) in extra {
-            if col.len() != self.len() {
-                return Err(TraceError::Mismatch {
-                    path: self.path.clone(),
-                    message: format!(
-                        "column '{name}' has {} values for {} rows",
-                        col.len(),
-                        self.len()
-                    ),
-                }
-                .into());
-            }
-        }
-        let changed = || -> CopyFailure {
-            TraceError::Mismatch {
-                path: self.path.clone(),
-                message: "the file changed while unlag was running; run again".into(),
-            }
-            .into()
-        };
-        let (delimiter, decimal_comma) = self.dialect;
-        let sep = char::from(delimiter);
-        let mut header = self
-            .headers
-            .iter()
-            .collect::<Vec<_>>()
-            .join(&sep.to_string());
-        for (name, _) in extra {
-            header.push(sep);
-            header.push_str(name);
-        }
-        header.push('\n');
-        out.write_all(header.as_bytes())?;
-        let mut copy = |reader: &mut dyn Read| -> std::result::Result<(), CopyFailure> {
-            let mut reader = csv_reader(reader, delimiter, csv::Trim::All);
-            let mut rec = csv::StringRecord::new();
-            // Skip the header.
-            reader.headers().map_err(|_| changed())?;
-            let mut k = 0;
-            let mut line = Vec::with_capacity(128);
-            while reader.read_record(&mut rec).map_err(|_| changed())? {
-                line.clear();
-                for (i, f) in rec.iter().enumerate() {
-                    if i > 0 {
-                        line.push(delimiter);
-                    }
-                    line.extend_from_slice(f.as_bytes());
-                }
-                for (_, col) in extra {
-                    let v = col.get(k).copied().ok_or_else(changed)?;
-                    // `{}` on f64 prints the shortest text that reads back to the same value.
-                    let text = v.to_string();
-                    line.push(delimiter);
-                    if decimal_comma {
-                        line.extend_from_slice(text.replace('.', ",").as_bytes());
-                    } else {
-                        line.extend_from_slice(text.as_bytes());
-                    }
-                }
-                line.push(b'\n');
-                out.write_all(&line)?;
-                k += 1;
-            }
-            if k == self.len() {
-                Ok(())
-            } else {
-                Err(changed())
-            }
-        };
-        match &self.source {
-            Source::Bytes(bytes) => copy(&mut &bytes[..]),
-            Source::File => {
-                let (mut reader, _) = Hashing::open(&self.path)?;
-                copy(&mut reader)?;
-                if hex(&reader.hasher.finalize()) == self.sha256 {
-                    Ok(())
-                } else {
-                    Err(changed())
-                }
-            }
-        }
     }
 }
 

@@ -17,9 +17,11 @@ use sha2::Digest;
 
 use super::rows::{check_columns, hex, Hashing, Rows};
 use super::timing::Steps;
+use super::write::{self, row_line};
 use super::{Columns, Result, TraceError, CLIP_MIN_RUN, CLIP_MIN_RUN_AT_END};
 
 pub use super::rows::Row;
+pub use super::write::changed;
 
 /// One pass over a run's rows: [`Row`]s checked by the same path as [`Trace::read`]'s.
 ///
@@ -496,51 +498,19 @@ fn first_jitter(path: &Path, columns: &Columns, nominal: f64) -> Result<(u64, f6
     Err(changed(path))
 }
 
-/// The error of a run whose file changed between two passes.
-#[must_use]
-pub fn changed(path: &Path) -> TraceError {
-    TraceError::Mismatch {
-        path: path.to_path_buf(),
-        message: "the file changed while unlag was running; run again".into(),
-    }
-}
-
 /// Writes one row of a run back with `extra` values after its fields: the fields as `rows`
 /// read them (with [`csv::Trim::All`]), joined by the file's delimiter, each extra value as
 /// the shortest text that reads back to it (with a decimal comma when the file has them);
 /// `line` is a reused buffer. The same bytes as [`Trace::write_csv_with`](super::Trace::write_csv_with).
 pub fn write_row(record: &csv::StringRecord, extra: &[f64], columns: &Columns, line: &mut Vec<u8>) {
-    let delimiter = columns.delimiter;
-    line.clear();
-    for (i, f) in record.iter().enumerate() {
-        if i > 0 {
-            line.push(delimiter);
-        }
-        line.extend_from_slice(f.as_bytes());
-    }
-    for v in extra {
-        let text = v.to_string();
-        line.push(delimiter);
-        if columns.decimal_comma {
-            line.extend_from_slice(text.replace('.', ",").as_bytes());
-        } else {
-            line.extend_from_slice(text.as_bytes());
-        }
-    }
-    line.push(b'\n');
+    let dialect = (columns.delimiter, columns.decimal_comma);
+    row_line(record, extra.iter().copied(), dialect, line);
 }
 
 /// The header line of a run written back with `extra` columns after its own.
 #[must_use]
 pub fn header_line(headers: &csv::StringRecord, extra: &[&str], columns: &Columns) -> String {
-    let sep = char::from(columns.delimiter);
-    let mut header = headers.iter().collect::<Vec<_>>().join(&sep.to_string());
-    for name in extra {
-        header.push(sep);
-        header.push_str(name);
-    }
-    header.push('\n');
-    header
+    write::header_line(headers, extra.iter().copied(), columns.delimiter)
 }
 
 /// Reads the run at `path` again from its start, to the end of the file, checking each row

@@ -11,6 +11,11 @@
 //! streams the rows to any writer (the file room's `write_atomically_with` puts them on disk
 //! without ever leaving a half-written file). Problems are [`TraceError`]s, in this room's
 //! own words: the trace room imports nothing of the rooms after it.
+//!
+//! Its modules: `rows` reads the header and checks each row (the one path both [`Trace::read`]
+//! and the streamed passes of [`stream`] take), `timing` checks the time column and gives the
+//! sample rate, `clip` finds clipped channels, `write` writes rows back, [`unit`] reads units
+//! from column names, and the errors are in [`TraceError`].
 
 use std::io::Read;
 use std::path::{Path, PathBuf};

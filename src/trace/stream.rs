@@ -1,8 +1,8 @@
 //! A run read in passes over its file instead of held in memory: each pass reads the rows
 //! again, so that what a command keeps does not grow with the record.
 //!
-//! [`RunRows`] reads one pass: every row's numbers, checked as [`Trace::read`](super::Trace::read)
-//! checks them (the same messages with the file, line and column). [`scan`] is the first pass:
+//! [`RunRows`] reads one pass: every row's numbers, checked by the same row-checking path as
+//! [`Trace::read`](super::Trace::read)'s (the same messages with the file, line and column). [`scan`] is the first pass:
 //! the checks that need the whole record (time that increases uniformly, the sample rate) from
 //! running figures, and a [`RunChecks`] that finishes the clipping checks in the next passes.
 //! [`Median`] is the median of a streamed quantity in two passes, in fixed memory.
@@ -572,5 +572,36 @@ mod tests {
             assert_eq!(streamed_median(v), Some(exact_median(v)), "{}", v.len());
         }
         assert_eq!(streamed_median(&[]), None);
+    }
+
+    #[test]
+    fn the_first_pass_and_trace_read_give_the_same_message() {
+        let dir = std::env::temp_dir().join(format!("unlag-same-message-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let columns = Columns {
+            require_input: false,
+            ..Columns::default()
+        };
+        let cases = [
+            "t,u,y\n0,0,0\n0.001,x,1\n",
+            "t,u,y\n0,0,0\n0.001,1\n",
+            "t,u,y\n0,0,0\n0.001,1,inf\n",
+            "t,u,y\n0,0,0\n0.001,1,1e300\n",
+            "t,u,y\n0,0,0\n0.001,1,1\n0.001,1,1\n",
+            "t,u,y\n0,0,0\n0.001,1,1\n0.0025,1,1\n0.003,0,1\n",
+            "t,u,y\n0,0,0\n1,1,1\n2,0,1\n",
+            "t,u,y\n",
+            "t,u,y\n0,1,2\n",
+            "a;b\n1;2\n",
+            "x,y\n1,2\n",
+        ];
+        for (k, text) in cases.iter().enumerate() {
+            let path = dir.join(format!("{k}.csv"));
+            std::fs::write(&path, text).unwrap();
+            let read = super::super::Trace::read(&path, &columns).unwrap_err();
+            let streamed = scan(&path, &columns, |_| {}).unwrap_err();
+            assert_eq!(read.to_string(), streamed.to_string(), "{text:?}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

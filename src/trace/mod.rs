@@ -14,7 +14,7 @@
 //!
 //! Its modules: `rows` reads the header and checks each row (the one path both [`Trace::read`]
 //! and the streamed passes of [`stream`] take), `timing` checks the time column and gives the
-//! sample rate, `clip` finds clipped channels, `write` writes rows back, [`unit`] reads units
+//! sample rate, `clip` finds clipped channels, `write` writes rows back, [`unit`](mod@unit) reads units
 //! from column names, and the errors are in [`TraceError`].
 
 use std::io::Read;

@@ -11,17 +11,31 @@
 //! streams the rows to any writer (the file room's `write_atomically_with` puts them on disk
 //! without ever leaving a half-written file). Problems are [`TraceError`]s, in this room's
 //! own words: the trace room imports nothing of the rooms after it.
+//!
+//! Its modules: `rows` reads the header and checks each row (the one path both [`Trace::read`]
+//! and the streamed passes of [`stream`] take), `timing` checks the time column and gives the
+//! sample rate, `clip` finds clipped channels, `write` writes rows back, [`unit`](mod@unit) reads units
+//! from column names, and the errors are in [`TraceError`].
 
-use std::io::{Read, Write};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use sha2::{Digest, Sha256};
 
+mod clip;
 mod error;
+mod rows;
 pub mod stream;
+mod timing;
 pub mod unit;
+mod write;
+pub use clip::{CLIP_MIN_RUN, CLIP_MIN_RUN_AT_END};
 pub use error::{short, ColumnRole, CopyFailure, TraceError};
 pub use unit::{time_unit, PressureUnit};
+
+use clip::check_clipping;
+use rows::{check_columns, hex, Hashing, Rows};
+use timing::{jitters, Steps};
 
 /// The trace room's result.
 pub type Result<T, E = TraceError> = std::result::Result<T, E>;
@@ -66,9 +80,6 @@ pub fn echo(text: &str, at_byte: u64) -> String {
         ),
     }
 }
-
-/// Rows looked at for decimal commas when the header shows the file has another delimiter.
-const DELIMITER_ROWS: usize = 16;
 
 /// Rows read before the signals' buffers are sized from the file's length.
 const SIZING_ROWS: usize = 64;
@@ -154,173 +165,6 @@ enum Source {
     Bytes(std::sync::Arc<[u8]>),
 }
 
-/// A reader that hashes what passes through it, and keeps it when asked (a pipe or a device,
-/// which cannot be read again to write the rows back).
-struct Hashing<R> {
-    inner: R,
-    hasher: Sha256,
-    kept: Option<Vec<u8>>,
-}
-
-impl Hashing<std::io::BufReader<std::fs::File>> {
-    /// Opens the file at `path` to be read through a buffer and hashed; with its length.
-    fn open(path: &Path) -> Result<(Self, u64)> {
-        let cannot_read = |source| TraceError::Io {
-            path: path.to_path_buf(),
-            action: "cannot read",
-            source,
-        };
-        let file = std::fs::File::open(path).map_err(cannot_read)?;
-        let meta = file.metadata().map_err(cannot_read)?;
-        if meta.is_dir() {
-            return Err(cannot_read(std::io::Error::other("it is a directory")));
-        }
-        let reader = Self {
-            inner: std::io::BufReader::with_capacity(1 << 16, file),
-            hasher: Sha256::new(),
-            kept: (!meta.is_file()).then(Vec::new),
-        };
-        Ok((reader, meta.len()))
-    }
-}
-
-impl<R: Read> Read for Hashing<R> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let n = self.inner.read(buf)?;
-        let read = buf.get(..n).unwrap_or(&[]);
-        self.hasher.update(read);
-        if let Some(kept) = &mut self.kept {
-            kept.try_reserve(n)
-                .map_err(|_| std::io::Error::from(std::io::ErrorKind::OutOfMemory))?;
-            kept.extend_from_slice(read);
-        }
-        Ok(n)
-    }
-}
-
-/// The CSV reader every trace is read (and read again) with: lines bounded by
-/// [`MAX_LINE_BYTES`], the field count checked by the caller (to read a row of a file whose
-/// header was split at the wrong delimiter).
-fn csv_reader<R: Read>(reader: R, delimiter: u8, trim: csv::Trim) -> csv::Reader<LineLimit<R>> {
-    csv::ReaderBuilder::new()
-        .trim(trim)
-        .delimiter(delimiter)
-        .flexible(true)
-        .comment(Some(b'#'))
-        .from_reader(LineLimit::new(reader, delimiter))
-}
-
-/// Where a [`LineLimit`] is in the CSV syntax, as far as the length of a record needs it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Syntax {
-    RecordStart,
-    FieldStart,
-    Field,
-    Quoted,
-    QuoteInQuoted,
-    Comment,
-}
-
-/// A reader that refuses a line, or a quoted record over many lines, longer than
-/// [`MAX_LINE_BYTES`]: the bytes are counted as they pass, before the CSV reader's buffer grows
-/// for them (it would grow without bound on a file without line ends).
-struct LineLimit<R> {
-    inner: R,
-    delimiter: u8,
-    state: Syntax,
-    /// Bytes since the last line end.
-    physical: u64,
-    /// Bytes since the current record started.
-    record: u64,
-    /// Line ends seen.
-    newlines: u64,
-    /// 1-based line the current record started on.
-    record_line: u64,
-}
-
-/// The error a [`LineLimit`] gives, found again in the CSV reader's error.
-#[derive(Debug)]
-struct TooLong {
-    line: u64,
-    quoted: bool,
-}
-
-impl std::fmt::Display for TooLong {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "line {} is longer than {MAX_LINE_BYTES} bytes",
-            self.line
-        )
-    }
-}
-
-impl std::error::Error for TooLong {}
-
-impl<R> LineLimit<R> {
-    fn new(inner: R, delimiter: u8) -> Self {
-        Self {
-            inner,
-            delimiter,
-            state: Syntax::RecordStart,
-            physical: 0,
-            record: 0,
-            newlines: 0,
-            record_line: 1,
-        }
-    }
-
-    /// Counts one byte; an error when it makes its line or record too long.
-    fn step(&mut self, b: u8) -> std::io::Result<()> {
-        use Syntax::{Comment, Field, FieldStart, QuoteInQuoted, Quoted, RecordStart};
-        if self.state == RecordStart {
-            self.record = 0;
-            self.record_line = self.newlines + 1;
-        }
-        self.state = match (self.state, b) {
-            (Comment, b'\n') => RecordStart,
-            (Comment, _) => Comment,
-            (RecordStart, b'#') => Comment,
-            (Quoted, b'"') => QuoteInQuoted,
-            (Quoted, _) | (QuoteInQuoted, b'"') | (RecordStart | FieldStart, b'"') => Quoted,
-            (_, b'\n' | b'\r') => RecordStart,
-            (_, d) if d == self.delimiter => FieldStart,
-            _ => Field,
-        };
-        if b == b'\n' {
-            self.newlines += 1;
-            self.physical = 0;
-        } else {
-            self.physical += 1;
-        }
-        self.record += 1;
-        let too_long = if self.physical > MAX_LINE_BYTES {
-            TooLong {
-                line: self.newlines + 1,
-                quoted: false,
-            }
-        } else if self.record > MAX_LINE_BYTES {
-            TooLong {
-                line: self.record_line,
-                quoted: true,
-            }
-        } else {
-            return Ok(());
-        };
-        Err(std::io::Error::other(too_long))
-    }
-}
-
-impl<R: Read> Read for LineLimit<R> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let n = self.inner.read(buf)?;
-        for &b in buf.get(..n).unwrap_or(&[]) {
-            self.step(b)?;
-        }
-        Ok(n)
-    }
-}
-
 /// Pushes `x`, growing `v` with `try_reserve` (doubling) so that a recording too long for the
 /// memory is an error, not an abort.
 fn grow<T>(v: &mut Vec<T>, x: T, oom: impl Fn() -> TraceError) -> Result<()> {
@@ -331,233 +175,30 @@ fn grow<T>(v: &mut Vec<T>, x: T, oom: impl Fn() -> TraceError) -> Result<()> {
     Ok(())
 }
 
-/// Whether `text` reads as a number once its one comma is a decimal point.
-fn has_decimal_comma(text: &str) -> bool {
-    text.matches(',').count() == 1 && text.replace(',', ".").parse::<f64>().is_ok()
-}
-
-/// Of the delimiters a trace may be written with, one that the header's single field holds,
-/// splitting it into columns, other than `delimiter`.
-fn other_delimiter(header: &csv::StringRecord, delimiter: u8) -> Option<u8> {
-    if header.len() != 1 {
-        return None;
-    }
-    let only = header.get(0)?;
-    [b';', b'\t', b',', b'|']
-        .into_iter()
-        .filter(|&d| d != delimiter)
-        .find(|&d| {
-            only.split(char::from(d))
-                .filter(|f| !f.trim().is_empty())
-                .count()
-                >= 2
-        })
-}
-
-/// Checks the options a trace is read with, before its file is opened.
-fn check_columns(columns: &Columns) -> Result<()> {
-    if let Some(fs) = columns.sample_rate_hz {
-        if !(fs.is_finite() && fs > 0.0 && fs <= MAX_SAMPLE_RATE_HZ) {
-            return Err(TraceError::SampleRate {
-                given: fs,
-                max: MAX_SAMPLE_RATE_HZ,
+/// An error when the signal `x` (of column `column`, named `name`) has two or more samples, all
+/// equal: a fit cannot learn from a constant reference or probe.
+fn check_constant(
+    path: &Path,
+    x: &[f64],
+    lines: &[u64],
+    role: ColumnRole,
+    name: &str,
+    column: usize,
+) -> Result<()> {
+    if let (Some(&first), true) = (x.first(), x.len() >= 2) {
+        if x.iter().all(|&v| v == first) {
+            return Err(TraceError::Constant {
+                path: path.to_path_buf(),
+                role,
+                name: name.to_string(),
+                column,
+                value: first,
+                first: lines.first().copied().unwrap_or(0),
+                last: lines.last().copied().unwrap_or(0),
             });
         }
-    }
-    if columns.decimal_comma && columns.delimiter == b',' {
-        return Err(TraceError::DecimalCommaDelimiter);
     }
     Ok(())
-}
-
-/// Byte of the file where field `i` of `rec` (starting at byte `at`) starts, past its
-/// leading blanks.
-fn byte_of(rec: &csv::StringRecord, at: u64, i: usize) -> u64 {
-    let text = rec.get(i).unwrap_or("");
-    let lead = text.len() - text.trim_start().len();
-    at + rec.range(i).map_or(0, |r| r.start as u64) + i as u64 + lead as u64
-}
-
-/// A trace's header: the columns found in it, to read its rows by.
-struct Layout {
-    /// The header as read.
-    raw: csv::StringRecord,
-    /// The same, trimmed.
-    headers: csv::StringRecord,
-    /// Byte where the header starts.
-    header_at: u64,
-    t_idx: Option<usize>,
-    u_idx: Option<usize>,
-    y_idx: usize,
-}
-
-impl Layout {
-    /// Reads the header of `reader` and finds the columns of `columns` in it: a missing one is
-    /// an error that says whether the file has another delimiter (a few rows are read to see
-    /// whether its numbers have decimal commas).
-    fn read<R: Read>(path: &Path, reader: &mut csv::Reader<R>, columns: &Columns) -> Result<Self> {
-        let p = || path.to_path_buf();
-        let raw = reader.headers().map_err(|e| csv_error(path, &e))?.clone();
-        let mut headers = raw.clone();
-        headers.trim();
-        if headers.is_empty() || headers.iter().all(str::is_empty) {
-            return Err(TraceError::Empty {
-                path: p(),
-                line: 1,
-                what: "no header row",
-            });
-        }
-        let header_at = raw.position().map_or(0, csv::Position::byte);
-        let find = |name: &str| headers.iter().position(|h| h == name);
-        let mut missing = |column: &str, role: ColumnRole| {
-            if let Some(found) = other_delimiter(&raw, columns.delimiter) {
-                // The rows are split at the same wrong delimiter: joined back, then split at
-                // the header's, their numbers show whether their decimal point is a comma.
-                // The first rows may be all zeros: a few are looked at.
-                let mut row = csv::StringRecord::new();
-                let mut decimal_comma = false;
-                for _ in 0..DELIMITER_ROWS {
-                    if !matches!(reader.read_record(&mut row), Ok(true)) {
-                        break;
-                    }
-                    decimal_comma |= row
-                        .iter()
-                        .collect::<Vec<_>>()
-                        .join(&char::from(columns.delimiter).to_string())
-                        .split(char::from(found))
-                        .any(|f| has_decimal_comma(f.trim()));
-                }
-                return TraceError::WrongDelimiter {
-                    path: p(),
-                    header: echo(raw.get(0).unwrap_or(""), header_at),
-                    expected: columns.delimiter,
-                    found,
-                    decimal_comma,
-                };
-            }
-            TraceError::MissingColumn {
-                path: p(),
-                column: echo(column, 0),
-                found: echo(&headers.iter().collect::<Vec<_>>().join(", "), header_at),
-                role,
-                needed: false,
-            }
-        };
-        let y_idx = match find(&columns.output) {
-            Some(i) => i,
-            None => return Err(missing(&columns.output, ColumnRole::Probe)),
-        };
-        let u_idx = match find(&columns.input) {
-            Some(i) => Some(i),
-            None if columns.require_input => {
-                return Err(missing(&columns.input, ColumnRole::Reference))
-            }
-            None => None,
-        };
-        let t_idx = if columns.sample_rate_hz.is_some() {
-            None
-        } else {
-            match find(&columns.time) {
-                Some(i) => Some(i),
-                None => return Err(missing(&columns.time, ColumnRole::Time)),
-            }
-        };
-        Ok(Self {
-            raw,
-            headers,
-            header_at,
-            t_idx,
-            u_idx,
-            y_idx,
-        })
-    }
-
-    /// Column `i`'s name as messages echo it.
-    fn name_of(&self, i: usize) -> String {
-        echo(
-            self.headers.get(i).unwrap_or(""),
-            byte_of(&self.raw, self.header_at, i),
-        )
-    }
-
-    /// An error unless `rec` has as many fields as the header.
-    fn check_width(&self, path: &Path, rec: &csv::StringRecord, line: u64) -> Result<()> {
-        if rec.len() == self.raw.len() {
-            return Ok(());
-        }
-        Err(TraceError::Malformed {
-            path: path.to_path_buf(),
-            line,
-            message: format!(
-                "expected {} fields like the header, found {}",
-                self.raw.len(),
-                rec.len()
-            ),
-        })
-    }
-
-    /// The number in field `idx` of `rec`, checked: a number (with a decimal comma when
-    /// `columns` say so), finite, and no larger than [`MAX_MAGNITUDE`].
-    fn field(
-        &self,
-        path: &Path,
-        columns: &Columns,
-        rec: &csv::StringRecord,
-        idx: usize,
-    ) -> Result<f64> {
-        let p = || path.to_path_buf();
-        let line = rec.position().map_or(0, csv::Position::line);
-        let at = rec.position().map_or(0, csv::Position::byte);
-        let name_of = |i: usize| self.name_of(i);
-        let text = rec.get(idx).unwrap_or("").trim();
-        let value = || echo(text, byte_of(rec, at, idx));
-        let parsed = if columns.decimal_comma && text.contains(',') {
-            text.replace(',', ".").parse::<f64>()
-        } else {
-            text.parse::<f64>()
-        };
-        let Ok(v) = parsed else {
-            return Err(
-                if !columns.decimal_comma && columns.delimiter != b',' && has_decimal_comma(text) {
-                    TraceError::DecimalComma {
-                        path: p(),
-                        line,
-                        column: idx + 1,
-                        name: name_of(idx),
-                        value: value(),
-                    }
-                } else {
-                    TraceError::NotANumber {
-                        path: p(),
-                        line,
-                        column: idx + 1,
-                        name: name_of(idx),
-                        value: value(),
-                    }
-                },
-            );
-        };
-        if !v.is_finite() {
-            return Err(TraceError::NonFinite {
-                path: p(),
-                line,
-                column: idx + 1,
-                name: name_of(idx),
-                value: value(),
-            });
-        }
-        if v.abs() > MAX_MAGNITUDE {
-            return Err(TraceError::TooLarge {
-                path: p(),
-                line,
-                column: idx + 1,
-                name: name_of(idx),
-                value: value(),
-                max: MAX_MAGNITUDE,
-            });
-        }
-        Ok(v)
-    }
 }
 
 impl Trace {
@@ -589,40 +230,31 @@ impl Trace {
     }
 
     /// Parses and checks a trace as it streams from `reader` (`size` bytes long, to size the
-    /// signals' buffers); the hash and the source are the caller's to set.
+    /// signals' buffers); the hash and the source are the caller's to set. The rows are
+    /// [`Rows`]'s, checked as the streamed passes check them; the sample rate is [`Steps`]'s.
     fn parse_reader<R: Read>(path: &Path, reader: R, size: u64, columns: &Columns) -> Result<Self> {
         let p = || path.to_path_buf();
         check_columns(columns)?;
         // Not trimmed by the reader: a field's place in the record gives its byte in the file.
-        let mut reader = csv_reader(reader, columns.delimiter, csv::Trim::None);
-        let layout = Layout::read(path, &mut reader, columns)?;
-        let (t_idx, u_idx, y_idx) = (layout.t_idx, layout.u_idx, layout.y_idx);
-        let headers = layout.headers.clone();
-        let name_of = |i: usize| layout.name_of(i);
+        let mut rows = Rows::new(path, reader, columns, csv::Trim::None)?;
+        let (t_idx, u_idx, y_idx) = (rows.layout.t_idx, rows.layout.u_idx, rows.layout.y_idx);
 
         let mut t = Vec::new();
         let mut u = Vec::new();
         let mut y = Vec::new();
         let mut lines: Vec<u64> = Vec::new();
-        let mut rec = csv::StringRecord::new();
-        loop {
-            match reader.read_record(&mut rec) {
-                Ok(true) => {}
-                Ok(false) => break,
-                Err(e) => return Err(csv_error(path, &e)),
-            }
-            let line = rec.position().map_or(0, csv::Position::line);
-            let rows = lines.len();
+        let mut steps = Steps::default();
+        while let Some(line) = rows.next_record()? {
+            let n = lines.len();
             let oom = || TraceError::OutOfMemory {
                 path: p(),
                 line,
-                rows,
+                rows: n,
             };
-            layout.check_width(path, &rec, line)?;
-            if rows == SIZING_ROWS {
+            if n == SIZING_ROWS {
                 // The file's length over the bytes a row has taken so far: room for all the
                 // rows at once, instead of buffers doubling (and briefly tripling) as they grow.
-                let start = rec.position().map_or(0, csv::Position::byte);
+                let start = rows.record().position().map_or(0, csv::Position::byte);
                 let per_row = (start / SIZING_ROWS as u64).max(1);
                 let more = usize::try_from(size / per_row + size / per_row / 8).unwrap_or(0);
                 for (v, used) in [(&mut t, t_idx), (&mut u, u_idx), (&mut y, Some(y_idx))] {
@@ -632,86 +264,39 @@ impl Trace {
                 }
                 lines.try_reserve(more).map_err(|_| oom())?;
             }
-            let field = |idx: usize| layout.field(path, columns, &rec, idx);
-            if let Some(i) = t_idx {
-                grow(&mut t, field(i)?, oom)?;
+            let row = rows.row(line)?;
+            steps.push(row.t, line);
+            if let Some(v) = row.t {
+                grow(&mut t, v, oom)?;
             }
-            if let Some(i) = u_idx {
-                grow(&mut u, field(i)?, oom)?;
+            if let Some(v) = row.u {
+                grow(&mut u, v, oom)?;
             }
-            grow(&mut y, field(y_idx)?, oom)?;
+            grow(&mut y, row.y, oom)?;
             grow(&mut lines, line, oom)?;
         }
-        if y.is_empty() {
-            return Err(TraceError::Empty {
-                path: p(),
-                line: 2,
-                what: "a header and no data rows",
-            });
-        }
-        let sample_rate_hz = match (columns.sample_rate_hz, t_idx) {
-            (Some(fs), _) => fs,
-            (None, Some(ti)) => {
-                let unit = time_unit(&columns.time);
-                let (symbol, seconds) = unit.unwrap_or(("s", 1.0));
-                let time = TimeColumn {
-                    column: ti + 1,
-                    name: name_of(ti),
-                    unit: symbol,
-                };
-                let per_unit = check_time(path, &t, &lines, &time)?;
-                let rate = per_unit / seconds;
-                if unit.is_none() && rate < MIN_PLAUSIBLE_RATE_HZ {
-                    return Err(TraceError::ImplausibleTime {
-                        path: p(),
-                        line: lines.get(1).copied().unwrap_or(0),
-                        column: ti + 1,
-                        name: time.name,
-                        step: 1.0 / per_unit,
-                        rate_hz: rate,
-                        min: MIN_PLAUSIBLE_RATE_HZ,
-                    });
-                }
-                rate
-            }
-            (None, None) => unreachable_fs(path)?,
-        };
-        if sample_rate_hz.is_nan() || sample_rate_hz > MAX_SAMPLE_RATE_HZ {
-            return Err(TraceError::Malformed {
-                path: p(),
-                line: 3,
-                message: format!(
-                    "the time column's step gives a sample rate of {sample_rate_hz:e} Hz, above \
-                     the {:e} Hz a model may carry: is the time in seconds?",
-                    MAX_SAMPLE_RATE_HZ
-                ),
-            });
-        }
+        let layout = &rows.layout;
+        let sample_rate_hz = steps.sample_rate(path, columns, layout, |nominal| {
+            Ok(t.windows(2)
+                .zip(lines.iter().skip(1))
+                .find_map(|(w, &line)| match *w {
+                    [a, b] if jitters(b - a, nominal) => Some((line, b - a)),
+                    _ => None,
+                }))
+        })?;
         if columns.require_input {
             let signals = [
-                (u_idx.map(|i| (&u, i)), ColumnRole::Reference),
-                (Some((&y, y_idx)), ColumnRole::Probe),
+                (u_idx.map(|i| (&u[..], i)), ColumnRole::Reference),
+                (Some((&y[..], y_idx)), ColumnRole::Probe),
             ];
             for (signal, role) in signals {
                 let Some((x, i)) = signal else { continue };
-                if let (Some(&first), true) = (x.first(), x.len() >= 2) {
-                    if x.iter().all(|&v| v == first) {
-                        return Err(TraceError::Constant {
-                            path: p(),
-                            role,
-                            name: name_of(i),
-                            column: i + 1,
-                            value: first,
-                            first: lines.first().copied().unwrap_or(0),
-                            last: lines.last().copied().unwrap_or(0),
-                        });
-                    }
-                }
+                check_constant(path, x, &lines, role, &layout.name_of(i), i + 1)?;
             }
         }
-        check_clipping(path, &y, &lines, y_idx + 1, &name_of(y_idx))?;
+        check_clipping(path, &y, &lines, y_idx + 1, &layout.name_of(y_idx))?;
         if let Some(ui) = u_idx {
-            check_clipping(path, &u, &lines, ui + 1, &name_of(ui))?;
+            check_clipping(path, &u, &lines, ui + 1, &layout.name_of(ui))?;
         }
         // The sizing estimate leaves room to spare: give it back (the signals live for the run).
         u.shrink_to_fit();
@@ -724,7 +309,7 @@ impl Trace {
             y,
             u_column: u_idx.map(|i| i + 1),
             y_column: y_idx + 1,
-            headers,
+            headers: layout.headers.clone(),
             dialect: (columns.delimiter, columns.decimal_comma),
             source: Source::File,
         })
@@ -755,296 +340,6 @@ impl Trace {
             needed: true,
         })
     }
-
-    /// Writes this trace as CSV with extra columns appended, row by row: the rows are read
-    /// again from the file (which must not have changed since it was read: its hash is
-    /// checked at the end) and written with the new values beside them.
-    ///
-    /// # Errors
-    /// [`CopyFailure::Trace`] with [`TraceError::Mismatch`] when a column's length differs from
-    /// the trace's or the file changed, [`CopyFailure::Output`] when `out` fails.
-    pub fn write_csv_with(
-        &self,
-        out: &mut dyn Write,
-        extra: &[(&str, &[f64])],
-    ) -> std::result::Result<(), CopyFailure> {
-        for (name, col) in extra {
-            if col.len() != self.len() {
-                return Err(TraceError::Mismatch {
-                    path: self.path.clone(),
-                    message: format!(
-                        "column '{name}' has {} values for {} rows",
-                        col.len(),
-                        self.len()
-                    ),
-                }
-                .into());
-            }
-        }
-        let changed = || -> CopyFailure {
-            TraceError::Mismatch {
-                path: self.path.clone(),
-                message: "the file changed while unlag was running; run again".into(),
-            }
-            .into()
-        };
-        let (delimiter, decimal_comma) = self.dialect;
-        let sep = char::from(delimiter);
-        let mut header = self
-            .headers
-            .iter()
-            .collect::<Vec<_>>()
-            .join(&sep.to_string());
-        for (name, _) in extra {
-            header.push(sep);
-            header.push_str(name);
-        }
-        header.push('\n');
-        out.write_all(header.as_bytes())?;
-        let mut copy = |reader: &mut dyn Read| -> std::result::Result<(), CopyFailure> {
-            let mut reader = csv_reader(reader, delimiter, csv::Trim::All);
-            let mut rec = csv::StringRecord::new();
-            // Skip the header.
-            reader.headers().map_err(|_| changed())?;
-            let mut k = 0;
-            let mut line = Vec::with_capacity(128);
-            while reader.read_record(&mut rec).map_err(|_| changed())? {
-                line.clear();
-                for (i, f) in rec.iter().enumerate() {
-                    if i > 0 {
-                        line.push(delimiter);
-                    }
-                    line.extend_from_slice(f.as_bytes());
-                }
-                for (_, col) in extra {
-                    let v = col.get(k).copied().ok_or_else(changed)?;
-                    // `{}` on f64 prints the shortest text that reads back to the same value.
-                    let text = v.to_string();
-                    line.push(delimiter);
-                    if decimal_comma {
-                        line.extend_from_slice(text.replace('.', ",").as_bytes());
-                    } else {
-                        line.extend_from_slice(text.as_bytes());
-                    }
-                }
-                line.push(b'\n');
-                out.write_all(&line)?;
-                k += 1;
-            }
-            if k == self.len() {
-                Ok(())
-            } else {
-                Err(changed())
-            }
-        };
-        match &self.source {
-            Source::Bytes(bytes) => copy(&mut &bytes[..]),
-            Source::File => {
-                let (mut reader, _) = Hashing::open(&self.path)?;
-                copy(&mut reader)?;
-                if hex(&reader.hasher.finalize()) == self.sha256 {
-                    Ok(())
-                } else {
-                    Err(changed())
-                }
-            }
-        }
-    }
-}
-
-fn unreachable_fs(path: &Path) -> Result<f64> {
-    Err(TraceError::NoSampleRate {
-        path: path.to_path_buf(),
-    })
-}
-
-fn csv_error(path: &Path, e: &csv::Error) -> TraceError {
-    if let csv::ErrorKind::Io(io) = e.kind() {
-        if let Some(long) = io.get_ref().and_then(|e| e.downcast_ref::<TooLong>()) {
-            return TraceError::LineTooLong {
-                path: path.to_path_buf(),
-                line: long.line,
-                limit: MAX_LINE_BYTES,
-                quoted: long.quoted,
-            };
-        }
-    }
-    let line = e.position().map_or(0, csv::Position::line);
-    let message = match e.kind() {
-        csv::ErrorKind::UnequalLengths {
-            expected_len, len, ..
-        } => format!("expected {expected_len} fields like the header, found {len}"),
-        csv::ErrorKind::Utf8 { .. } => "the file is not UTF-8 text".to_string(),
-        _ => e.to_string(),
-    };
-    TraceError::Malformed {
-        path: path.to_path_buf(),
-        line,
-        message,
-    }
-}
-
-/// The time column, as messages name it.
-struct TimeColumn {
-    /// 1-based field position.
-    column: usize,
-    /// Its name, quoted and cut ([`echo`]).
-    name: String,
-    /// Its unit's symbol.
-    unit: &'static str,
-}
-
-/// Checks that time increases uniformly and returns the sample rate, per the column's unit.
-fn check_time(path: &Path, t: &[f64], lines: &[u64], time: &TimeColumn) -> Result<f64> {
-    let (column, name) = (time.column, time.name.as_str());
-    let n = t.len();
-    let (Some(&first), Some(&last)) = (t.first(), t.last()) else {
-        return Err(TraceError::Empty {
-            path: path.to_path_buf(),
-            line: 2,
-            what: "a header and no data rows",
-        });
-    };
-    if n < 2 {
-        return Err(TraceError::TooShort {
-            path: path.to_path_buf(),
-            samples: n,
-        });
-    }
-    for (k, w) in t.windows(2).enumerate() {
-        if let [a, b] = *w {
-            if b <= a {
-                return Err(TraceError::TimeNotIncreasing {
-                    path: path.to_path_buf(),
-                    line: lines.get(k + 1).copied().unwrap_or(0),
-                    column,
-                    name: name.to_string(),
-                    previous: a,
-                    value: b,
-                });
-            }
-        }
-    }
-    let nominal = (last - first) / (n - 1) as f64;
-    for (k, w) in t.windows(2).enumerate() {
-        if let [a, b] = *w {
-            let step = b - a;
-            let dev = (step - nominal).abs() / nominal;
-            if dev > MAX_JITTER {
-                return Err(TraceError::NonUniformTime {
-                    path: path.to_path_buf(),
-                    line: lines.get(k + 1).copied().unwrap_or(0),
-                    column,
-                    name: name.to_string(),
-                    step,
-                    nominal,
-                    percent: dev * 100.0,
-                    unit: time.unit,
-                });
-            }
-        }
-    }
-    Ok(1.0 / nominal)
-}
-
-/// Shortest flat run at an extreme that counts as clipping.
-pub const CLIP_MIN_RUN: usize = 5;
-
-/// Shortest flat run at an extreme, lasting to the end of the record, that counts as clipping
-/// when the rest of the record is noisy.
-pub const CLIP_MIN_RUN_AT_END: usize = 20;
-
-/// Fraction of the samples outside `start..end` that repeat their predecessor exactly.
-fn repeat_fraction_outside(x: &[f64], start: usize, end: usize) -> f64 {
-    let (mut repeats, mut pairs) = (0usize, 0usize);
-    for (i, w) in x.windows(2).enumerate() {
-        if (start.saturating_sub(1)..end).contains(&i) {
-            continue;
-        }
-        pairs += 1;
-        if let [a, b] = *w {
-            if a == b {
-                repeats += 1;
-            }
-        }
-    }
-    if pairs == 0 {
-        1.0
-    } else {
-        repeats as f64 / pairs as f64
-    }
-}
-
-/// Detects a saturated ADC: the signal sits flat at its largest (or smallest) value for at
-/// least [`CLIP_MIN_RUN`] samples, and enters that run with a jump of more than 5 times the
-/// typical sample-to-sample change. A settled, quantised signal also repeats its final value,
-/// but it enters the plateau in steps of about one typical change, so it is not flagged.
-fn check_clipping(path: &Path, x: &[f64], lines: &[u64], column: usize, name: &str) -> Result<()> {
-    if x.len() < 4 * CLIP_MIN_RUN {
-        return Ok(());
-    }
-    let mut diffs: Vec<f64> = x
-        .windows(2)
-        .filter_map(|w| match *w {
-            [a, b] if a != b => Some((b - a).abs()),
-            _ => None,
-        })
-        .collect();
-    if diffs.is_empty() {
-        return Ok(());
-    }
-    let mid = diffs.len() / 2;
-    diffs.select_nth_unstable_by(mid, f64::total_cmp);
-    let typical = diffs.get(mid).copied().unwrap_or(0.0);
-    let max = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let min = x.iter().copied().fold(f64::INFINITY, f64::min);
-    for (level, which) in [(max, "largest"), (min, "smallest")] {
-        let mut k = 0;
-        while k < x.len() {
-            if x.get(k) == Some(&level) {
-                let start = k;
-                while x.get(k) == Some(&level) {
-                    k += 1;
-                }
-                let run = k - start;
-                let entry_jump = start
-                    .checked_sub(1)
-                    .and_then(|i| x.get(i))
-                    .map_or(0.0, |prev| (level - prev).abs());
-                // A run that lasts to the end of the record may be a noise-free step's
-                // settled value; it is clipping when the rest of the record is noisy (its
-                // samples rarely repeat) and the run is long.
-                let clipped = if k < x.len() {
-                    run >= CLIP_MIN_RUN
-                } else {
-                    run >= CLIP_MIN_RUN_AT_END && repeat_fraction_outside(x, start, k) < 0.2
-                };
-                if clipped && entry_jump > 5.0 * typical {
-                    return Err(TraceError::Clipped {
-                        path: path.to_path_buf(),
-                        line: lines.get(start).copied().unwrap_or(0),
-                        column,
-                        name: name.to_string(),
-                        run,
-                        which,
-                        value: level,
-                    });
-                }
-            } else {
-                k += 1;
-            }
-        }
-    }
-    Ok(())
-}
-
-fn hex(bytes: &[u8]) -> String {
-    use std::fmt::Write as _;
-    let mut s = String::with_capacity(bytes.len() * 2);
-    for b in bytes {
-        let _ = write!(s, "{b:02x}");
-    }
-    s
 }
 
 #[cfg(test)]

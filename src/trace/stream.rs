@@ -1,8 +1,8 @@
 //! A run read in passes over its file instead of held in memory: each pass reads the rows
 //! again, so that what a command keeps does not grow with the record.
 //!
-//! [`RunRows`] reads one pass: every row's numbers, checked as [`Trace::read`](super::Trace::read)
-//! checks them (the same messages with the file, line and column). [`scan`] is the first pass:
+//! [`RunRows`] reads one pass: every row's numbers, checked by the same row-checking path as
+//! [`Trace::read`](super::Trace::read)'s (the same messages with the file, line and column). [`scan`] is the first pass:
 //! the checks that need the whole record (time that increases uniformly, the sample rate) from
 //! running figures, and a [`RunChecks`] that finishes the clipping checks in the next passes.
 //! [`Median`] is the median of a streamed quantity in two passes, in fixed memory.
@@ -15,32 +15,19 @@ use std::path::{Path, PathBuf};
 
 use sha2::Digest;
 
-use super::{
-    check_columns, csv_error, csv_reader, hex, time_unit, Columns, Hashing, Layout, LineLimit,
-    Result, TimeColumn, TraceError, CLIP_MIN_RUN, CLIP_MIN_RUN_AT_END, MAX_JITTER,
-    MAX_SAMPLE_RATE_HZ, MIN_PLAUSIBLE_RATE_HZ,
-};
+use super::rows::{check_columns, hex, Hashing, Rows};
+use super::timing::Steps;
+use super::write::{self, row_line};
+use super::{Columns, Result, TraceError, CLIP_MIN_RUN, CLIP_MIN_RUN_AT_END};
 
-/// One row of a run: its reference (when the file has one) and probe values, and its line.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Row {
-    /// The time column's value, when it is read.
-    pub t: Option<f64>,
-    /// The reference.
-    pub u: Option<f64>,
-    /// The probe.
-    pub y: f64,
-    /// 1-based line of the file.
-    pub line: u64,
-}
+pub use super::rows::Row;
+pub use super::write::changed;
 
-/// One pass over a run's rows.
+/// One pass over a run's rows: [`Row`]s checked by the same path as [`Trace::read`]'s.
+///
+/// [`Trace::read`]: super::Trace::read
 pub struct RunRows {
-    path: PathBuf,
-    columns: Columns,
-    reader: csv::Reader<LineLimit<Hashing<BufReader<std::fs::File>>>>,
-    layout: Layout,
-    rec: csv::StringRecord,
+    rows: Rows<Hashing<BufReader<std::fs::File>>>,
     /// Whether the file is a regular file (which can be read again).
     rereadable: bool,
 }
@@ -56,14 +43,8 @@ impl RunRows {
         check_columns(columns)?;
         let (hashing, _) = Hashing::open(path)?;
         let rereadable = std::fs::metadata(path).is_ok_and(|m| m.is_file());
-        let mut reader = csv_reader(hashing, columns.delimiter, trim);
-        let layout = Layout::read(path, &mut reader, columns)?;
         Ok(Self {
-            path: path.to_path_buf(),
-            columns: columns.clone(),
-            reader,
-            layout,
-            rec: csv::StringRecord::new(),
+            rows: Rows::new(path, hashing, columns, trim)?,
             rereadable,
         })
     }
@@ -73,44 +54,32 @@ impl RunRows {
     /// # Errors
     /// As [`Trace::read`](super::Trace::read) for a row.
     pub fn next_row(&mut self) -> Result<Option<Row>> {
-        match self.reader.read_record(&mut self.rec) {
-            Ok(true) => {}
-            Ok(false) => return Ok(None),
-            Err(e) => return Err(csv_error(&self.path, &e)),
-        }
-        let line = self.rec.position().map_or(0, csv::Position::line);
-        let l = &self.layout;
-        l.check_width(&self.path, &self.rec, line)?;
-        let field = |i: usize| l.field(&self.path, &self.columns, &self.rec, i);
-        let t = l.t_idx.map(field).transpose()?;
-        let u = l.u_idx.map(field).transpose()?;
-        let y = field(l.y_idx)?;
-        Ok(Some(Row { t, u, y, line }))
+        self.rows.next_row()
     }
 
     /// The fields of the row last read, as the reader gave them.
     #[must_use]
     pub fn record(&self) -> &csv::StringRecord {
-        &self.rec
+        self.rows.record()
     }
 
     /// The header, trimmed.
     #[must_use]
     pub fn headers(&self) -> &csv::StringRecord {
-        &self.layout.headers
+        &self.rows.layout.headers
     }
 
     /// Whether the file has the reference column.
     #[must_use]
     pub fn has_reference(&self) -> bool {
-        self.layout.u_idx.is_some()
+        self.rows.layout.u_idx.is_some()
     }
 
     /// The SHA-256 of the bytes read so far (all of the file once [`RunRows::next_row`] has
     /// given `None`), lower-case hex.
     #[must_use]
     pub fn sha256(self) -> String {
-        hex(&self.reader.into_inner().inner.hasher.finalize())
+        hex(&self.rows.into_inner().hasher.finalize())
     }
 }
 
@@ -449,45 +418,21 @@ pub fn scan(
     mut each: impl FnMut(&Row),
 ) -> Result<(RunInfo, RunChecks)> {
     let mut rows = RunRows::open(path, columns, csv::Trim::None)?;
-    let layout_names = |i: usize| rows.layout.name_of(i);
-    let y_name = layout_names(rows.layout.y_idx);
-    let u_scan = rows
-        .layout
-        .u_idx
-        .map(|i| ClipScan::new(i + 1, layout_names(i)));
-    let y_scan = ClipScan::new(rows.layout.y_idx + 1, y_name);
-    let t_idx = rows.layout.t_idx;
-    let time_name = t_idx.map(|i| rows.layout.name_of(i));
+    let layout = &rows.rows.layout;
+    let mut checks = RunChecks {
+        path: path.to_path_buf(),
+        y: ClipScan::new(layout.y_idx + 1, layout.name_of(layout.y_idx)),
+        u: layout
+            .u_idx
+            .map(|i| ClipScan::new(i + 1, layout.name_of(i))),
+    };
     let headers = rows.headers().clone();
     let has_reference = rows.has_reference();
     let rereadable = rows.rereadable;
-    let mut checks = RunChecks {
-        path: path.to_path_buf(),
-        y: y_scan,
-        u: u_scan,
-    };
-    let mut n = 0usize;
-    let (mut first_t, mut last_t) = (None, None);
-    let (mut min_step, mut max_step) = (f64::INFINITY, f64::NEG_INFINITY);
-    let mut not_increasing: Option<(u64, f64, f64)> = None;
-    let mut second_line = 0;
+    let mut steps = Steps::default();
     let (mut reference_head, mut probe_head) = (Vec::new(), Vec::new());
     while let Some(row) = rows.next_row()? {
-        if let Some(t) = row.t {
-            if let Some(a) = last_t {
-                if t <= a && not_increasing.is_none() {
-                    not_increasing = Some((row.line, a, t));
-                }
-                let step = t - a;
-                min_step = min_step.min(step);
-                max_step = max_step.max(step);
-            }
-            first_t.get_or_insert(t);
-            last_t = Some(t);
-        }
-        if n == 1 {
-            second_line = row.line;
-        }
+        steps.push(row.t, row.line);
         if probe_head.len() < 64 {
             probe_head.push(row.y);
             reference_head.extend(row.u);
@@ -497,79 +442,16 @@ pub fn scan(
             c.first(u);
         }
         each(&row);
-        n += 1;
     }
+    let layout = rows.rows.layout.clone();
     let sha256 = rows.sha256();
-    if n == 0 {
-        return Err(TraceError::Empty {
-            path: path.to_path_buf(),
-            line: 2,
-            what: "a header and no data rows",
-        });
-    }
-    let sample_rate_hz = match (columns.sample_rate_hz, t_idx, first_t, last_t) {
-        (Some(fs), _, _, _) => fs,
-        (None, Some(ti), Some(first), Some(last)) => {
-            let unit = time_unit(&columns.time);
-            let (symbol, seconds) = unit.unwrap_or(("s", 1.0));
-            let time = TimeColumn {
-                column: ti + 1,
-                name: time_name.unwrap_or_default(),
-                unit: symbol,
-            };
-            if n < 2 {
-                return Err(TraceError::TooShort {
-                    path: path.to_path_buf(),
-                    samples: n,
-                });
-            }
-            if let Some((line, previous, value)) = not_increasing {
-                return Err(TraceError::TimeNotIncreasing {
-                    path: path.to_path_buf(),
-                    line,
-                    column: time.column,
-                    name: time.name,
-                    previous,
-                    value,
-                });
-            }
-            let nominal = (last - first) / (n - 1) as f64;
-            let jitter = |step: f64| (step - nominal).abs() / nominal > MAX_JITTER;
-            if jitter(min_step) || jitter(max_step) {
-                return Err(first_jitter(path, columns, &time, nominal));
-            }
-            let per_unit = 1.0 / nominal;
-            let rate = per_unit / seconds;
-            if unit.is_none() && rate < MIN_PLAUSIBLE_RATE_HZ {
-                return Err(TraceError::ImplausibleTime {
-                    path: path.to_path_buf(),
-                    line: second_line,
-                    column: ti + 1,
-                    name: time.name,
-                    step: 1.0 / per_unit,
-                    rate_hz: rate,
-                    min: MIN_PLAUSIBLE_RATE_HZ,
-                });
-            }
-            rate
+    let sample_rate_hz = steps.sample_rate(path, columns, &layout, |nominal| {
+        if steps.any_jitters(nominal) {
+            first_jitter(path, columns, nominal).map(Some)
+        } else {
+            Ok(None)
         }
-        _ => {
-            return Err(TraceError::NoSampleRate {
-                path: path.to_path_buf(),
-            })
-        }
-    };
-    if sample_rate_hz.is_nan() || sample_rate_hz > MAX_SAMPLE_RATE_HZ {
-        return Err(TraceError::Malformed {
-            path: path.to_path_buf(),
-            line: 3,
-            message: format!(
-                "the time column's step gives a sample rate of {sample_rate_hz:e} Hz, above \
-                 the {:e} Hz a model may carry: is the time in seconds?",
-                MAX_SAMPLE_RATE_HZ
-            ),
-        });
-    }
+    })?;
     if !rereadable {
         return Err(TraceError::NotRereadable {
             path: path.to_path_buf(),
@@ -582,7 +464,7 @@ pub fn scan(
     Ok((
         RunInfo {
             path: path.to_path_buf(),
-            len: n,
+            len: steps.rows(),
             sample_rate_hz,
             has_reference,
             headers,
@@ -594,49 +476,26 @@ pub fn scan(
     ))
 }
 
-/// The first time step of the run at `path` that jitters by more than [`MAX_JITTER`] around
-/// `nominal`, as [`Trace::read`](super::Trace::read) reports it: a second look at the file,
-/// made only when the first pass's extreme steps showed there is one.
-fn first_jitter(path: &Path, columns: &Columns, time: &TimeColumn, nominal: f64) -> TraceError {
-    let error = |line, step| TraceError::NonUniformTime {
-        path: path.to_path_buf(),
-        line,
-        column: time.column,
-        name: time.name.clone(),
-        step,
-        nominal,
-        percent: (step - nominal).abs() / nominal * 100.0,
-        unit: time.unit,
-    };
-    let mut rows = match RunRows::open(path, columns, csv::Trim::None) {
-        Ok(rows) => rows,
-        Err(e) => return e,
-    };
+/// The line and step of the first time step of the run at `path` that jitters by more than
+/// [`MAX_JITTER`](super::MAX_JITTER) around `nominal`: a second look at the file, made only
+/// when the first pass's extreme steps showed there is one.
+///
+/// # Errors
+/// As [`RunRows::next_row`]; [`TraceError::Mismatch`] when no step jitters now (the file
+/// changed).
+fn first_jitter(path: &Path, columns: &Columns, nominal: f64) -> Result<(u64, f64)> {
+    let mut rows = RunRows::open(path, columns, csv::Trim::None)?;
     let mut last: Option<f64> = None;
-    loop {
-        let row = match rows.next_row() {
-            Ok(Some(row)) => row,
-            Ok(None) => break,
-            Err(e) => return e,
-        };
+    while let Some(row) = rows.next_row()? {
         if let (Some(a), Some(b)) = (last, row.t) {
             let step: f64 = b - a;
-            if (step - nominal).abs() / nominal > MAX_JITTER {
-                return error(row.line, step);
+            if super::timing::jitters(step, nominal) {
+                return Ok((row.line, step));
             }
         }
         last = row.t;
     }
-    changed(path)
-}
-
-/// The error of a run whose file changed between two passes.
-#[must_use]
-pub fn changed(path: &Path) -> TraceError {
-    TraceError::Mismatch {
-        path: path.to_path_buf(),
-        message: "the file changed while unlag was running; run again".into(),
-    }
+    Err(changed(path))
 }
 
 /// Writes one row of a run back with `extra` values after its fields: the fields as `rows`
@@ -644,37 +503,14 @@ pub fn changed(path: &Path) -> TraceError {
 /// the shortest text that reads back to it (with a decimal comma when the file has them);
 /// `line` is a reused buffer. The same bytes as [`Trace::write_csv_with`](super::Trace::write_csv_with).
 pub fn write_row(record: &csv::StringRecord, extra: &[f64], columns: &Columns, line: &mut Vec<u8>) {
-    let delimiter = columns.delimiter;
-    line.clear();
-    for (i, f) in record.iter().enumerate() {
-        if i > 0 {
-            line.push(delimiter);
-        }
-        line.extend_from_slice(f.as_bytes());
-    }
-    for v in extra {
-        let text = v.to_string();
-        line.push(delimiter);
-        if columns.decimal_comma {
-            line.extend_from_slice(text.replace('.', ",").as_bytes());
-        } else {
-            line.extend_from_slice(text.as_bytes());
-        }
-    }
-    line.push(b'\n');
+    let dialect = (columns.delimiter, columns.decimal_comma);
+    row_line(record, extra.iter().copied(), dialect, line);
 }
 
 /// The header line of a run written back with `extra` columns after its own.
 #[must_use]
 pub fn header_line(headers: &csv::StringRecord, extra: &[&str], columns: &Columns) -> String {
-    let sep = char::from(columns.delimiter);
-    let mut header = headers.iter().collect::<Vec<_>>().join(&sep.to_string());
-    for name in extra {
-        header.push(sep);
-        header.push_str(name);
-    }
-    header.push('\n');
-    header
+    write::header_line(headers, extra.iter().copied(), columns.delimiter)
 }
 
 /// Reads the run at `path` again from its start, to the end of the file, checking each row
@@ -736,5 +572,36 @@ mod tests {
             assert_eq!(streamed_median(v), Some(exact_median(v)), "{}", v.len());
         }
         assert_eq!(streamed_median(&[]), None);
+    }
+
+    #[test]
+    fn the_first_pass_and_trace_read_give_the_same_message() {
+        let dir = std::env::temp_dir().join(format!("unlag-same-message-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let columns = Columns {
+            require_input: false,
+            ..Columns::default()
+        };
+        let cases = [
+            "t,u,y\n0,0,0\n0.001,x,1\n",
+            "t,u,y\n0,0,0\n0.001,1\n",
+            "t,u,y\n0,0,0\n0.001,1,inf\n",
+            "t,u,y\n0,0,0\n0.001,1,1e300\n",
+            "t,u,y\n0,0,0\n0.001,1,1\n0.001,1,1\n",
+            "t,u,y\n0,0,0\n0.001,1,1\n0.0025,1,1\n0.003,0,1\n",
+            "t,u,y\n0,0,0\n1,1,1\n2,0,1\n",
+            "t,u,y\n",
+            "t,u,y\n0,1,2\n",
+            "a;b\n1;2\n",
+            "x,y\n1,2\n",
+        ];
+        for (k, text) in cases.iter().enumerate() {
+            let path = dir.join(format!("{k}.csv"));
+            std::fs::write(&path, text).unwrap();
+            let read = super::super::Trace::read(&path, &columns).unwrap_err();
+            let streamed = scan(&path, &columns, |_| {}).unwrap_err();
+            assert_eq!(read.to_string(), streamed.to_string(), "{text:?}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -12,7 +12,8 @@
 
 use std::fmt::Write as _;
 
-use super::image::{BoardImage, SetTiming};
+use super::bank::BoardBank;
+use super::image::{BoardCoefficients, BoardImage, SetTiming};
 
 /// The comment under the generated-by line, per kind (it closes the comment).
 const F32_INTRO: &[&str] = &[
@@ -187,44 +188,7 @@ impl BoardImage {
         s.push_str("#include <stdint.h>\n\n");
         let t = self.timing();
         match self {
-            Self::F32(c) => {
-                timing(&mut s, &t);
-                let _ = writeln!(
-                    s,
-                    "#define UNLAG_SECTION_COUNT {}u\n\n\
-                     static const float unlag_gain = {:?}f;",
-                    c.sections.len(),
-                    c.gain
-                );
-                let sections = c.sections.iter().map(|sec| floats(*sec));
-                array(
-                    &mut s,
-                    "static const float unlag_sections[UNLAG_SECTION_COUNT][5]",
-                    sections,
-                );
-                if let Some(n) = &c.nonlinear {
-                    let _ = writeln!(
-                        s,
-                        "{NONLINEAR_INTRO}\
-                         #define UNLAG_NONLINEAR_SECTION_COUNT {}u\n\
-                         static const float unlag_nonlinear_gain = {:?}f;\n\
-                         static const float unlag_nonlinear_lowpass_gain = {:?}f;",
-                        n.lowpass.len(),
-                        n.gain,
-                        n.lowpass_gain
-                    );
-                    array(
-                        &mut s,
-                        "static const float unlag_nonlinear_sections[UNLAG_NONLINEAR_SECTION_COUNT][5]",
-                        n.lowpass.iter().map(|sec| floats(*sec)),
-                    );
-                }
-                let _ = write!(s, "\n{F32_KERNEL}");
-                // A design's low-pass has at least one section (C has no empty array).
-                if c.nonlinear.as_ref().is_some_and(|n| !n.lowpass.is_empty()) {
-                    let _ = write!(s, "\n{NONLINEAR_KERNEL}");
-                }
-            }
+            Self::F32(c) => f32_body(&mut s, c, &t),
             Self::Fixed(c) => {
                 let rows = c.sections.iter().map(|f| {
                     let shift = i32::from(f.shift);
@@ -248,46 +212,90 @@ impl BoardImage {
                 fixed(&mut s, &t, scale, ("direct", 5, layout), rows.collect());
                 let _ = write!(s, "\n{INT_HELPERS}\n{DIRECT_KERNEL}");
             }
-            Self::Bank(b) => {
-                let _ = writeln!(
-                    s,
-                    "#define UNLAG_BANK_SAMPLE_RATE_HZ {:?} /* Hz */\n\
-                     #define UNLAG_BANK_SET_COUNT {}u\n\
-                     #define UNLAG_BANK_SECTION_COUNT {}u\n\
-                     #define UNLAG_BANK_HYSTERESIS_K {:?}f /* K: half the step */\n\
-                     #define UNLAG_BANK_WARM_UP_SAMPLES {}u\n\n\
-                     static const float unlag_bank_temperatures_k[UNLAG_BANK_SET_COUNT] = {};\n\
-                     static const uint32_t unlag_bank_delay_samples[UNLAG_BANK_SET_COUNT] = {};\n\
-                     static const float unlag_bank_gains[UNLAG_BANK_SET_COUNT] = {};\n\
-                     /* {{b0, b1, b2, a1, a2}} per section, per set */",
-                    t.sample_rate_hz,
-                    b.sets.len(),
-                    b.section_count(),
-                    narrow(b.hysteresis_k),
-                    b.warm_up_samples,
-                    floats(b.temperatures_k.iter().map(|t| narrow(*t))),
-                    braced(&b.sets, |c| format!("{}u", c.delay_samples)),
-                    floats(b.sets.iter().map(|c| c.gain)),
-                );
-                let sets = b.temperatures_k.iter().zip(&b.sets).map(|(t, set)| {
-                    let rows: String = set
-                        .sections
-                        .iter()
-                        .map(|sec| format!("        {},\n", floats(*sec)))
-                        .collect();
-                    format!("{{ /* {t} K */\n{rows}    }}")
-                });
-                array(
-                    &mut s,
-                    "static const float unlag_bank_sections[UNLAG_BANK_SET_COUNT][UNLAG_BANK_SECTION_COUNT][5]",
-                    sets,
-                );
-                let _ = write!(s, "\n{BANK_SELECT}");
-            }
+            Self::Bank(b) => bank_body(&mut s, b, &t),
         }
         let _ = write!(s, "\n#endif /* {guard} */\n");
         s
     }
+}
+
+/// The f32 cascade's header body: its timing, gain and sections, the nonlinear damping's
+/// correction when the model has one, and the reference kernels.
+fn f32_body(s: &mut String, c: &BoardCoefficients, t: &SetTiming) {
+    timing(s, t);
+    let _ = writeln!(
+        s,
+        "#define UNLAG_SECTION_COUNT {}u\n\n\
+         static const float unlag_gain = {:?}f;",
+        c.sections.len(),
+        c.gain
+    );
+    let sections = c.sections.iter().map(|sec| floats(*sec));
+    array(
+        s,
+        "static const float unlag_sections[UNLAG_SECTION_COUNT][5]",
+        sections,
+    );
+    if let Some(n) = &c.nonlinear {
+        let _ = writeln!(
+            s,
+            "{NONLINEAR_INTRO}\
+             #define UNLAG_NONLINEAR_SECTION_COUNT {}u\n\
+             static const float unlag_nonlinear_gain = {:?}f;\n\
+             static const float unlag_nonlinear_lowpass_gain = {:?}f;",
+            n.lowpass.len(),
+            n.gain,
+            n.lowpass_gain
+        );
+        array(
+            s,
+            "static const float unlag_nonlinear_sections[UNLAG_NONLINEAR_SECTION_COUNT][5]",
+            n.lowpass.iter().map(|sec| floats(*sec)),
+        );
+    }
+    let _ = write!(s, "\n{F32_KERNEL}");
+    // A design's low-pass has at least one section (C has no empty array).
+    if c.nonlinear.as_ref().is_some_and(|n| !n.lowpass.is_empty()) {
+        let _ = write!(s, "\n{NONLINEAR_KERNEL}");
+    }
+}
+
+/// The temperature bank's header body: its sets by temperature and the selection code.
+fn bank_body(s: &mut String, b: &BoardBank, t: &SetTiming) {
+    let _ = writeln!(
+        s,
+        "#define UNLAG_BANK_SAMPLE_RATE_HZ {:?} /* Hz */\n\
+         #define UNLAG_BANK_SET_COUNT {}u\n\
+         #define UNLAG_BANK_SECTION_COUNT {}u\n\
+         #define UNLAG_BANK_HYSTERESIS_K {:?}f /* K: half the step */\n\
+         #define UNLAG_BANK_WARM_UP_SAMPLES {}u\n\n\
+         static const float unlag_bank_temperatures_k[UNLAG_BANK_SET_COUNT] = {};\n\
+         static const uint32_t unlag_bank_delay_samples[UNLAG_BANK_SET_COUNT] = {};\n\
+         static const float unlag_bank_gains[UNLAG_BANK_SET_COUNT] = {};\n\
+         /* {{b0, b1, b2, a1, a2}} per section, per set */",
+        t.sample_rate_hz,
+        b.sets.len(),
+        b.section_count(),
+        narrow(b.hysteresis_k),
+        b.warm_up_samples,
+        floats(b.temperatures_k.iter().map(|t| narrow(*t))),
+        braced(&b.sets, |c| format!("{}u", c.delay_samples)),
+        floats(b.sets.iter().map(|c| c.gain)),
+    );
+    let sets = b.temperatures_k.iter().zip(&b.sets).map(|(t, set)| {
+        let rows: String = set
+            .sections
+            .iter()
+            .map(|sec| format!("        {},\n", floats(*sec)))
+            .collect();
+        format!("{{ /* {t} K */\n{rows}    }}")
+    });
+    array(
+        s,
+        "static const float unlag_bank_sections[UNLAG_BANK_SET_COUNT][UNLAG_BANK_SECTION_COUNT][5]",
+        sets,
+    );
+    let _ = write!(s, "\n{BANK_SELECT}");
 }
 
 #[allow(clippy::cast_possible_truncation)]

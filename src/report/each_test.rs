@@ -49,24 +49,7 @@ pub(super) fn per_test(
     let y_model = effects::predict(model, &file.effects, test.u, test.y);
     let residual: Vec<f64> = test.y.iter().zip(&y_model).map(|(a, b)| a - b).collect();
     let (scale, t_label) = time_unit(n, fs);
-    let _ = writeln!(
-        h,
-        "<h3>Test {number}: {} ({}): error {} against a noise floor of {}</h3>",
-        escape(&ev.file),
-        ev.role,
-        pct(ev.nrmse),
-        pct(ev.noise_floor)
-    );
-    if let Some(p) = &ev.prediction {
-        let _ = writeln!(
-            h,
-            "<p>With its noise model the model is judged by its one-step-ahead prediction \
-             error: {} against that error's floor of {} ({}).</p>",
-            pct(p.nrmse),
-            pct(p.floor.value),
-            escape(&p.floor.origin())
-        );
-    }
+    heading(h, number, ev);
     // Probe against model, residual beneath on the same time axis.
     // The band a correct model's residual stays in: both channels' noise through it.
     let band = 2.0 * ev.expected.std;
@@ -163,6 +146,29 @@ pub(super) fn per_test(
     spectrum(h, inputs, number, ev)?;
     correlations(h, number, ev)?;
     Ok(reconstruction)
+}
+
+/// A test's heading: its error against its noise floor, and with a noise model its
+/// one-step-ahead prediction error against that error's floor.
+fn heading(h: &mut String, number: usize, ev: &TestEvidence) {
+    let _ = writeln!(
+        h,
+        "<h3>Test {number}: {} ({}): error {} against a noise floor of {}</h3>",
+        escape(&ev.file),
+        ev.role,
+        pct(ev.nrmse),
+        pct(ev.noise_floor)
+    );
+    if let Some(p) = &ev.prediction {
+        let _ = writeln!(
+            h,
+            "<p>With its noise model the model is judged by its one-step-ahead prediction \
+             error: {} against that error's floor of {} ({}).</p>",
+            pct(p.nrmse),
+            pct(p.floor.value),
+            escape(&p.floor.origin())
+        );
+    }
 }
 
 fn spectrum(h: &mut String, inputs: &Inputs<'_>, number: usize, ev: &TestEvidence) -> Result<()> {

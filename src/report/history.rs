@@ -7,6 +7,7 @@ use std::path::Path;
 use super::plot::{colour, figure, Panel, Series, Style};
 use super::{escape, pct, push_figure, Inputs};
 use crate::error::Result;
+use crate::file::HistoryRow;
 use crate::modelling::diagnose::Candidate;
 
 /// The candidate's stated uncertainty before and after its trial, as HTML (empty when either
@@ -35,41 +36,7 @@ pub(super) fn history(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
             files.push(&t.file);
         }
     }
-    let palette = [
-        colour::PROBE,
-        colour::MODEL,
-        colour::COMPENSATED,
-        colour::PHYSICS,
-    ];
-    let mut series: Vec<Series> = files
-        .iter()
-        .enumerate()
-        .map(|(j, f)| {
-            let pts: Vec<(f64, f64)> = rows
-                .iter()
-                .enumerate()
-                .filter_map(|(i, r)| {
-                    r.tests
-                        .iter()
-                        .find(|t| t.file == *f)
-                        .map(|t| ((i + 1) as f64, 100.0 * t.nrmse))
-                })
-                .collect();
-            let name = Path::new(f)
-                .file_name()
-                .map_or_else(|| (*f).to_string(), |n| n.to_string_lossy().into_owned());
-            Series::with(
-                &name,
-                pts,
-                palette[j % palette.len()],
-                if rows.len() > 1 {
-                    Style::Line(2)
-                } else {
-                    Style::Crosses
-                },
-            )
-        })
-        .collect();
+    let mut series = error_series(rows, &files);
     // Marks on every step (a line alone hides where the steps are).
     let marks: Vec<(f64, f64)> = series
         .iter()
@@ -118,6 +85,52 @@ pub(super) fn history(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
          it added), its simulation error on each test; the error should fall towards the noise \
          floor as effects are added.",
     );
+    history_table(h, rows);
+    Ok(())
+}
+
+/// One series a test file: its error at each fit of the history (a line through them, or
+/// crosses for a single fit).
+fn error_series(rows: &[HistoryRow], files: &[&str]) -> Vec<Series> {
+    let palette = [
+        colour::PROBE,
+        colour::MODEL,
+        colour::COMPENSATED,
+        colour::PHYSICS,
+    ];
+    files
+        .iter()
+        .enumerate()
+        .map(|(j, f)| {
+            let pts: Vec<(f64, f64)> = rows
+                .iter()
+                .enumerate()
+                .filter_map(|(i, r)| {
+                    r.tests
+                        .iter()
+                        .find(|t| t.file == *f)
+                        .map(|t| ((i + 1) as f64, 100.0 * t.nrmse))
+                })
+                .collect();
+            let name = Path::new(f)
+                .file_name()
+                .map_or_else(|| (*f).to_string(), |n| n.to_string_lossy().into_owned());
+            Series::with(
+                &name,
+                pts,
+                palette[j % palette.len()],
+                if rows.len() > 1 {
+                    Style::Line(2)
+                } else {
+                    Style::Crosses
+                },
+            )
+        })
+        .collect()
+}
+
+/// The history as a table: each fit's order, delay, effects and error per test.
+fn history_table(h: &mut String, rows: &[HistoryRow]) {
     h.push_str(
         "<table class=\"history\"><tr><th>fit</th><th>order</th><th>delay</th><th>effects</th>\
          <th>error per test</th></tr>\n",
@@ -140,7 +153,6 @@ pub(super) fn history(h: &mut String, inputs: &Inputs<'_>) -> Result<()> {
         );
     }
     h.push_str("</table>\n");
-    Ok(())
 }
 
 /// The evidence's numbers to four significant digits (the full ones are in `--json`).

@@ -123,6 +123,10 @@ fn argv(program: &str, head: &[&str], flags: Vec<String>) -> Vec<String> {
 /// A float64 array returned to Python (the vector moved into it, not copied).
 type Array<'py> = Bound<'py, PyArray1<f64>>;
 
+/// What `compensate` returns to Python: `u_hat`, its latency (samples), the warnings, and the
+/// error against the reference when one was given (`u_hat`'s, the raw probe's, the lag).
+type CompensateResult<'py> = (Array<'py>, f64, Vec<String>, Option<(f64, f64, usize)>);
+
 /// A model file in memory, and the path it is named by in messages.
 #[pyclass(module = "unlag._unlag", name = "NativeModel", frozen)]
 struct NativeModel {
@@ -450,7 +454,7 @@ impl NativeModel {
         how: &str,
         temperature: Option<f64>,
         reference: Option<PyReadonlyArray1<'py, f64>>,
-    ) -> PyResult<(Array<'py>, f64, Vec<String>, Option<(f64, f64, usize)>)> {
+    ) -> PyResult<CompensateResult<'py>> {
         let arithmetic = match arithmetic {
             Some("f32") => Arithmetic::F32,
             Some("f64") => Arithmetic::F64,

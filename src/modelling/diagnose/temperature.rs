@@ -5,7 +5,7 @@
 use super::trial::{held_out_floor, Tried};
 use super::{
     temperature_evidence, temperature_reading, temperature_shift, Current, Evidence, Remedy,
-    ScaleEstimate, TemperatureShift, MIN_IMPROVEMENT,
+    ScaleEstimate, TemperatureRow, TemperatureShift, MIN_IMPROVEMENT,
 };
 use crate::effects::{self, Effect, EffectKind, TemperatureDamping};
 use crate::evidence::TestEvidence;
@@ -163,27 +163,7 @@ pub(super) fn candidate(
         delay: if scalable { base.delay } else { None },
         ..*base
     };
-    // An overdamped probe's time scales go as the viscosity where the pressure diffuses along
-    // a capillary: the diffusive law is tried in place of the speed of sound's, which scales
-    // time the same way but reads the temperature the wrong way round (a hotter gas slows a
-    // capillary).
-    let (tried, damping) = [
-        if overdamped {
-            TemperatureDamping::Diffusive
-        } else {
-            TemperatureDamping::Constant
-        },
-        TemperatureDamping::Viscous,
-    ]
-    .into_iter()
-    .filter_map(|damping| {
-        let added = Effect::Temperature {
-            reference_k: effects::DEFAULT_REFERENCE_K,
-            damping,
-        };
-        trial(added, &options).map(|t| (t, damping))
-    })
-    .min_by(|a, b| a.0.after.total_cmp(&b.0.after))?;
+    let (tried, damping) = best_law(trial, &options, overdamped)?;
     let (after, fx) = (tried.after, &tried.effects);
     let reference_k = effects::reference_k(fx).unwrap_or(effects::DEFAULT_REFERENCE_K);
     // Each test's time scale, read on the model the temperature scales: the current one, or
@@ -194,25 +174,21 @@ pub(super) fn candidate(
     } else {
         &tried.model
     };
-    let estimated: Vec<ScaleEstimate> = tests
-        .iter()
-        .map(|t| {
-            let k = effects::estimate_scale_with(scaled_model, damping, reference_k, t.u, t.y);
-            ScaleEstimate {
-                damping_factor: damping.factor(k, reference_k),
-                scale: k,
-                temperature_k: damping.temperature(k, reference_k),
-                test: t.name.to_string(),
-            }
-        })
-        .collect();
+    let estimated = scales(tests, scaled_model, damping, reference_k);
     let spelling = damping.spelling();
     let seen = signature.is_some();
     let change = Remedy::Add(Effect::Temperature {
         reference_k: effects::DEFAULT_REFERENCE_K,
         damping,
     });
-    let (file, ratio, per_test, damping_ratio, reading, temperature_ratio) = match signature {
+    let Read {
+        file,
+        ratio,
+        per_test,
+        damping_ratio,
+        reading,
+        temperature_ratio,
+    } = match signature {
         Some(t) => {
             let (file, ratio) = t.strongest();
             if damping == TemperatureDamping::Constant
@@ -221,70 +197,23 @@ pub(super) fn candidate(
                 return None;
             }
             let (reading, temperature_ratio) = temperature_reading(&t, damping, &file, reference_k);
-            (
+            Read {
                 file,
                 ratio,
-                t.rows.clone(),
-                t.damping_ratio,
+                per_test: t.rows.clone(),
+                damping_ratio: t.damping_ratio,
                 reading,
                 temperature_ratio,
-            )
-        }
-        None => {
-            let (i, strongest) = estimated
-                .iter()
-                .enumerate()
-                .skip(1)
-                .max_by(|a, b| a.1.scale.ln().abs().total_cmp(&b.1.scale.ln().abs()))?;
-            let k = strongest.scale;
-            // Only where no loss could have moved the time scale this way; beside a joint
-            // loss, a traverse's direction is not asked ([`TrialAlone::BesideJointLoss`]).
-            let loss = || {
-                let traverse = tests
-                    .get(i)
-                    .is_some_and(|t| crate::fit::step::quiet_until(t.u) == 0);
-                if alone == TrialAlone::BesideJointLoss && traverse {
-                    return false;
-                }
-                let swing_ratio = match (tests.first(), tests.get(i)) {
-                    (Some(e), Some(t)) => swing(t.u) / swing(e.u),
-                    _ => f64::NAN,
-                };
-                !swing_ratio.is_finite() || loss_could_move(k, swing_ratio)
-            };
-            let (lo, hi) = effects::SCALE_RANGE;
-            let inside = k > lo * 1.001 && k < hi / 1.001;
-            let floor = held_out_floor(evidence);
-            let fall = before / after.max(floor);
-            if !(inside && temperature_shift(k) && fall >= TRIAL_ALONE_FALL)
-                || (!resonant && loss())
-            {
-                return None;
             }
-            let temperature_ratio = damping.temperature(k, reference_k) / reference_k;
-            let reading = format!(
-                "no test fitted alone shows its natural frequencies moved by one factor (a \
-                 valve's slow rise or a traverse cannot pin a light resonance, and a traverse has \
-                 no step to fit alone), but the model's one time scale fitted to each test \
-                 moves by {k:.3} on {} and lowers the held-out error {:.2}x counted to the \
-                 noise floor ({:.3} % -> {:.3} %, floor {:.3} %): the same probe at another gas \
-                 temperature, T/T_ref = {temperature_ratio:.3}, read from the trial alone; a \
-                 step at that temperature would confirm it",
-                strongest.test,
-                fall,
-                100.0 * before,
-                100.0 * after,
-                100.0 * floor,
-            );
-            (
-                strongest.test.clone(),
-                k,
-                Vec::new(),
-                damping.factor(k, reference_k),
-                reading,
-                temperature_ratio,
-            )
         }
+        None => read_alone(
+            &estimated,
+            tests,
+            evidence,
+            (alone, resonant),
+            (before, after),
+            (damping, reference_k),
+        )?,
     };
     Some(Offer {
         kind: spelling,
@@ -306,6 +235,136 @@ pub(super) fn candidate(
         }),
         reading,
         change,
+    })
+}
+
+/// The trial of the temperature with each damping law (the speed of sound's, or the
+/// diffusive one for an overdamped probe, and the viscous one), the one of least held-out
+/// error kept, with its law.
+///
+/// An overdamped probe's time scales go as the viscosity where the pressure diffuses along
+/// a capillary: the diffusive law is tried in place of the speed of sound's, which scales
+/// time the same way but reads the temperature the wrong way round (a hotter gas slows a
+/// capillary).
+fn best_law(
+    trial: &Trial<'_>,
+    options: &Options,
+    overdamped: bool,
+) -> Option<(Tried, TemperatureDamping)> {
+    [
+        if overdamped {
+            TemperatureDamping::Diffusive
+        } else {
+            TemperatureDamping::Constant
+        },
+        TemperatureDamping::Viscous,
+    ]
+    .into_iter()
+    .filter_map(|damping| {
+        let added = Effect::Temperature {
+            reference_k: effects::DEFAULT_REFERENCE_K,
+            damping,
+        };
+        trial(added, options).map(|t| (t, damping))
+    })
+    .min_by(|a, b| a.0.after.total_cmp(&b.0.after))
+}
+
+/// What the temperature candidate reads: the test it is strongest on, the time-scale ratio
+/// there, each test's row (with the tests' signature), the damping's ratio, the reading and the
+/// temperature ratio.
+struct Read {
+    file: String,
+    ratio: f64,
+    per_test: Vec<TemperatureRow>,
+    damping_ratio: f64,
+    reading: String,
+    temperature_ratio: f64,
+}
+
+/// Each test's time scale under `damping`, read on `model`.
+fn scales(
+    tests: &[Test<'_>],
+    model: &crate::fit::Model,
+    damping: TemperatureDamping,
+    reference_k: f64,
+) -> Vec<ScaleEstimate> {
+    tests
+        .iter()
+        .map(|t| {
+            let k = effects::estimate_scale_with(model, damping, reference_k, t.u, t.y);
+            ScaleEstimate {
+                damping_factor: damping.factor(k, reference_k),
+                scale: k,
+                temperature_k: damping.temperature(k, reference_k),
+                test: t.name.to_string(),
+            }
+        })
+        .collect()
+}
+
+/// The temperature read from the trial alone (no test fitted alone shows the signature): the
+/// held-out test whose time scale moved most, if the move is inside the searched range, one a
+/// gas temperature explains, lowers the held-out error by [`TRIAL_ALONE_FALL`] counted to the
+/// floor, and (for a model without a light resonance) is not one a quadratic loss could make.
+fn read_alone(
+    estimated: &[ScaleEstimate],
+    tests: &[Test<'_>],
+    evidence: &[TestEvidence],
+    (alone, resonant): (TrialAlone, bool),
+    (before, after): (f64, f64),
+    (damping, reference_k): (TemperatureDamping, f64),
+) -> Option<Read> {
+    let (i, strongest) = estimated
+        .iter()
+        .enumerate()
+        .skip(1)
+        .max_by(|a, b| a.1.scale.ln().abs().total_cmp(&b.1.scale.ln().abs()))?;
+    let k = strongest.scale;
+    // Only where no loss could have moved the time scale this way; beside a joint
+    // loss, a traverse's direction is not asked ([`TrialAlone::BesideJointLoss`]).
+    let loss = || {
+        let traverse = tests
+            .get(i)
+            .is_some_and(|t| crate::fit::step::quiet_until(t.u) == 0);
+        if alone == TrialAlone::BesideJointLoss && traverse {
+            return false;
+        }
+        let swing_ratio = match (tests.first(), tests.get(i)) {
+            (Some(e), Some(t)) => swing(t.u) / swing(e.u),
+            _ => f64::NAN,
+        };
+        !swing_ratio.is_finite() || loss_could_move(k, swing_ratio)
+    };
+    let (lo, hi) = effects::SCALE_RANGE;
+    let inside = k > lo * 1.001 && k < hi / 1.001;
+    let floor = held_out_floor(evidence);
+    let fall = before / after.max(floor);
+    if !(inside && temperature_shift(k) && fall >= TRIAL_ALONE_FALL) || (!resonant && loss()) {
+        return None;
+    }
+    let temperature_ratio = damping.temperature(k, reference_k) / reference_k;
+    let reading = format!(
+        "no test fitted alone shows its natural frequencies moved by one factor (a \
+         valve's slow rise or a traverse cannot pin a light resonance, and a traverse has \
+         no step to fit alone), but the model's one time scale fitted to each test \
+         moves by {k:.3} on {} and lowers the held-out error {:.2}x counted to the \
+         noise floor ({:.3} % -> {:.3} %, floor {:.3} %): the same probe at another gas \
+         temperature, T/T_ref = {temperature_ratio:.3}, read from the trial alone; a \
+         step at that temperature would confirm it",
+        strongest.test,
+        fall,
+        100.0 * before,
+        100.0 * after,
+        100.0 * floor,
+    );
+    Some(Read {
+        file: strongest.test.clone(),
+        ratio: k,
+        per_test: Vec::new(),
+        damping_ratio: damping.factor(k, reference_k),
+        reading,
+        temperature_ratio,
     })
 }
 

@@ -206,6 +206,34 @@ def _options(options: Dict[str, Any]) -> List[str]:
     return flags
 
 
+def _compensator_flags(
+    bandwidth: Any,
+    max_latency: Any,
+    max_band: Any,
+    signal: Any,
+    lowpass: str,
+    lowpass_order: int,
+    direct: bool,
+    full_scale: Optional[float],
+    board: Optional[str],
+    fixed_form: str,
+) -> List[str]:
+    """The compensator's flags, as :func:`fit` and :meth:`Model.invert` share them (``signal``
+    one path or a sequence of paths)."""
+    flags: List[str] = []
+    _flag(flags, "bandwidth", bandwidth)
+    _flag(flags, "max-latency", max_latency)
+    _flag(flags, "max-band", max_band)
+    for path in [signal] if isinstance(signal, (str, os.PathLike)) else signal:
+        flags += ["--signal", os.fspath(path)]
+    flags += ["--lowpass", str(lowpass), "--lowpass-order", str(lowpass_order)]
+    _flag(flags, "direct", direct)
+    _flag(flags, "full-scale", full_scale)
+    _flag(flags, "board", board)
+    flags += ["--fixed-form", str(fixed_form)]
+    return flags
+
+
 def _warn(messages: Iterable[str]) -> None:
     for m in messages:
         warnings.warn(m, RuntimeWarning, stacklevel=3)
@@ -266,7 +294,7 @@ def fit(
     bandwidth: Union[None, float, str] = None,
     max_latency: Union[None, int, str] = None,
     max_band: Optional[float] = None,
-    signal: Sequence[PathLike] = (),
+    signal: Union[PathLike, Sequence[PathLike]] = (),
     lowpass: str = "bessel",
     lowpass_order: int = 4,
     direct: bool = False,
@@ -311,7 +339,7 @@ def fit(
         The longest latency the optimum may take: samples, or ``"3ms"``, ``"250us"``.
     max_band : float, optional
         The largest -3 dB band (Hz) the optimum may take.
-    signal : sequence of paths
+    signal : path or sequence of paths
         CSV runs of the kind the board will compensate (the prior is learnt from them).
     lowpass : {"bessel", "butterworth"}
         The band limit's low-pass family; ``lowpass_order`` its order.
@@ -360,16 +388,9 @@ def fit(
     _flag(flags, "delay", delay)
     for a in add:
         flags += ["--add", str(a)]
-    _flag(flags, "bandwidth", bandwidth)
-    _flag(flags, "max-latency", max_latency)
-    _flag(flags, "max-band", max_band)
-    for s in signal:
-        flags += ["--signal", os.fspath(s)]
-    flags += ["--lowpass", str(lowpass), "--lowpass-order", str(lowpass_order)]
-    _flag(flags, "direct", direct)
-    _flag(flags, "full-scale", full_scale)
-    _flag(flags, "board", board)
-    flags += ["--fixed-form", str(fixed_form)]
+    flags += _compensator_flags(
+        bandwidth, max_latency, max_band, signal, lowpass, lowpass_order, direct, full_scale, board, fixed_form
+    )
     native, warns = _unlag.fit(
         tests,
         1 + len(extra),
@@ -640,7 +661,7 @@ class Model:
         bandwidth: Union[None, float, str] = None,
         max_latency: Union[None, int, str] = None,
         max_band: Optional[float] = None,
-        signal: Sequence[PathLike] = (),
+        signal: Union[PathLike, Sequence[PathLike]] = (),
         lowpass: str = "bessel",
         lowpass_order: int = 4,
         direct: bool = False,
@@ -669,7 +690,7 @@ class Model:
             The longest latency the optimum may take: samples, or ``"3ms"``, ``"250us"``.
         max_band : float, optional
             The largest -3 dB band (Hz) the optimum may take.
-        signal : sequence of paths
+        signal : path or sequence of paths
             CSV runs of the kind the board will compensate (the prior is learnt from them).
         lowpass : {"bessel", "butterworth"}
             The band limit's low-pass family; ``lowpass_order`` its order.
@@ -713,18 +734,10 @@ class Model:
             u, y, fs = _pair(t, name)
             named.append((name, u, y))
             rates.append(self.fs if fs is None else fs)
-        flags: List[str] = []
-        _flag(flags, "bandwidth", bandwidth)
-        _flag(flags, "max-latency", max_latency)
-        _flag(flags, "max-band", max_band)
-        for path in [signal] if isinstance(signal, (str, os.PathLike)) else signal:
-            flags += ["--signal", os.fspath(path)]
-        flags += ["--lowpass", str(lowpass), "--lowpass-order", str(lowpass_order)]
-        _flag(flags, "direct", direct)
-        _flag(flags, "full-scale", full_scale)
+        flags = _compensator_flags(
+            bandwidth, max_latency, max_band, signal, lowpass, lowpass_order, direct, full_scale, board, fixed_form
+        )
         _flag(flags, "unit", unit)
-        _flag(flags, "board", board)
-        flags += ["--fixed-form", str(fixed_form)]
         native, warns = self._native.invert(named, rates, flags)
         _warn(warns)
         return Model(native)

@@ -444,3 +444,10 @@ def test_predict_refuses_what_the_command_line_refuses(cli):
         unlag.predict(line=[(0.3, 1e-3)], volume=2e-7, modes=0)
     p = cli("predict", "--line", "0.3,0.001", "--volume", "2e-7", "--modes", "0")
     assert str(e.value) == cli_error(p)
+
+
+def test_one_signal_path_is_a_list_of_one(tests):
+    run = str(DATA / "step_test_2.csv")
+    one = unlag.fit(tests[0].u, tests[0].y, tests[0].fs, order=2, signal=run)
+    listed = unlag.fit(tests[0].u, tests[0].y, tests[0].fs, order=2, signal=[run])
+    assert one.to_toml() == listed.to_toml()

@@ -187,33 +187,88 @@ impl core::fmt::Display for OrderRule {
     }
 }
 
-/// Sorts the candidates by score, best first, then applies the rules for close ones, in order:
-/// the physics before a noise model; a sensor resonance the reference shows before a mode
-/// that would only model it (at any margin where the probe peaks beside it, else when they
-/// tie); a clear resonance (a mode's or the transducers': a residual peak narrow, or above
-/// the natural frequency of the model's slowest pole, `slowest_pole_hz`) before a leak that
-/// ties with it when the model's DC gain (`dc_gain`) is not below [`LEAK_DC_GAIN_BELOW`], and
-/// a mode or the transducers' resonance before a leak with neither of its signatures
-/// ([`unseen_leak`]), whatever their scores; a leak with both its signatures and a creep that
-/// settles before a mode that ties with it; an effect whose signature was seen before
-/// nonlinear damping read from its trial alone; a temperature and a loss both fitted on all
-/// the tests in the order of what each leaves ([`temperature_or_loss`]).
+/// Sorts the candidates by score, best first, then applies the rules for close ones in the
+/// order of [`OrderRule::IN_ORDER`]: the physics before a noise model; a sensor resonance the
+/// reference shows before a mode that would only model it (at any margin where the probe
+/// peaks beside it, else when they tie); a clear resonance (a mode's or the transducers': a
+/// residual peak narrow, or above the natural frequency of the model's slowest pole,
+/// `slowest_pole_hz`) before a leak that ties with it when the model's DC gain (`dc_gain`) is
+/// not below [`LEAK_DC_GAIN_BELOW`], and a mode or the transducers' resonance before a leak
+/// with neither of its signatures ([`unseen_leak`]), whatever their scores; a leak with both
+/// its signatures and a creep that settles before a mode that ties with it; an effect whose
+/// signature was seen before nonlinear damping read from its trial alone; a temperature and a
+/// loss both fitted on all the tests in the order of what each leaves ([`temperature_or_loss`]).
 pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64, slowest_pole_hz: f64) {
     out.sort_by(|a, b| b.score.total_cmp(&a.score));
-    // A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
-    // too: when an effect in the dynamics scores within CLOSE_MARGIN of it, the physics goes
-    // first and the noise model is the last resort. First, so that the rules below decide
-    // between the effects in the dynamics that come up.
+    let model = ModelFacts {
+        dc_gain,
+        slowest_pole_hz,
+    };
+    for rule in OrderRule::IN_ORDER {
+        rule.apply(out, model);
+    }
+}
+
+/// What the rules read of the current model.
+#[derive(Debug, Clone, Copy)]
+struct ModelFacts {
+    /// Its DC gain.
+    dc_gain: f64,
+    /// The natural frequency of its slowest pole (Hz).
+    slowest_pole_hz: f64,
+}
+
+impl OrderRule {
+    /// Every rule, in the order they apply: each decides between the candidates the ones
+    /// before it left.
+    pub const IN_ORDER: [Self; 8] = [
+        Self::PhysicsBeforeNoiseModel,
+        Self::ResonanceInTheReference,
+        Self::ResonanceBeforeLeakAtUnitGain,
+        Self::ResonanceBeforeUnseenLeak,
+        Self::SettledLeakBeforeMode,
+        Self::SignatureBeforeLossTrial,
+        Self::LossBeforeTemperatureTrial,
+        Self::LessOverAllTests,
+    ];
+
+    /// Applies the rule to `out`, sorted by score and by the rules before it.
+    fn apply(self, out: &mut Vec<Candidate>, model: ModelFacts) {
+        match self {
+            Self::PhysicsBeforeNoiseModel => physics_before_noise_model(out),
+            Self::ResonanceInTheReference => resonance_in_the_reference(out),
+            Self::ResonanceBeforeLeakAtUnitGain => {
+                if model.dc_gain >= LEAK_DC_GAIN_BELOW {
+                    resonance_before_leak_at_unit_gain(out, model.slowest_pole_hz);
+                }
+            }
+            Self::ResonanceBeforeUnseenLeak => resonance_before_unseen_leak(out, model.dc_gain),
+            Self::SettledLeakBeforeMode => settled_leak_before_mode(out),
+            Self::SignatureBeforeLossTrial => signature_before_loss_trial(out),
+            Self::LossBeforeTemperatureTrial => loss_before_temperature_trial(out),
+            Self::LessOverAllTests => temperature_or_loss(out),
+        }
+    }
+}
+
+/// A noise model lowers the one-step-ahead error of any smooth residual, a missing creep's
+/// too: when an effect in the dynamics scores within [`CLOSE_MARGIN`] of it, the physics goes
+/// first and the noise model is the last resort. First, so that the rules below decide
+/// between the effects in the dynamics that come up.
+fn physics_before_noise_model(out: &mut Vec<Candidate>) {
     yield_first(
         out,
         OrderRule::PhysicsBeforeNoiseModel,
         |c| c.kind == EffectKind::ColouredNoise,
         |c| c.kind != EffectKind::ColouredNoise,
     );
-    // A resonance that shows in the reference as well is the transducers', not the line's:
-    // the sensor resonance goes before a mode that would only model it, at any margin where
-    // the probe peaks beside the reference's ringing, and where the two tie when the probe
-    // shows no peak there (the line before its transducer filters the diaphragm out).
+}
+
+/// A resonance that shows in the reference as well is the transducers', not the line's:
+/// the sensor resonance goes before a mode that would only model it, at any margin where
+/// the probe peaks beside the reference's ringing, and where the two tie when the probe
+/// shows no peak there (the line before its transducer filters the diaphragm out).
+fn resonance_in_the_reference(out: &mut Vec<Candidate>) {
     let s = out
         .iter()
         .position(|c| c.kind == EffectKind::SensorResonance);
@@ -228,44 +283,48 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64, slowest_pole_hz: f64
             out.insert(m, c);
         }
     }
-    // A leak lowers the static gain: with the DC gain at 1 or above (no leaking volume; a
-    // creep is still possible), a leak that ties with a clear resonance in the probe's
-    // residual, a mode's or the transducers' (both trials add poles that can take the same
-    // shape), goes after it.
-    if dc_gain >= LEAK_DC_GAIN_BELOW {
-        yield_first(
-            out,
-            OrderRule::ResonanceBeforeLeakAtUnitGain,
-            |c| c.kind == EffectKind::Leak,
-            |c| match &c.evidence {
-                Evidence::Mode(ModeEvidence::Peak {
-                    above_floor_db,
-                    q,
-                    frequency_hz,
-                    ..
-                }) => {
-                    c.kind == EffectKind::Mode
-                        && *above_floor_db >= MODE_PEAK_OVER_CREEP_DB
-                        && (*q >= NARROW_PEAK_Q || *frequency_hz > slowest_pole_hz)
-                }
-                Evidence::SensorResonance(s) => {
-                    c.kind == EffectKind::SensorResonance
-                        && s.probe
-                            .as_ref()
-                            .is_some_and(|p| p.above_floor_db >= MODE_PEAK_OVER_CREEP_DB)
-                }
-                _ => false,
-            },
-        );
-    }
-    // A leak shows as a DC gain below 1 (a leaking volume) or as a creep after the step (a
-    // thermal creep). With neither, its trial only lends a pole and a zero to something else:
-    // it goes after a mode or the transducers' resonance, at any margin. Whose peak was seen
-    // (a line's second mode a few dB out, the leak's trial ahead with the DC gain at 1 and no
-    // creep beyond the noise), whose rise towards the band's edge was (a pneumatic probe's
-    // own modes beyond second order, the response above the model's towards the band's edge),
-    // or that only its trial shows (a pneumatic probe's hidden mode validated by a wake). A
-    // real leak lowers the gain by a few percent, which the DC gain shows.
+}
+
+/// A leak lowers the static gain: with the DC gain at 1 or above (no leaking volume; a
+/// creep is still possible), a leak that ties with a clear resonance in the probe's
+/// residual, a mode's or the transducers' (both trials add poles that can take the same
+/// shape), goes after it.
+fn resonance_before_leak_at_unit_gain(out: &mut Vec<Candidate>, slowest_pole_hz: f64) {
+    yield_first(
+        out,
+        OrderRule::ResonanceBeforeLeakAtUnitGain,
+        |c| c.kind == EffectKind::Leak,
+        |c| match &c.evidence {
+            Evidence::Mode(ModeEvidence::Peak {
+                above_floor_db,
+                q,
+                frequency_hz,
+                ..
+            }) => {
+                c.kind == EffectKind::Mode
+                    && *above_floor_db >= MODE_PEAK_OVER_CREEP_DB
+                    && (*q >= NARROW_PEAK_Q || *frequency_hz > slowest_pole_hz)
+            }
+            Evidence::SensorResonance(s) => {
+                c.kind == EffectKind::SensorResonance
+                    && s.probe
+                        .as_ref()
+                        .is_some_and(|p| p.above_floor_db >= MODE_PEAK_OVER_CREEP_DB)
+            }
+            _ => false,
+        },
+    );
+}
+
+/// A leak shows as a DC gain below 1 (a leaking volume) or as a creep after the step (a
+/// thermal creep). With neither, its trial only lends a pole and a zero to something else:
+/// it goes after a mode or the transducers' resonance, at any margin. Whose peak was seen
+/// (a line's second mode a few dB out, the leak's trial ahead with the DC gain at 1 and no
+/// creep beyond the noise), whose rise towards the band's edge was (a pneumatic probe's
+/// own modes beyond second order, the response above the model's towards the band's edge),
+/// or that only its trial shows (a pneumatic probe's hidden mode validated by a wake). A
+/// real leak lowers the gain by a few percent, which the DC gain shows.
+fn resonance_before_unseen_leak(out: &mut Vec<Candidate>, dc_gain: f64) {
     yield_first_within(
         out,
         OrderRule::ResonanceBeforeUnseenLeak,
@@ -277,13 +336,16 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64, slowest_pole_hz: f64
         },
         f64::INFINITY,
     );
-    // A leak with both its signatures, a leaking volume's DC gain below LEAK_DC_GAIN_BELOW and
-    // a creep after the step, goes before a mode that ties with it when the creep has settled
-    // by the end of the estimation test: the mode's two poles and zeros can take a slow pole's
-    // shape, but a line's acoustic mode lowers no static gain. A sensor's drift lowers the
-    // fitted DC gain and leaves a creep too, but runs on to the end of the record (its slope
-    // over the last 30 % several times the line's), so a creep that keeps its rate is no leak's,
-    // and one with a small fraction of the line's slope left at the end is.
+}
+
+/// A leak with both its signatures, a leaking volume's DC gain below LEAK_DC_GAIN_BELOW and
+/// a creep after the step, goes before a mode that ties with it when the creep has settled
+/// by the end of the estimation test: the mode's two poles and zeros can take a slow pole's
+/// shape, but a line's acoustic mode lowers no static gain. A sensor's drift lowers the
+/// fitted DC gain and leaves a creep too, but runs on to the end of the record (its slope
+/// over the last 30 % several times the line's), so a creep that keeps its rate is no leak's,
+/// and one with a small fraction of the line's slope left at the end is.
+fn settled_leak_before_mode(out: &mut Vec<Candidate>) {
     yield_first(
         out,
         OrderRule::SettledLeakBeforeMode,
@@ -298,10 +360,13 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64, slowest_pole_hz: f64
             )
         },
     );
-    // Nonlinear damping read from its trial alone (no amplitude signature, no fit of the tests
-    // together) goes after an effect
-    // whose own signature was seen: a quadratic loss refitted on one step can take the shape
-    // of a slower effect too.
+}
+
+/// Nonlinear damping read from its trial alone (no amplitude signature, no fit of the tests
+/// together) goes after an effect
+/// whose own signature was seen: a quadratic loss refitted on one step can take the shape
+/// of a slower effect too.
+fn signature_before_loss_trial(out: &mut Vec<Candidate>) {
     let trial_alone = |c: &Candidate| {
         matches!(
             c.evidence,
@@ -315,12 +380,15 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64, slowest_pole_hz: f64
     yield_first(out, OrderRule::SignatureBeforeLossTrial, trial_alone, |c| {
         !trial_alone(c) && c.kind != EffectKind::ColouredNoise
     });
-    // A temperature read from its trial alone (no test fitted alone showed the shift) fitted
-    // one free time scale to each held-out test: any effect that differs between the tests
-    // can lend it a fall. A nonlinear damping whose signature the tests show (the damping
-    // rising with the step, or one model with a loss explaining the tests together) is such an
-    // effect, and goes before it at any margin (a flush probe's quadratic loss can lend a
-    // traverse's free time scale a larger fall than the loss's own fit on both tests).
+}
+
+/// A temperature read from its trial alone (no test fitted alone showed the shift) fitted
+/// one free time scale to each held-out test: any effect that differs between the tests
+/// can lend it a fall. A nonlinear damping whose signature the tests show (the damping
+/// rising with the step, or one model with a loss explaining the tests together) is such an
+/// effect, and goes before it at any margin (a flush probe's quadratic loss can lend a
+/// traverse's free time scale a larger fall than the loss's own fit on both tests).
+fn loss_before_temperature_trial(out: &mut Vec<Candidate>) {
     yield_first_within(
         out,
         OrderRule::LossBeforeTemperatureTrial,
@@ -333,7 +401,6 @@ pub(super) fn order(out: &mut Vec<Candidate>, dc_gain: f64, slowest_pole_hz: f64
         },
         f64::INFINITY,
     );
-    temperature_or_loss(out);
 }
 
 /// A temperature and a nonlinear damping fitted on the tests together each add one parameter

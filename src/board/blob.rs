@@ -96,13 +96,14 @@ use crate::board::compensator::InverseError;
 use crate::board::fixed::direct::DirectError;
 use crate::board::fixed::{FixedError, STATE_BITS};
 
-mod direct;
 mod fixed;
 mod float;
 mod header;
 
-pub use direct::{encode_direct, parse_direct, DirectCoefficientSet};
-pub use fixed::{encode_fixed, parse_fixed, FixedCoefficientSet};
+pub use fixed::{
+    encode_direct, encode_fixed, parse_direct, parse_fixed, DirectCoefficientSet,
+    FixedCoefficientSet, FixedPointSet,
+};
 pub use float::{encode, encode_nonlinear, parse, CoefficientSet, NonlinearCorrection};
 pub use header::{read_header, BlobHeader};
 

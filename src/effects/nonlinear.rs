@@ -125,13 +125,20 @@ impl<'m> Stepper<'m> {
             c - beta * q_prev / self.fs2
         };
         let y = prev + d;
-        self.y.rotate_right(1);
-        self.q.rotate_right(1);
-        if let (Some(y0), Some(q0)) = (self.y.first_mut(), self.q.first_mut()) {
-            *y0 = y;
-            *q0 = self.fs2 * d.abs() * d;
-        }
+        push_front(&mut self.y, y);
+        push_front(&mut self.q, self.fs2 * d.abs() * d);
         y + self.y0
+    }
+}
+
+/// Shifts the history `v` (newest first) by one sample and puts `x` in front, the oldest
+/// falling off: a loop the compiler keeps in registers for the few samples a model's order
+/// needs, where `rotate_right` called the C library's `memmove` once a sample (a fit's
+/// simulation makes millions of steps).
+fn push_front(v: &mut [f64], x: f64) {
+    let mut carry = x;
+    for slot in v.iter_mut() {
+        carry = core::mem::replace(slot, carry);
     }
 }
 
@@ -246,6 +253,18 @@ pub(super) fn fit_nonlinear(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_history_takes_the_newest_sample_in_front_and_drops_the_oldest() {
+        let mut v = vec![3.0, 2.0, 1.0];
+        push_front(&mut v, 4.0);
+        assert_eq!(v, [4.0, 3.0, 2.0]);
+        push_front(&mut v, 5.0);
+        assert_eq!(v, [5.0, 4.0, 3.0]);
+        let mut empty: Vec<f64> = Vec::new();
+        push_front(&mut empty, 1.0);
+        assert!(empty.is_empty());
+    }
 
     #[test]
     fn quadratic_losses_obey_the_model_equation_and_invert_exactly() {

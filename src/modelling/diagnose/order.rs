@@ -237,11 +237,7 @@ impl OrderRule {
         match self {
             Self::PhysicsBeforeNoiseModel => physics_before_noise_model(out),
             Self::ResonanceInTheReference => resonance_in_the_reference(out),
-            Self::ResonanceBeforeLeakAtUnitGain => {
-                if model.dc_gain >= LEAK_DC_GAIN_BELOW {
-                    resonance_before_leak_at_unit_gain(out, model.slowest_pole_hz);
-                }
-            }
+            Self::ResonanceBeforeLeakAtUnitGain => resonance_before_leak_at_unit_gain(out, model),
             Self::ResonanceBeforeUnseenLeak => resonance_before_unseen_leak(out, model.dc_gain),
             Self::SettledLeakBeforeMode => settled_leak_before_mode(out),
             Self::SignatureBeforeLossTrial => signature_before_loss_trial(out),
@@ -289,7 +285,11 @@ fn resonance_in_the_reference(out: &mut Vec<Candidate>) {
 /// creep is still possible), a leak that ties with a clear resonance in the probe's
 /// residual, a mode's or the transducers' (both trials add poles that can take the same
 /// shape), goes after it.
-fn resonance_before_leak_at_unit_gain(out: &mut Vec<Candidate>, slowest_pole_hz: f64) {
+fn resonance_before_leak_at_unit_gain(out: &mut Vec<Candidate>, model: ModelFacts) {
+    if model.dc_gain < LEAK_DC_GAIN_BELOW {
+        return;
+    }
+    let slowest_pole_hz = model.slowest_pole_hz;
     yield_first(
         out,
         OrderRule::ResonanceBeforeLeakAtUnitGain,

@@ -6,11 +6,11 @@
 //! signature and runs its trial ([`candidates`]), and what passes [`MIN_IMPROVEMENT`] is
 //! offered with its score; then the order, and the verdicts ([`verdict`]).
 
-use std::cell::RefCell;
+use std::cell::{OnceCell, RefCell};
 
 use super::temperature::{candidate, Offer, TrialAlone};
 use super::trial::{adding, held_out, keep_delay_if_search_raises, options, trial_window, Tried};
-use super::{mean, Candidate, Current, Evidence, Finding, Remedy};
+use super::{mean, per_test, Candidate, Current, Evidence, Finding, PerTest, Remedy};
 use crate::effects::{self, Effect, FitChanges};
 use crate::error::Result;
 use crate::evidence::TestEvidence;
@@ -53,6 +53,13 @@ struct Ranking<'r> {
     have: FitChanges,
     /// Every test at its noise floor.
     at_floor: bool,
+    /// The tests' mean noise floor, as each is judged.
+    floor: f64,
+    /// Every test's residual white (Ljung-Box p above 0.01).
+    white: bool,
+    /// The current structure fitted to each test alone ([`per_test`]), once, for the
+    /// candidates that read it.
+    across: OnceCell<Vec<PerTest>>,
     /// Each trial's held-out error and stated uncertainty, for the candidate it becomes.
     stated: RefCell<Vec<(f64, Option<Uncertainty>)>>,
     /// The candidates offered, in the order they were.
@@ -78,6 +85,9 @@ impl<'r> Ranking<'r> {
             before: held_out(current.model, current.effects, tests),
             have: FitChanges::of(current.effects),
             at_floor: evidence.iter().all(TestEvidence::at_noise_floor),
+            floor: mean(evidence.iter().map(TestEvidence::judged_floor)),
+            white: evidence.iter().all(|e| e.autocorrelation.p_value > 0.01),
+            across: OnceCell::new(),
             stated: RefCell::default(),
             out: Vec::new(),
         })
@@ -123,6 +133,12 @@ impl<'r> Ranking<'r> {
             self.base
         };
         self.trial(added, &options)
+    }
+
+    /// The current structure fitted to each test alone, fitted on the first call.
+    fn per_test(&self) -> &[PerTest] {
+        self.across
+            .get_or_init(|| per_test(self.current, self.tests, self.evidence))
     }
 
     /// How many candidates were offered so far.
@@ -250,27 +266,23 @@ pub(super) fn rank_at(
         r.offer(offer);
     }
     r.temperature_beside_joint_loss();
-    let (dc_gain, slowest) = (
+    let mut out = std::mem::take(&mut r.out);
+    super::order::order(
+        &mut out,
         current.model.dc_gain(),
         super::order::slowest_pole_hz(current.model),
     );
-    super::order::order(&mut r.out, dc_gain, slowest);
     // The first change as the user will make it: `unlag fit --add KIND` searches the delay
     // again; where that would raise the held-out error, the change keeps the delay.
     if r.have.delay.is_none() && delay.is_some() {
-        let mut out = std::mem::take(&mut r.out);
         if let Some(first) = out.first_mut() {
             keep_delay_if_search_raises(first, current.model.delay, |added, searched| {
                 r.trial_searching(added.clone(), searched)
             });
         }
-        r.out = out;
     }
-    let floor = mean(evidence.iter().map(TestEvidence::judged_floor));
-    let white = evidence.iter().all(|e| e.autocorrelation.p_value > 0.01);
-    let mut out = std::mem::take(&mut r.out);
-    verdict::unexplained(&mut out, &r, floor, white);
-    verdict::nothing(&mut out, &r, floor, white);
+    verdict::unexplained(&mut out, &r);
+    verdict::nothing(&mut out, &r);
     super::order::set_margins(&mut out);
     Ok(out)
 }

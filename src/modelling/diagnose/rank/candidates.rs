@@ -6,7 +6,7 @@ use super::super::temperature::Offer;
 use super::super::trial::Tried;
 use super::super::{
     amplitude_signature, creep_in_standard_errors, drift_before_step, joint_loss_evidence,
-    per_test, pre_step_slope, ramp_kept, ramp_returns, slope_kept, AmplitudeSignature, Evidence,
+    pre_step_slope, ramp_kept, ramp_returns, slope_kept, AmplitudeSignature, Evidence,
     ModeEvidence, NonlinearDamping, Remedy, Spectrum, COLOURED_NOISE_FIT, CREEP_SETTLED_BELOW,
     LEAK_DC_GAIN_BELOW,
 };
@@ -273,13 +273,9 @@ impl Ranking<'_> {
             // The transducers' modes move the step's apparent onset: a second-order model has
             // taken its delay short to meet their rise (well short of the probe's), so the trial
             // searches the delay again as well and keeps the better of the two.
-            let searched = Options {
-                delay: None,
-                ..self.base
-            };
             let best = [
-                self.trial(added.clone(), &self.base),
-                self.trial(added.clone(), &searched),
+                self.trial_searching(added.clone(), false),
+                self.trial_searching(added.clone(), true),
             ]
             .into_iter()
             .flatten()
@@ -410,12 +406,11 @@ impl Ranking<'_> {
     /// Nonlinear damping: across tests, the damping rises with the step and the residual of
     /// each test's own linear fit grows faster than the step; and whether its trial was run.
     pub(super) fn nonlinear_damping_by_amplitude(&self) -> (Option<Offer>, bool) {
-        let (current, tests, evidence) = (self.current, self.tests, self.evidence);
-        if self.have.nonlinear || tests.len() <= 1 {
+        if self.have.nonlinear || self.tests.len() <= 1 {
             return (None, false);
         }
-        let across = per_test(current, tests, evidence);
-        let Some(sig) = amplitude_signature(&across).filter(AmplitudeSignature::nonlinear_damping)
+        let Some(sig) =
+            amplitude_signature(self.per_test()).filter(AmplitudeSignature::nonlinear_damping)
         else {
             return (None, false);
         };
@@ -449,7 +444,7 @@ impl Ranking<'_> {
     /// traverse is missed by several percent), so its remedy fits on the tests together. Also
     /// whether such a loss was found.
     pub(super) fn nonlinear_damping_jointly(&self) -> (Option<Offer>, bool) {
-        let (current, tests, evidence) = (self.current, self.tests, self.evidence);
+        let current = self.current;
         if self.at_floor || self.have.nonlinear {
             return (None, false);
         }
@@ -461,7 +456,7 @@ impl Ranking<'_> {
         else {
             return (None, false);
         };
-        let sig = amplitude_signature(&per_test(current, tests, evidence));
+        let sig = amplitude_signature(self.per_test());
         let also = joint.tests.iter().skip(1).cloned().collect();
         let found = offer(
             EffectKind::NonlinearDamping,
@@ -486,9 +481,8 @@ impl Ranking<'_> {
     /// such as a traverse or a balloon). The trial alone then competes, and the reading says
     /// which test would confirm it.
     pub(super) fn nonlinear_damping_from_trial_alone(&self) -> Option<Offer> {
-        let (current, tests, evidence, before) =
-            (self.current, self.tests, self.evidence, self.before);
-        if self.at_floor || self.have.nonlinear || tests.len() <= 1 {
+        let before = self.before;
+        if self.at_floor || self.have.nonlinear || self.tests.len() <= 1 {
             return None;
         }
         let alone = self.offered() == 0;
@@ -496,7 +490,7 @@ impl Ranking<'_> {
             after, effects: fx, ..
         } = self.trial(Effect::NonlinearDamping { gain: 0.0 }, &self.base)?;
         let gain = effects::nonlinear_gain(&fx);
-        let sig = amplitude_signature(&per_test(current, tests, evidence));
+        let sig = amplitude_signature(self.per_test());
         offer(
             EffectKind::NonlinearDamping,
             after,

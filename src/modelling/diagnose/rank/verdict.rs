@@ -17,8 +17,9 @@ use super::{Ranking, FLOOR_OVERRULED, MIN_IMPROVEMENT};
 /// model lacks, and the diagnosis says so before it (a probe with no hidden effect whose
 /// own dynamics beyond second order leave the tests above what its true model leaves is
 /// otherwise named `leak` alone).
-pub(super) fn unexplained(out: &mut Vec<Candidate>, r: &Ranking<'_>, floor: f64, white: bool) {
+pub(super) fn unexplained(out: &mut Vec<Candidate>, r: &Ranking<'_>) {
     let (current, evidence, before, at_floor) = (r.current, r.evidence, r.before, r.at_floor);
+    let (floor, white) = (r.floor, r.white);
     let lone_leak = out
         .first()
         .filter(|c| unseen_leak(c, current.model.dc_gain()))
@@ -75,8 +76,9 @@ pub(super) fn unexplained(out: &mut Vec<Candidate>, r: &Ranking<'_>, floor: f64,
 ///
 /// A trial that cuts the error by [`FLOOR_OVERRULED`] or more shows the floor was measured too
 /// high (a noisy pre-step segment): the candidates then stand.
-pub(super) fn nothing(out: &mut Vec<Candidate>, r: &Ranking<'_>, floor: f64, white: bool) {
+pub(super) fn nothing(out: &mut Vec<Candidate>, r: &Ranking<'_>) {
     let (current, evidence, before, at_floor) = (r.current, r.evidence, r.before, r.at_floor);
+    let (floor, white) = (r.floor, r.white);
     let best_fall = out
         .iter()
         .map(|c| c.nrmse_before / c.nrmse_after)

@@ -52,6 +52,49 @@ impl PredictionFloor {
     }
 }
 
+/// For a unit enum `$ty` with `ALL` and a name per variant (`$ty::$name`): `from_name`, its
+/// inverse; written by its name (`From<$ty> for &str`, which serde uses); read from its name
+/// (`TryFrom<String>`), another name refused with the names there are, `$what` saying what was
+/// asked for.
+macro_rules! named {
+    ($ty:ident, $name:ident, $what:literal) => {
+        impl $ty {
+            #[doc = concat!(
+                        "The value a name stands for ([`",
+                        stringify!($ty),
+                        "::",
+                        stringify!($name),
+                        "`]'s inverse)."
+                    )]
+            #[must_use]
+            pub fn from_name(name: &str) -> Option<Self> {
+                Self::ALL.into_iter().find(|v| v.$name() == name)
+            }
+        }
+
+        impl From<$ty> for &'static str {
+            fn from(v: $ty) -> Self {
+                v.$name()
+            }
+        }
+
+        impl TryFrom<String> for $ty {
+            type Error = String;
+
+            fn try_from(name: String) -> std::result::Result<Self, String> {
+                Self::from_name(&name).ok_or_else(|| {
+                    let names: Vec<&str> = Self::ALL.into_iter().map(Self::$name).collect();
+                    format!(
+                        concat!("unknown ", $what, " `{}`: one of {}"),
+                        name,
+                        names.join(", ")
+                    )
+                })
+            }
+        }
+    };
+}
+
 /// What a step test is to a fit: the first file given is the estimation test, the model
 /// fitted on it; any others are validation tests, held out to choose the order and judge it.
 /// Stored and printed by its name ([`TestRole::as_str`]).
@@ -86,12 +129,6 @@ impl TestRole {
             Self::Validation => "validation",
         }
     }
-
-    /// The role a name stands for ([`TestRole::as_str`]'s inverse).
-    #[must_use]
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|r| r.as_str() == name)
-    }
 }
 
 impl std::fmt::Display for TestRole {
@@ -101,24 +138,7 @@ impl std::fmt::Display for TestRole {
     }
 }
 
-/// A role is written by its name.
-impl From<TestRole> for &'static str {
-    fn from(role: TestRole) -> Self {
-        role.as_str()
-    }
-}
-
-/// A role is read from its name; another name is refused with the names there are.
-impl TryFrom<String> for TestRole {
-    type Error = String;
-
-    fn try_from(name: String) -> std::result::Result<Self, String> {
-        Self::from_name(&name).ok_or_else(|| {
-            let names: Vec<&str> = Self::ALL.into_iter().map(Self::as_str).collect();
-            format!("unknown test role `{name}`: one of {}", names.join(", "))
-        })
-    }
-}
+named!(TestRole, as_str, "test role");
 
 /// Identification method; stored in the model file's fit report and given on the command
 /// line by its name ([`Method::name`]).
@@ -156,12 +176,6 @@ impl Method {
             Self::Arx => "arx",
         }
     }
-
-    /// The method a name stands for ([`Method::name`]'s inverse).
-    #[must_use]
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|m| m.name() == name)
-    }
 }
 
 impl std::fmt::Display for Method {
@@ -170,24 +184,7 @@ impl std::fmt::Display for Method {
     }
 }
 
-/// A method is written by its name.
-impl From<Method> for &'static str {
-    fn from(method: Method) -> Self {
-        method.name()
-    }
-}
-
-/// A method is read from its name; another name is refused with the names there are.
-impl TryFrom<String> for Method {
-    type Error = String;
-
-    fn try_from(name: String) -> std::result::Result<Self, String> {
-        Self::from_name(&name).ok_or_else(|| {
-            let names: Vec<&str> = Self::ALL.into_iter().map(Self::name).collect();
-            format!("unknown fit method `{name}`: one of {}", names.join(", "))
-        })
-    }
-}
+named!(Method, name, "fit method");
 
 /// How the model was fitted, and how well.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

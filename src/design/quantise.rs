@@ -200,6 +200,41 @@ fn shift_for(max: f64) -> Result<u8> {
     Ok(bits.min(62.0) as u8)
 }
 
+/// One section of the plan, realised as `r`: its state scales `(beta, g)` and output
+/// coefficients `[c1, c2, d]` quantised at the shift their largest needs, with its state and
+/// output bounds.
+fn plan_section(
+    r: &Realisation,
+    (beta, g): (f64, f64),
+    [c1, c2, d]: [f64; 3],
+    (state_bound, output_bound): (f64, f64),
+) -> Result<PlanSection> {
+    let shift = shift_for(c1.abs().max(c2.abs()).max(d.abs()))?;
+    let bits = u32::from(shift);
+    let a = if r.rotation {
+        let s = quantise(r.s, STATE_BITS, "sigma")?;
+        let w = quantise(r.w, STATE_BITS, "omega")?;
+        [s, w.wrapping_neg(), w, s]
+    } else {
+        [
+            quantise(r.a[0], STATE_BITS, "p1")?,
+            0,
+            quantise(g, STATE_BITS, "g")?,
+            quantise(r.a[3], STATE_BITS, "p2")?,
+        ]
+    };
+    Ok(PlanSection {
+        a,
+        b: [quantise(beta, STATE_BITS, "beta")?, 0],
+        c: [quantise(c1, bits, "c1")?, quantise(c2, bits, "c2")?],
+        d: quantise(d, bits, "d")?,
+        shift,
+        form: if r.rotation { "rotation" } else { "real" }.into(),
+        state_bound,
+        output_bound,
+    })
+}
+
 /// A section's realisation in f64 before scaling: state matrix, and how to get `c` from the
 /// input scale `beta` (and coupling `g`).
 struct Realisation {
@@ -356,31 +391,12 @@ impl FixedPlan {
             } else {
                 lambda
             };
-            let (c1, c2, d) = (c1_true * lambda, c2_true * lambda, r.d * lambda);
-            let shift = shift_for(c1.abs().max(c2.abs()).max(d.abs()))?;
-            let bits = u32::from(shift);
-            let a = if r.rotation {
-                let s = quantise(r.s, STATE_BITS, "sigma")?;
-                let w = quantise(r.w, STATE_BITS, "omega")?;
-                [s, w.wrapping_neg(), w, s]
-            } else {
-                [
-                    quantise(r.a[0], STATE_BITS, "p1")?,
-                    0,
-                    quantise(g, STATE_BITS, "g")?,
-                    quantise(r.a[3], STATE_BITS, "p2")?,
-                ]
-            };
-            let plan = PlanSection {
-                a,
-                b: [quantise(beta, STATE_BITS, "beta")?, 0],
-                c: [quantise(c1, bits, "c1")?, quantise(c2, bits, "c2")?],
-                d: quantise(d, bits, "d")?,
-                shift,
-                form: if r.rotation { "rotation" } else { "real" }.into(),
-                state_bound,
-                output_bound: out_l1 * lambda,
-            };
+            let plan = plan_section(
+                &r,
+                (beta, g),
+                [c1_true * lambda, c2_true * lambda, r.d * lambda],
+                (state_bound, out_l1 * lambda),
+            )?;
             headroom = headroom
                 .min(-plan.state_bound.log2())
                 .min(-plan.output_bound.log2());

@@ -156,11 +156,46 @@ pub fn fit_with_also(
         .map(|t| crate::fit::step::quiet_until(t.u))
         .collect();
     let onset = onsets.first().copied().unwrap_or(0);
+    let (fitted, additive, gain) =
+        alternate(&changes, &fitted_tests, &onsets, validation, fs, &opts)?;
+    let additive = additive.first().copied().unwrap_or_default();
+    let out = with_noise_model(
+        &fitted.model,
+        with_fitted_values(&effects, additive, gain),
+        estimation_raw,
+    );
+    fallback::second_looks(
+        fallback::First {
+            fitted,
+            out,
+            effects: &effects,
+            options,
+            delay_searched: opts.delay.is_none(),
+            extra_order: changes.extra_order,
+            estimation,
+            onset,
+            fs,
+        },
+        &refit,
+    )
+}
+
+/// The dynamics fitted on `fitted_tests` (steps at `onsets`) with each test's offset or
+/// drift estimated from what they leave and removed, alternately (once without either): the
+/// fit, each test's offset or drift, and the nonlinear gain.
+fn alternate(
+    changes: &FitChanges,
+    fitted_tests: &[Test<'_>],
+    onsets: &[usize],
+    validation: &[Test<'_>],
+    fs: f64,
+    opts: &Options,
+) -> Result<(Fitted, Vec<Additive>, f64)> {
     // A drift starts from the record's ends, so that the first fit does not take it into
     // the dynamics (from which the residual could no longer separate it).
     let mut additive: Vec<Additive> = fitted_tests
         .iter()
-        .zip(&onsets)
+        .zip(onsets)
         .map(|(t, &o)| {
             if changes.drift {
                 initial_drift(t.u, t.y, o, fs)
@@ -195,46 +230,26 @@ pub fn fit_with_also(
                 y,
             })
             .collect();
-        let (f, g) = fit_dynamics(&changes, &cleaned, validation, fs, &opts)?;
+        let (f, g) = fit_dynamics(changes, &cleaned, validation, fs, opts)?;
         gain = g;
         // Only an offset or a drift is estimated from what the dynamics leave.
         if changes.offset || changes.drift {
             additive = fitted_tests
                 .iter()
-                .zip(&onsets)
+                .zip(onsets)
                 .map(|(t, &o)| {
                     let r: Vec<f64> =
                         t.y.iter()
                             .zip(simulate_nonlinear(&f.model, gain, t.u))
                             .map(|(a, b)| a - b)
                             .collect();
-                    estimate_additive(&changes, &r, o, fs)
+                    estimate_additive(changes, &r, o, fs)
                 })
                 .collect();
         }
         fitted = Some(f);
     }
-    let additive = additive.first().copied().unwrap_or_default();
-    let fitted = fitted.ok_or(EffectError::NoFit)?;
-    let out = with_noise_model(
-        &fitted.model,
-        with_fitted_values(&effects, additive, gain),
-        estimation_raw,
-    );
-    fallback::second_looks(
-        fallback::First {
-            fitted,
-            out,
-            effects: &effects,
-            options,
-            delay_searched: opts.delay.is_none(),
-            extra_order: changes.extra_order,
-            estimation,
-            onset,
-            fs,
-        },
-        &refit,
-    )
+    Ok((fitted.ok_or(EffectError::NoFit)?, additive, gain))
 }
 
 /// The options a fit with `changes` runs with: the order raised by the modes and leaks, the

@@ -440,44 +440,8 @@ pub fn fit_as_found(
         }],
         None => whole,
     };
-    let orders: Vec<usize> = match options.order {
-        Order::Fixed(m) => vec![m],
-        Order::Auto { max } => (1..=max.max(1)).collect(),
-    };
-    // Each order's delay search and fit are independent: they run on the cores there are,
-    // and are taken in order, so the choice is the same as one after the other.
-    let results = in_parallel(&orders, |&m| {
-        fit_order(
-            &p,
-            &data,
-            m,
-            orders.len() == 1,
-            estimation.name,
-            sample_rate_hz,
-            options,
-        )
-    });
-    let mut candidates = Vec::new();
-    let mut first_error = None;
-    for result in results {
-        match result {
-            Ok((m, model, rows)) => {
-                candidates.push(judge_order(
-                    m,
-                    model,
-                    rows,
-                    &data,
-                    estimation,
-                    validation,
-                    options.method,
-                ));
-            }
-            Err((e, true)) => return Err(e),
-            Err((e, false)) => {
-                first_error.get_or_insert(e);
-            }
-        }
-    }
+    let (candidates, first_error) =
+        fit_orders(&p, &data, estimation, validation, sample_rate_hz, options)?;
     let held_out = !validation.is_empty();
     let table: Vec<OrderRow> = candidates
         .iter()
@@ -544,6 +508,60 @@ pub fn fit_as_found(
         nrmse_estimation: est,
         nrmse_validation: val,
     })
+}
+
+/// Each order the options allow fitted on `data` (the selection window of `p`) and judged:
+/// the fits in order, and the first error of an order that failed alone.
+///
+/// # Errors
+/// An error that ends the whole fit ([`fit_order`]).
+fn fit_orders(
+    p: &Prepared,
+    data: &[Data<'_>; 1],
+    estimation: &Test<'_>,
+    validation: &[Test<'_>],
+    sample_rate_hz: f64,
+    options: &Options,
+) -> Result<(Vec<OrderFit>, Option<Error>)> {
+    let orders: Vec<usize> = match options.order {
+        Order::Fixed(m) => vec![m],
+        Order::Auto { max } => (1..=max.max(1)).collect(),
+    };
+    // Each order's delay search and fit are independent: they run on the cores there are,
+    // and are taken in order, so the choice is the same as one after the other.
+    let results = in_parallel(&orders, |&m| {
+        fit_order(
+            p,
+            data,
+            m,
+            orders.len() == 1,
+            estimation.name,
+            sample_rate_hz,
+            options,
+        )
+    });
+    let mut candidates = Vec::new();
+    let mut first_error = None;
+    for result in results {
+        match result {
+            Ok((m, model, rows)) => {
+                candidates.push(judge_order(
+                    m,
+                    model,
+                    rows,
+                    data,
+                    estimation,
+                    validation,
+                    options.method,
+                ));
+            }
+            Err((e, true)) => return Err(e),
+            Err((e, false)) => {
+                first_error.get_or_insert(e);
+            }
+        }
+    }
+    Ok((candidates, first_error))
 }
 
 /// The delay search and the fit at order `m` on `data` (the selection window), with the

@@ -197,55 +197,7 @@ fn setup(request: &StreamRequest<'_>, info: &RunInfo) -> Result<Setup> {
             };
             (chain, d.latency_samples, "the model file's compensator")
         }
-        None => {
-            m.check_invertible(&model_path.display().to_string())?;
-            // The direct inverse of a model fitted below a sensor resonance gets the prefilter.
-            let head: Vec<f64> = info
-                .probe_head
-                .iter()
-                .enumerate()
-                .map(|(k, y)| y - additive.at(k, m.fs))
-                .collect();
-            let prefilter = PrefilterStream::new(&file.effects, m.fs, &head);
-            let first_in = prefilter.clone().step(first);
-            let filter = match arithmetic {
-                Arithmetic::F32 => m.compensator::<f32>(first_in)?,
-                Arithmetic::F64 => m.compensator::<f64>(first_in)?,
-                Arithmetic::Fixed => {
-                    return Err(Error::InvalidParameter {
-                        parameter: crate::error::Parameter::Arithmetic,
-                        message: "fixed point runs the designed compensator in sections, not \
-                                  the paper's direct inverse"
-                            .into(),
-                    }
-                    .advised(Advice::DesignSections))
-                }
-            };
-            // The direct inverse has no band limit: the correction is not filtered either.
-            let nonlinear = if nonlinear == 0.0 {
-                None
-            } else {
-                let c = crate::board::compensator::NonlinearDampingCoefficients::<f64, 1>::new(
-                    nonlinear * m.fs * m.fs,
-                    1.0,
-                    &[],
-                )
-                .map_err(|e| Error::BoardRefused {
-                    during: "nonlinear-damping correction",
-                    refusal: e.into(),
-                })?;
-                let mut st = c.equilibrium(first);
-                let step: Runner = Box::new(move |y| c.process(&mut st, y));
-                Some(step)
-            };
-            let chain = Chain {
-                prefilter: Some(prefilter),
-                filter: Filter::Float(filter),
-                nonlinear,
-                full_scale: 0.0,
-            };
-            (chain, m.delay as f64, "the paper's direct inverse (eq. 7)")
-        }
+        None => direct_chain(&file, info, &additive, model_path, (arithmetic, nonlinear))?,
     };
     Ok(Setup {
         file,
@@ -255,6 +207,70 @@ fn setup(request: &StreamRequest<'_>, info: &RunInfo) -> Result<Setup> {
         compensator,
         stored_not_better,
     })
+}
+
+/// The chain of the paper's direct inverse of `file`'s model (no designed compensator): the
+/// prefilter below a sensor resonance, the inverse in `arithmetic` (not fixed point), and the
+/// nonlinear-damping correction of gain `nonlinear` unfiltered; with its latency and name.
+fn direct_chain(
+    file: &ModelFile,
+    info: &RunInfo,
+    additive: &Additive,
+    model_path: &Path,
+    (arithmetic, nonlinear): (Arithmetic, f64),
+) -> Result<(Chain, f64, &'static str)> {
+    let m = &file.model;
+    let first = info
+        .probe_head
+        .first()
+        .map_or(0.0, |y| y - additive.at(0, m.fs));
+    m.check_invertible(&model_path.display().to_string())?;
+    // The direct inverse of a model fitted below a sensor resonance gets the prefilter.
+    let head: Vec<f64> = info
+        .probe_head
+        .iter()
+        .enumerate()
+        .map(|(k, y)| y - additive.at(k, m.fs))
+        .collect();
+    let prefilter = PrefilterStream::new(&file.effects, m.fs, &head);
+    let first_in = prefilter.clone().step(first);
+    let filter = match arithmetic {
+        Arithmetic::F32 => m.compensator::<f32>(first_in)?,
+        Arithmetic::F64 => m.compensator::<f64>(first_in)?,
+        Arithmetic::Fixed => {
+            return Err(Error::InvalidParameter {
+                parameter: crate::error::Parameter::Arithmetic,
+                message: "fixed point runs the designed compensator in sections, not \
+                          the paper's direct inverse"
+                    .into(),
+            }
+            .advised(Advice::DesignSections))
+        }
+    };
+    // The direct inverse has no band limit: the correction is not filtered either.
+    let nonlinear = if nonlinear == 0.0 {
+        None
+    } else {
+        let c = crate::board::compensator::NonlinearDampingCoefficients::<f64, 1>::new(
+            nonlinear * m.fs * m.fs,
+            1.0,
+            &[],
+        )
+        .map_err(|e| Error::BoardRefused {
+            during: "nonlinear-damping correction",
+            refusal: e.into(),
+        })?;
+        let mut st = c.equilibrium(first);
+        let step: Runner = Box::new(move |y| c.process(&mut st, y));
+        Some(step)
+    };
+    let chain = Chain {
+        prefilter: Some(prefilter),
+        filter: Filter::Float(filter),
+        nonlinear,
+        full_scale: 0.0,
+    };
+    Ok((chain, m.delay as f64, "the paper's direct inverse (eq. 7)"))
 }
 
 /// The first two passes over the run of `request`: every row checked (the trace's errors

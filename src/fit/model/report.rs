@@ -59,13 +59,7 @@ impl PredictionFloor {
 macro_rules! named {
     ($ty:ident, $name:ident, $what:literal) => {
         impl $ty {
-            #[doc = concat!(
-                        "The value a name stands for ([`",
-                        stringify!($ty),
-                        "::",
-                        stringify!($name),
-                        "`]'s inverse)."
-                    )]
+            /// The value a name stands for (the inverse of its name).
             #[must_use]
             pub fn from_name(name: &str) -> Option<Self> {
                 Self::ALL.into_iter().find(|v| v.$name() == name)

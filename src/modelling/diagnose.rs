@@ -66,10 +66,9 @@ pub use finding::{
     separating_test, Candidate, Finding, SeparatingTest, TestToRecord, CLOSE_MARGIN,
 };
 pub use order::{
-    drift_contradicted, margin, on_one_footing, over_all_tests, ramp_kept, ramp_returns,
-    slope_kept, unseen_leak, OrderRule, CREEP_SEEN_STANDARD_ERRORS, CREEP_SETTLED_BELOW,
-    DRIFT_CONTRADICTED_STANDARD_ERRORS, LEAK_DC_GAIN_BELOW, MODE_PEAK_OVER_CREEP_DB,
-    RAMP_KEPT_BELOW,
+    drift_contradicted, leak_shown, margin, on_one_footing, over_all_tests, ramp_kept,
+    ramp_returns, slope_kept, OrderRule, CREEP_SEEN_STANDARD_ERRORS, CREEP_SETTLED_BELOW,
+    DRIFT_CONTRADICTED_STANDARD_ERRORS, LEAK_DC_GAIN_BELOW, RAMP_KEPT_BELOW,
 };
 pub use rank::{FLOOR_OVERRULED, MIN_IMPROVEMENT, PARAMETER_PENALTY, SAME_FREQUENCY};
 pub use remedy::Remedy;

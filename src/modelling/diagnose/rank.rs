@@ -267,11 +267,7 @@ pub(super) fn rank_at(
     }
     r.temperature_beside_joint_loss();
     let mut out = std::mem::take(&mut r.out);
-    super::order::order(
-        &mut out,
-        current.model.dc_gain(),
-        super::order::slowest_pole_hz(current.model),
-    );
+    super::order::order(&mut out);
     // The first change as the user will make it: `unlag fit --add KIND` searches the delay
     // again; where that would raise the held-out error, the change keeps the delay.
     if r.have.delay.is_none() && delay.is_some() {

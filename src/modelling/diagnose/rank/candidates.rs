@@ -6,7 +6,7 @@ use super::super::temperature::Offer;
 use super::super::trial::Tried;
 use super::super::{
     amplitude_signature, creep_in_standard_errors, drift_before_step, joint_loss_evidence,
-    pre_step_slope, ramp_kept, ramp_returns, slope_kept, AmplitudeSignature, Evidence,
+    leak_shown, pre_step_slope, ramp_kept, ramp_returns, slope_kept, AmplitudeSignature, Evidence,
     ModeEvidence, NonlinearDamping, Remedy, Spectrum, COLOURED_NOISE_FIT, CREEP_SETTLED_BELOW,
     LEAK_DC_GAIN_BELOW,
 };
@@ -219,6 +219,9 @@ impl Ranking<'_> {
             .iter()
             .find(|e| e.role == TestRole::Estimation)
             .and_then(|e| slope_kept(&e.trend, e.samples as f64 / fs));
+        if !leak_shown(current.model.dc_gain(), creep_z, creep_slope_kept) {
+            return None;
+        }
         if let Some(Tried { after, .. }) = self.trial(Effect::Leak, &self.base) {
             return offer(
                 EffectKind::Leak,
@@ -249,8 +252,7 @@ impl Ranking<'_> {
                     if current.model.dc_gain() < LEAK_DC_GAIN_BELOW {
                         ""
                     } else {
-                        " (not below 1, as a leaking volume's is: a thermal creep, or the trial \
-                         fitting something else)"
+                        " (not below 1, as a leaking volume's is: a thermal creep, which settles)"
                     }
                 ),
                 Remedy::Add(Effect::Leak),

@@ -1,53 +1,33 @@
 //! The verdicts beside the candidates: `unexplained` (the residual above the floor and no
 //! trial lowers it) and `none` (nothing is missing).
 
-use super::super::{unseen_leak, Candidate, Evidence, Finding, Remedy};
+use super::super::{Candidate, Evidence, Finding, Remedy};
 use super::{Ranking, FLOOR_OVERRULED, MIN_IMPROVEMENT};
 
-/// Puts `unexplained` first when the residual is above the floor and no candidate was offered,
-/// or the first is a leak with neither of its signatures.
+/// Puts `unexplained` first when the residual is above the floor and no candidate was offered.
 ///
 /// Nothing is missing when the residual is what both channels' noise leaves (at the floor,
 /// correlated only as that noise is), or at the floor with no effect's trial lowering it.
 /// A residual above the floor that no effect's trial lowers is not "none": something
 /// outside the catalogue is missing, and the diagnosis says so.
-///
-/// A leak with neither of its signatures (the DC gain at 1, no creep after the step) that
-/// nothing yields to ([`super::super::order`]) is no leak: its pole and zero stand for dynamics the
-/// model lacks, and the diagnosis says so before it (a probe with no hidden effect whose
-/// own dynamics beyond second order leave the tests above what its true model leaves is
-/// otherwise named `leak` alone).
 pub(super) fn unexplained(out: &mut Vec<Candidate>, r: &Ranking<'_>) {
     let (current, evidence, before, at_floor) = (r.current, r.evidence, r.before, r.at_floor);
     let (floor, white) = (r.floor, r.white);
-    let lone_leak = out
-        .first()
-        .filter(|c| unseen_leak(c, current.model.dc_gain()))
-        .map(|c| (c.nrmse_before / c.nrmse_after, out.len() == 1));
-    if !at_floor && (out.is_empty() || lone_leak.is_some()) {
+    if !at_floor && out.is_empty() {
         let worst = evidence
             .iter()
             .map(|e| e.judged_nrmse() / e.judged_floor().max(f64::MIN_POSITIVE))
             .fold(0.0f64, f64::max);
         let reading = format!(
-            "the residual is up to {worst:.2}x what both channels' noise leaves{}, but {}: \
-             something outside the catalogue is missing (a higher order, or physics the effects \
-             do not describe); the model is not at its noise floor",
+            "the residual is up to {worst:.2}x what both channels' noise leaves{}, but no \
+             effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x: something outside \
+             the catalogue is missing (a higher order, or physics the effects do not describe); \
+             the model is not at its noise floor",
             if white {
                 ""
             } else {
                 " and correlated beyond that noise"
             },
-            lone_leak.map_or_else(
-                || format!("no effect's trial lowers the held-out error by {MIN_IMPROVEMENT}x"),
-                |(fall, alone)| format!(
-                    "the {} effect whose trial lowers the held-out error ({fall:.2}x) is a \
-                     leak with neither of its signatures: the DC gain is 1 and no creep stands \
-                     out of the noise after the step, so its pole and zero stand for dynamics \
-                     the model lacks",
-                    if alone { "only" } else { "first" }
-                )
-            ),
         );
         let unexplained = Evidence::Unexplained {
             noise_floor: floor,

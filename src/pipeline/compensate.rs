@@ -305,6 +305,34 @@ fn run_designed(
     Ok((u_hat, fixed))
 }
 
+/// The refusal of the paper's direct inverse in fixed point, which runs designed sections only.
+pub(super) fn direct_not_in_fixed_point() -> Error {
+    Error::InvalidParameter {
+        parameter: crate::error::Parameter::Arithmetic,
+        message: "fixed point runs the designed compensator in sections, not the paper's \
+                  direct inverse"
+            .into(),
+    }
+    .advised(Advice::DesignSections)
+}
+
+/// The nonlinear damping's correction beside the direct inverse, of gain `nonlinear` at
+/// `fs`: unfiltered, as the direct inverse has no band limit.
+pub(super) fn unfiltered_correction(
+    nonlinear: f64,
+    fs: f64,
+) -> Result<crate::board::compensator::NonlinearDampingCoefficients<f64, 1>> {
+    crate::board::compensator::NonlinearDampingCoefficients::<f64, 1>::new(
+        nonlinear * fs * fs,
+        1.0,
+        &[],
+    )
+    .map_err(|e| Error::BoardRefused {
+        during: "nonlinear-damping correction",
+        refusal: e.into(),
+    })
+}
+
 /// The paper's direct inverse of the model on `y_probe` (prefiltered for a model fitted below
 /// a sensor resonance), with the nonlinear damping's correction unfiltered (the direct
 /// inverse has no band limit); not in fixed point.
@@ -320,27 +348,11 @@ fn run_direct(
     let mut u_hat = match arithmetic {
         Arithmetic::F32 => m.compensate::<f32>(&y_in)?,
         Arithmetic::F64 => m.compensate::<f64>(&y_in)?,
-        Arithmetic::Fixed => {
-            return Err(Error::InvalidParameter {
-                parameter: crate::error::Parameter::Arithmetic,
-                message: "fixed point runs the designed compensator in sections, not \
-                          the paper's direct inverse"
-                    .into(),
-            }
-            .advised(Advice::DesignSections))
-        }
+        Arithmetic::Fixed => return Err(direct_not_in_fixed_point()),
     };
     let nonlinear = effects::nonlinear_gain(&file.effects);
     if nonlinear != 0.0 {
-        let c = crate::board::compensator::NonlinearDampingCoefficients::<f64, 1>::new(
-            nonlinear * m.fs * m.fs,
-            1.0,
-            &[],
-        )
-        .map_err(|e| Error::BoardRefused {
-            during: "nonlinear-damping correction",
-            refusal: e.into(),
-        })?;
+        let c = unfiltered_correction(nonlinear, m.fs)?;
         let mut st = c.equilibrium(y_probe.first().copied().unwrap_or(0.0));
         for (u, y) in u_hat.iter_mut().zip(y_probe) {
             *u += c.process(&mut st, *y);

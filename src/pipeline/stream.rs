@@ -17,7 +17,10 @@
 use std::io::Write;
 use std::path::Path;
 
-use super::compensate::{fixed_runner, Arithmetic, Compensated, Compensation, ReferenceError};
+use super::compensate::{
+    direct_not_in_fixed_point, fixed_runner, unfiltered_correction, Arithmetic, Compensated,
+    Compensation, ReferenceError,
+};
 use super::FixedRunSummary;
 use crate::design::inverse::optimal::on_run::SpectrumStream;
 use crate::design::inverse::{self, AlignedErrorStream, Design, Runner};
@@ -197,7 +200,13 @@ fn setup(request: &StreamRequest<'_>, info: &RunInfo) -> Result<Setup> {
             };
             (chain, d.latency_samples, "the model file's compensator")
         }
-        None => direct_chain(&file, info, &additive, model_path, (arithmetic, nonlinear))?,
+        None => direct_chain(
+            &file,
+            info,
+            &additive,
+            model_path,
+            (arithmetic, nonlinear, first),
+        )?,
     };
     Ok(Setup {
         file,
@@ -211,19 +220,16 @@ fn setup(request: &StreamRequest<'_>, info: &RunInfo) -> Result<Setup> {
 
 /// The chain of the paper's direct inverse of `file`'s model (no designed compensator): the
 /// prefilter below a sensor resonance, the inverse in `arithmetic` (not fixed point), and the
-/// nonlinear-damping correction of gain `nonlinear` unfiltered; with its latency and name.
+/// nonlinear-damping correction of gain `nonlinear` unfiltered, both starting from the probe's
+/// `first` sample less the additive effects; with its latency and name.
 fn direct_chain(
     file: &ModelFile,
     info: &RunInfo,
     additive: &Additive,
     model_path: &Path,
-    (arithmetic, nonlinear): (Arithmetic, f64),
+    (arithmetic, nonlinear, first): (Arithmetic, f64, f64),
 ) -> Result<(Chain, f64, &'static str)> {
     let m = &file.model;
-    let first = info
-        .probe_head
-        .first()
-        .map_or(0.0, |y| y - additive.at(0, m.fs));
     m.check_invertible(&model_path.display().to_string())?;
     // The direct inverse of a model fitted below a sensor resonance gets the prefilter.
     let head: Vec<f64> = info
@@ -237,29 +243,13 @@ fn direct_chain(
     let filter = match arithmetic {
         Arithmetic::F32 => m.compensator::<f32>(first_in)?,
         Arithmetic::F64 => m.compensator::<f64>(first_in)?,
-        Arithmetic::Fixed => {
-            return Err(Error::InvalidParameter {
-                parameter: crate::error::Parameter::Arithmetic,
-                message: "fixed point runs the designed compensator in sections, not \
-                          the paper's direct inverse"
-                    .into(),
-            }
-            .advised(Advice::DesignSections))
-        }
+        Arithmetic::Fixed => return Err(direct_not_in_fixed_point()),
     };
     // The direct inverse has no band limit: the correction is not filtered either.
     let nonlinear = if nonlinear == 0.0 {
         None
     } else {
-        let c = crate::board::compensator::NonlinearDampingCoefficients::<f64, 1>::new(
-            nonlinear * m.fs * m.fs,
-            1.0,
-            &[],
-        )
-        .map_err(|e| Error::BoardRefused {
-            during: "nonlinear-damping correction",
-            refusal: e.into(),
-        })?;
+        let c = unfiltered_correction(nonlinear, m.fs)?;
         let mut st = c.equilibrium(first);
         let step: Runner = Box::new(move |y| c.process(&mut st, y));
         Some(step)

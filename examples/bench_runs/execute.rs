@@ -349,7 +349,7 @@ pub fn run_probe(probe: &Probe, s: &Settings) -> ProbeResult {
         let step = runs::step_test(probe, &mut rng);
         let list = runs::draw_runs(probe, &mut rng);
         let rec = runs::record(probe, &step, &mut rng)?;
-        write_record(&dir, "step", probe.fs, &rec)?;
+        write_record(&dir, RunKind::StepTest.name(), probe.fs, &rec)?;
         result.step_adc = (rec.adc.min_pa, rec.adc.max_pa);
         let made = list
             .into_iter()
@@ -382,7 +382,7 @@ pub fn run_probe(probe: &Probe, s: &Settings) -> ProbeResult {
     if let Err(e) = unlag(
         &s.unlag,
         &dir,
-        &["fit", "step.csv", "-o", "model.toml"],
+        &["fit", "step-test.csv", "-o", "model.toml"],
         "fit.log",
     ) {
         result.failure = Some(e);
@@ -400,7 +400,7 @@ pub fn run_probe(probe: &Probe, s: &Settings) -> ProbeResult {
         let fitted = unlag(
             &s.unlag,
             &dir,
-            &["fit", "step.csv", "--signal", &rehearsal, "-o", &model],
+            &["fit", "step-test.csv", "--signal", &rehearsal, "-o", &model],
             &log,
         )
         .and_then(|_| unlag::file::ModelFile::load(&dir.join(&model)).map_err(|e| e.to_string()));

@@ -369,11 +369,11 @@ pub fn report(results: &[ProbeResult], adapt: bool, seconds: f64) -> String {
     for (pair, title) in [
         (
             STEP_TEST,
-            "fitted on the step test alone (`unlag fit step.csv`)",
+            "fitted on the step test alone (`unlag fit step-test.csv`)",
         ),
         (
             FOR_RUNS,
-            "fitted on the step test for the runs (`unlag fit step.csv --signal REHEARSAL.csv`, \
+            "fitted on the step test for the runs (`unlag fit step-test.csv --signal REHEARSAL.csv`, \
              a run of the same kind drawn anew, the probe alone)",
         ),
     ] {

@@ -133,9 +133,16 @@ pub(crate) fn unit(f: f64, fs: f64) -> Complex {
 /// Pairs poles and zeros into second-order sections `[b0, b1, b2, a1, a2]` (leading
 /// coefficients one; the gain is returned apart). Poles nearest the unit circle come first,
 /// each with the zeros nearest to it.
+///
+/// Real roots are paired slowest with fastest. Rounding a section's coefficients by `d`
+/// moves a root `r` by about `d / |r - r'|`, `r'` the section's other root: two slow real
+/// roots side by side (a thermal creep's poles, with its zeros beside them) in one section
+/// lose `1 - r`, and with it the gain below their corners, to `f32` rounding, where each
+/// paired with a fast root (often a pole at the origin) keeps it.
 #[must_use]
 pub fn to_sections(zpk: &Zpk) -> (f64, Vec<[f64; 5]>) {
-    // Quadratic factors [1, c1, c2] from roots: conjugate pairs together, reals two by two.
+    // Quadratic factors [1, c1, c2] from roots: conjugate pairs together, reals the slowest
+    // with the fastest.
     fn quads(roots: &[Complex]) -> Vec<(Vec<Complex>, [f64; 2])> {
         let mut cpx: Vec<Complex> = roots.iter().copied().filter(|r| r.im > 1e-12).collect();
         let mut real: Vec<f64> = roots
@@ -149,11 +156,14 @@ pub fn to_sections(zpk: &Zpk) -> (f64, Vec<[f64; 5]>) {
             .into_iter()
             .map(|r| (vec![r, r.conj()], [-2.0 * r.re, r.norm_sqr()]))
             .collect();
-        for pair in real.chunks(2) {
-            match *pair {
-                [r1, r2] => out.push((vec![c(r1), c(r2)], [-(r1 + r2), r1 * r2])),
-                [r1] => out.push((vec![c(r1)], [-r1, 0.0])),
-                _ => {}
+        let (slow, fast) = real.split_at(real.len() / 2);
+        for (&r1, &r2) in slow.iter().zip(fast.iter().rev()) {
+            out.push((vec![c(r1), c(r2)], [-(r1 + r2), r1 * r2]));
+        }
+        // An odd one out, the middle root, alone.
+        if real.len() % 2 == 1 {
+            if let Some(&r) = fast.first() {
+                out.push((vec![c(r)], [-r, 0.0]));
             }
         }
         out
@@ -167,15 +177,20 @@ pub fn to_sections(zpk: &Zpk) -> (f64, Vec<[f64; 5]>) {
     });
     let mut sections = Vec::new();
     for (proots, [a1, a2]) in pq {
-        // Nearest zero factor to these poles.
+        // Nearest zero factor to these poles: each pole's distance to its nearest zero in
+        // it, summed.
         let best = zq
             .iter()
             .enumerate()
             .map(|(i, (zr, _))| {
-                let d = proots
+                let d: f64 = proots
                     .iter()
-                    .flat_map(|p| zr.iter().map(move |z| (*p - *z).norm()))
-                    .fold(f64::INFINITY, f64::min);
+                    .map(|p| {
+                        zr.iter()
+                            .map(|z| (*p - *z).norm())
+                            .fold(f64::INFINITY, f64::min)
+                    })
+                    .sum();
                 (i, d)
             })
             .min_by(|a, b| a.1.total_cmp(&b.1))
@@ -254,4 +269,75 @@ pub(crate) fn unwrap(values: &[Complex]) -> Vec<f64> {
         out.push(ph);
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// DC gain of a cascade, with its sections' coefficients rounded to `f32` when `round`.
+    #[allow(clippy::cast_possible_truncation)]
+    fn dc(gain: f64, sections: &[[f64; 5]], round: bool) -> f64 {
+        let r = |v: f64| if round { f64::from(v as f32) } else { v };
+        sections
+            .iter()
+            .map(|s| (r(s[0]) + r(s[1]) + r(s[2])) / (1.0 + r(s[3]) + r(s[4])))
+            .product::<f64>()
+            * gain
+    }
+
+    /// A thermal creep's compensator: two slow poles with zeros beside them, and the smoother's
+    /// poles at the origin. Each slow pole goes with a fast one and its own zero, and `f32`
+    /// rounding keeps the DC gain to 0.1 %; the two slow roots in one section lose percents.
+    #[test]
+    fn slow_real_roots_are_paired_with_fast_ones() {
+        let zpk = Zpk {
+            zeros: vec![c(0.999_61), c(0.996_17), c(0.0), c(0.0)],
+            poles: vec![c(0.999_60), c(0.996_07), c(0.0), c(0.0)],
+            gain: 1.0,
+        };
+        let (gain, sections) = to_sections(&zpk);
+        assert_eq!(sections.len(), 2, "{sections:?}");
+        for s in &sections {
+            // One slow pole per section, with the zero beside it.
+            assert!(s[4].abs() < 1e-12 && s[2].abs() < 1e-12, "{s:?}");
+            assert!((s[1] - s[3]).abs() < 2e-4, "{s:?}");
+        }
+        let exact = dc(gain, &sections, false);
+        assert!((dc(gain, &sections, true) / exact - 1.0).abs() < 1e-3);
+        let paired = [
+            [
+                1.0,
+                -(0.999_61 + 0.996_17),
+                0.999_61 * 0.996_17,
+                -(0.999_60 + 0.996_07),
+                0.999_60 * 0.996_07,
+            ],
+            [1.0, 0.0, 0.0, 0.0, 0.0],
+        ];
+        assert!((dc(1.0, &paired, true) / dc(1.0, &paired, false) - 1.0).abs() > 1e-2);
+    }
+
+    /// Five real poles: the slowest with the fastest, the next with the next, the middle one
+    /// alone; the response is the roots' whatever the pairing.
+    #[test]
+    fn real_roots_pair_outside_in() {
+        let roots = [0.9, 0.7, 0.5, 0.3, 0.1];
+        let zpk = Zpk {
+            zeros: vec![],
+            poles: roots.iter().map(|&r| c(r)).collect(),
+            gain: 2.0,
+        };
+        let (gain, sections) = to_sections(&zpk);
+        let sums: Vec<f64> = sections.iter().map(|s| -s[3]).collect();
+        assert_eq!(sections.len(), 3);
+        for (got, want) in sums.iter().zip([1.0, 1.0, 0.5]) {
+            assert!((got - want).abs() < 1e-12, "{sums:?}");
+        }
+        let z = Complex::new(0.3, 0.4);
+        let want = roots
+            .iter()
+            .fold(c(gain), |acc, &r| acc / (c(1.0) - c(r) / z));
+        assert!((cascade_response(gain, &sections, z) - want).norm() < 1e-12);
+    }
 }

@@ -118,22 +118,8 @@ pub fn fit(sets: &[Data<'_>], m: usize, d: usize) -> Result<Params> {
 /// # Errors
 /// As [`fit`].
 pub fn fit_nb(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> Result<Params> {
-    fit_nb_by(sets, m, nb, d, Reduction::General)
-}
-
-/// [`fit_nb`] with the blocks reduced by `reduction`.
-///
-/// # Errors
-/// As [`fit`].
-pub(crate) fn fit_nb_by(
-    sets: &[Data<'_>],
-    m: usize,
-    nb: usize,
-    d: usize,
-    reduction: Reduction,
-) -> Result<Params> {
     let cols = m + nb;
-    let (r, rows) = triangle_by(sets, m, nb, d, reduction);
+    let (r, rows) = triangle(sets, m, nb, d);
     if rows < cols {
         return Err(FitError::TooFewEquations {
             context: "arx".into(),
@@ -151,45 +137,17 @@ pub(crate) fn fit_nb_by(
 }
 
 /// One step of a blockwise QR: `R` of the triangle so far, `r_aug`, stacked on the `rows`
-/// rows below it in `block` (the triangle is written into `block`'s first rows here): `R` of
-/// all the rows so far, whatever their number, in one block's memory. faer's QR of the
-/// stacked matrix: what the fits' coefficients are computed with.
-pub(crate) fn fold(block: &mut Mat<f64>, r_aug: &Mat<f64>, rows: usize) -> Mat<f64> {
-    let width = r_aug.nrows();
-    for c in 0..width {
-        for r in 0..width {
-            block[(r, c)] = if r <= c { r_aug[(r, c)] } else { 0.0 };
-        }
-    }
-    block
-        .as_ref()
-        .subrows(0, width + rows)
-        .qr()
-        .thin_R()
-        .to_owned()
-}
-
-/// How a blockwise QR reduces each block.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Reduction {
-    /// [`fold`]: faer's QR of the stacked matrix, what the fitted coefficients come from.
-    General,
-    /// [`fold_structured`]: several times faster at the fits' shapes, the same `R` to
-    /// rounding; for the delay search, which ranks candidates by their loss and keeps none of
-    /// their coefficients.
-    Structured,
-}
-
-/// [`fold`] as the same step with the triangle's structure used: `R` of `r_aug` stacked on
-/// the `rows` rows of `block` below its first `r_aug.nrows()` (which it neither reads nor
-/// writes; the rows below are overwritten).
+/// rows of `block` below its first `r_aug.nrows()` (which it neither reads nor writes; the
+/// rows below are overwritten): `R` of all the rows so far, whatever their number, in one
+/// block's memory.
 ///
-/// Householder reflections, one per column: reflection `j` touches row `j` of the triangle
-/// and the block's rows only, so a step costs `2 rows width^2` flops and no more, each
-/// reflection a pass of sums over contiguous columns (the block is column major). A general
-/// QR of the stacked matrix spends most of its time on packing and norm scaling at these
-/// shapes (a few to twenty columns). The same `R` up to rounding (and the signs of its rows).
-pub(crate) fn fold_structured(block: &mut Mat<f64>, r_aug: &Mat<f64>, rows: usize) -> Mat<f64> {
+/// Householder reflections, one per column, with the triangle's structure used: reflection
+/// `j` touches row `j` of the triangle and the block's rows only, so a step costs
+/// `2 rows width^2` flops and no more, each reflection a pass of sums over contiguous columns
+/// (the block is column major). A general QR of the stacked matrix spends most of its time
+/// on packing and on the norm's scaling at these shapes (a few to twenty columns); the norm
+/// is scaled here only where its plain sum of squares would overflow or underflow.
+pub(crate) fn fold(block: &mut Mat<f64>, r_aug: &Mat<f64>, rows: usize) -> Mat<f64> {
     let width = r_aug.nrows();
     let mut r = Mat::<f64>::zeros(width, width);
     for c in 0..width {
@@ -206,13 +164,13 @@ pub(crate) fn fold_structured(block: &mut Mat<f64>, r_aug: &Mat<f64>, rows: usiz
         let Some(xj) = col.as_slice_mut().get(width..width + rows) else {
             continue;
         };
-        let sigma = dot(xj, xj);
-        if sigma == 0.0 {
+        let below = norm(xj);
+        if below == 0.0 {
             // Nothing below the diagonal: the column is already reduced.
             continue;
         }
         let alpha = r[(j, j)];
-        let norm = alpha.hypot(sigma.sqrt());
+        let norm = alpha.hypot(below);
         let beta = if alpha > 0.0 { -norm } else { norm };
         // The reflection `I - tau w w^T`, `w = [1; x_j / (alpha - beta)]`.
         let scale = 1.0 / (alpha - beta);
@@ -234,6 +192,21 @@ pub(crate) fn fold_structured(block: &mut Mat<f64>, r_aug: &Mat<f64>, rows: usiz
         }
     }
     r
+}
+
+/// `sqrt(sum x[i]^2)`: the plain sum where it can neither overflow nor lose precision to
+/// underflow, else scaled by the largest magnitude.
+fn norm(x: &[f64]) -> f64 {
+    let sigma = dot(x, x);
+    if sigma.is_finite() && sigma > 1e-250 {
+        return sigma.sqrt();
+    }
+    let largest = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if largest == 0.0 || !largest.is_finite() {
+        return largest;
+    }
+    let scaled: f64 = x.iter().map(|v| (v / largest).powi(2)).sum();
+    largest * scaled.sqrt()
 }
 
 /// `sum a[i] b[i]` in eight interleaved partial sums (independent chains the processor
@@ -260,17 +233,6 @@ const BLOCK_ROWS: usize = 2048;
 /// numbers, without the whole matrix.
 #[must_use]
 pub fn triangle(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> (Mat<f64>, usize) {
-    triangle_by(sets, m, nb, d, Reduction::General)
-}
-
-/// [`triangle`] with the blocks reduced by `reduction`.
-pub(crate) fn triangle_by(
-    sets: &[Data<'_>],
-    m: usize,
-    nb: usize,
-    d: usize,
-    reduction: Reduction,
-) -> (Mat<f64>, usize) {
     let start = m.max(nb.saturating_sub(1)) + d;
     let cols = m + nb;
     let width = cols + 1;
@@ -300,10 +262,7 @@ pub(crate) fn triangle_by(
                     dst.copy_from_slice(&data.y[k0..k1]);
                 }
             }
-            r_aug = match reduction {
-                Reduction::General => fold(&mut block, &r_aug, n),
-                Reduction::Structured => fold_structured(&mut block, &r_aug, n),
-            };
+            r_aug = fold(&mut block, &r_aug, n);
             rows += n;
             k0 = k1;
         }
@@ -333,10 +292,11 @@ mod tests {
         }
     }
 
-    /// The structured reduction gives the general one's triangle, up to the signs of its rows
-    /// and rounding, over several blocks and two data sets; and the same least squares.
+    /// The blockwise reduction gives the triangle of faer's QR of the whole regression
+    /// matrix, up to the signs of its rows and rounding, over several blocks and two data
+    /// sets; and the same least squares as the pivoted QR of the whole matrix.
     #[test]
-    fn the_structured_reduction_gives_the_general_triangle() {
+    fn the_blockwise_reduction_gives_the_whole_matrix_triangle() {
         let (a, b) = (vec![-1.6, 0.7], vec![0.05, 0.03, 0.02]);
         let u: Vec<f64> = (0..5000)
             .map(|k| f64::from(u8::from(k >= 20)) + ((k * 7919) % 97) as f64 * 1e-3)
@@ -355,27 +315,58 @@ mod tests {
             },
         ];
         for (m, nb, d) in [(2, 3, 4), (4, 4, 0), (1, 1, 9)] {
-            let (general, rows) = triangle_by(&sets, m, nb, d, Reduction::General);
-            let (structured, rows_s) = triangle_by(&sets, m, nb, d, Reduction::Structured);
-            assert_eq!(rows, rows_s);
+            let (x, t) = regression(&sets, m, nb, d);
             let w = m + nb + 1;
+            let mut whole = Mat::<f64>::zeros(x.nrows(), w);
+            for r in 0..x.nrows() {
+                for c in 0..w - 1 {
+                    whole[(r, c)] = x[(r, c)];
+                }
+                whole[(r, w - 1)] = t[(r, 0)];
+            }
+            let general = whole.qr().thin_R().to_owned();
+            let (blockwise, rows) = triangle(&sets, m, nb, d);
+            assert_eq!(rows, x.nrows());
             for i in 0..w {
-                let sign = general[(i, i)].signum() * structured[(i, i)].signum();
+                let sign = general[(i, i)].signum() * blockwise[(i, i)].signum();
                 for c in 0..w {
-                    let (g, s) = (general[(i, c)], sign * structured[(i, c)]);
+                    let (g, s) = (general[(i, c)], sign * blockwise[(i, c)]);
                     let scale = general[(c, c)].abs().max(general[(i, i)].abs());
                     assert!((g - s).abs() <= 1e-10 * scale, "({i}, {c}): {g} vs {s}");
                 }
             }
-            let general = fit_nb_by(&sets, m, nb, d, Reduction::General).unwrap();
-            let structured = fit_nb_by(&sets, m, nb, d, Reduction::Structured).unwrap();
-            for (x, t) in structured
-                .0
+            let whole_fit = lstsq(&x, &t, "whole").unwrap();
+            let blockwise = fit_nb(&sets, m, nb, d).unwrap();
+            for (p, q) in blockwise.0.iter().chain(&blockwise.1).zip(&whole_fit) {
+                assert!((p - q).abs() <= 1e-9 * q.abs().max(1e-3), "{p} vs {q}");
+            }
+        }
+    }
+
+    /// Data whose sums of squares overflow (or underflow) give the triangle of the same data
+    /// scaled into range, scaled back.
+    #[test]
+    fn the_reduction_keeps_data_whose_squares_overflow_or_underflow() {
+        let u: Vec<f64> = (0..3000)
+            .map(|k| f64::from(u8::from(k >= 20)) + ((k * 7919) % 97) as f64 * 1e-3)
+            .collect();
+        let y = filter(&[0.2], &[-0.8], 2, &u);
+        let (plain, _) = triangle(&[Data { u: &u, y: &y }], 1, 1, 2);
+        for factor in [1e200, 1e-200] {
+            let (us, ys): (Vec<f64>, Vec<f64>) = u
                 .iter()
-                .chain(&structured.1)
-                .zip(general.0.iter().chain(&general.1))
-            {
-                assert!((x - t).abs() <= 1e-9 * t.abs().max(1e-3), "{x} vs {t}");
+                .zip(&y)
+                .map(|(a, b)| (a * factor, b * factor))
+                .unzip();
+            let (scaled, _) = triangle(&[Data { u: &us, y: &ys }], 1, 1, 2);
+            for i in 0..3 {
+                for c in i..3 {
+                    let (p, s) = (plain[(i, c)], scaled[(i, c)] / factor);
+                    assert!(
+                        (p - s).abs() <= 1e-12 * plain[(0, 0)].abs(),
+                        "{factor}: {p} vs {s}"
+                    );
+                }
             }
         }
     }

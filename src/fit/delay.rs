@@ -55,13 +55,7 @@ pub(super) fn search(
     let sets = [Data { u, y }];
     let energy: f64 = y.iter().map(|v| v * v).sum();
     let loss = |&d: &usize| {
-        // The candidates are ranked by their loss alone and none of their coefficients is kept:
-        // the faster reduction, whose rounding differs from the fit's (the losses move in
-        // their last digits, where Steiglitz-McBride is poorly conditioned by up to 1e-6
-        // relative, far inside the tolerance the choice is made with).
-        let (a, b) =
-            oe::steiglitz_mcbride_by(&sets, (m, m, d), 8, super::arx::Reduction::Structured)
-                .ok()?;
+        let (a, b) = oe::steiglitz_mcbride_nb(&sets, m, m, d, 8).ok()?;
         let l = oe::loss(&sets, (&a, &b), d);
         l.is_finite().then(|| DelayRow {
             delay: d,

@@ -85,21 +85,7 @@ pub fn steiglitz_mcbride_nb(
     d: usize,
     iterations: usize,
 ) -> Result<Params> {
-    steiglitz_mcbride_by(sets, (m, nb, d), iterations, arx::Reduction::General)
-}
-
-/// [`steiglitz_mcbride_nb`] of order, numerator length and delay `(m, nb, d)`, its least
-/// squares reduced by `reduction`.
-///
-/// # Errors
-/// As [`arx::fit`].
-pub(crate) fn steiglitz_mcbride_by(
-    sets: &[Data<'_>],
-    (m, nb, d): (usize, usize, usize),
-    iterations: usize,
-    reduction: arx::Reduction,
-) -> Result<Params> {
-    let mut best = arx::fit_nb_by(sets, m, nb, d, reduction)?;
+    let mut best = arx::fit_nb(sets, m, nb, d)?;
     let mut best_loss = if stable(&best.0) {
         loss(sets, (&best.0, &best.1), d)
     } else {
@@ -115,7 +101,7 @@ pub(crate) fn steiglitz_mcbride_by(
             .map(|s| allpole_pair(&current.0, s.u, s.y))
             .collect();
         let fsets: Vec<Data<'_>> = filtered.iter().map(|(u, y)| Data { u, y }).collect();
-        let Ok(next) = arx::fit_nb_by(&fsets, m, nb, d, reduction) else {
+        let Ok(next) = arx::fit_nb(&fsets, m, nb, d) else {
             break;
         };
         if stable(&next.0) {

@@ -47,12 +47,19 @@ pub fn fit_with_also_reading_creep(
         value: 0.0,
         rate_per_s: 0.0,
     });
+    // Kept only where the drift resolves the creep: a model that still has a pole slower than
+    // the record has spent a pole-zero pair on it, whichever side of the circle rounding put
+    // the pole, and goes one order down as such a pole does ([`second_looks`]).
+    let onset = crate::fit::step::find_step(estimation.u).map_or(0, |s| s.onset);
+    let after_step = estimation.y.len().saturating_sub(onset) as f64;
     if let Ok((mut f, fx)) = refit(options, &with_drift) {
-        f.report.notes.push(format!(
-            "the fit left a pole on the unit circle ({pole}): a creep the record cannot tell from an integrator, read as a drift of {:.4e} per second (a drift is removed before compensation, never inverted)",
-            additive_rate(&fx)
-        ));
-        return Ok((f, fx));
+        if slower_than(&f.model, after_step).is_none() {
+            f.report.notes.push(format!(
+                "the fit left a pole on the unit circle ({pole}): a creep the record cannot tell from an integrator, read as a drift of {:.4e} per second (a drift is removed before compensation, never inverted)",
+                additive_rate(&fx)
+            ));
+            return Ok((f, fx));
+        }
     }
     if let Order::Fixed(m) = options.order {
         if m > 1 {

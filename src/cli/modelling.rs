@@ -391,7 +391,7 @@ pub fn run_diagnose(args: &LoopArgs) -> Result<()> {
         );
     }
     crate::outln!(
-        "candidates, best first (score = ln of the held-out error's fall in a trial refit):"
+        "candidates, best first (score = ln of the held-out error's fall in a trial refit, less BIC's charge per parameter):"
     );
     for (i, c) in candidates.iter().enumerate() {
         crate::outln!(

@@ -116,7 +116,7 @@ impl EffectKind {
     }
 
     /// Parameters it adds to the model, as the diagnosis charges them
-    /// ([`crate::modelling::diagnose::PARAMETER_PENALTY`] each): a section's four for a mode or the
+    /// ([`crate::modelling::diagnose::parameter_penalty`] each): a section's four for a mode or the
     /// transducers' modes, a pole and a zero for a leak, offset and rate for a drift, one
     /// coefficient for an offset, a quadratic loss or a temperature (its reference). None for
     /// a delay (it replaces the fitted one), a prefilter (fixed by the resonance's frequency)

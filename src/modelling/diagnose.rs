@@ -70,7 +70,9 @@ pub use order::{
     ramp_returns, slope_kept, OrderRule, CREEP_SEEN_STANDARD_ERRORS, CREEP_SETTLED_BELOW,
     DRIFT_CONTRADICTED_STANDARD_ERRORS, LEAK_DC_GAIN_BELOW, RAMP_KEPT_BELOW,
 };
-pub use rank::{FLOOR_OVERRULED, MIN_IMPROVEMENT, PARAMETER_PENALTY, SAME_FREQUENCY};
+pub use rank::{
+    effective_samples, parameter_penalty, FLOOR_OVERRULED, MIN_IMPROVEMENT, SAME_FREQUENCY,
+};
 pub use remedy::Remedy;
 pub use temperature::{loss_could_move, TRIAL_ALONE_DAMPING_BELOW, TRIAL_ALONE_FALL};
 pub use trial::TRIAL_WINDOW;
@@ -177,9 +179,6 @@ fn ranked(
     evidence: &[TestEvidence],
 ) -> Result<Vec<Candidate>> {
     let kept = rank::rank_at(current, tests, evidence, Some(current.model.delay), false)?;
-    if let Some(found) = temperature_beside_weak_additive(current, tests, evidence, &kept)? {
-        return Ok(found);
-    }
     if !kept
         .first()
         .is_some_and(|c| matches!(c.kind, Finding::Unexplained))
@@ -210,44 +209,6 @@ fn ranked(
     Ok(kept)
 }
 
-/// Where `kept`'s first name is [`weak_additive`], the ranking with the temperature on any
-/// model (the last resort's) when a temperature goes first there and lowers the error more,
-/// its reading saying why it was tried.
-fn temperature_beside_weak_additive(
-    current: &Current<'_>,
-    tests: &[Test<'_>],
-    evidence: &[TestEvidence],
-    kept: &[Candidate],
-) -> Result<Option<Vec<Candidate>>> {
-    let Some(first) = kept.first().filter(|c| weak_additive(c)) else {
-        return Ok(None);
-    };
-    let mut found = rank::rank_at(current, tests, evidence, Some(current.model.delay), true)?;
-    let Some(top) = found.first_mut().filter(|c| {
-        matches!(c.kind, Finding::Missing(k) if k.family() == EffectKind::Temperature)
-            && c.score > first.score
-    }) else {
-        return Ok(None);
-    };
-    top.reading.push_str(&format!(
-        "; tried beside a {} whose trial lowers the held-out error only {:.2}x, less than a \
-         temperature read from its trial alone must",
-        first.kind,
-        first.score.exp()
-    ));
-    Ok(Some(found))
-}
-
-/// Whether `first` is an additive effect (a drift or an offset, which leave the dynamics as
-/// they are) whose trial lowers the held-out error less than a temperature read from its
-/// trial alone must ([`temperature::TRIAL_ALONE_FALL`]).
-fn weak_additive(first: &Candidate) -> bool {
-    matches!(
-        first.kind,
-        Finding::Missing(EffectKind::Drift | EffectKind::Offset)
-    ) && first.score < temperature::TRIAL_ALONE_FALL.ln()
-}
-
 /// A last resort [`diagnose`] tries before it says `unexplained`.
 #[derive(Debug, Clone, Copy)]
 enum LastResort {
@@ -270,43 +231,5 @@ impl LastResort {
                 "found as a last resort: no other effect's trial lowers the held-out error".into()
             }
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn named(kind: EffectKind, fall: f64) -> Candidate {
-        Candidate::new(
-            Finding::Missing(kind),
-            fall.ln(),
-            (
-                Evidence::Nothing {
-                    noise_floor: 0.01,
-                    nrmse: 0.02,
-                    white: false,
-                },
-                String::new(),
-            ),
-            Remedy::Nothing,
-            (0.02, 0.02 / fall),
-        )
-    }
-
-    #[test]
-    fn only_a_drift_or_an_offset_weaker_than_a_temperature_read_alone_is_set_against_one() {
-        // The temperature read from its trial alone must lower the error 1.32x.
-        assert!(weak_additive(&named(EffectKind::Drift, 1.16)));
-        assert!(weak_additive(&named(EffectKind::Offset, 1.30)));
-        assert!(!weak_additive(&named(EffectKind::Drift, 1.4)));
-        // An effect that changes the dynamics is not: its trial refits them.
-        assert!(!weak_additive(&named(EffectKind::Leak, 1.16)));
-        assert!(!weak_additive(&named(EffectKind::Mode, 1.16)));
-        let unexplained = Candidate {
-            kind: Finding::Unexplained,
-            ..named(EffectKind::Drift, 1.0)
-        };
-        assert!(!weak_additive(&unexplained));
     }
 }

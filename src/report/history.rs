@@ -238,7 +238,7 @@ pub(super) fn candidates(h: &mut String, inputs: &Inputs<'_>) {
             escape(&(inputs.change_text)(&c.change))
         );
     }
-    h.push_str("</table>\n<p class=\"sub\">Score: ln of the held-out error's fall in a trial refit, less a small charge per parameter.</p>\n");
+    h.push_str("</table>\n<p class=\"sub\">Score: ln of the held-out error's fall in a trial refit, less BIC's charge per parameter (ln n / 2n, n the held-out residual's independent samples).</p>\n");
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 use serde::Serialize;
 
 #[cfg(doc)]
-use super::PARAMETER_PENALTY;
+use super::parameter_penalty;
 use super::{Beside, Evidence, OrderRule, Remedy};
 use crate::effects::{self, EffectKind};
 use crate::fit::model::Uncertainty;
@@ -100,8 +100,8 @@ pub struct Candidate {
     /// `offset`, `drift`, `delay`, `coloured-noise`, `nonlinear-damping`, `sensor-resonance`,
     /// `temperature`, `temperature-viscous`, `temperature-diffusive`), or `none` or `unexplained`.
     pub kind: Finding,
-    /// `ln(error before / error after)` of the trial, less [`PARAMETER_PENALTY`] per parameter
-    /// the effect adds; larger is stronger.
+    /// `ln(error before / error after)` of the trial, less [`parameter_penalty`] per
+    /// parameter the effect adds; larger is stronger.
     pub score: f64,
     /// The numbers behind it, by its kind.
     pub evidence: Evidence,

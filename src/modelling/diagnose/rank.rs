@@ -9,7 +9,9 @@
 use std::cell::{OnceCell, RefCell};
 
 use super::temperature::{candidate, Offer, TrialAlone};
-use super::trial::{adding, held_out, keep_delay_if_search_raises, options, trial_window, Tried};
+use super::trial::{
+    adding, held_out, held_out_evidence, keep_delay_if_search_raises, options, trial_window, Tried,
+};
 use super::{mean, per_test, Candidate, Current, Evidence, Finding, PerTest, Remedy};
 use crate::effects::{self, Effect, FitChanges};
 use crate::error::Result;
@@ -27,9 +29,33 @@ pub const MIN_IMPROVEMENT: f64 = 1.15;
 /// is missing.
 pub const FLOOR_OVERRULED: f64 = 1.4;
 
-/// Score charged per parameter an effect adds: between two effects that explain the data
-/// equally well, the simpler one ranks first (an offset before a drift, a leak before a mode).
-pub const PARAMETER_PENALTY: f64 = 0.03;
+/// The score charged per parameter an effect adds, from the held-out tests' `evidence`: BIC's
+/// charge of `ln(n) / 2` per parameter against the Gaussian log-likelihood gain
+/// `n ln(before / after)`, both per sample, `ln(n) / (2 n)`, with `n` the held-out tests'
+/// effective samples ([`effective_samples`]). Between two effects that explain the data
+/// equally well the simpler one ranks first (an offset before a drift, a leak before a
+/// mode); the charge a parameter needs to earn falls as the record grows. About 0.03 for a
+/// step test of a few thousand samples with a slow residual.
+#[must_use]
+pub fn parameter_penalty(evidence: &[TestEvidence]) -> f64 {
+    let n = evidence
+        .iter()
+        .map(effective_samples)
+        .sum::<f64>()
+        .max(core::f64::consts::E);
+    n.ln() / (2.0 * n)
+}
+
+/// A test's effective samples for its residual: `N / (1 + 2 sum rho(k))` over the
+/// autocorrelation's lags (Bartlett's estimate, the sum truncated at
+/// [`crate::evidence::ACF_LAGS`]), at most `N`. A model error is slow: its residual's
+/// neighbouring samples say one thing, and `N` of them weigh as `N / 61` at the most
+/// correlated.
+#[must_use]
+pub fn effective_samples(evidence: &TestEvidence) -> f64 {
+    let correlated = 1.0 + 2.0 * evidence.autocorrelation.values.iter().sum::<f64>();
+    evidence.samples as f64 / correlated.max(1.0)
+}
 
 /// Two peaks within this relative distance are at the same frequency.
 pub const SAME_FREQUENCY: f64 = 0.15;
@@ -57,6 +83,8 @@ struct Ranking<'r> {
     floor: f64,
     /// Every test's residual white (Ljung-Box p above 0.01).
     white: bool,
+    /// The score charged per parameter an effect adds ([`parameter_penalty`]).
+    penalty: f64,
     /// The current structure fitted to each test alone ([`per_test`]), once, for the
     /// candidates that read it.
     across: OnceCell<Vec<PerTest>>,
@@ -87,6 +115,7 @@ impl<'r> Ranking<'r> {
             at_floor: evidence.iter().all(TestEvidence::at_noise_floor),
             floor: mean(evidence.iter().map(TestEvidence::judged_floor)),
             white: evidence.iter().all(|e| e.autocorrelation.p_value > 0.01),
+            penalty: parameter_penalty(held_out_evidence(evidence)),
             across: OnceCell::new(),
             stated: RefCell::default(),
             out: Vec::new(),
@@ -147,7 +176,7 @@ impl<'r> Ranking<'r> {
     }
 
     /// Offers `o` when its trial lowers the held-out error by [`MIN_IMPROVEMENT`] or more,
-    /// scored `ln(before / after)` less [`PARAMETER_PENALTY`] per parameter it adds.
+    /// scored `ln(before / after)` less [`parameter_penalty`] per parameter it adds.
     fn offer(&mut self, o: Option<Offer>) {
         let Some(o) = o else { return };
         let ratio = self.before / o.after;
@@ -166,7 +195,7 @@ impl<'r> Ranking<'r> {
             uncertainty_after,
             ..Candidate::new(
                 Finding::Missing(o.kind),
-                ratio.ln() - PARAMETER_PENALTY * o.kind.parameters() as f64,
+                ratio.ln() - self.penalty * o.kind.parameters() as f64,
                 (o.evidence, o.reading),
                 o.change,
                 (self.before, o.after),
@@ -281,4 +310,52 @@ pub(super) fn rank_at(
     verdict::nothing(&mut out, &r);
     super::order::set_margins(&mut out);
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A capillary's probe after a step with white noise on it, and `extra` added to its
+    /// output: the evidence of a test of `n` samples.
+    fn evidence(n: usize, extra: impl Fn(f64) -> f64) -> TestEvidence {
+        let fs = 8000.0;
+        let model = crate::testing::overdamped(4.0, 60.0, fs, 3);
+        let u: Vec<f64> = (0..n).map(|k| if k < 500 { 0.0 } else { 1000.0 }).collect();
+        let clean = model.simulate(&u);
+        let y: Vec<f64> = crate::testing::with_noise(&clean, 0.5, 7)
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + extra(k as f64 / fs))
+            .collect();
+        TestEvidence::measure(
+            "t",
+            crate::fit::TestRole::Validation,
+            &model,
+            (&u, &y),
+            &clean,
+        )
+    }
+
+    /// A white residual counts every sample; a slow model error counts its samples as few,
+    /// at most `ACF_LAGS` times two plus one to a sample; the charge per parameter is BIC's,
+    /// larger for the slow residual and falling as the record grows.
+    #[test]
+    fn the_charge_per_parameter_is_bics_over_the_residuals_independent_samples() {
+        let white = evidence(8000, |_| 0.0);
+        let slow = evidence(8000, |t| {
+            40.0 * (2.0 * std::f64::consts::PI * 3.0 * t).sin()
+        });
+        let (nw, ns) = (effective_samples(&white), effective_samples(&slow));
+        assert!(nw > 0.7 * 8000.0 && nw <= 8000.0, "{nw}");
+        let most = 8000.0 / (2.0 * crate::evidence::ACF_LAGS as f64 + 1.0);
+        assert!(ns < 2.0 * most && ns >= most * (1.0 - 1e-9), "{ns}");
+        let penalty = |n: f64| n.ln() / (2.0 * n);
+        assert!((parameter_penalty(&[slow.clone()]) - penalty(ns)).abs() < 1e-12);
+        assert!(parameter_penalty(&[slow.clone()]) > 5.0 * parameter_penalty(&[white]));
+        let longer = evidence(32_000, |t| {
+            40.0 * (2.0 * std::f64::consts::PI * 3.0 * t).sin()
+        });
+        assert!(parameter_penalty(&[longer]) < parameter_penalty(&[slow]));
+    }
 }

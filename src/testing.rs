@@ -130,3 +130,31 @@ pub(crate) fn spread_over_stated(estimates: &[f64], stated: &[f64]) -> (f64, f64
         .sqrt();
     (m, spread, spread / mean(stated))
 }
+
+/// The evidence of a capillary's probe (8 kHz, corners 4 and 60 Hz) after a step at sample
+/// `onset` of `n`, with white noise on the probe and `extra` (of the time in seconds) added to
+/// its output: what the diagnosis reads of a residual of that shape.
+pub(crate) fn capillary_evidence(
+    n: usize,
+    onset: usize,
+    extra: impl Fn(f64) -> f64,
+) -> crate::evidence::TestEvidence {
+    let fs = 8000.0;
+    let model = overdamped(4.0, 60.0, fs, 3);
+    let u: Vec<f64> = (0..n)
+        .map(|k| if k < onset { 0.0 } else { 1000.0 })
+        .collect();
+    let clean = model.simulate(&u);
+    let y: Vec<f64> = with_noise(&clean, 0.5, 7)
+        .iter()
+        .enumerate()
+        .map(|(k, v)| v + extra(k as f64 / fs))
+        .collect();
+    crate::evidence::TestEvidence::measure(
+        "t",
+        crate::fit::TestRole::Validation,
+        &model,
+        (&u, &y),
+        &clean,
+    )
+}

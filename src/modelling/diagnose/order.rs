@@ -774,27 +774,9 @@ mod tests {
         }
     }
 
-    /// A capillary's probe (8 kHz, corners 4 and 60 Hz) after a step at sample 1000, with white
-    /// noise on the probe and `extra` added to its output: the evidence the diagnosis reads.
+    /// A capillary's probe after a step at sample 1000 of 8000, `extra` added to its output.
     fn residual_evidence(extra: impl Fn(f64) -> f64) -> crate::evidence::TestEvidence {
-        let fs = 8000.0;
-        let model = crate::testing::overdamped(4.0, 60.0, fs, 3);
-        let u: Vec<f64> = (0..8000)
-            .map(|k| if k < 1000 { 0.0 } else { 1000.0 })
-            .collect();
-        let clean = model.simulate(&u);
-        let y: Vec<f64> = crate::testing::with_noise(&clean, 0.5, 7)
-            .iter()
-            .enumerate()
-            .map(|(k, v)| v + extra(k as f64 / fs))
-            .collect();
-        crate::evidence::TestEvidence::measure(
-            "t",
-            crate::fit::TestRole::Validation,
-            &model,
-            (&u, &y),
-            &clean,
-        )
+        crate::testing::capillary_evidence(8000, 1000, extra)
     }
 
     #[test]

@@ -316,25 +316,9 @@ pub(super) fn rank_at(
 mod tests {
     use super::*;
 
-    /// A capillary's probe after a step with white noise on it, and `extra` added to its
-    /// output: the evidence of a test of `n` samples.
+    /// A capillary's probe after a step at sample 500 of `n`, `extra` added to its output.
     fn evidence(n: usize, extra: impl Fn(f64) -> f64) -> TestEvidence {
-        let fs = 8000.0;
-        let model = crate::testing::overdamped(4.0, 60.0, fs, 3);
-        let u: Vec<f64> = (0..n).map(|k| if k < 500 { 0.0 } else { 1000.0 }).collect();
-        let clean = model.simulate(&u);
-        let y: Vec<f64> = crate::testing::with_noise(&clean, 0.5, 7)
-            .iter()
-            .enumerate()
-            .map(|(k, v)| v + extra(k as f64 / fs))
-            .collect();
-        TestEvidence::measure(
-            "t",
-            crate::fit::TestRole::Validation,
-            &model,
-            (&u, &y),
-            &clean,
-        )
+        crate::testing::capillary_evidence(n, 500, extra)
     }
 
     /// A white residual counts every sample; a slow model error counts its samples as few,

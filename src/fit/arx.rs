@@ -250,7 +250,7 @@ pub fn triangle(sets: &[Data<'_>], m: usize, nb: usize, d: usize) -> (Mat<f64>, 
                     continue;
                 };
                 let col = col.as_slice_mut();
-                // The block's rows below the triangle so far (put by `fold`).
+                // The block's rows below its first `width`, which `fold` leaves alone.
                 let dst = &mut col[width..width + n];
                 if c < m {
                     let src = &data.y[k0 - 1 - c..k1 - 1 - c];

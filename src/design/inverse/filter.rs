@@ -275,15 +275,13 @@ pub(crate) fn unwrap(values: &[Complex]) -> Vec<f64> {
 mod tests {
     use super::*;
 
-    /// DC gain of a cascade, with its sections' coefficients rounded to `f32` when `round`.
+    /// DC gain of a cascade ([`cascade_response`] at `z = 1`), with its sections'
+    /// coefficients rounded to `f32` when `round`.
     #[allow(clippy::cast_possible_truncation)]
     fn dc(gain: f64, sections: &[[f64; 5]], round: bool) -> f64 {
         let r = |v: f64| if round { f64::from(v as f32) } else { v };
-        sections
-            .iter()
-            .map(|s| (r(s[0]) + r(s[1]) + r(s[2])) / (1.0 + r(s[3]) + r(s[4])))
-            .product::<f64>()
-            * gain
+        let rounded: Vec<[f64; 5]> = sections.iter().map(|s| s.map(r)).collect();
+        cascade_response(gain, &rounded, c(1.0)).re
     }
 
     /// A thermal creep's compensator: two slow poles with zeros beside them, and the smoother's

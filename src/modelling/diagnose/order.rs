@@ -10,8 +10,8 @@ use crate::evidence::Trend;
 /// A leak lowers the probe's static gain (`1 / (1 + R G)` for a leaking cavity, below 1 for a
 /// leaking side volume too); a thermal creep, the other slow pole the `leak` effect models,
 /// does not. A model whose DC gain is below this shows a leaking volume: 0.2 % under 1, twice
-/// the scatter of a DC gain fitted on a 0.1 % noise step (a leaking volume in the bench's
-/// probes lowers it 2 % to 10 %).
+/// the scatter of a DC gain fitted on a 0.1 % noise step (a leaking volume lowers it by
+/// percents: its resistance against the line's, `R G`, is a few hundredths or more).
 pub const LEAK_DC_GAIN_BELOW: f64 = 0.998;
 
 /// A residual slope before the step this many standard errors from a drift's fitted rate, and

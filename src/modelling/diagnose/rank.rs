@@ -10,7 +10,7 @@ use std::cell::{OnceCell, RefCell};
 
 use super::temperature::{candidate, Offer, TrialAlone};
 use super::trial::{
-    adding, held_out, held_out_evidence, keep_delay_if_search_raises, options, trial_window, Tried,
+    adding, held_out, judged, keep_delay_if_search_raises, options, trial_window, Tried,
 };
 use super::{mean, per_test, Candidate, Current, Evidence, Finding, PerTest, Remedy};
 use crate::effects::{self, Effect, FitChanges};
@@ -115,7 +115,7 @@ impl<'r> Ranking<'r> {
             at_floor: evidence.iter().all(TestEvidence::at_noise_floor),
             floor: mean(evidence.iter().map(TestEvidence::judged_floor)),
             white: evidence.iter().all(|e| e.autocorrelation.p_value > 0.01),
-            penalty: parameter_penalty(held_out_evidence(evidence)),
+            penalty: parameter_penalty(judged(evidence)),
             across: OnceCell::new(),
             stated: RefCell::default(),
             out: Vec::new(),
@@ -335,12 +335,12 @@ mod tests {
         let most = 8000.0 / (2.0 * crate::evidence::ACF_LAGS as f64 + 1.0);
         assert!(ns < 2.0 * most && ns >= most * (1.0 - 1e-9), "{ns}");
         let penalty = |n: f64| n.ln() / (2.0 * n);
-        assert!((parameter_penalty(std::slice::from_ref(&slow)) - penalty(ns)).abs() < 1e-12);
         let once = parameter_penalty(std::slice::from_ref(&slow));
+        assert!((once - penalty(ns)).abs() < 1e-12);
         assert!(once > 5.0 * parameter_penalty(&[white]));
         let longer = evidence(32_000, |t| {
             40.0 * (2.0 * std::f64::consts::PI * 3.0 * t).sin()
         });
-        assert!(parameter_penalty(&[longer]) < parameter_penalty(&[slow]));
+        assert!(parameter_penalty(&[longer]) < once);
     }
 }

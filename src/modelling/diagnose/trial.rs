@@ -100,14 +100,9 @@ pub(super) fn held_out_floor(evidence: &[TestEvidence]) -> f64 {
     mean(judged(evidence).iter().map(TestEvidence::judged_floor))
 }
 
-/// The evidence of the tests a held-out error is judged on ([`held_out`]).
-pub(super) fn held_out_evidence(evidence: &[TestEvidence]) -> &[TestEvidence] {
-    judged(evidence)
-}
-
 /// What a held-out error is judged on: the validation tests (all after the first), or the
 /// estimation test when there are none.
-fn judged<T>(tests: &[T]) -> &[T] {
+pub(super) fn judged<T>(tests: &[T]) -> &[T] {
     tests.get(1..).filter(|v| !v.is_empty()).unwrap_or(tests)
 }
 
